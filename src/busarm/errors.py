@@ -1,0 +1,74 @@
+"""Every exception busarm raises, by the phase in which it happens.
+
+Failures raise; they never return ``None`` or a success flag. Several classes also
+inherit a builtin (``ValueError``, ``OSError``, ``TimeoutError``) so generic handlers
+still catch them.
+"""
+
+from __future__ import annotations
+
+
+class BusArmError(Exception):
+    """Root of every busarm error."""
+
+
+class ConfigError(BusArmError, ValueError):
+    """A bad argument or file: the message names the value and the allowed range."""
+
+
+class LimitError(ConfigError):
+    """A target outside the configured limits; raised before any byte is sent."""
+
+
+class ProtocolError(BusArmError):
+    """An undecodable or unexpected frame. ``raw`` keeps the offending bytes."""
+
+    def __init__(self, message: str, raw: bytes = b"") -> None:
+        super().__init__(message)
+        self.raw = bytes(raw)
+
+
+class ChecksumError(ProtocolError):
+    """A frame whose checksum does not match its contents."""
+
+
+class TransportError(BusArmError, OSError):
+    """The port cannot be opened, or vanished while in use."""
+
+
+class BusTimeoutError(BusArmError, TimeoutError):
+    """No valid reply arrived by the deadline (after the allowed retries)."""
+
+    def __init__(
+        self, message: str, servo_id: int | None = None, command: int | None = None,
+        timeout_s: float | None = None,
+    ) -> None:
+        super().__init__(message)
+        self.servo_id = servo_id
+        self.command = command
+        self.timeout_s = timeout_s
+
+
+class ServoFaultError(BusArmError):
+    """A servo reports (or its readings show) a fault: over-temperature, voltage, stall."""
+
+    def __init__(self, message: str, servo_id: int | None = None) -> None:
+        super().__init__(message)
+        self.servo_id = servo_id
+
+
+class BusConflictError(BusArmError):
+    """More than one servo answered where exactly one was required (duplicate IDs)."""
+
+
+__all__ = [
+    "BusArmError",
+    "BusConflictError",
+    "BusTimeoutError",
+    "ChecksumError",
+    "ConfigError",
+    "LimitError",
+    "ProtocolError",
+    "ServoFaultError",
+    "TransportError",
+]
