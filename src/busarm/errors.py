@@ -68,7 +68,12 @@ __all__ = [
     "ChecksumError",
     "ConfigError",
     "LimitError",
+    "MotionTimeoutError",
     "ProtocolError",
     "ServoFaultError",
     "TransportError",
 ]
+
+
+class MotionTimeoutError(BusArmError, TimeoutError):
+    """Servos did not reach their targets within the allowed time."""

@@ -84,3 +84,29 @@ def v_from_mv(vin_mv: int) -> float:
 
 def mv_from_v(vin_v: float) -> int:
     return int(round(vin_v * 1000.0))
+
+
+def parse_ids(text: str) -> list[int]:
+    """Servo IDs from ``"1,2,3"`` or ``"1-5,10"``, each 0..253, in the order given.
+
+    Duplicates are kept (the simulator uses them for two servos on one ID); a reversed
+    range such as ``5-1`` is an error rather than nothing.
+    """
+    ids: list[int] = []
+    for part in text.split(","):
+        part = part.strip()
+        if not part:
+            continue
+        try:
+            lo, hi = (int(x) for x in part.split("-", 1)) if "-" in part else (int(part),) * 2
+        except ValueError:
+            raise ConfigError(f"servo IDs {text!r}: {part!r} is not an ID or a range") from None
+        if lo > hi:
+            raise ConfigError(f"servo IDs {text!r}: range {part!r} is reversed")
+        ids.extend(range(lo, hi + 1))
+    for sid in ids:
+        if not 0 <= sid <= 253:
+            raise ConfigError(f"servo ID {sid} is out of range 0..253")
+    if not ids:
+        raise ConfigError(f"servo IDs {text!r}: no ID given")
+    return ids

@@ -69,10 +69,14 @@ def _check_fields(command: Command, spec_fields: tuple[Field, ...], values: tupl
             f"{command.name} takes {len(spec_fields)} parameter(s): {names}; got {len(values)}"
         )
     for f, v in zip(spec_fields, values):
-        if isinstance(v, bool):
-            v = int(v)
-        if not isinstance(v, int) or not f.lo <= v <= f.hi:
-            unit = f" {f.unit}" if f.unit else ""
+        unit = f" {f.unit}" if f.unit else ""
+        # bool is an int subclass: accept it only for the is_* flags, never as a number.
+        if not isinstance(v, int) or (isinstance(v, bool) and not f.name.startswith("is_")):
+            raise ConfigError(
+                f"{command.name} {f.name} = {v!r} must be an integer in range "
+                f"{f.lo}..{f.hi}{unit}"
+            )
+        if not f.lo <= v <= f.hi:
             raise ConfigError(
                 f"{command.name} {f.name} = {v!r} is out of range {f.lo}..{f.hi}{unit}"
             )
@@ -92,6 +96,13 @@ class Request:
 
     def __post_init__(self) -> None:
         check_servo_id(self.servo_id, allow_broadcast=True)
+        command: object = self.command
+        if not isinstance(command, Command):
+            # A plain int would otherwise fail later with a KeyError (unknown value)
+            # or an AttributeError (no .manual_name); bool is not a command number.
+            if isinstance(command, bool) or not isinstance(command, int):
+                raise ConfigError(f"command must be a Command or its number, got {command!r}")
+            object.__setattr__(self, "command", Command.parse(str(command)))
         _check_fields(self.command, SPECS[self.command].request, self.args)
 
     @property
@@ -294,7 +305,7 @@ _CONVERT = {
 }
 
 
-def _reply_from_values(command: Command, values: tuple[int, ...], raw: bytes) -> Reply:
+def _reply_from_values(command: Command, values: tuple[int, ...], frame: Frame) -> Reply:
     spec = SPECS[command]
     assert spec.reply is not None
     kwargs: dict[str, object] = {}
@@ -303,7 +314,8 @@ def _reply_from_values(command: Command, values: tuple[int, ...], raw: bytes) ->
             continue
         if f.strict_reply and not f.lo <= v <= f.hi:
             raise ProtocolError(
-                f"{command.name} reply {f.name} = {v} is out of range {f.lo}..{f.hi}", raw
+                f"{command.name} reply {f.name} = {v} is out of range {f.lo}..{f.hi}",
+                frame.to_bytes(),
             )
         conv = _CONVERT.get(f.name)
         kwargs[f.name] = conv(v) if conv is not None else v
@@ -360,7 +372,7 @@ def decode_reply(frame: Frame) -> Reply:
         raise ProtocolError(
             f"{command.name} frame of length {frame.length} is not a reply", frame.to_bytes()
         )
-    return _reply_from_values(command, spec.reply_struct.unpack(frame.params), frame.to_bytes())
+    return _reply_from_values(command, spec.reply_struct.unpack(frame.params), frame)
 
 
 def decode_request(frame: Frame) -> Request:

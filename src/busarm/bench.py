@@ -1,0 +1,205 @@
+"""``busarm bench``: how fast the bus runs, beside what the wire allows.
+
+Three measurements, each reported with the wire limit computed from the same baud
+rate and servo turnaround: single-servo position reads, a full-arm state loop
+(position, temperature and voltage of every servo) and an ID scan of 0..253. On
+real hardware this is also the diagnostic to run first: a rate far below the wire
+limit points at adapter latency or a noisy bus.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, field
+
+from busarm.bus.driver import ServoBus
+from busarm.errors import ConfigError, TransportError
+from busarm.protocol import SPECS, Command
+
+
+@dataclass
+class BenchResult:
+    """One measurement: rate against the wire limit, latency percentiles, client CPU."""
+
+    name: str
+    unit: str
+    count: int
+    rate: float
+    wire_limit: float
+    latency_ms: dict[str, float] = field(default_factory=dict)
+    cpu_us_median: float | None = None
+    errors: int = 0
+    extra: dict[str, object] = field(default_factory=dict)
+
+    @property
+    def ratio(self) -> float:
+        return self.rate / self.wire_limit if self.wire_limit else 0.0
+
+
+@dataclass
+class BenchReport:
+    port: str
+    baudrate: int
+    turnaround_ms: float
+    echo: bool
+    machine: dict[str, str]
+    results: list[BenchResult]
+
+    def to_dict(self) -> dict[str, object]:
+        d = asdict(self)
+        for r, res in zip(d["results"], self.results):  # type: ignore[call-overload]
+            r["ratio"] = round(res.ratio, 4)
+        return d
+
+
+def machine_info() -> dict[str, str]:
+    """What ran the benchmark, for docs/benchmarks.md."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in open("/proc/cpuinfo", encoding="utf-8"):
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {
+        "cpu": cpu,
+        "cores": str(os.cpu_count()),
+        "python": platform.python_version(),
+        "os": f"{platform.system()} {platform.release()}",
+    }
+
+
+def _percentiles(samples_s: Sequence[float]) -> dict[str, float]:
+    ordered = sorted(samples_s)
+
+    def pct(p: float) -> float:
+        return ordered[min(len(ordered) - 1, int(p * len(ordered)))] * 1e3
+
+    return {"p50": round(pct(0.50), 4), "p90": round(pct(0.90), 4),
+            "p99": round(pct(0.99), 4), "max": round(ordered[-1] * 1e3, 4)}
+
+
+def _reply_bytes(command: Command) -> int:
+    length = SPECS[command].reply_length
+    assert length is not None
+    return length + 3
+
+
+def bench_position_reads(bus: ServoBus, servo_id: int, count: int) -> BenchResult:
+    """``count`` POS_READs of one servo, back to back."""
+    latencies: list[float] = []
+    cpu: list[float] = []
+    errors = 0
+    clock, cpu_clock = time.perf_counter, time.thread_time
+    start = clock()
+    for _ in range(count):
+        t0, c0 = clock(), cpu_clock()
+        try:
+            bus.read_position_pulses(servo_id)
+        except Exception:
+            errors += 1
+        cpu.append(cpu_clock() - c0)
+        latencies.append(clock() - t0)
+    elapsed = clock() - start
+    wire = bus.wire_time_s(6, _reply_bytes(Command.POS_READ))
+    return BenchResult(
+        "position reads", "reads/s", count, count / elapsed, 1.0 / wire,
+        _percentiles(latencies), round(statistics.median(cpu) * 1e6, 2), errors,
+    )
+
+
+def bench_state_loop(bus: ServoBus, servo_ids: Sequence[int], loops: int) -> BenchResult:
+    """``loops`` rounds of position + temperature + voltage of every servo."""
+    latencies: list[float] = []
+    cpu: list[float] = []
+    errors = 0
+    clock = time.perf_counter
+    start = clock()
+    for _ in range(loops):
+        t0, c0 = clock(), time.thread_time()
+        try:
+            bus.read_states(servo_ids)
+        except Exception:
+            errors += 1
+        cpu.append((time.thread_time() - c0) / (3 * len(servo_ids)))
+        latencies.append(clock() - t0)
+    elapsed = clock() - start
+    per_servo = sum(
+        bus.wire_time_s(6, _reply_bytes(c)) for c in (Command.POS_READ, Command.TEMP_READ,
+                                                       Command.VIN_READ)
+    )
+    return BenchResult(
+        f"{len(servo_ids)}-servo state loop", "loops/s", loops, loops / elapsed,
+        1.0 / (per_servo * len(servo_ids)), _percentiles(latencies),
+        round(statistics.median(cpu) * 1e6, 2), errors,
+    )
+
+
+def bench_scan(bus: ServoBus, repeats: int = 3) -> BenchResult:
+    """Full ID scan 0..253, ``repeats`` times; the wire limit is every ID's request,
+    turnaround and a reply's worth of waiting (a missing servo cannot be known sooner)."""
+    durations: list[float] = []
+    found: list[int] = []
+    for _ in range(repeats):
+        result = bus.scan()
+        durations.append(result.duration_s)
+        found = result.found
+    wire = 254 * bus.wire_time_s(6, _reply_bytes(Command.ID_READ))
+    best = min(durations)
+    return BenchResult(
+        "ID scan 0..253", "scans/s", repeats, 1.0 / statistics.median(durations), 1.0 / wire,
+        _percentiles(durations), None, 0,
+        {"found": found, "best_s": round(best, 4), "median_s": round(statistics.median(durations), 4)},
+    )
+
+
+@contextmanager
+def sim_pty_server(turnaround_ms: float, ids: str = "1,2,3,4,5,10") -> Iterator[str]:
+    """A simulator in its own process on a pseudo-terminal (a fair, separate CPU)."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "busarm", "sim", "serve", "--ids", ids,
+         "--turnaround-ms", str(turnaround_ms)],
+        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+    )
+    try:
+        assert proc.stdout is not None
+        path = proc.stdout.readline().strip()
+        if not path.startswith("/dev/"):
+            raise TransportError(f"simulator did not start (printed {path!r})")
+        yield path
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+
+
+def run_bench(
+    port: str,
+    *,
+    servo_ids: Sequence[int] = (1, 2, 3, 4, 5, 10),
+    reads: int = 3000,
+    loops: int = 200,
+    scans: int = 3,
+    turnaround_ms: float = 0.5,
+    echo: str = "auto",
+) -> BenchReport:
+    """Run the three measurements on ``port`` (whose servos must include ``servo_ids``)."""
+    if not servo_ids:
+        raise ConfigError("bench needs at least one servo ID")
+    with ServoBus.open(port, echo=echo, turnaround_s=turnaround_ms / 1000.0) as bus:
+        bus.read_position_pulses(servo_ids[0])  # warm up; fails fast if nobody is there
+        results = [
+            bench_position_reads(bus, servo_ids[0], reads),
+            bench_state_loop(bus, servo_ids, loops),
+            bench_scan(bus, scans),
+        ]
+        return BenchReport(
+            port, bus.transport.baudrate, turnaround_ms, bus.echo, machine_info(), results
+        )

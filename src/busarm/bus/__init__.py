@@ -1,0 +1,1 @@
+"""The bus layer: transports and the servo bus driver."""

@@ -1,0 +1,715 @@
+"""The servo bus driver: one locked request/reply transaction at a time.
+
+``ServoBus`` turns the protocol into calls in the user's units (degrees from the
+servo's mid-point, seconds, volts, deg C), with raw-pulse variants named so. It
+derives every timeout from the baud rate and packet lengths, handles adapters that
+echo what they send (on, off, or detected at open), retries reads a bounded number
+of times, and accepts a reply only if its header, ID, command, length and checksum
+are those expected: a stray frame, a late reply from another servo or line noise is
+never taken as the answer.
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import threading
+import time
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from types import TracebackType
+from typing import TypeVar
+
+from busarm.bus.transport import DEFAULT_BAUDRATE, Transport, open_transport
+from busarm.errors import (
+    BusConflictError,
+    BusTimeoutError,
+    ChecksumError,
+    ConfigError,
+    LimitError,
+    MotionTimeoutError,
+    ProtocolError,
+)
+from busarm.protocol import (
+    BROADCAST_ID,
+    MAX_SERVO_ID,
+    SPECS,
+    AlarmFlag,
+    AngleLimitReply,
+    AngleOffsetReply,
+    Command,
+    Frame,
+    FrameParser,
+    IdReply,
+    LedCtrlReply,
+    LedErrorReply,
+    LoadReply,
+    ModeReply,
+    MoveTimeReply,
+    MoveTimeWaitReply,
+    PositionReply,
+    Reply,
+    ServoMode,
+    TempMaxLimitReply,
+    TempReply,
+    VinLimitReply,
+    VinReply,
+    check_servo_id,
+    checksum,
+    decode_reply,
+    encode_request,
+)
+from busarm.units import (
+    MOTOR_SPEED_MAX,
+    check_int_range,
+    check_range,
+    deg_from_pulses,
+    ms_from_s,
+    mv_from_v,
+    offset_pulses_from_deg,
+    pulses_from_deg,
+)
+
+log = logging.getLogger(__name__)
+
+DEFAULT_TURNAROUND_S = 0.0005
+"""Assumed time a servo takes to start its reply after the request's last byte."""
+DEFAULT_TIMEOUT_MARGIN_S = 0.004
+"""Slack on top of the wire time for OS scheduling and adapter jitter."""
+DEFAULT_RETRIES = 2
+SCAN_MARGIN_S = 0.0012
+"""Scans use a tighter margin: a late answer is still caught (see ``scan``)."""
+
+_HEADER = b"\x55\x55"
+_R = TypeVar("_R", bound=Reply)
+
+
+class EchoMode(str, enum.Enum):
+    """Whether the adapter hands back every byte we send before the reply."""
+
+    ON = "on"
+    OFF = "off"
+    AUTO = "auto"
+
+
+@dataclass(frozen=True)
+class ServoState:
+    """One servo's live readings."""
+
+    servo_id: int
+    position_deg: float
+    temp_c: int
+    vin_v: float
+
+
+@dataclass
+class ScanResult:
+    """IDs that answered, and IDs whose replies were garbled (two servos on one ID)."""
+
+    found: list[int] = field(default_factory=list)
+    conflicts: list[int] = field(default_factory=list)
+    duration_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class _ReadPlan:
+    request: bytes
+    prefix: bytes
+    reply_bytes: int
+    timeout_s: float
+
+
+class ServoBus:
+    """LX bus servos on one serial line. Thread-safe; use as a context manager.
+
+    Leaving the ``with`` block because of an exception (Ctrl+C included) sends
+    MOVE_STOP to every servo, which holds them where they are.
+    """
+
+    def __init__(
+        self,
+        transport: Transport,
+        *,
+        echo: EchoMode | str = EchoMode.AUTO,
+        turnaround_s: float = DEFAULT_TURNAROUND_S,
+        timeout_margin_s: float = DEFAULT_TIMEOUT_MARGIN_S,
+        retries: int = DEFAULT_RETRIES,
+        limits_deg: Mapping[int, tuple[float, float]] | None = None,
+    ) -> None:
+        try:
+            echo_mode = EchoMode(echo)
+        except ValueError:
+            raise ConfigError(f"echo = {echo!r}; allowed: on, off, auto") from None
+        check_range("turnaround_s", turnaround_s, 0.0, 0.1, "s")
+        check_range("timeout_margin_s", timeout_margin_s, 0.0, 1.0, "s")
+        check_int_range("retries", retries, 0, 10)
+        self.transport = transport
+        self.turnaround_s = float(turnaround_s)
+        self.timeout_margin_s = float(timeout_margin_s)
+        self.retries = retries
+        self.byte_s = 10.0 / transport.baudrate
+        self._lock = threading.RLock()
+        self._plans: dict[tuple[int, Command], _ReadPlan] = {}
+        self._limits: dict[int, tuple[float, float]] = {}
+        for sid, (lo, hi) in (limits_deg or {}).items():
+            self.set_limits_deg(sid, lo, hi)
+        self.echo = echo_mode is EchoMode.ON
+        if echo_mode is EchoMode.AUTO:
+            self.echo = self._detect_echo()
+        self.stats = {"transactions": 0, "retries": 0, "timeouts": 0, "bad_replies": 0}
+
+    # ------------------------------------------------------------------ lifecycle
+
+    @classmethod
+    def open(cls, port: str, *, baudrate: int = DEFAULT_BAUDRATE, **kwargs: object) -> ServoBus:
+        """Open ``port`` (device path, pyserial URL or ``sim``) and return a bus on it."""
+        transport = open_transport(port, baudrate=baudrate)
+        try:
+            return cls(transport, **kwargs)  # type: ignore[arg-type]
+        except BaseException:
+            transport.close()
+            raise
+
+    def close(self) -> None:
+        self.transport.close()
+
+    def __enter__(self) -> ServoBus:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        try:
+            if exc_type is not None:
+                self.emergency_stop()
+        finally:
+            self.close()
+
+    def emergency_stop(self) -> None:
+        """MOVE_STOP to every servo (broadcast), twice; never raises. Servos hold position."""
+        for _ in range(2):
+            try:
+                self._send(encode_request(BROADCAST_ID, Command.MOVE_STOP))
+            except Exception as exc:  # the bus may be what failed
+                log.warning("emergency stop could not be sent: %s", exc)
+
+    # ------------------------------------------------------------------ timing
+
+    def wire_time_s(self, tx_bytes: int, rx_bytes: int) -> float:
+        """Time the line needs for a request and its reply, plus the servo's turnaround."""
+        return (tx_bytes + rx_bytes) * self.byte_s + (self.turnaround_s if rx_bytes else 0.0)
+
+    def timeout_s(self, tx_bytes: int, rx_bytes: int, margin_s: float | None = None) -> float:
+        """The deadline of one attempt: wire time + adapter latency + margin."""
+        margin = self.timeout_margin_s if margin_s is None else margin_s
+        return self.wire_time_s(tx_bytes, rx_bytes) + self.transport.latency_s + margin
+
+    # ------------------------------------------------------------------ raw transactions
+
+    def send(self, servo_id: int, command: Command, *args: int) -> None:
+        """Send a write command (no reply expected). ``servo_id`` may be 254 (broadcast)."""
+        if SPECS[command].is_read:
+            raise ConfigError(f"{command.name} is a read command: use query()")
+        if command is Command.ID_WRITE and servo_id == BROADCAST_ID:
+            raise ConfigError(
+                "refusing to broadcast ID_WRITE: it would renumber every servo on the bus"
+            )
+        self._send(encode_request(servo_id, command, *args))
+
+    def query(self, servo_id: int, command: Command) -> Reply:
+        """Send a read command and return the validated, typed reply (with retries)."""
+        plan = self._plans.get((servo_id, command))
+        if plan is None:
+            plan = self._plan(servo_id, command)
+        return decode_reply(self._transact(plan, servo_id, command))
+
+    def _read(self, servo_id: int, command: Command, kind: type[_R]) -> _R:
+        reply = self.query(servo_id, command)
+        assert isinstance(reply, kind)
+        return reply
+
+    def _plan(self, servo_id: int, command: Command) -> _ReadPlan:
+        spec = SPECS.get(command) if isinstance(command, Command) else None
+        if spec is None or not spec.is_read:
+            raise ConfigError(f"{command!r} is not a read command")
+        check_servo_id(servo_id, allow_broadcast=command is Command.ID_READ)
+        request = encode_request(servo_id, command)
+        assert spec.reply_length is not None
+        reply_bytes = spec.reply_length + 3
+        prefix = _HEADER + bytes((servo_id, spec.reply_length, int(command)))
+        if servo_id == BROADCAST_ID:
+            # The one servo answers with its own ID, which we do not know yet.
+            prefix = b""
+        plan = _ReadPlan(request, prefix, reply_bytes, self.timeout_s(len(request), reply_bytes))
+        self._plans[(servo_id, command)] = plan
+        return plan
+
+    def _send(self, request: bytes) -> None:
+        with self._lock:
+            t = self.transport
+            t.write(request)
+            if self.echo:
+                self._await_echo(request, self.timeout_s(len(request), 0))
+
+    def _await_echo(self, request: bytes, timeout_s: float) -> None:
+        deadline = time.monotonic() + timeout_s
+        buf = bytearray()
+        while request not in buf:
+            remaining = deadline - time.monotonic()
+            chunk = self.transport.read(64, remaining) if remaining > 0 else b""
+            if not chunk:
+                raise BusTimeoutError(
+                    f"echo of {request.hex(' ')} did not come back within {timeout_s * 1e3:.1f} ms "
+                    "(is the adapter really echoing? try echo='off')",
+                    timeout_s=timeout_s,
+                )
+            buf += chunk
+
+    def _transact(self, plan: _ReadPlan, servo_id: int, command: Command) -> Frame:
+        error: Exception | None = None
+        t = self.transport
+        for attempt in range(self.retries + 1):
+            with self._lock:
+                self.stats["transactions"] += 1
+                if attempt:
+                    self.stats["retries"] += 1
+                t.reset_input()
+                t.write(plan.request)
+                try:
+                    return self._await_reply(plan, servo_id, command)
+                except BusTimeoutError as exc:
+                    self.stats["timeouts"] += 1
+                    error = exc
+                except ProtocolError as exc:
+                    self.stats["bad_replies"] += 1
+                    error = exc
+        assert error is not None
+        if self.retries:
+            error.args = (f"{error.args[0]} (after {self.retries + 1} attempts)",)
+        raise error
+
+    def _await_reply(self, plan: _ReadPlan, servo_id: int, command: Command) -> Frame:
+        t = self.transport
+        deadline = time.monotonic() + plan.timeout_s
+        buf = bytearray()
+        start = 0
+        echo_pending = self.echo
+        saw_bad = False
+        total = plan.reply_bytes
+        prefix = plan.prefix or (_HEADER)
+        while True:
+            remaining = deadline - time.monotonic()
+            chunk = t.read(256, remaining) if remaining > 0 else b""
+            if not chunk:
+                break
+            buf += chunk
+            if echo_pending:
+                # Nothing before our own echo can be the answer: the servo had not heard us yet.
+                i = buf.find(plan.request, start)
+                if i < 0:
+                    continue
+                start = i + len(plan.request)
+                echo_pending = False
+            j = buf.find(prefix, start)
+            while j >= 0 and len(buf) >= j + total:
+                if buf[j + total - 1] == checksum(memoryview(buf)[j + 2 : j + total - 1]) and (
+                    plan.prefix or (buf[j + 3] == total - 3 and buf[j + 4] == command)
+                ):
+                    return Frame(buf[j + 2], buf[j + 4], bytes(buf[j + 5 : j + total - 1]))
+                saw_bad = True
+                start = j + 1
+                j = buf.find(prefix, start)
+        name = command.name
+        if saw_bad:
+            raise ChecksumError(f"servo {servo_id} {name}: garbled reply", bytes(buf))
+        if echo_pending and buf:
+            raise ProtocolError(
+                f"servo {servo_id} {name}: echo expected but got {bytes(buf).hex(' ')}", bytes(buf)
+            )
+        raise BusTimeoutError(
+            f"servo {servo_id} did not answer {name} within {plan.timeout_s * 1e3:.1f} ms",
+            servo_id=servo_id, command=int(command), timeout_s=plan.timeout_s,
+        )
+
+    def _detect_echo(self) -> bool:
+        # A read to the broadcast ID that no servo answers (only ID_READ is answered):
+        # whatever comes back is our own bytes.
+        probe = encode_request(BROADCAST_ID, Command.POS_READ)
+        with self._lock:
+            self.transport.reset_input()
+            self.transport.write(probe)
+            deadline = time.monotonic() + self.timeout_s(len(probe), 0) + 0.01
+            buf = bytearray()
+            while probe not in buf:
+                remaining = deadline - time.monotonic()
+                chunk = self.transport.read(64, remaining) if remaining > 0 else b""
+                if not chunk:
+                    break
+                buf += chunk
+            echo = probe in buf
+        log.info("%s: adapter echo %s", self.transport.name, "detected" if echo else "not detected")
+        return echo
+
+    # ------------------------------------------------------------------ limits
+
+    def set_limits_deg(self, servo_id: int, min_deg: float, max_deg: float) -> None:
+        """Software limits: moves outside [min_deg, max_deg] raise LimitError, sending nothing."""
+        check_servo_id(servo_id)
+        check_range("min_deg", min_deg, -120.0, 120.0, "deg")
+        check_range("max_deg", max_deg, -120.0, 120.0, "deg")
+        if min_deg >= max_deg:
+            raise ConfigError(f"min_deg {min_deg} must be less than max_deg {max_deg}")
+        self._limits[servo_id] = (float(min_deg), float(max_deg))
+
+    def _check_target(self, servo_id: int, angle_deg: float) -> int:
+        check_servo_id(servo_id)
+        pulses = pulses_from_deg(angle_deg)
+        lim = self._limits.get(servo_id)
+        if lim is not None and not lim[0] <= angle_deg <= lim[1]:
+            raise LimitError(
+                f"servo {servo_id}: target {angle_deg:g} deg is outside its limits "
+                f"{lim[0]:g}..{lim[1]:g} deg"
+            )
+        return pulses
+
+    # ------------------------------------------------------------------ motion
+
+    def move_pulses(self, servo_id: int, position_pulses: int, move_time_ms: int = 0) -> None:
+        """MOVE_TIME_WRITE in wire units: go to ``position_pulses`` over ``move_time_ms``."""
+        check_servo_id(servo_id)
+        check_int_range("position_pulses", position_pulses, 0, 1000)
+        self._check_target(servo_id, deg_from_pulses(position_pulses))
+        self.send(servo_id, Command.MOVE_TIME_WRITE, position_pulses, move_time_ms)
+
+    def move_deg(self, servo_id: int, angle_deg: float, duration_s: float = 0.0) -> None:
+        """Move to ``angle_deg`` (from the mid-point) at uniform speed over ``duration_s``."""
+        pulses = self._check_target(servo_id, angle_deg)
+        self.send(servo_id, Command.MOVE_TIME_WRITE, pulses, ms_from_s(duration_s))
+
+    def move_at_speed_deg(self, servo_id: int, angle_deg: float, speed_deg_s: float) -> float:
+        """Move at no more than ``speed_deg_s``; returns the move's duration in seconds."""
+        return self.sync_move_deg({servo_id: angle_deg}, speed_deg_s=speed_deg_s, use_start=False)
+
+    def sync_move_deg(
+        self,
+        targets_deg: Mapping[int, float],
+        duration_s: float | None = None,
+        *,
+        speed_deg_s: float | None = None,
+        use_start: bool = True,
+    ) -> float:
+        """Move several servos so that they start and arrive together.
+
+        Give ``duration_s``, or ``speed_deg_s`` (the fastest joint's speed; the
+        duration then comes from the largest move, read from the servos). Every target
+        is checked before anything is sent. Each servo gets MOVE_TIME_WAIT_WRITE, then
+        one broadcast MOVE_START starts them all. Returns the duration in seconds.
+        """
+        if not targets_deg:
+            raise ConfigError("sync_move_deg needs at least one target")
+        if (duration_s is None) == (speed_deg_s is None):
+            raise ConfigError("give exactly one of duration_s or speed_deg_s")
+        pulses = {sid: self._check_target(sid, a) for sid, a in targets_deg.items()}
+        if speed_deg_s is not None:
+            check_range("speed_deg_s", speed_deg_s, 0.1, 10000.0, "deg/s")
+            current = self.read_positions_deg(pulses)
+            largest = max(abs(targets_deg[sid] - current[sid]) for sid in pulses)
+            duration_s = min(largest / speed_deg_s, 30.0)
+        assert duration_s is not None
+        time_ms = ms_from_s(duration_s)
+        with self._lock:
+            if not use_start:
+                for sid, p in pulses.items():
+                    self.send(sid, Command.MOVE_TIME_WRITE, p, time_ms)
+            else:
+                for sid, p in pulses.items():
+                    self.send(sid, Command.MOVE_TIME_WAIT_WRITE, p, time_ms)
+                self.send(BROADCAST_ID, Command.MOVE_START)
+        return time_ms / 1000.0
+
+    def stop(self, servo_ids: Iterable[int] | None = None) -> None:
+        """MOVE_STOP: stop moving and hold position (all servos if none given)."""
+        if servo_ids is None:
+            self.send(BROADCAST_ID, Command.MOVE_STOP)
+            return
+        ids = [check_servo_id(s) for s in servo_ids]
+        for sid in ids:
+            self.send(sid, Command.MOVE_STOP)
+
+    def wait_until_reached(
+        self,
+        targets_deg: Mapping[int, float],
+        *,
+        tolerance_deg: float = 1.0,
+        timeout_s: float = 5.0,
+        poll_s: float = 0.02,
+    ) -> dict[int, float]:
+        """Poll positions until every servo is within ``tolerance_deg`` of its target.
+
+        Returns the last positions; raises MotionTimeoutError naming the servos that
+        did not get there within ``timeout_s``.
+        """
+        check_range("tolerance_deg", tolerance_deg, 0.0, 240.0, "deg")
+        check_range("timeout_s", timeout_s, 0.0, 3600.0, "s")
+        check_range("poll_s", poll_s, 0.0, 10.0, "s")
+        for sid in targets_deg:
+            check_servo_id(sid)
+        deadline = time.monotonic() + timeout_s
+        while True:
+            positions = self.read_positions_deg(targets_deg)
+            off = {s: positions[s] - t for s, t in targets_deg.items()
+                   if abs(positions[s] - t) > tolerance_deg}
+            if not off:
+                return positions
+            if time.monotonic() >= deadline:
+                detail = ", ".join(
+                    f"servo {s} at {positions[s]:.1f} deg, target {targets_deg[s]:.1f}"
+                    for s in off
+                )
+                raise MotionTimeoutError(
+                    f"not within {tolerance_deg} deg after {timeout_s} s: {detail}"
+                )
+            time.sleep(poll_s)
+
+    # ------------------------------------------------------------------ motor mode
+
+    def set_motor_speed(self, servo_id: int, speed: int) -> None:
+        """Motor (continuous rotation) mode at ``speed`` -1000..1000; 0 stops the motor."""
+        check_servo_id(servo_id, allow_broadcast=True)
+        check_int_range("speed", speed, -MOTOR_SPEED_MAX, MOTOR_SPEED_MAX)
+        self.send(servo_id, Command.OR_MOTOR_MODE_WRITE, int(ServoMode.MOTOR), 0, speed)
+
+    def stop_motor(self, servo_id: int) -> None:
+        """Stop a servo in motor mode (speed 0: MOVE_STOP does not stop a motor)."""
+        self.set_motor_speed(servo_id, 0)
+
+    def set_position_mode(self, servo_id: int) -> None:
+        self.send(servo_id, Command.OR_MOTOR_MODE_WRITE, int(ServoMode.POSITION), 0, 0)
+
+    def read_mode(self, servo_id: int) -> ModeReply:
+        return self._read(servo_id, Command.OR_MOTOR_MODE_READ, ModeReply)
+
+    # ------------------------------------------------------------------ readings
+
+    def read_position_pulses(self, servo_id: int) -> int:
+        """Current position in pulses (signed: may read below 0 near the end stop)."""
+        return self._read(servo_id, Command.POS_READ, PositionReply).position_pulses
+
+    def read_position_deg(self, servo_id: int) -> float:
+        return deg_from_pulses(self.read_position_pulses(servo_id))
+
+    def read_positions_deg(self, servo_ids: Iterable[int]) -> dict[int, float]:
+        return {sid: self.read_position_deg(sid) for sid in servo_ids}
+
+    def read_temp_c(self, servo_id: int) -> int:
+        return self._read(servo_id, Command.TEMP_READ, TempReply).temp_c
+
+    def read_vin_v(self, servo_id: int) -> float:
+        return self._read(servo_id, Command.VIN_READ, VinReply).vin_v
+
+    def read_state(self, servo_id: int) -> ServoState:
+        """Position, temperature and voltage of one servo (three transactions)."""
+        return ServoState(
+            servo_id,
+            self.read_position_deg(servo_id),
+            self.read_temp_c(servo_id),
+            self.read_vin_v(servo_id),
+        )
+
+    def read_states(self, servo_ids: Iterable[int]) -> list[ServoState]:
+        return [self.read_state(sid) for sid in servo_ids]
+
+    def read_move_time(self, servo_id: int) -> MoveTimeReply:
+        """The last MOVE_TIME_WRITE target and time the servo received."""
+        return self._read(servo_id, Command.MOVE_TIME_READ, MoveTimeReply)
+
+    def read_move_time_wait(self, servo_id: int) -> MoveTimeWaitReply:
+        """The pending MOVE_TIME_WAIT_WRITE (some servos never answer: a typed timeout)."""
+        return self._read(servo_id, Command.MOVE_TIME_WAIT_READ, MoveTimeWaitReply)
+
+    def read_id(self, servo_id: int = BROADCAST_ID) -> int:
+        """ID_READ; with the broadcast ID only safe when a single servo is on the bus."""
+        return self._read(servo_id, Command.ID_READ, IdReply).reported_id
+
+    # ------------------------------------------------------------------ settings
+
+    def set_torque(self, servo_id: int, enabled: bool) -> None:
+        """Load (hold, True) or unload (limp, False) the motor."""
+        check_servo_id(servo_id, allow_broadcast=True)
+        self.send(servo_id, Command.LOAD_OR_UNLOAD_WRITE, int(bool(enabled)))
+
+    def read_torque(self, servo_id: int) -> bool:
+        return self._read(servo_id, Command.LOAD_OR_UNLOAD_READ, LoadReply).is_loaded
+
+    def read_offset_deg(self, servo_id: int) -> float:
+        return self._read(servo_id, Command.ANGLE_OFFSET_READ, AngleOffsetReply).offset_deg
+
+    def adjust_offset_deg(self, servo_id: int, offset_deg: float) -> None:
+        """Set the angle offset (-30..30 deg) now; lost at power off unless save_offset()."""
+        check_servo_id(servo_id)
+        self.send(servo_id, Command.ANGLE_OFFSET_ADJUST, offset_pulses_from_deg(offset_deg))
+
+    def save_offset(self, servo_id: int) -> None:
+        """Store the current offset so that it survives power off."""
+        check_servo_id(servo_id)
+        self.send(servo_id, Command.ANGLE_OFFSET_WRITE)
+
+    def read_angle_limits_deg(self, servo_id: int) -> tuple[float, float]:
+        r = self._read(servo_id, Command.ANGLE_LIMIT_READ, AngleLimitReply)
+        return r.min_deg, r.max_deg
+
+    def write_angle_limits_deg(self, servo_id: int, min_deg: float, max_deg: float) -> None:
+        """The servo's own angle limits (stored): it clamps every target to them."""
+        check_servo_id(servo_id)
+        lo, hi = pulses_from_deg(min_deg), pulses_from_deg(max_deg)
+        if lo >= hi:
+            raise ConfigError(f"min_deg {min_deg:g} must be below max_deg {max_deg:g}")
+        self.send(servo_id, Command.ANGLE_LIMIT_WRITE, lo, hi)
+
+    def read_vin_limits_v(self, servo_id: int) -> tuple[float, float]:
+        r = self._read(servo_id, Command.VIN_LIMIT_READ, VinLimitReply)
+        return r.min_v, r.max_v
+
+    def write_vin_limits_v(self, servo_id: int, min_v: float, max_v: float) -> None:
+        """Input voltage limits (stored), 4.5..12 V: outside them the servo unloads."""
+        check_servo_id(servo_id)
+        check_range("min_v", min_v, 4.5, 12.0, "V")
+        check_range("max_v", max_v, 4.5, 12.0, "V")
+        self.send(servo_id, Command.VIN_LIMIT_WRITE, mv_from_v(min_v), mv_from_v(max_v))
+
+    def read_temp_limit_c(self, servo_id: int) -> int:
+        return self._read(servo_id, Command.TEMP_MAX_LIMIT_READ, TempMaxLimitReply).temp_max_c
+
+    def write_temp_limit_c(self, servo_id: int, temp_max_c: int) -> None:
+        """Maximum temperature (stored), 50..100 deg C: above it the servo unloads."""
+        check_servo_id(servo_id)
+        check_int_range("temp_max_c", temp_max_c, 50, 100)
+        self.send(servo_id, Command.TEMP_MAX_LIMIT_WRITE, temp_max_c)
+
+    def set_led(self, servo_id: int, on: bool) -> None:
+        """Turn the LED on or off (stored)."""
+        check_servo_id(servo_id, allow_broadcast=True)
+        self.send(servo_id, Command.LED_CTRL_WRITE, 0 if on else 1)
+
+    def read_led(self, servo_id: int) -> bool:
+        """True if the LED is on."""
+        return not self._read(servo_id, Command.LED_CTRL_READ, LedCtrlReply).is_led_off
+
+    def write_alarm_mask(self, servo_id: int, alarms: AlarmFlag) -> None:
+        """Which faults make the LED flash."""
+        check_servo_id(servo_id, allow_broadcast=True)
+        if not isinstance(alarms, int) or not 0 <= int(alarms) <= 7:
+            raise ConfigError(f"alarms = {alarms!r} is out of range 0..7")
+        self.send(servo_id, Command.LED_ERROR_WRITE, int(alarms))
+
+    def read_alarm_mask(self, servo_id: int) -> AlarmFlag:
+        return self._read(servo_id, Command.LED_ERROR_READ, LedErrorReply).alarm_mask
+
+    def read_faults(self, servo_id: int) -> AlarmFlag:
+        """Faults present now, from the readings against the servo's own limits.
+
+        OVER_TEMPERATURE if the temperature is at or above its limit, OVER_VOLTAGE if
+        the input voltage is outside its limits. (No command reads a stall directly.)
+        """
+        flags = AlarmFlag.NONE
+        if self.read_temp_c(servo_id) >= self.read_temp_limit_c(servo_id):
+            flags |= AlarmFlag.OVER_TEMPERATURE
+        lo, hi = self.read_vin_limits_v(servo_id)
+        if not lo <= self.read_vin_v(servo_id) <= hi:
+            flags |= AlarmFlag.OVER_VOLTAGE
+        return flags
+
+    # ------------------------------------------------------------------ scan and IDs
+
+    def scan(
+        self,
+        servo_ids: Iterable[int] = range(MAX_SERVO_ID + 1),
+        *,
+        margin_s: float = SCAN_MARGIN_S,
+        progress: Callable[[int], None] | None = None,
+    ) -> ScanResult:
+        """Ask every ID in ``servo_ids`` for itself (ID_READ); return who answered.
+
+        Each ID gets a short, baud-derived deadline. A reply that arrives after its
+        deadline is still recognised by the ID inside it, so a slow servo is not
+        missed. IDs whose replies come back garbled, or whose position reads are
+        garbled, are reported as ``conflicts`` (two servos sharing an ID).
+        """
+        ids = [check_servo_id(s) for s in servo_ids]
+        request_len = 6
+        timeout = self.timeout_s(request_len, 7, margin_s)
+        parser = FrameParser()
+        found: set[int] = set()
+        garbled: set[int] = set()
+        started = time.monotonic()
+
+        def collect(chunk: bytes, asked: int) -> None:
+            failures = parser.checksum_failures
+            for frame in parser.feed(chunk):
+                if frame.command == Command.ID_READ and len(frame.params) == 1:
+                    found.add(frame.servo_id)
+            if parser.checksum_failures > failures:
+                garbled.add(asked)
+
+        with self._lock:
+            self.transport.reset_input()
+            for sid in ids:
+                request = encode_request(sid, Command.ID_READ)
+                self.transport.write(request)
+                deadline = time.monotonic() + timeout
+                while sid not in found:
+                    remaining = deadline - time.monotonic()
+                    chunk = self.transport.read(256, remaining) if remaining > 0 else b""
+                    if not chunk:
+                        break
+                    collect(chunk, sid)
+                if progress is not None:
+                    progress(sid)
+            # Stragglers: anything still on its way.
+            tail_deadline = time.monotonic() + 4 * timeout
+            while (remaining := tail_deadline - time.monotonic()) > 0:
+                chunk = self.transport.read(256, remaining)
+                if not chunk:
+                    break
+                collect(chunk, ids[-1] if ids else 0)
+        wanted = set(ids)
+        found &= wanted
+        conflicts = set(garbled & wanted)
+        for sid in sorted(found):
+            try:
+                self.read_position_pulses(sid)
+            except ProtocolError:
+                conflicts.add(sid)
+            except BusTimeoutError:
+                pass
+        return ScanResult(sorted(found), sorted(conflicts), time.monotonic() - started)
+
+    def set_id(self, old_id: int, new_id: int) -> None:
+        """Renumber the servo at ``old_id`` to ``new_id``, safely.
+
+        Refuses unless exactly one servo answers at ``old_id`` and none at ``new_id``;
+        the ID write is addressed to ``old_id``, never broadcast. Verifies afterwards.
+        """
+        check_servo_id(old_id)
+        check_servo_id(new_id)
+        if old_id == new_id:
+            raise ConfigError(f"servo already has ID {new_id}")
+        result = self.scan([old_id, new_id])
+        if old_id in result.conflicts:
+            raise BusConflictError(
+                f"more than one servo answers at ID {old_id}; disconnect all but one first"
+            )
+        if old_id not in result.found:
+            raise BusTimeoutError(f"no servo answers at ID {old_id}", servo_id=old_id)
+        if new_id in result.found:
+            raise BusConflictError(f"ID {new_id} is already taken by another servo")
+        self.send(old_id, Command.ID_WRITE, new_id)
+        self._plans = {k: v for k, v in self._plans.items() if k[0] not in (old_id, new_id)}
+        if self.read_id(new_id) != new_id:
+            raise ProtocolError(f"servo did not take ID {new_id}")
+
+
+def open_bus(port: str, **kwargs: object) -> ServoBus:
+    """Open a ServoBus on a device path, a pyserial URL or ``sim``: see ServoBus.open."""
+    return ServoBus.open(port, **kwargs)  # type: ignore[arg-type]

@@ -1,0 +1,118 @@
+"""``sim serve``: the simulated arm on a pseudo-terminal, for any serial program.
+
+The simulator is imported when a command runs, so the rest of the CLI never
+depends on it.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+from collections.abc import Callable
+from pathlib import Path
+from types import FrameType
+
+import click
+
+from busarm.cli.common import CheckedType, Settings, pass_settings
+from busarm.units import parse_ids
+
+
+class SimIdsType(CheckedType):
+    """Servo IDs for the simulator; a repeated ID puts two servos on it (a conflict)."""
+
+    name = "ids"
+
+    def parse(self, text: str) -> list[int]:
+        return parse_ids(text)
+
+
+PROBABILITY = click.FloatRange(0.0, 1.0)
+
+
+@click.group()
+def sim() -> None:
+    """The simulated arm (servos 1-5 and gripper 10), for tests and other programs."""
+
+
+@sim.command()
+@click.option("--ids", type=SimIdsType(), default="1,2,3,4,5,10", show_default=True,
+              help="Servo IDs; repeat one (1,1,2) to simulate two servos sharing an ID.")
+@click.option("--echo", is_flag=True,
+              help="Echo every byte the host sends, like a one-wire adapter.")
+@click.option("--no-timing", is_flag=True,
+              help="Answer at once instead of at the speed of the wire.")
+@click.option("--turnaround-ms", type=click.FloatRange(0.0, 100.0), default=0.5,
+              show_default=True, help="Delay in ms before a servo starts its reply.")
+@click.option("--drop", type=PROBABILITY, default=0.0, show_default=True,
+              help="Probability (0..1) that each byte on the wire is lost.")
+@click.option("--corrupt", type=PROBABILITY, default=0.0, show_default=True,
+              help="Probability (0..1) that each byte on the wire is corrupted.")
+@click.option("--seed", type=int, default=0, show_default=True,
+              help="Seed of the fault generator (same seed, same faults).")
+@click.option("--state", type=click.Path(dir_okay=False, path_type=Path),
+              help="JSON file of the servos' stored settings (IDs, offsets, limits): loaded "
+                   "if it exists (then --ids is ignored), rewritten on every stored write.")
+@pass_settings
+def serve(
+    settings: Settings, ids: list[int], echo: bool, no_timing: bool, turnaround_ms: float,
+    drop: float, corrupt: float, seed: int, state: Path | None,
+) -> None:
+    """Serve simulated servos on a new pseudo-terminal until SIGINT or SIGTERM.
+
+    The first line of stdout is the device path (e.g. /dev/pts/7): open it with any
+    serial program, at any baud rate. The simulated wire runs at --baud.
+    """
+    from busarm.sim.bus import FaultInjection, SimBus, WireTiming
+    from busarm.sim.pty import PtyServer
+
+    bus = SimBus.with_ids(
+        ids,
+        timing=WireTiming(settings.baudrate, turnaround_ms / 1000.0, not no_timing),
+        echo=echo,
+        faults=FaultInjection(drop_rate=drop, corrupt_rate=corrupt, seed=seed),
+        state_file=state,
+    )
+    server = PtyServer(bus)
+    path = server.open()
+    click.echo(path)
+    sys.stdout.flush()
+    servos = ", ".join(str(s.servo_id) for s in bus.servos)
+    timing = "no wire timing" if no_timing else f"{settings.baudrate} baud"
+    click.echo(
+        f"simulating servos {servos} on {path} ({timing}"
+        + (", echo" if echo else "") + (f", state {state}" if state else "")
+        + "); Ctrl+C or SIGTERM to stop",
+        err=True,
+    )
+    restore = _interrupt_on_signals()
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        restore()
+        server.stop()
+    click.echo("simulator stopped", err=True)
+
+
+def _interrupt_on_signals() -> Callable[[], None]:
+    """Make SIGINT and SIGTERM raise KeyboardInterrupt (even if SIGINT was inherited as
+    ignored, as in background jobs); return a function restoring the old handlers."""
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        raise KeyboardInterrupt
+
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+    def restore() -> None:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+    return restore
+
+
+COMMANDS = [sim]

@@ -1,0 +1,122 @@
+"""The simulator as an in-process transport: ``open_bus("sim://?ids=1,2,3")``.
+
+URL query parameters (all optional):
+
+=============== ==================================================== =================
+``ids``         servo IDs on the bus, comma separated                1,2,3,4,5,10
+``echo``        1 = the adapter echoes every byte sent               0
+``timing``      0 = no wire timing (replies at once)                 1
+``turnaround_ms`` servo reply delay in ms                            0.5
+``drop``, ``corrupt`` probability per byte of a fault                0
+``late``        probability per reply of arriving ``late_ms`` late   0
+``late_ms``     how late                                             50
+``seed``        fault generator seed                                 0
+``state``       path of a power-off state file                       (none)
+=============== ==================================================== =================
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+from urllib.parse import parse_qs, urlsplit
+
+from busarm.errors import ConfigError, TransportError
+from busarm.sim.bus import ARM_SERVO_IDS, DEFAULT_TURNAROUND_S, FaultInjection, SimBus, WireTiming
+from busarm.units import parse_ids
+
+_KNOWN = {"ids", "echo", "timing", "turnaround_ms", "drop", "corrupt", "late", "late_ms", "seed",
+          "state"}
+
+
+def _float(q: dict[str, str], key: str, default: float) -> float:
+    if key not in q:
+        return default
+    try:
+        return float(q[key])
+    except ValueError:
+        raise ConfigError(f"sim URL: {key}={q[key]!r} is not a number") from None
+
+
+def _flag(q: dict[str, str], key: str, default: bool) -> bool:
+    if key not in q:
+        return default
+    if q[key] not in ("0", "1"):
+        raise ConfigError(f"sim URL: {key}={q[key]!r}; allowed: 0 or 1")
+    return q[key] == "1"
+
+
+def sim_bus_from_url(url: str, baudrate: int = 115200) -> SimBus:
+    """A SimBus configured by a ``sim://?...`` URL (``sim`` alone is the arm)."""
+    query = urlsplit(url).query if "://" in url else ""
+    raw = parse_qs(query, keep_blank_values=True)
+    unknown = set(raw) - _KNOWN
+    if unknown:
+        raise ConfigError(
+            f"sim URL: unknown parameter(s) {sorted(unknown)}; known: {sorted(_KNOWN)}"
+        )
+    q = {k: v[-1] for k, v in raw.items()}
+    ids = parse_ids(q["ids"]) if "ids" in q else list(ARM_SERVO_IDS)
+    turnaround_ms = _float(q, "turnaround_ms", DEFAULT_TURNAROUND_S * 1000)
+    if not 0 <= turnaround_ms <= 100:
+        raise ConfigError(f"sim URL: turnaround_ms={turnaround_ms} is out of range 0..100")
+    timing = WireTiming(baudrate, turnaround_ms / 1000.0, _flag(q, "timing", True))
+    faults = FaultInjection(
+        drop_rate=_float(q, "drop", 0.0),
+        corrupt_rate=_float(q, "corrupt", 0.0),
+        late_rate=_float(q, "late", 0.0),
+        late_s=_float(q, "late_ms", 50.0) / 1000.0,
+        seed=int(_float(q, "seed", 0)),
+    )
+    state = Path(q["state"]) if q.get("state") else None
+    return SimBus.with_ids(
+        ids, timing=timing, echo=_flag(q, "echo", False), faults=faults, state_file=state
+    )
+
+
+class SimTransport:
+    """A transport whose other end is a SimBus in this process."""
+
+    def __init__(self, bus: SimBus, name: str = "sim") -> None:
+        self.bus = bus
+        self.name = name
+        self.baudrate = bus.timing.baudrate
+        self.latency_s = 0.0
+        self._closed = False
+        self._lock = threading.Lock()
+
+    def write(self, data: bytes) -> None:
+        self._check_open()
+        self.bus.receive(bytes(data))
+
+    def read(self, max_bytes: int, timeout_s: float) -> bytes:
+        self._check_open()
+        deadline = time.monotonic() + max(timeout_s, 0.0)
+        with self._lock:
+            while True:
+                data = self.bus.pop_output(max_bytes)
+                if data:
+                    return data
+                now = time.monotonic()
+                due = self.bus.next_output_at()
+                if now >= deadline:
+                    return b""
+                wake = deadline if due is None else min(max(due, now), deadline)
+                time.sleep(max(wake - now, 0.0))
+
+    def reset_input(self) -> None:
+        self._check_open()
+        self.bus.pop_output()
+
+    def close(self) -> None:
+        self._closed = True
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise TransportError(f"{self.name}: transport is closed")
+
+
+def open_sim_transport(url: str, baudrate: int = 115200) -> SimTransport:
+    """Entry point used by ``busarm.bus.transport.open_transport`` for ``sim``/``sim://``."""
+    return SimTransport(sim_bus_from_url(url, baudrate), name=url)

@@ -1,0 +1,67 @@
+"""Shared fixtures: simulated arms reachable in-process and through a real pseudo-terminal.
+
+Every driver test runs four ways: in-process and over a pty, each with the simulated
+adapter echoing and not echoing. Leaked threads fail the test that leaked them.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import pytest
+
+from busarm.bus.driver import ServoBus
+from busarm.sim.bus import ARM_SERVO_IDS, SimBus, WireTiming
+from busarm.sim.pty import PtyServer
+from busarm.sim.transport import SimTransport
+
+
+@dataclass
+class SimArm:
+    """A driver and the simulator behind it, for tests to inspect."""
+
+    bus: ServoBus
+    sim: SimBus
+    kind: str
+
+
+def make_sim_arm(
+    kind: str, *, ids: tuple[int, ...] = ARM_SERVO_IDS, echo: bool = False, **bus_kwargs: object
+) -> tuple[SimArm, PtyServer | None]:
+    sim = SimBus.with_ids(ids, timing=WireTiming(), echo=echo)
+    if kind == "pty":
+        server = PtyServer(sim)
+        path = server.start()
+        bus = ServoBus.open(path, **bus_kwargs)  # type: ignore[arg-type]
+        return SimArm(bus, sim, kind), server
+    return SimArm(ServoBus(SimTransport(sim), **bus_kwargs), sim, kind), None  # type: ignore[arg-type]
+
+
+@pytest.fixture(params=["inproc-noecho", "inproc-echo", "pty-noecho", "pty-echo"])
+def arm(request: pytest.FixtureRequest) -> Iterator[SimArm]:
+    """The simulated 6-servo arm behind a ServoBus, four ways (echo detected at open)."""
+    kind, echo = request.param.split("-")
+    sim_arm, server = make_sim_arm(kind, echo=echo == "echo")
+    assert sim_arm.bus.echo is (echo == "echo"), "echo auto-detection failed"
+    try:
+        yield sim_arm
+    finally:
+        sim_arm.bus.close()
+        if server is not None:
+            server.stop()
+
+
+@pytest.fixture(autouse=True)
+def _no_leaked_threads() -> Iterator[None]:
+    before = set(threading.enumerate())
+    yield
+    leaked = [
+        t for t in threading.enumerate()
+        if t not in before and t.is_alive() and t.name.startswith("busarm")
+    ]
+    for t in leaked:
+        t.join(timeout=2)
+    still = [t.name for t in leaked if t.is_alive()]
+    assert not still, f"test leaked threads: {still}"

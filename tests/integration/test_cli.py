@@ -1,0 +1,385 @@
+"""The ``busarm`` command line, end to end.
+
+Most tests run the CLI in-process (click's CliRunner) against the in-process
+simulator (``sim://?timing=0``) or against a SimBus served on a real pseudo-terminal,
+whose counters show what reached the bus. ``sim serve`` and ``monitor`` are also run
+as real subprocesses and stopped with SIGINT.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+
+import click
+import pytest
+from click.testing import CliRunner, Result
+
+from busarm.cli.main import cli
+from busarm.sim.bus import SimBus, WireTiming
+from busarm.sim.pty import PtyServer
+from busarm.sim.servo import ServoParams, SimServo
+
+SIM = "sim://?timing=0"
+
+
+def run(*args: str, port: str = SIM) -> Result:
+    return CliRunner(mix_stderr=False).invoke(cli, ["--port", port, *args])
+
+
+def assert_one_error(result: Result, code: int) -> str:
+    """Exactly one ``error:`` line on stderr, nothing else, no traceback."""
+    assert result.exit_code == code, (result.exit_code, result.stdout, result.stderr)
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
+    assert "Traceback" not in result.stdout + result.stderr
+    assert isinstance(result.exception, SystemExit)
+    return lines[0]
+
+
+def wait_for(predicate: Callable[[], bool], timeout_s: float = 2.0) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.005)
+    return True
+
+
+PtyFactory = Callable[[Sequence[SimServo]], tuple[str, SimBus]]
+
+
+@pytest.fixture
+def pty_sim() -> Iterator[PtyFactory]:
+    """Serve simulated servos (no wire timing) on a pseudo-terminal: -> (path, SimBus)."""
+    servers: list[PtyServer] = []
+
+    def start(servos: Sequence[SimServo]) -> tuple[str, SimBus]:
+        bus = SimBus(servos, timing=WireTiming(enabled=False))
+        server = PtyServer(bus)
+        servers.append(server)
+        return server.start(), bus
+
+    yield start
+    for server in servers:
+        server.stop()
+
+
+def servos(*ids: int, **params: object) -> list[SimServo]:
+    now = time.monotonic()
+    return [SimServo(sid, params=ServoParams(**params), now=now) for sid in ids]  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------------------- help
+
+
+def _all_commands(group: click.Group, prefix: str = "") -> Iterator[tuple[str, click.Command]]:
+    for name, command in group.commands.items():
+        yield prefix + name, command
+        if isinstance(command, click.Group):
+            yield from _all_commands(command, prefix + name + " ")
+
+
+def test_every_command_and_option_has_help() -> None:
+    names = dict(_all_commands(cli))
+    for expected in ("ports", "scan", "info", "move", "stop", "torque", "set-id", "offset",
+                     "limits", "led", "monitor", "decode", "encode", "sim", "sim serve", "demo"):
+        assert expected in names
+    for name, command in [("busarm", cli), *names.items()]:
+        assert command.help, name
+        for param in command.params:
+            if isinstance(param, click.Option) and not param.hidden:
+                assert param.help, f"{name} {param.opts}"
+    result = run("--help")
+    assert result.exit_code == 0 and "set-id" in result.stdout
+
+
+# ---------------------------------------------------------------------------- protocol tools
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["MOVE_TIME_WRITE", "1", "500", "1000"], "55 55 01 07 01 f4 01 e8 03 16"),
+        (["28", "254"], "55 55 fe 03 1c e2"),  # POS_READ by number, to broadcast
+        (["angle-offset-adjust", "1", "-10"], "55 55 01 04 11 f6 f3"),  # signed byte
+        (["SERVO_ID_READ", "254"], "55 55 fe 03 0e f0"),
+    ],
+)
+def test_encode_prints_the_exact_bytes(args: list[str], expected: str) -> None:
+    result = run("encode", *args)
+    assert result.exit_code == 0, result.stderr
+    assert result.stdout.strip() == expected
+
+
+def test_decode_finds_every_frame_and_reports_garbage() -> None:
+    text = (
+        "ff 00 "  # garbage
+        "0x55,0x55,0x01,0x03,0x1c,0xdf "  # POS_READ request, 0x and commas
+        "5555 01 05 1c f4 01 e8 "  # its reply: position 500
+        "55 55 01 07 01 f4 01 e8 03 17 "  # bad checksum
+        "55 55 fe 03 0e f0"  # ID_READ broadcast
+    )
+    result = run("decode", text)
+    assert result.exit_code == 0, result.stderr
+    lines = result.stdout.strip().splitlines()
+    assert lines[0] == "55 55 01 03 1c df  request SERVO_POS_READ to id 1"
+    assert lines[1].startswith("55 55 01 05 1c f4 01 e8  reply SERVO_POS_READ from id 1:")
+    assert "position_pulses=500" in lines[1]
+    assert lines[2] == "55 55 fe 03 0e f0  request SERVO_ID_READ to broadcast"
+    assert lines[3] == (
+        "3 frame(s) in 32 byte(s); 12 byte(s) skipped (not part of a valid frame); "
+        "1 candidate frame(s) with a bad checksum"
+    )
+
+
+def test_decode_of_bytes_without_frames() -> None:
+    result = run("decode", "00", "11")
+    assert result.exit_code == 0
+    assert result.stdout.startswith("0 frame(s) in 2 byte(s)")
+
+
+# ---------------------------------------------------------------------------- bad input
+
+
+BAD_INPUT = [
+    ["move", "254", "10"],  # ID out of range (254 is broadcast)
+    ["move", "1", "130"],  # angle out of range
+    ["move", "1", "-121"],
+    ["move", "1", "10", "--time", "31"],  # time out of range
+    ["move", "1", "10", "--time", "1", "--speed", "50"],
+    ["move", "1"],
+    ["move", "--pose", "1=0,1=5"],
+    ["move", "--pose", "1=0,2=200"],
+    ["info", "300"],
+    ["stop", "1", "x"],
+    ["torque", "sideways", "1"],
+    ["set-id", "3", "3"],
+    ["set-id", "1", "2", "3"],
+    ["set-id", "254"],
+    ["offset", "1", "31"],
+    ["limits", "1", "--angle", "10", "-10"],
+    ["limits", "1", "--vin", "4", "12"],
+    ["limits", "1", "--temp", "120"],
+    ["led", "1", "--alarms", "fire"],
+    ["scan", "--ids", "0-300"],
+    ["monitor", "--ids", "1", "--count", "0"],
+    ["frobnicate"],
+    ["--retries", "99", "scan"],
+    ["decode", "55 5g"],
+    ["decode", "555"],
+    ["encode", "MOVE_TIME_WRITE", "1", "1500", "0"],
+    ["encode", "NOT_A_COMMAND", "1"],
+    ["encode", "POS_READ", "255"],
+    ["encode", "POS_READ", "1", "7"],
+]
+
+
+@pytest.mark.parametrize("args", BAD_INPUT, ids=" ".join)
+def test_bad_input_is_one_error_exit_2_and_sends_nothing(
+    args: list[str], pty_sim: PtyFactory
+) -> None:
+    path, bus = pty_sim(servos(1, 2, 3))
+    result = run(*args, port=path)
+    assert_one_error(result, 2)
+    # Control: one valid write now; the pty delivers bytes in order, so anything the bad
+    # command had sent would be counted before it.
+    assert run("--echo", "off", "stop", "1", port=path).exit_code == 0
+    assert wait_for(lambda: bus.frames_received >= 1)
+    time.sleep(0.02)
+    assert (bus.frames_received, bus.frames_rejected) == (1, 0)
+
+
+def test_bus_errors_exit_1() -> None:
+    assert "does not answer" in assert_one_error(run("info", "7"), 1)
+    assert "cannot open" in assert_one_error(run("scan", port="/nonexistent/ttyUSB9"), 1)
+    echo_missing = run("--echo", "on", "--retries", "0", "stop", "1")
+    assert "echo" in assert_one_error(echo_missing, 1)
+
+
+# ---------------------------------------------------------------------------- bus commands
+
+
+def test_ports_runs_without_adapters() -> None:
+    result = run("ports")
+    assert result.exit_code == 0, result.stderr
+    assert result.stdout.strip()
+
+
+def test_scan_finds_the_arm() -> None:
+    result = run("scan", "--ids", "0-20")
+    assert result.exit_code == 0, result.stderr
+    assert "found 6 servo(s): 1, 2, 3, 4, 5, 10" in result.stdout
+    assert "11.10" in result.stdout  # supply voltage column
+
+
+def test_scan_reports_duplicate_ids(pty_sim: PtyFactory) -> None:
+    now = time.monotonic()
+    # Two servos on ID 3 at different positions: their position replies collide.
+    twins = [SimServo(3, now=now), SimServo(3, position_pulses=400.0, now=now)]
+    path, _ = pty_sim([*twins, SimServo(4, now=now)])
+    result = run("scan", "--ids", "0-9", port=path)
+    assert result.exit_code == 0, result.stderr
+    assert "conflict: more than one servo answers at ID 3" in result.stdout
+
+
+def test_monitor_count() -> None:
+    result = run("monitor", "--ids", "1,2", "--count", "3", "--interval", "0")
+    assert result.exit_code == 0, result.stderr
+    assert [f"refresh {n}" in result.stdout for n in (1, 2, 3)] == [True] * 3
+    assert "refresh 4" not in result.stdout
+    assert re.search(r"│\s+2\s+│\s+\+0\.0\s+│\s+25\s+│\s+11\.10\s+│\s+off\s+│", result.stdout)
+
+
+# ---------------------------------------------------------------------------- servo commands
+
+
+def test_info_shows_every_field_and_no_reply(pty_sim: PtyFactory) -> None:
+    path, _ = pty_sim(servos(1, answers_wait_read=False))
+    result = run("info", "1", port=path)
+    assert result.exit_code == 0, result.stderr
+    out = result.stdout
+    for field in ("position", "last move", "angle offset", "angle limits", "voltage limits",
+                  "temperature limit", "temperature", "voltage", "mode", "torque", "LED",
+                  "LED alarms"):
+        assert field in out
+    assert re.search(r"waiting move.*no reply", out)
+    assert "+0.0 deg (500 pulses)" in out
+    assert "6.50..12.00 V" in out
+
+
+def test_move_single_and_pose_with_wait(pty_sim: PtyFactory) -> None:
+    path, bus = pty_sim(servos(1, 2, 3))
+    result = run("move", "2", "-30", "--time", "0.1", "--wait", port=path)
+    assert result.exit_code == 0, result.stderr
+    assert abs(bus.servo(2).position_pulses - 375) <= 1
+    result = run("move", "--pose", "1=12,3=-24", "--speed", "400", "--wait", port=path)
+    assert result.exit_code == 0, result.stderr
+    assert "reached" in result.stdout
+    assert abs(bus.servo(1).position_pulses - 550) <= 1
+    assert abs(bus.servo(3).position_pulses - 400) <= 1
+
+
+def test_stop_and_torque(pty_sim: PtyFactory) -> None:
+    path, bus = pty_sim(servos(1, 2))
+    assert run("torque", "on", port=path).exit_code == 0
+    assert wait_for(lambda: bus.servo(1).is_loaded and bus.servo(2).is_loaded)
+    assert run("torque", "off", "2", port=path).exit_code == 0
+    assert wait_for(lambda: not bus.servo(2).is_loaded)
+    assert bus.servo(1).is_loaded
+    run("move", "1", "100", "--time", "5", port=path)
+    result = run("stop", port=path)
+    assert result.exit_code == 0 and "stopped all servos" in result.stdout
+    time.sleep(0.1)
+    held = bus.servo(1).position_pulses
+    time.sleep(0.1)
+    assert bus.servo(1).position_pulses == held < 600
+
+
+def test_set_id_refuses_two_servos(pty_sim: PtyFactory) -> None:
+    path, bus = pty_sim(servos(1, 2))
+    message = assert_one_error(run("set-id", "7", port=path), 1)
+    assert "2 servos on the bus" in message
+    assert [s.servo_id for s in bus.servos] == [1, 2]
+
+
+def test_set_id_refuses_duplicate_ids(pty_sim: PtyFactory) -> None:
+    now = time.monotonic()
+    path, bus = pty_sim([SimServo(3, now=now), SimServo(3, position_pulses=420.0, now=now)])
+    assert "more than one servo" in assert_one_error(run("set-id", "3", "7", port=path), 1)
+    assert "more than one servo" in assert_one_error(run("set-id", "7", port=path), 1)
+    assert [s.servo_id for s in bus.servos] == [3, 3]
+
+
+def test_set_id_with_one_servo(pty_sim: PtyFactory) -> None:
+    path, bus = pty_sim(servos(3))
+    result = run("set-id", "7", port=path)
+    assert result.exit_code == 0, result.stderr
+    assert "servo 3 is now ID 7" in result.stdout
+    assert bus.servos[0].servo_id == 7
+    assert run("set-id", "7", "9", port=path).exit_code == 0
+    assert bus.servos[0].servo_id == 9
+
+
+def test_offset_limits_led_write_and_read_back() -> None:
+    result = run("offset", "1", "-4.8", "--save")
+    assert result.exit_code == 0, result.stderr
+    assert "-4.80 deg (saved)" in result.stdout
+    result = run("limits", "1", "--angle", "-90", "90", "--vin", "6", "11.5", "--temp", "70")
+    assert result.exit_code == 0, result.stderr
+    for text in ("-90.0 deg", "+90.0 deg", "6.00 V", "11.50 V", "70 C"):
+        assert text in result.stdout
+    result = run("led", "1", "off", "--alarms", "over-temperature,stalled")
+    assert result.exit_code == 0, result.stderr
+    assert "LED off, flashes on: over-temperature,stalled" in result.stdout
+    assert "flashes on: none" in run("led", "1", "--alarms", "none").stdout
+
+
+# ---------------------------------------------------------------------------- demo
+
+
+def test_demo_exits_0() -> None:
+    result = CliRunner(mix_stderr=False).invoke(
+        cli, ["demo", "--poses", "1", "--no-timing", "--speed", "1000"]
+    )
+    assert result.exit_code == 0, result.stderr
+    assert "found 6 servo(s): 1, 2, 3, 4, 5, 10" in result.stdout
+    assert "reach forward" in result.stdout
+
+
+# ---------------------------------------------------------------------------- subprocesses
+
+
+def _busarm() -> list[str]:
+    script = Path(sys.executable).with_name("busarm")
+    return [str(script)] if script.exists() else [sys.executable, "-m", "busarm"]
+
+
+def _sigint_and_wait(proc: subprocess.Popen[str]) -> tuple[int, str, str]:
+    proc.send_signal(signal.SIGINT)
+    try:
+        out, err = proc.communicate(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        raise
+    return proc.returncode, out, err
+
+
+def test_sim_serve_and_monitor_as_subprocesses() -> None:
+    env = {**os.environ, "COLUMNS": "120"}
+    server = subprocess.Popen(
+        [sys.executable, "-m", "busarm", "sim", "serve"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+    )
+    try:
+        assert server.stdout is not None
+        path = server.stdout.readline().strip()
+        assert path.startswith("/dev/"), path
+        scan = subprocess.run(
+            [*_busarm(), "--port", path, "scan", "--ids", "0-20"],
+            capture_output=True, text=True, timeout=30, env=env,
+        )
+        assert scan.returncode == 0, scan.stderr
+        assert "found 6 servo(s): 1, 2, 3, 4, 5, 10" in scan.stdout
+
+        monitor = subprocess.Popen(
+            [*_busarm(), "--port", path, "monitor", "--ids", "1,10", "--interval", "0.05"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+        )
+        assert monitor.stdout is not None
+        while "refresh 2" not in monitor.stdout.readline():
+            assert monitor.poll() is None, monitor.communicate()
+        code, _, err = _sigint_and_wait(monitor)
+        assert code == 0, err
+        assert "Traceback" not in err
+    finally:
+        code, _, err = _sigint_and_wait(server)
+    assert code == 0, err
+    assert "Traceback" not in err
+    assert f"on {path}" in err
