@@ -54,8 +54,7 @@ class BenchReport:
 
     def to_dict(self) -> dict[str, object]:
         d = asdict(self)
-        for r, res in zip(d["results"], self.results):  # type: ignore[call-overload]
-            r["ratio"] = round(res.ratio, 4)
+        d["results"] = [{**asdict(r), "ratio": round(r.ratio, 4)} for r in self.results]
         return d
 
 
@@ -63,10 +62,11 @@ def machine_info() -> dict[str, str]:
     """What ran the benchmark, for docs/benchmarks.md."""
     cpu = platform.processor() or platform.machine()
     try:
-        for line in open("/proc/cpuinfo", encoding="utf-8"):
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
     except OSError:
         pass
     return {
@@ -157,7 +157,8 @@ def bench_scan(bus: ServoBus, repeats: int = 3) -> BenchResult:
     return BenchResult(
         "ID scan 0..253", "scans/s", repeats, 1.0 / statistics.median(durations), 1.0 / wire,
         _percentiles(durations), None, 0,
-        {"found": found, "best_s": round(best, 4), "median_s": round(statistics.median(durations), 4)},
+        {"found": found, "best_s": round(best, 4),
+         "median_s": round(statistics.median(durations), 4)},
     )
 
 

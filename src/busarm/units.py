@@ -28,7 +28,7 @@ MOTOR_SPEED_MAX = 1000
 
 def check_range(name: str, value: float, lo: float, hi: float, unit: str = "") -> None:
     """Raise ConfigError naming ``name``, the bad value and the allowed range."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if isinstance(value, bool) or not isinstance(value, int | float):
         raise ConfigError(f"{name} must be a number, got {value!r}")
     if not math.isfinite(value) or value < lo or value > hi:
         u = f" {unit}" if unit else ""
@@ -55,7 +55,7 @@ def pulses_from_deg(angle_deg: float) -> int:
     Raises ConfigError if the angle is outside the servo's -120..120 deg.
     """
     check_range("angle_deg", angle_deg, POSITION_MIN_DEG, POSITION_MAX_DEG, "deg")
-    return int(round(angle_deg / DEG_PER_PULSE)) + CENTER_PULSES
+    return round(angle_deg / DEG_PER_PULSE) + CENTER_PULSES
 
 
 def offset_deg_from_pulses(offset_pulses: int) -> float:
@@ -69,13 +69,13 @@ def offset_pulses_from_deg(offset_deg: float) -> int:
         "offset_deg", offset_deg, OFFSET_MIN_PULSES * DEG_PER_PULSE,
         OFFSET_MAX_PULSES * DEG_PER_PULSE, "deg",
     )
-    return int(round(offset_deg / DEG_PER_PULSE))
+    return round(offset_deg / DEG_PER_PULSE)
 
 
 def ms_from_s(duration_s: float) -> int:
     """Whole milliseconds for seconds, within the wire's 0..30 s."""
     check_range("duration_s", duration_s, 0.0, MOVE_TIME_MAX_MS / 1000.0, "s")
-    return int(round(duration_s * 1000.0))
+    return round(duration_s * 1000.0)
 
 
 def v_from_mv(vin_mv: int) -> float:
@@ -83,7 +83,7 @@ def v_from_mv(vin_mv: int) -> float:
 
 
 def mv_from_v(vin_v: float) -> int:
-    return int(round(vin_v * 1000.0))
+    return round(vin_v * 1000.0)
 
 
 def parse_ids(text: str) -> list[int]:

@@ -20,6 +20,8 @@ from pathlib import Path
 import click
 import pytest
 from click.testing import CliRunner, Result
+from serial.tools import list_ports
+from serial.tools.list_ports_common import ListPortInfo
 
 from busarm.cli.main import cli
 from busarm.sim.bus import SimBus, WireTiming
@@ -206,10 +208,35 @@ def test_bus_errors_exit_1() -> None:
 # ---------------------------------------------------------------------------- bus commands
 
 
-def test_ports_runs_without_adapters() -> None:
+def test_ports_runs_on_this_machine() -> None:
     result = run("ports")
     assert result.exit_code == 0, result.stderr
     assert result.stdout.strip()
+
+
+def _port(device: str, vid: int, pid: int, description: str) -> ListPortInfo:
+    info = ListPortInfo(device)
+    info.vid, info.pid, info.description = vid, pid, description
+    return info
+
+
+def test_ports_marks_servo_adapters(monkeypatch: pytest.MonkeyPatch) -> None:
+    found = [_port("/dev/ttyUSB0", 0x1A86, 0x7523, "USB Serial"),
+             _port("/dev/ttyACM0", 0x2341, 0x0043, "Arduino Uno")]
+    monkeypatch.setattr(list_ports, "comports", lambda: found)
+    result = run("ports")
+    assert result.exit_code == 0, result.stderr
+    usb = next(line for line in result.stdout.splitlines() if "ttyUSB0" in line)
+    acm = next(line for line in result.stdout.splitlines() if "ttyACM0" in line)
+    assert "1a86:7523" in usb and "yes: CH340" in usb
+    assert "2341:0043" in acm and "yes" not in acm
+
+
+def test_ports_with_no_ports(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(list_ports, "comports", lambda: [])
+    result = run("ports")
+    assert result.exit_code == 0, result.stderr
+    assert "no serial ports found" in result.stdout
 
 
 def test_scan_finds_the_arm() -> None:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import importlib
 import os
 import select
+import termios
 import warnings
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
@@ -46,6 +47,10 @@ class Transport(Protocol):
 
     def reset_input(self) -> None:
         """Discard every byte received and not yet read."""
+        ...
+
+    def exchange(self, request: bytes, timeout_s: float) -> bytes:
+        """reset_input(), write(request), then read(): one half-duplex turn."""
         ...
 
     def close(self) -> None: ...
@@ -87,10 +92,12 @@ class SerialTransport:
     def write(self, data: bytes) -> None:
         try:
             if self._fd is not None:
-                view = memoryview(data)
-                while view:
-                    n = os.write(self._fd, view)
-                    view = view[n:]
+                n = os.write(self._fd, data)
+                if n < len(data):  # a full kernel buffer: rare, never on a 6-10 byte frame
+                    view = memoryview(data)[n:]
+                    while view:
+                        select.select((), (self._fd,), (), 1.0)
+                        view = view[os.write(self._fd, view) :]
             else:
                 self._port.write(data)
         except Exception as exc:
@@ -121,9 +128,34 @@ class SerialTransport:
         except Exception as exc:
             raise TransportError(f"{self.name}: read failed: {exc}") from exc
 
+    def exchange(self, request: bytes, timeout_s: float) -> bytes:
+        fd = self._fd
+        if fd is None:
+            self.reset_input()
+            self.write(request)
+            return self.read(256, timeout_s)
+        # One frame for the whole turn: this is the driver's hot path.
+        try:
+            termios.tcflush(fd, termios.TCIFLUSH)
+            if os.write(fd, request) < len(request):
+                raise TransportError(f"{self.name}: short write")
+            if not select.select((fd,), (), (), timeout_s)[0]:
+                return b""
+            data = os.read(fd, 256)
+        except TransportError:
+            raise
+        except Exception as exc:
+            raise TransportError(f"{self.name}: {exc}") from exc
+        if not data:
+            raise TransportError(f"{self.name}: device disconnected")
+        return data
+
     def reset_input(self) -> None:
         try:
-            self._port.reset_input_buffer()
+            if self._fd is not None:
+                termios.tcflush(self._fd, termios.TCIFLUSH)
+            else:
+                self._port.reset_input_buffer()
         except Exception as exc:
             raise TransportError(f"{self.name}: cannot reset input: {exc}") from exc
 
@@ -132,7 +164,8 @@ class SerialTransport:
 
 
 def _check_baudrate(baudrate: object) -> int:
-    if isinstance(baudrate, bool) or not isinstance(baudrate, int) or not 1200 <= baudrate <= 4_000_000:
+    valid = isinstance(baudrate, int) and not isinstance(baudrate, bool)
+    if not valid or not 1200 <= baudrate <= 4_000_000:  # type: ignore[operator]
         raise ConfigError(f"baudrate {baudrate!r} is out of range 1200..4000000")
     return baudrate
 

@@ -82,7 +82,8 @@ def _number(text: str, what: str) -> float:
     return value
 
 
-def _integer(text: str, what: str) -> int:
+def parse_int(text: str, what: str) -> int:
+    """An integer from decimal (or 0x/0b/0o) text; ConfigError naming ``what`` if not."""
     t = text.strip()
     try:
         return int(t, 0) if t[:2].lower() in ("0x", "0b", "0o") else int(t)
@@ -103,7 +104,7 @@ class ServoIdType(CheckedType):
 
     def parse(self, text: str) -> int:
         hi = MAX_SERVO_ID + 1 if self.allow_broadcast else MAX_SERVO_ID
-        return check_servo_id(_integer(text, f"servo ID 0..{hi}"),
+        return check_servo_id(parse_int(text, f"servo ID 0..{hi}"),
                               allow_broadcast=self.allow_broadcast)
 
 

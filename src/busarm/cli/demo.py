@@ -62,11 +62,8 @@ def demo(settings: Settings, speed: float, n_poses: int, no_timing: bool) -> Non
                 out.print(f"pose [bold]{name}[/bold]: moving together over {duration:.1f} s")
                 _follow(bus, targets, duration, out)
                 bus.wait_until_reached(targets, timeout_s=duration + 2.0)
-            stats = bus.stats
-        out.print(
-            f"done: {stats['transactions']} reads, {stats['retries']} retries, "
-            f"{stats['timeouts']} timeouts"
-        )
+            counters = ", ".join(f"{k.replace('_', ' ')}: {v}" for k, v in bus.stats.items())
+        out.print(f"done ({counters})")
 
 
 def _follow(bus: ServoBus, targets: dict[int, float], duration_s: float, out: Console) -> None:

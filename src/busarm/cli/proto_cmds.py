@@ -6,7 +6,7 @@ import re
 
 import click
 
-from busarm.cli.common import ServoIdType
+from busarm.cli.common import ServoIdType, parse_int
 from busarm.errors import ConfigError, ProtocolError
 from busarm.protocol import Command, FrameParser, decode_message, describe, encode_request
 
@@ -68,12 +68,7 @@ def encode(command_name: str, servo_id: int, args: tuple[str, ...]) -> None:
     ARGS are in wire units (pulses, ms, mV), e.g. busarm encode MOVE_TIME_WRITE 1 500 1000.
     """
     command = Command.parse(command_name)
-    values: list[int] = []
-    for a in args:
-        try:
-            values.append(int(a, 0) if a.lower().startswith(("0x", "-0x")) else int(a))
-        except ValueError:
-            raise ConfigError(f"{command.name} parameter {a!r} is not an integer") from None
+    values = [parse_int(a, f"{command.name} parameter") for a in args]
     click.echo(encode_request(servo_id, command, *values).hex(" "))
 
 

@@ -18,7 +18,6 @@ from rich.table import Table
 
 from busarm.bus.driver import ScanResult, ServoBus
 from busarm.cli.common import NO_REPLY, try_read
-from busarm.errors import BusArmError
 
 
 def fmt(value: object, spec: str = "", unit: str = "") -> str:
@@ -104,7 +103,3 @@ def scan_report(bus: ServoBus, result: ScanResult, console: Console, asked: int)
             "disconnect all but one and renumber with set-id[/red]"
         )
 
-
-def describe_error(exc: BusArmError) -> str:
-    """One line for an error (its message, or its class name if it has none)."""
-    return str(exc) or type(exc).__name__

@@ -62,13 +62,15 @@ def check_servo_id(servo_id: object, *, allow_broadcast: bool = False) -> int:
     return servo_id
 
 
-def _check_fields(command: Command, spec_fields: tuple[Field, ...], values: tuple[int, ...]) -> None:
+def _check_fields(
+    command: Command, spec_fields: tuple[Field, ...], values: tuple[int, ...]
+) -> None:
     if len(values) != len(spec_fields):
         names = " ".join(f.name for f in spec_fields) or "(none)"
         raise ConfigError(
             f"{command.name} takes {len(spec_fields)} parameter(s): {names}; got {len(values)}"
         )
-    for f, v in zip(spec_fields, values):
+    for f, v in zip(spec_fields, values, strict=False):
         unit = f" {f.unit}" if f.unit else ""
         # bool is an int subclass: accept it only for the is_* flags, never as a number.
         if not isinstance(v, int) or (isinstance(v, bool) and not f.name.startswith("is_")):
@@ -112,7 +114,8 @@ class Request:
     @property
     def values(self) -> dict[str, int]:
         """Parameters by name (the null byte of the mode command left out)."""
-        return {f.name: v for f, v in zip(self.spec.request, self.args) if f.kind != "null"}
+        pairs = zip(self.spec.request, self.args, strict=True)
+        return {f.name: v for f, v in pairs if f.kind != "null"}
 
     def to_frame(self) -> Frame:
         return Frame(self.servo_id, int(self.command), self.spec.request_struct.pack(*self.args))
@@ -309,7 +312,7 @@ def _reply_from_values(command: Command, values: tuple[int, ...], frame: Frame) 
     spec = SPECS[command]
     assert spec.reply is not None
     kwargs: dict[str, object] = {}
-    for f, v in zip(spec.reply, values):
+    for f, v in zip(spec.reply, values, strict=False):
         if f.kind == "null":
             continue
         if f.strict_reply and not f.lo <= v <= f.hi:
@@ -410,7 +413,7 @@ def describe(message: Request | Reply, servo_id: int | None = None) -> str:
     parts = []
     for f in fields(message):
         v = getattr(message, f.name)
-        parts.append(f"{f.name}={v.name if isinstance(v, (ServoMode,)) else v}")
+        parts.append(f"{f.name}={v.name if isinstance(v, ServoMode) else v}")
     for extra in ("position_deg", "offset_deg", "vin_v", "time_s", "min_deg", "max_deg"):
         if hasattr(type(message), extra):
             parts.append(f"{extra}={getattr(message, extra):g}")

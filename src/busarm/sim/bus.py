@@ -236,7 +236,7 @@ class SimBus:
         data = replies[0]
         for other in replies[1:]:
             # Two drivers on an open-drain line: a 0 bit wins (wired-AND).
-            data = bytes(a & b for a, b in zip(data, other))
+            data = bytes(a & b for a, b in zip(data, other, strict=False))
         t = self.timing
         start = max(done + (t.turnaround_s if t.enabled else 0.0), self._line_out_free)
         if self._pending_stray:

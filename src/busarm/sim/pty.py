@@ -7,6 +7,7 @@ would have delivered their last byte.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import select
 import threading
@@ -17,7 +18,7 @@ from types import TracebackType
 from busarm.errors import TransportError
 from busarm.sim.bus import SimBus
 
-_SPIN_S = 0.0003  # below this, spin instead of sleeping: select() overshoots by ~50-100 us
+_SPIN_S = 0.00015  # below this, spin instead of sleeping: select() overshoots by ~50-100 us
 
 
 class PtyServer:
@@ -110,10 +111,8 @@ class PtyServer:
             self._thread = None
         for fd in (self._master, self._slave, self._stop_r, self._stop_w):
             if fd >= 0:
-                try:
+                with contextlib.suppress(OSError):
                     os.close(fd)
-                except OSError:
-                    pass
         self._master = self._slave = self._stop_r = self._stop_w = -1
 
     def __enter__(self) -> PtyServer:

@@ -109,6 +109,11 @@ class SimTransport:
         self._check_open()
         self.bus.pop_output()
 
+    def exchange(self, request: bytes, timeout_s: float) -> bytes:
+        self.reset_input()
+        self.write(request)
+        return self.read(256, timeout_s)
+
     def close(self) -> None:
         self._closed = True
 
