@@ -150,6 +150,7 @@ class ServoBus:
         self._lock = threading.RLock()
         self._plans: dict[tuple[int, Command], _ReadPlan] = {}
         self._limits: dict[int, tuple[float, float]] = {}
+        self._line_free_at = 0.0
         for sid, (lo, hi) in (limits_deg or {}).items():
             self.set_limits_deg(sid, lo, hi)
         self.echo = echo_mode is EchoMode.ON
@@ -259,6 +260,10 @@ class ServoBus:
         with self._lock:
             t = self.transport
             t.write(request)
+            # The OS returns before the bytes are on the wire; a reply to the next
+            # request cannot start until they are, so its deadline must wait for them.
+            now = time.monotonic()
+            self._line_free_at = max(now, self._line_free_at) + len(request) * self.byte_s
             if self.echo:
                 self._await_echo(request, self.timeout_s(len(request), 0))
 
@@ -305,8 +310,12 @@ class ServoBus:
     ) -> tuple[bytearray, int]:
         """Send the request; return (buffer, offset) of the first valid reply in what comes back."""
         t = self.transport
-        deadline = time.monotonic() + plan.timeout_s
-        buf = bytearray(t.exchange(plan.request, plan.timeout_s))
+        now = time.monotonic()
+        timeout_s = plan.timeout_s
+        if self._line_free_at > now:
+            timeout_s += self._line_free_at - now
+        deadline = now + timeout_s
+        buf = bytearray(t.exchange(plan.request, timeout_s))
         start = 0
         echo_pending = self.echo
         saw_bad = False
@@ -342,8 +351,8 @@ class ServoBus:
                 f"servo {servo_id} {name}: echo expected but got {bytes(buf).hex(' ')}", bytes(buf)
             )
         raise BusTimeoutError(
-            f"servo {servo_id} did not answer {name} within {plan.timeout_s * 1e3:.1f} ms",
-            servo_id=servo_id, command=int(command), timeout_s=plan.timeout_s,
+            f"servo {servo_id} did not answer {name} within {timeout_s * 1e3:.1f} ms",
+            servo_id=servo_id, command=int(command), timeout_s=timeout_s,
         )
 
     def _detect_echo(self) -> bool:
@@ -659,11 +668,13 @@ class ServoBus:
         started = time.monotonic()
 
         def collect(chunk: bytes, asked: int) -> None:
-            failures = parser.checksum_failures
+            # Bytes that make no valid frame, in the window of one ID: two servos
+            # answering at once (their bits AND on the open-drain line).
+            noise = parser.checksum_failures + parser.skipped_bytes
             for frame in parser.feed(chunk):
                 if frame.command == Command.ID_READ and len(frame.params) == 1:
                     found.add(frame.servo_id)
-            if parser.checksum_failures > failures:
+            if parser.checksum_failures + parser.skipped_bytes > noise:
                 garbled.add(asked)
 
         with self._lock:

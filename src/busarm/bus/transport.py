@@ -164,9 +164,10 @@ class SerialTransport:
 
 
 def _check_baudrate(baudrate: object) -> int:
-    valid = isinstance(baudrate, int) and not isinstance(baudrate, bool)
-    if not valid or not 1200 <= baudrate <= 4_000_000:  # type: ignore[operator]
-        raise ConfigError(f"baudrate {baudrate!r} is out of range 1200..4000000")
+    if not isinstance(baudrate, int) or isinstance(baudrate, bool):
+        raise ConfigError(f"baudrate must be an integer 1200..4000000, got {baudrate!r}")
+    if not 1200 <= baudrate <= 4_000_000:
+        raise ConfigError(f"baudrate {baudrate} is out of range 1200..4000000")
     return baudrate
 
 

@@ -85,6 +85,34 @@ class FaultInjection:
         return bool(self.drop_rate or self.corrupt_rate or self.late_rate)
 
 
+MAX_SKEW_BITS = 24
+"""Largest difference, in bit times, between two servos starting the same reply."""
+
+
+def _uart_bits(data: bytes) -> list[int]:
+    """Line levels for ``data``: per byte a start bit (0), 8 data bits LSB first, a stop bit."""
+    bits: list[int] = []
+    for b in data:
+        bits.append(0)
+        bits.extend((b >> i) & 1 for i in range(8))
+        bits.append(1)
+    return bits
+
+
+def _uart_bytes(line: list[int]) -> bytes:
+    """What a UART receiver makes of line levels: a byte per start bit, framing errors kept."""
+    out = bytearray()
+    i = 0
+    while i < len(line):
+        if line[i] == 1:
+            i += 1
+            continue
+        data = (line[i + 1 : i + 9] + [1] * 8)[:8]
+        out.append(sum(bit << k for k, bit in enumerate(data)))
+        i += 10
+    return bytes(out)
+
+
 class SimBus:
     """Simulated servos on one half-duplex line. Thread-safe."""
 
@@ -233,10 +261,7 @@ class SimBus:
             self._save()
         if not replies:
             return
-        data = replies[0]
-        for other in replies[1:]:
-            # Two drivers on an open-drain line: a 0 bit wins (wired-AND).
-            data = bytes(a & b for a, b in zip(data, other, strict=False))
+        data = replies[0] if len(replies) == 1 else self._collide(replies)
         t = self.timing
         start = max(done + (t.turnaround_s if t.enabled else 0.0), self._line_out_free)
         if self._pending_stray:
@@ -253,6 +278,20 @@ class SimBus:
             ready += self.faults.late_s
         if data:
             self._schedule(ready, data)
+
+    def _collide(self, replies: list[bytes]) -> bytes:
+        """What the host receives when several servos answer at once.
+
+        The line is open-drain, so a 0 bit from any servo wins (wired-AND). The
+        servos do not start in the same bit: each firmware answers after its own
+        jitter, modelled as 1..MAX_SKEW_BITS bits after the first. Even identical
+        replies therefore garble, as they do on a real bus.
+        """
+        streams = [_uart_bits(replies[0])]
+        streams += [[1] * self._rng.randint(1, MAX_SKEW_BITS) + _uart_bits(r) for r in replies[1:]]
+        length = max(len(s) for s in streams)
+        line = [min(s[i] if i < len(s) else 1 for s in streams) for i in range(length)]
+        return _uart_bytes(line)
 
     def _schedule(self, when: float, data: bytes) -> None:
         self._out.append((when, data))
