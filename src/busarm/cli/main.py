@@ -7,8 +7,6 @@ replies, a port that cannot be opened), 130 when interrupted. No tracebacks.
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
 import logging
 import sys
 import warnings
@@ -21,6 +19,7 @@ from busarm import __version__
 from busarm.bus.driver import DEFAULT_RETRIES, DEFAULT_TIMEOUT_MARGIN_S
 from busarm.bus.transport import DEFAULT_BAUDRATE
 from busarm.cli import bus_cmds, config_cmds, demo, proto_cmds, servo_cmds, sim_cmds
+from busarm.cli.bench_cmd import bench
 from busarm.cli.common import Settings
 from busarm.errors import BusArmError, ConfigError
 
@@ -119,13 +118,7 @@ for _module in (bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, demo):
     for _command in _module.COMMANDS:
         cli.add_command(_command)
 
-# ----------------------------------------------------------------------------- bench
-# `busarm bench` is registered here. It lives in busarm.cli.bench_cmd (written
-# separately), which must define a click command named `bench`. Until that module
-# exists the command is simply absent; an error inside it is not hidden.
-if importlib.util.find_spec("busarm.cli.bench_cmd") is not None:
-    cli.add_command(importlib.import_module("busarm.cli.bench_cmd").bench)
-# ---------------------------------------------------------------------------------
+cli.add_command(bench)
 
 
 def main() -> None:
