@@ -59,6 +59,7 @@ from busarm.units import (
     CENTER_PULSES,
     DEG_PER_PULSE,
     MOTOR_SPEED_MAX,
+    MOVE_TIME_MAX_MS,
     check_int_range,
     check_range,
     deg_from_pulses,
@@ -151,6 +152,7 @@ class ServoBus:
         self._plans: dict[tuple[int, Command], _ReadPlan] = {}
         self._limits: dict[int, tuple[float, float]] = {}
         self._line_free_at = 0.0
+        self._spinning: set[int] = set()  # servos this bus set turning in motor mode
         for sid, (lo, hi) in (limits_deg or {}).items():
             self.set_limits_deg(sid, lo, hi)
         self.echo = echo_mode is EchoMode.ON
@@ -187,10 +189,19 @@ class ServoBus:
             self.close()
 
     def emergency_stop(self) -> None:
-        """MOVE_STOP to every servo (broadcast), twice; never raises. Servos hold position."""
-        for _ in range(2):
+        """Stop everything and hold; never raises.
+
+        MOVE_STOP to every servo (broadcast, twice), and speed 0 to each servo this
+        bus set turning in motor mode (MOVE_STOP does not stop a motor).
+        """
+        frames = [encode_request(BROADCAST_ID, Command.MOVE_STOP)] * 2
+        frames += [
+            encode_request(sid, Command.OR_MOTOR_MODE_WRITE, int(ServoMode.MOTOR), 0, 0)
+            for sid in sorted(self._spinning)
+        ]
+        for frame in frames:
             try:
-                self._send(encode_request(BROADCAST_ID, Command.MOVE_STOP))
+                self._send(frame)
             except Exception as exc:  # the bus may be what failed
                 log.warning("emergency stop could not be sent: %s", exc)
 
@@ -438,7 +449,13 @@ class ServoBus:
             check_range("speed_deg_s", speed_deg_s, 0.1, 10000.0, "deg/s")
             current = self.read_positions_deg(pulses)
             largest = max(abs(targets_deg[sid] - current[sid]) for sid in pulses)
-            duration_s = min(largest / speed_deg_s, 30.0)
+            duration_s = largest / speed_deg_s
+            if duration_s > MOVE_TIME_MAX_MS / 1000.0:
+                # Capping the time would move faster than the user's speed limit.
+                raise ConfigError(
+                    f"a {largest:.1f} deg move at {speed_deg_s:g} deg/s takes {duration_s:.1f} s, "
+                    f"more than the servo's 30 s maximum: raise the speed or split the move"
+                )
         assert duration_s is not None
         time_ms = ms_from_s(duration_s)
         with self._lock:
@@ -502,13 +519,20 @@ class ServoBus:
         check_servo_id(servo_id, allow_broadcast=True)
         check_int_range("speed", speed, -MOTOR_SPEED_MAX, MOTOR_SPEED_MAX)
         self.send(servo_id, Command.OR_MOTOR_MODE_WRITE, int(ServoMode.MOTOR), 0, speed)
+        if speed:
+            self._spinning.add(servo_id)
+        else:
+            self._spinning.discard(servo_id)
 
     def stop_motor(self, servo_id: int) -> None:
         """Stop a servo in motor mode (speed 0: MOVE_STOP does not stop a motor)."""
         self.set_motor_speed(servo_id, 0)
 
     def set_position_mode(self, servo_id: int) -> None:
+        """Back to position control (holds where the motor stopped)."""
+        check_servo_id(servo_id, allow_broadcast=True)
         self.send(servo_id, Command.OR_MOTOR_MODE_WRITE, int(ServoMode.POSITION), 0, 0)
+        self._spinning.discard(servo_id)
 
     def read_mode(self, servo_id: int) -> ModeReply:
         return self._read(servo_id, Command.OR_MOTOR_MODE_READ, ModeReply)
