@@ -56,14 +56,39 @@ class Transport(Protocol):
     def close(self) -> None: ...
 
 
-def usb_latency_timer_ms(device: str) -> int | None:
+SYSFS = Path("/sys")
+
+
+def _latency_file(device: str, sysfs: Path) -> Path:
+    name = Path(os.path.realpath(device)).name
+    return sysfs / "bus" / "usb-serial" / "devices" / name / "latency_timer"
+
+
+def usb_latency_timer_ms(device: str, *, sysfs: Path = SYSFS) -> int | None:
     """The FTDI-style latency timer of a USB serial device, from Linux sysfs, or None."""
     try:
-        name = Path(os.path.realpath(device)).name
-        text = Path(f"/sys/bus/usb-serial/devices/{name}/latency_timer").read_text()
-        return int(text.strip())
+        return int(_latency_file(device, sysfs).read_text().strip())
     except (OSError, ValueError):
         return None
+
+
+def adapter_latency_s(device: str, *, sysfs: Path = SYSFS) -> float:
+    """How long the adapter may hold received bytes (0 if unknown).
+
+    Warns (RuntimeWarning) when the USB latency timer is above 1 ms: every reply then
+    waits that long, and the warning says how to lower it.
+    """
+    latency_ms = usb_latency_timer_ms(device, sysfs=sysfs)
+    if latency_ms is None:
+        return 0.0
+    if latency_ms > 1:
+        warnings.warn(
+            f"{device}: USB latency timer is {latency_ms} ms; every reply waits that long. "
+            f"Set it to 1 ms: echo 1 | sudo tee {_latency_file(device, sysfs)}",
+            RuntimeWarning,
+            stacklevel=4,
+        )
+    return latency_ms / 1000.0
 
 
 class SerialTransport:
@@ -77,17 +102,7 @@ class SerialTransport:
         self.latency_s = 0.0
         self._fd: int | None = port.fileno() if use_fd else None
         if self._fd is not None:
-            latency_ms = usb_latency_timer_ms(name)
-            if latency_ms is not None:
-                self.latency_s = latency_ms / 1000.0
-                if latency_ms > 1:
-                    warnings.warn(
-                        f"{name}: USB latency timer is {latency_ms} ms; every reply waits that "
-                        f"long. Set it to 1 ms: echo 1 > /sys/bus/usb-serial/devices/"
-                        f"{Path(os.path.realpath(name)).name}/latency_timer",
-                        RuntimeWarning,
-                        stacklevel=3,
-                    )
+            self.latency_s = adapter_latency_s(name)
 
     def write(self, data: bytes) -> None:
         try:
