@@ -2,10 +2,12 @@
 
 Run as ``make bench-peers`` (installs the ``[peers]`` extra: pylx16a, lewansoul-lx16a).
 
-1. Rate. For each library, a fresh simulator process on a pseudo-terminal (wire timing
-   on, 115200 baud, 0.5 ms servo turnaround) and N position reads of servo 1: reads/s,
-   latency p50/p99 and client CPU per read (median of ``time.thread_time`` around each
-   call), beside the wire limit 1 / ((6 + 8) bytes x 10 bits / 115200 + 0.5 ms).
+1. Rate. N position reads of servo 1 per library: reads/s, latency p50/p99 and client
+   CPU per read (median of ``time.thread_time`` around each call), beside the wire limit
+   1 / ((6 + 8) bytes x 10 bits / 115200 + 0.5 ms). The reads are split over a few
+   rounds with the libraries' order rotating (the machine's load drifts); every library
+   gets a fresh simulator process (``busarm sim serve`` on a pseudo-terminal, wire timing
+   on, 115200 baud, 0.5 ms turnaround) in every round, so no state leaks.
 2. Glitches. For each library, a fresh in-process simulator (servo 1 at 100 pulses,
    servo 2 at 700) and three tests: a stray 0x00 byte before the next reply, a stray
    0x55 byte (half a frame header), and a reply 0.2 s late (longer than every library's
@@ -71,6 +73,9 @@ RATE_TOLERANCE = 0.02
 """Run-to-run noise of the rate (all three libraries run close to the wire limit, and
 repeated runs move by about 1%): busarm counts as slower than a peer only beyond it."""
 ABORT_AFTER_ERRORS = 25
+WARMUP_READS = 20
+"""Unmeasured reads at the start of each round."""
+ROUNDS = 4
 """The rate loop stops after this many consecutive failed reads (a peer that cannot talk)."""
 
 
@@ -248,7 +253,20 @@ def _close_client(client: Client | None) -> None:
 # ---------------------------------------------------------------------- 1. rate
 
 
-def _rate_loop(client: Client, servo_id: int, count: int, expect: int) -> dict[str, Any]:
+@dataclass
+class RateSamples:
+    """What the rate loop saw in one round."""
+
+    latencies: list[float]
+    cpu: list[float]
+    elapsed: float
+    errors: int
+    wrong: Counter[int]
+    first_errors: list[str]
+    aborted: str
+
+
+def _rate_loop(client: Client, servo_id: int, count: int, expect: int) -> RateSamples:
     """``count`` reads, each timed (wall and this thread's CPU). Runs on the worker thread."""
     latencies: list[float] = []
     cpu: list[float] = []
@@ -258,6 +276,9 @@ def _rate_loop(client: Client, servo_id: int, count: int, expect: int) -> dict[s
     consecutive = 0
     aborted = ""
     read = client.read_pulses
+    for _ in range(WARMUP_READS):
+        with contextlib.suppress(Exception):
+            read(servo_id)
     clock, cpu_clock = time.perf_counter, time.thread_time
     start = clock()
     for _ in range(count):
@@ -283,53 +304,81 @@ def _rate_loop(client: Client, servo_id: int, count: int, expect: int) -> dict[s
             if consecutive >= ABORT_AFTER_ERRORS:
                 aborted = f"stopped after {consecutive} consecutive failed reads"
                 break
-    elapsed = clock() - start
-    done = len(latencies)
-    return {
-        "count": done,
-        "errors": errors,
-        "wrong_values": sum(wrong.values()),
-        "wrong_examples": dict(wrong.most_common(3)),
-        "rate": done / elapsed if elapsed > 0 else 0.0,
-        "latency_ms": _percentiles(latencies),
-        "cpu_us_median": round(statistics.median(cpu) * 1e6, 2),
-        "first_errors": first_errors,
-        "aborted": aborted,
-    }
+    return RateSamples(latencies, cpu, clock() - start, errors, wrong, first_errors, aborted)
 
 
-def bench_rate(cls: type[Client], reads: int, timeout_s: float) -> dict[str, Any]:
-    """One library against a fresh simulator process."""
-    result: dict[str, Any] = {"library": cls.name, "package": cls.package}
-    logged = len(LOG_CAPTURE.lines)
+def rate_round(
+    cls: type[Client], reads: int, timeout_s: float
+) -> tuple[str, str, RateSamples | None]:
+    """One library, one round, against a fresh simulator process: (status, api, samples)."""
     with sim_pty_server(TURNAROUND_MS) as path:
         client, opened = _open_client(cls, path, timeout_s, [1])
         if client is None:
-            result.update(status=f"could not open: {opened.kind} {opened.error}".strip())
-            return result
+            return f"could not open: {opened.kind} {opened.error}".strip(), "", None
         try:
-            result["api"] = client.describe()
-            warm = guarded(lambda: client.read_pulses(1), CALL_LIMIT_S)
-            if warm.kind != "ok":
-                result.update(status=f"first read failed: {warm.kind} {warm.error}".strip())
-                return result
-            limit = reads * (timeout_s + 0.01) + 30.0
+            api = client.describe()
+            first = guarded(lambda: client.read_pulses(1), CALL_LIMIT_S)
+            if first.kind != "ok":
+                return f"first read failed: {first.kind} {first.error}".strip(), api, None
+            limit = (reads + WARMUP_READS) * (timeout_s + 0.01) + 30.0
             run = guarded(lambda: _rate_loop(client, 1, reads, CENTER_PULSES), limit)
             if run.kind == "hang":
-                result.update(status=f"hang (no end after {limit:.0f} s)")
-                return result
+                return f"hang (no end after {limit:.0f} s)", api, None
             if run.kind == "error":
-                result.update(status=f"loop broke: {run.error}")
-                return result
-            result.update(run.value)
-            result["status"] = run.value["aborted"] or "ok"
-            if run.output:
-                result["printed"] = run.output[-500:]
+                return f"loop broke: {run.error}", api, None
+            samples: RateSamples = run.value
+            return samples.aborted or "ok", api, samples
         finally:
             _close_client(client)
-            result["log_lines"] = LOG_CAPTURE.lines[logged:][-5:]
-            result["log_count"] = len(LOG_CAPTURE.lines) - logged
-    return result
+
+
+def bench_rates(reads: int, rounds: int, timeout_s: float) -> list[dict[str, Any]]:
+    """Every library, ``reads`` reads split over ``rounds`` rounds; the order of the
+    libraries rotates each round, so drift in the machine's load hits them alike."""
+    per_round = [reads // rounds + (1 if i < reads % rounds else 0) for i in range(rounds)]
+    results: dict[str, dict[str, Any]] = {
+        c.name: {"library": c.name, "package": c.package, "status": "ok"} for c in CLIENTS
+    }
+    samples: dict[str, list[RateSamples]] = {c.name: [] for c in CLIENTS}
+    logged = {c.name: 0 for c in CLIENTS}
+    for i, n in enumerate(per_round):
+        if n == 0:
+            continue
+        order = CLIENTS[i % len(CLIENTS):] + CLIENTS[: i % len(CLIENTS)]
+        print(f"  rate round {i + 1}/{rounds}: {', '.join(c.name for c in order)}", flush=True)
+        for cls in order:
+            r = results[cls.name]
+            if r["status"] != "ok":
+                continue  # a library that failed once is not run again
+            before = len(LOG_CAPTURE.lines)
+            status, api, got = rate_round(cls, n, timeout_s)
+            logged[cls.name] += len(LOG_CAPTURE.lines) - before
+            r["api"] = api or r.get("api", "")
+            r["status"] = status
+            if got is not None:
+                samples[cls.name].append(got)
+    for name, r in results.items():
+        got_all = samples[name]
+        r["log_count"] = logged[name]
+        if not got_all:
+            continue
+        latencies = [x for g in got_all for x in g.latencies]
+        cpu = [x for g in got_all for x in g.cpu]
+        elapsed = sum(g.elapsed for g in got_all)
+        wrong: Counter[int] = sum((g.wrong for g in got_all), Counter())
+        r.update(
+            rounds=len(got_all),
+            count=len(latencies),
+            errors=sum(g.errors for g in got_all),
+            wrong_values=sum(wrong.values()),
+            wrong_examples=dict(wrong.most_common(3)),
+            rate=len(latencies) / elapsed if elapsed > 0 else 0.0,
+            round_rates=[round(len(g.latencies) / g.elapsed, 1) for g in got_all if g.elapsed],
+            latency_ms=_percentiles(latencies),
+            cpu_us_median=round(statistics.median(cpu) * 1e6, 2),
+            first_errors=[e for g in got_all for e in g.first_errors][:3],
+        )
+    return list(results.values())
 
 
 # ---------------------------------------------------------------------- 2. glitches
@@ -468,22 +517,22 @@ def _rate_table(rates: list[dict[str, Any]]) -> str:
 
 def _glitch_table(glitches: list[dict[str, Any]]) -> str:
     head = (f"{'test':<12}{'library':<17}{'glitched read 1':<26}"
-            f"{'then ' + ', '.join(map(str, AFTER_GLITCH)):<52}verdict")
+            f"{'then ' + ', '.join(map(str, AFTER_GLITCH)):<62}verdict")
     lines = [head, "-" * (len(head) + 8)]
     for g in glitches:
         if "glitched" not in g:
             detail = g.get("detail") or ", ".join(_short(s) for s in g.get("before", []))
-            lines.append(f"{g['test']:<12}{g['library']:<17}{'-':<26}{detail[:50]:<52}"
+            lines.append(f"{g['test']:<12}{g['library']:<17}{'-':<26}{detail[:60]:<62}"
                          f"{g['verdict']}")
             continue
         glitched = _short(g["glitched"])
         later = ", ".join(_short(s) for s in g["later"])
-        lines.append(f"{g['test']:<12}{g['library']:<17}{glitched[:25]:<26}{later[:51]:<52}"
+        lines.append(f"{g['test']:<12}{g['library']:<17}{glitched[:25]:<26}{later[:61]:<62}"
                      f"{g['verdict']}")
     return "\n".join(lines)
 
 
-def run(reads: int, timeout_s: float, tolerance: float) -> tuple[dict[str, Any], int]:
+def run(reads: int, rounds: int, timeout_s: float, tolerance: float) -> tuple[dict[str, Any], int]:
     started = time.perf_counter()
     root = logging.getLogger()
     root.addHandler(LOG_CAPTURE)
@@ -495,19 +544,20 @@ def run(reads: int, timeout_s: float, tolerance: float) -> tuple[dict[str, Any],
     print(f"wire limit: 1 / ((6 + 8) bytes x 10 / {BAUD} + {TURNAROUND_MS} ms) = "
           f"{WIRE_LIMIT:.1f} reads/s; peer timeouts {timeout_s * 1e3:.0f} ms\n")
 
-    rates: list[dict[str, Any]] = []
-    for cls in CLIENTS:
-        print(f"  rate: {cls.name} ...", flush=True)
-        rates.append(bench_rate(cls, reads, timeout_s))
-    print("\n1. Rate (each library against a fresh simulator process)\n")
+    rates = bench_rates(reads, rounds, timeout_s)
+    print(f"\n1. Rate ({rounds} rounds, each library against a fresh simulator process "
+          "each round)\n")
     print(_rate_table(rates))
     for r in rates:
         if r.get("api"):
             print(f"   {r['library']}: {r['api']}")
         for e in r.get("first_errors", []):
             print(f"   {r['library']} error: {e}")
+        if r.get("round_rates"):
+            print(f"   {r['library']} per round: "
+                  f"{', '.join(f'{x:.0f}' for x in r['round_rates'])} reads/s")
         if r.get("log_count"):
-            print(f"   {r['library']} logged {r['log_count']} warnings, e.g. {r['log_lines'][-1]}")
+            print(f"   {r['library']} logged {r['log_count']} warnings")
 
     glitches: list[dict[str, Any]] = []
     for test in GLITCH_TESTS:
@@ -575,6 +625,8 @@ def run(reads: int, timeout_s: float, tolerance: float) -> tuple[dict[str, Any],
         "baudrate": BAUD,
         "turnaround_ms": TURNAROUND_MS,
         "peer_timeout_ms": timeout_s * 1e3,
+        "reads": reads,
+        "rounds": rounds,
         "wire_limit_reads_per_s": round(WIRE_LIMIT, 2),
         "rate": rates,
         "glitch_tests": GLITCH_TESTS,
@@ -598,6 +650,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--reads", type=int, default=2000,
                         help="position reads per library in the rate run (default 2000)")
+    parser.add_argument("--rounds", type=int, default=ROUNDS,
+                        help="split the reads over this many rounds, rotating the order of "
+                             f"the libraries (default {ROUNDS})")
     parser.add_argument("--json", type=Path, metavar="PATH", help="also write the report here")
     parser.add_argument("--timeout-ms", type=float, default=PEER_TIMEOUT_S * 1e3,
                         help="read timeout given to the peers (default 50)")
@@ -605,10 +660,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="rate noise band: busarm fails only if slower than the best "
                              "peer by more than this fraction (default 0.02)")
     args = parser.parse_args(argv)
-    if args.reads < 1:
-        parser.error("--reads must be at least 1")
+    if args.reads < 1 or args.rounds < 1:
+        parser.error("--reads and --rounds must be at least 1")
     try:
-        report, status = run(args.reads, args.timeout_ms / 1e3, args.tolerance)
+        report, status = run(args.reads, args.rounds, args.timeout_ms / 1e3, args.tolerance)
         if args.json is not None:
             args.json.parent.mkdir(parents=True, exist_ok=True)
             args.json.write_text(json.dumps(report, indent=2, default=str) + "\n")

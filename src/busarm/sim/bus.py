@@ -270,12 +270,13 @@ class SimBus:
         if self.faults.directions in ("tx", "both"):
             data = self._mangle(data)
         ready = start + (len(data) * t.byte_s if t.enabled else 0.0)
-        self._line_out_free = ready
         if self._pending_delay:
             ready += self._pending_delay
             self._pending_delay = 0.0
         elif self.faults.late_rate and self._rng.random() < self.faults.late_rate:
             ready += self.faults.late_s
+        # One wire: nothing said after a late reply can overtake it.
+        self._line_out_free = ready
         if data:
             self._schedule(ready, data)
 
