@@ -11,9 +11,11 @@ from __future__ import annotations
 
 import os
 import platform
+import select
 import statistics
 import subprocess
 import sys
+import termios
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -21,7 +23,9 @@ from dataclasses import asdict, dataclass, field
 
 from busarm.bus.driver import ServoBus
 from busarm.errors import ConfigError, TransportError
-from busarm.protocol import SPECS, Command
+from busarm.protocol import SPECS, Command, encode_request
+
+WARM_UP_READS = 200
 
 
 @dataclass
@@ -93,26 +97,77 @@ def _reply_bytes(command: Command) -> int:
     return length + 3
 
 
+CPU_BATCH = 50
+"""Client CPU is read once per this many transactions (the clock is itself a syscall)."""
+
+
 def bench_position_reads(bus: ServoBus, servo_id: int, count: int) -> BenchResult:
-    """``count`` POS_READs of one servo, back to back."""
+    """``count`` POS_READs of one servo, back to back.
+
+    Latency is timed per read; client CPU time (this thread's, user + system) per
+    batch of CPU_BATCH reads, reported as the median over batches of the mean per read.
+    """
     latencies: list[float] = []
     cpu: list[float] = []
     errors = 0
     clock, cpu_clock = time.perf_counter, time.thread_time
+    read = bus.read_position_pulses
     start = clock()
-    for _ in range(count):
-        t0, c0 = clock(), cpu_clock()
+    c0 = cpu_clock()
+    for i in range(1, count + 1):
+        t0 = clock()
         try:
-            bus.read_position_pulses(servo_id)
+            read(servo_id)
         except Exception:
             errors += 1
-        cpu.append(cpu_clock() - c0)
         latencies.append(clock() - t0)
+        if i % CPU_BATCH == 0:
+            c1 = cpu_clock()
+            cpu.append((c1 - c0) / CPU_BATCH)
+            c0 = c1
     elapsed = clock() - start
     wire = bus.wire_time_s(6, _reply_bytes(Command.POS_READ))
     return BenchResult(
         "position reads", "reads/s", count, count / elapsed, 1.0 / wire,
-        _percentiles(latencies), round(statistics.median(cpu) * 1e6, 2), errors,
+        _percentiles(latencies), _median_us(cpu), errors,
+    )
+
+
+def _median_us(samples_s: Sequence[float]) -> float | None:
+    return round(statistics.median(samples_s) * 1e6, 2) if samples_s else None
+
+
+def bench_os_floor(bus: ServoBus, servo_id: int, count: int) -> BenchResult | None:
+    """The same position read done with bare syscalls (flush, write, select, read) on
+    the same file descriptor: what any client pays to the OS. None if the port has no
+    descriptor (URLs, the in-process simulator)."""
+    fd = getattr(bus.transport, "_fd", None)
+    if fd is None:
+        return None
+    request = encode_request(servo_id, Command.POS_READ)
+    need = _reply_bytes(Command.POS_READ) + (len(request) if bus.echo else 0)
+    cpu: list[float] = []
+    latencies: list[float] = []
+    clock, cpu_clock = time.perf_counter, time.thread_time
+    start = clock()
+    c0 = cpu_clock()
+    for i in range(1, count + 1):
+        t0 = clock()
+        termios.tcflush(fd, termios.TCIFLUSH)
+        os.write(fd, request)
+        got = 0
+        while got < need and select.select((fd,), (), (), 0.1)[0]:
+            got += len(os.read(fd, 256))
+        latencies.append(clock() - t0)
+        if i % CPU_BATCH == 0:
+            c1 = cpu_clock()
+            cpu.append((c1 - c0) / CPU_BATCH)
+            c0 = c1
+    elapsed = clock() - start
+    wire = bus.wire_time_s(6, _reply_bytes(Command.POS_READ))
+    return BenchResult(
+        "position reads, bare syscalls (OS floor)", "reads/s", count, count / elapsed,
+        1.0 / wire, _percentiles(latencies), _median_us(cpu), 0,
     )
 
 
@@ -129,7 +184,7 @@ def bench_state_loop(bus: ServoBus, servo_ids: Sequence[int], loops: int) -> Ben
             bus.read_states(servo_ids)
         except Exception:
             errors += 1
-        cpu.append((time.thread_time() - c0) / (3 * len(servo_ids)))
+        cpu.append((time.thread_time() - c0) / (3 * len(servo_ids)))  # per transaction
         latencies.append(clock() - t0)
     elapsed = clock() - start
     per_servo = sum(
@@ -139,7 +194,7 @@ def bench_state_loop(bus: ServoBus, servo_ids: Sequence[int], loops: int) -> Ben
     return BenchResult(
         f"{len(servo_ids)}-servo state loop", "loops/s", loops, loops / elapsed,
         1.0 / (per_servo * len(servo_ids)), _percentiles(latencies),
-        round(statistics.median(cpu) * 1e6, 2), errors,
+        _median_us(cpu), errors,
     )
 
 
@@ -195,12 +250,16 @@ def run_bench(
     if not servo_ids:
         raise ConfigError("bench needs at least one servo ID")
     with ServoBus.open(port, echo=echo, turnaround_s=turnaround_ms / 1000.0) as bus:
-        bus.read_position_pulses(servo_ids[0])  # warm up; fails fast if nobody is there
+        for _ in range(WARM_UP_READS):  # fails fast if nobody is there
+            bus.read_position_pulses(servo_ids[0])
         results = [
             bench_position_reads(bus, servo_ids[0], reads),
             bench_state_loop(bus, servo_ids, loops),
             bench_scan(bus, scans),
         ]
+        floor = bench_os_floor(bus, servo_ids[0], reads)
+        if floor is not None:
+            results.insert(1, floor)
         return BenchReport(
             port, bus.transport.baudrate, turnaround_ms, bus.echo, machine_info(), results
         )

@@ -245,7 +245,8 @@ class ServoBus:
         # After every wait for a reply the CPU caches are cold, so fewer objects and
         # calls here is what keeps the client's CPU time per transaction low.
         plan = self._plans.get((servo_id, command)) or self._plan(servo_id, command)
-        return plan.unpack_from(*self._transact(plan, servo_id, command, offset=5))
+        buf, at = self._transact(plan, servo_id, command)
+        return plan.unpack_from(buf, at + 5)
 
     def _plan(self, servo_id: int, command: Command) -> _ReadPlan:
         spec = SPECS.get(command) if isinstance(command, Command) else None
@@ -293,46 +294,63 @@ class ServoBus:
             buf += chunk
 
     def _transact(
-        self, plan: _ReadPlan, servo_id: int, command: Command, offset: int = 0
+        self, plan: _ReadPlan, servo_id: int, command: Command
+    ) -> tuple[bytes | bytearray, int]:
+        """One request and its validated reply, retried up to ``self.retries`` times.
+
+        Returns the received bytes and where the reply starts in them. This is the hot
+        path: after each wait for a reply the CPU caches are cold, so the common case
+        (the whole reply, and only it, in the first read) is accepted in a few lines.
+        """
+        with self._lock:
+            now = time.monotonic()
+            timeout_s = plan.timeout_s
+            if self._line_free_at > now:
+                timeout_s += self._line_free_at - now
+            data = self.transport.exchange(plan.request, timeout_s)
+            n = plan.reply_bytes
+            if (
+                len(data) == n and plan.prefix and not self.echo
+                and data.startswith(plan.prefix) and data[n - 1] == (~sum(data[2 : n - 1])) & 0xFF
+            ):
+                return data, 0
+            return self._finish(plan, servo_id, command, data, now + timeout_s)
+
+    def _finish(
+        self, plan: _ReadPlan, servo_id: int, command: Command, first: bytes, deadline: float
     ) -> tuple[bytearray, int]:
-        """One request and its validated reply: the buffer, and where the reply starts
-        plus ``offset``. Retries timeouts and bad replies up to ``self.retries`` times."""
-        error: Exception | None = None
+        """The general case: keep reading this attempt, then retry (lock held)."""
+        error: BusTimeoutError | ProtocolError | None = None
         for attempt in range(self.retries + 1):
             if attempt:
                 self.stats["retries"] += 1
-            with self._lock:
-                try:
-                    buf, at = self._await_reply(plan, servo_id, command)
-                    return buf, at + offset
-                except BusTimeoutError as exc:
-                    self.stats["timeouts"] += 1
-                    error = exc
-                except ProtocolError as exc:
-                    self.stats["bad_replies"] += 1
-                    error = exc
+                now = time.monotonic()
+                deadline = now + plan.timeout_s + max(self._line_free_at - now, 0.0)
+                first = self.transport.exchange(plan.request, deadline - now)
+            try:
+                return self._scan_reply(plan, servo_id, command, bytearray(first), deadline)
+            except BusTimeoutError as exc:
+                self.stats["timeouts"] += 1
+                error = exc
+            except ProtocolError as exc:
+                self.stats["bad_replies"] += 1
+                error = exc
         assert error is not None
         if self.retries:
             error.args = (f"{error.args[0]} (after {self.retries + 1} attempts)",)
         raise error
 
-    def _await_reply(
-        self, plan: _ReadPlan, servo_id: int, command: Command
+    def _scan_reply(
+        self, plan: _ReadPlan, servo_id: int, command: Command, buf: bytearray, deadline: float
     ) -> tuple[bytearray, int]:
-        """Send the request; return (buffer, offset) of the first valid reply in what comes back."""
+        """Read until the first valid reply in ``buf`` or the deadline; skip everything else."""
         t = self.transport
-        now = time.monotonic()
-        timeout_s = plan.timeout_s
-        if self._line_free_at > now:
-            timeout_s += self._line_free_at - now
-        deadline = now + timeout_s
-        buf = bytearray(t.exchange(plan.request, timeout_s))
         start = 0
         echo_pending = self.echo
         saw_bad = False
         total = plan.reply_bytes
         prefix = plan.prefix or _HEADER
-        chunk = buf
+        chunk: bytes | bytearray = buf
         while chunk:
             if echo_pending:
                 # Nothing before our own echo can be the answer: the servo had not heard us yet.
@@ -352,7 +370,7 @@ class ServoBus:
                     start = j + 1
                     j = buf.find(prefix, start)
             remaining = deadline - time.monotonic()
-            chunk = bytearray(t.read(256, remaining)) if remaining > 0 else bytearray()
+            chunk = t.read(256, remaining) if remaining > 0 else b""
             buf += chunk
         name = command.name
         if saw_bad:
@@ -362,8 +380,8 @@ class ServoBus:
                 f"servo {servo_id} {name}: echo expected but got {bytes(buf).hex(' ')}", bytes(buf)
             )
         raise BusTimeoutError(
-            f"servo {servo_id} did not answer {name} within {timeout_s * 1e3:.1f} ms",
-            servo_id=servo_id, command=int(command), timeout_s=timeout_s,
+            f"servo {servo_id} did not answer {name} within {plan.timeout_s * 1e3:.1f} ms",
+            servo_id=servo_id, command=int(command), timeout_s=plan.timeout_s,
         )
 
     def _detect_echo(self) -> bool:

@@ -78,7 +78,7 @@ def _print(settings: Settings, report: BenchReport) -> None:
             str(r.errors),
         )
     settings.out.print(table)
-    scan = report.results[-1]
+    scan = report.results[-1]  # bench_scan is always last
     settings.out.print(
         f"scan: best {scan.extra['best_s']} s, median {scan.extra['median_s']} s "
         f"(target <= {TARGET_SCAN_S} s), found {scan.extra['found']}"
