@@ -17,12 +17,12 @@ import subprocess
 import sys
 import termios
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 
 from busarm.bus.driver import ServoBus
-from busarm.errors import ConfigError, TransportError
+from busarm.errors import BusArmError, ConfigError, TransportError
 from busarm.protocol import SPECS, Command, encode_request
 
 WARM_UP_READS = 200
@@ -101,92 +101,86 @@ CPU_BATCH = 50
 """Client CPU is read once per this many transactions (the clock is itself a syscall)."""
 
 
-def bench_position_reads(bus: ServoBus, servo_id: int, count: int) -> BenchResult:
-    """``count`` POS_READs of one servo, back to back.
+def _cpu_per_call_s(call: Callable[[], object], count: int) -> list[float]:
+    """Client CPU time per call (this thread, user + system), one sample per batch of
+    CPU_BATCH calls with nothing else in the loop: the clock is itself a syscall."""
+    samples: list[float] = []
+    cpu_clock = time.thread_time
+    for _ in range(max(count // CPU_BATCH, 1)):
+        c0 = cpu_clock()
+        for _ in range(CPU_BATCH):
+            call()
+        samples.append((cpu_clock() - c0) / CPU_BATCH)
+    return samples
 
-    Latency is timed per read; client CPU time (this thread's, user + system) per
-    batch of CPU_BATCH reads, reported as the median over batches of the mean per read.
-    """
+
+def _timed_reads(
+    name: str, bus: ServoBus, call: Callable[[], object], count: int
+) -> BenchResult:
+    """Rate and latency over ``count`` calls, then client CPU over as many again."""
     latencies: list[float] = []
-    cpu: list[float] = []
     errors = 0
-    clock, cpu_clock = time.perf_counter, time.thread_time
-    read = bus.read_position_pulses
+    clock = time.perf_counter
     start = clock()
-    c0 = cpu_clock()
-    for i in range(1, count + 1):
+    for _ in range(count):
         t0 = clock()
         try:
-            read(servo_id)
-        except Exception:
+            call()
+        except BusArmError:
             errors += 1
         latencies.append(clock() - t0)
-        if i % CPU_BATCH == 0:
-            c1 = cpu_clock()
-            cpu.append((c1 - c0) / CPU_BATCH)
-            c0 = c1
     elapsed = clock() - start
+    cpu = _cpu_per_call_s(call, count)
     wire = bus.wire_time_s(6, _reply_bytes(Command.POS_READ))
     return BenchResult(
-        "position reads", "reads/s", count, count / elapsed, 1.0 / wire,
-        _percentiles(latencies), _median_us(cpu), errors,
+        name, "reads/s", count, count / elapsed, 1.0 / wire, _percentiles(latencies),
+        round(statistics.median(cpu) * 1e6, 2), errors,
     )
 
 
-def _median_us(samples_s: Sequence[float]) -> float | None:
-    return round(statistics.median(samples_s) * 1e6, 2) if samples_s else None
+def bench_position_reads(bus: ServoBus, servo_id: int, count: int) -> BenchResult:
+    """``count`` POS_READs of one servo, back to back."""
+    read = bus.read_position_pulses
+    return _timed_reads("position reads", bus, lambda: read(servo_id), count)
 
 
 def bench_os_floor(bus: ServoBus, servo_id: int, count: int) -> BenchResult | None:
     """The same position read done with bare syscalls (flush, write, select, read) on
-    the same file descriptor: what any client pays to the OS. None if the port has no
+    the same file descriptor: what any client pays the OS. None if the port has no
     descriptor (URLs, the in-process simulator)."""
     fd = getattr(bus.transport, "_fd", None)
     if fd is None:
         return None
     request = encode_request(servo_id, Command.POS_READ)
     need = _reply_bytes(Command.POS_READ) + (len(request) if bus.echo else 0)
-    cpu: list[float] = []
-    latencies: list[float] = []
-    clock, cpu_clock = time.perf_counter, time.thread_time
-    start = clock()
-    c0 = cpu_clock()
-    for i in range(1, count + 1):
-        t0 = clock()
+
+    def bare_read() -> None:
         termios.tcflush(fd, termios.TCIFLUSH)
         os.write(fd, request)
         got = 0
         while got < need and select.select((fd,), (), (), 0.1)[0]:
             got += len(os.read(fd, 256))
-        latencies.append(clock() - t0)
-        if i % CPU_BATCH == 0:
-            c1 = cpu_clock()
-            cpu.append((c1 - c0) / CPU_BATCH)
-            c0 = c1
-    elapsed = clock() - start
-    wire = bus.wire_time_s(6, _reply_bytes(Command.POS_READ))
-    return BenchResult(
-        "position reads, bare syscalls (OS floor)", "reads/s", count, count / elapsed,
-        1.0 / wire, _percentiles(latencies), _median_us(cpu), 0,
-    )
+
+    return _timed_reads("position reads, bare syscalls (OS floor)", bus, bare_read, count)
 
 
 def bench_state_loop(bus: ServoBus, servo_ids: Sequence[int], loops: int) -> BenchResult:
     """``loops`` rounds of position + temperature + voltage of every servo."""
     latencies: list[float] = []
-    cpu: list[float] = []
     errors = 0
     clock = time.perf_counter
     start = clock()
     for _ in range(loops):
-        t0, c0 = clock(), time.thread_time()
+        t0 = clock()
         try:
             bus.read_states(servo_ids)
-        except Exception:
+        except BusArmError:
             errors += 1
-        cpu.append((time.thread_time() - c0) / (3 * len(servo_ids)))  # per transaction
         latencies.append(clock() - t0)
     elapsed = clock() - start
+    # Per transaction: each loop is 3 reads per servo.
+    cpu = [c / (3 * len(servo_ids)) for c in
+           _cpu_per_call_s(lambda: bus.read_states(servo_ids), max(loops // 4, CPU_BATCH))]
     per_servo = sum(
         bus.wire_time_s(6, _reply_bytes(c)) for c in (Command.POS_READ, Command.TEMP_READ,
                                                        Command.VIN_READ)
@@ -194,7 +188,7 @@ def bench_state_loop(bus: ServoBus, servo_ids: Sequence[int], loops: int) -> Ben
     return BenchResult(
         f"{len(servo_ids)}-servo state loop", "loops/s", loops, loops / elapsed,
         1.0 / (per_servo * len(servo_ids)), _percentiles(latencies),
-        _median_us(cpu), errors,
+        round(statistics.median(cpu) * 1e6, 2), errors,
     )
 
 
@@ -218,11 +212,13 @@ def bench_scan(bus: ServoBus, repeats: int = 3) -> BenchResult:
 
 
 @contextmanager
-def sim_pty_server(turnaround_ms: float, ids: str = "1,2,3,4,5,10") -> Iterator[str]:
+def sim_pty_server(
+    turnaround_ms: float, ids: str = "1,2,3,4,5,10", *, echo: bool = False
+) -> Iterator[str]:
     """A simulator in its own process on a pseudo-terminal (a fair, separate CPU)."""
     proc = subprocess.Popen(
         [sys.executable, "-m", "busarm", "sim", "serve", "--ids", ids,
-         "--turnaround-ms", str(turnaround_ms)],
+         "--turnaround-ms", str(turnaround_ms), *(["--echo"] if echo else [])],
         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
     )
     try:

@@ -27,11 +27,13 @@ TARGET_CPU_US = 30.0
 @click.option("--turnaround-ms", type=RangeType("turnaround", 0.0, 100.0, "ms"), default=0.5,
               show_default=True,
               help="Servo reply delay in ms, used for the wire limit (and by the simulator).")
+@click.option("--sim-echo", is_flag=True,
+              help="With --port sim: the simulated adapter echoes what is sent (one-wire style).")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @pass_settings
 def bench(
     settings: Settings, servo_ids: list[int], reads: int, loops: int, scans: int,
-    turnaround_ms: float, as_json: bool,
+    turnaround_ms: float, sim_echo: bool, as_json: bool,
 ) -> None:
     """Measure position reads, a full-arm state loop and an ID scan against the wire limit.
 
@@ -43,7 +45,8 @@ def bench(
     kwargs = dict(servo_ids=servo_ids, reads=reads, loops=loops, scans=scans,
                   turnaround_ms=turnaround_ms, echo=settings.echo)
     if settings.port == "sim":
-        with sim_pty_server(turnaround_ms, ",".join(map(str, servo_ids))) as path:
+        ids = ",".join(map(str, servo_ids))
+        with sim_pty_server(turnaround_ms, ids, echo=sim_echo) as path:
             report = run_bench(path, **kwargs)  # type: ignore[arg-type]
         report.port = f"sim (own process, pty {path})"
     else:
