@@ -30,7 +30,7 @@ lint: $(STAMP)
 	$(BIN)/mypy
 
 bench: $(STAMP)
-	$(BIN)/busarm bench --sim-pty
+	$(BIN)/busarm bench
 
 # Peers (pylx16a, lewansoul-lx16a) are installed only here, for the side-by-side run.
 bench-peers: $(STAMP)
