@@ -769,7 +769,7 @@ class ServoBus:
             )
         if old_id not in result.found:
             raise BusTimeoutError(f"no servo answers at ID {old_id}", servo_id=old_id)
-        if new_id in result.found:
+        if new_id in result.found or new_id in result.conflicts:
             raise BusConflictError(f"ID {new_id} is already taken by another servo")
         self.send(old_id, Command.ID_WRITE, new_id)
         self._plans = {k: v for k, v in self._plans.items() if k[0] not in (old_id, new_id)}

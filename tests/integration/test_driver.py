@@ -1,0 +1,602 @@
+"""The bus driver end to end: ServoBus against the simulated arm.
+
+Every test that takes ``arm`` runs four ways (see conftest): in-process and through a
+real pseudo-terminal, each with the simulated adapter echoing and not. Nothing of
+busarm is mocked; what a call did is checked on the simulator's servos.
+
+The simulator's motion model is exact and runs on the monotonic clock, so instead of
+sleeping to see where a servo is at some moment, a test asks a copy of the servo's
+model (``predicted``): the real servo is left alone, and no wall-clock tolerance
+enters except the few milliseconds a command takes to reach the simulator.
+"""
+
+from __future__ import annotations
+
+import copy
+import threading
+import time
+from collections.abc import Callable, Iterator
+
+import pytest
+
+from busarm.bus.driver import ServoBus
+from busarm.errors import (
+    BusConflictError,
+    BusTimeoutError,
+    ConfigError,
+    LimitError,
+    MotionTimeoutError,
+    TransportError,
+)
+from busarm.protocol import AlarmFlag, Command, ServoMode
+from busarm.sim.bus import ARM_SERVO_IDS
+from busarm.sim.pty import PtyServer
+from busarm.sim.servo import FULL_TURN_PULSES, ServoParams, SimServo
+from conftest import SimArm, make_sim_arm
+
+ArmFactory = Callable[..., SimArm]
+"""``arm_with(ids, **bus_kwargs)``: a simulated bus with these servo IDs, the ``way`` given."""
+
+SLACK_S = 0.005
+"""What a call may take beyond its own timeouts: scheduling on a busy 2-core machine."""
+
+
+def sync(arm: SimArm, servo_id: int = 1) -> None:
+    """A read: once it is answered, the simulator has handled every byte sent before it."""
+    arm.bus.read_temp_c(servo_id)
+
+
+def predicted(arm: SimArm, servo_id: int, at: float) -> SimServo:
+    """A copy of a servo's model advanced to monotonic time ``at`` (the servo is untouched)."""
+    servo = copy.deepcopy(arm.sim.servo(servo_id))
+    servo.advance(at)
+    return servo
+
+
+def position_now(arm: SimArm, servo_id: int) -> float:
+    arm.sim.advance()
+    return arm.sim.servo(servo_id).position_pulses
+
+
+def place(arm: SimArm, positions: dict[int, float]) -> None:
+    """Turn unloaded horns by hand (power-on servos are unloaded)."""
+    now = time.monotonic()
+    for sid, pulses in positions.items():
+        arm.sim.servo(sid).move_by_hand(pulses, now)
+
+
+def frames_after_sync(arm: SimArm) -> int:
+    """frames_received once everything sent so far has been handled."""
+    sync(arm)
+    return arm.sim.frames_received
+
+
+def wait_for(predicate: Callable[[], bool], timeout_s: float = 2.0) -> bool:
+    """Poll until ``predicate()`` holds (True) or ``timeout_s`` passes (False)."""
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.002)
+    return True
+
+
+def read_budget_s(bus: ServoBus, reply_bytes: int) -> float:
+    return (bus.retries + 1) * bus.timeout_s(6, reply_bytes) + SLACK_S
+
+
+# ---------------------------------------------------------------------- scan
+
+
+def test_scan_finds_exactly_the_arm(arm: SimArm) -> None:
+    result = arm.bus.scan()
+    assert result.found == [1, 2, 3, 4, 5, 10]
+    assert result.conflicts == []
+
+
+def test_scan_of_a_subset(arm: SimArm) -> None:
+    result = arm.bus.scan([200, 10, 7, 2, 0])
+    assert result.found == [2, 10]
+    assert result.conflicts == []
+
+
+def test_scan_reports_two_servos_on_one_id(way: str, arm_with: ArmFactory) -> None:
+    arm = arm_with((1, 3, 3))
+    result = arm.bus.scan(range(6))
+    assert 1 in result.found
+    assert result.conflicts == [3]
+
+
+# ---------------------------------------------------------------------- readings
+
+
+def test_readings_match_the_simulator(arm: SimArm) -> None:
+    positions = {1: 120.0, 2: 260.0, 3: 500.0, 4: 737.0, 5: 905.0, 10: 33.0}
+    place(arm, positions)
+    for sid in ARM_SERVO_IDS:
+        servo = arm.sim.servo(sid)
+        servo.supply_mv = 10000 + 37 * sid
+        servo.temperature_c = 30.5 + sid
+    for sid in ARM_SERVO_IDS:
+        assert arm.bus.read_position_pulses(sid) == positions[sid]
+        assert arm.bus.read_position_pulses(sid) == round(position_now(arm, sid))
+        assert arm.bus.read_position_deg(sid) == pytest.approx((positions[sid] - 500) * 0.24)
+        assert arm.bus.read_vin_v(sid) == pytest.approx((10000 + 37 * sid) / 1000)
+        assert arm.bus.read_vin_v(sid) == arm.sim.servo(sid).supply_mv / 1000
+        # Idle and unloaded, it cools by well under a degree during the test.
+        assert arm.bus.read_temp_c(sid) == 30 + sid
+    states = arm.bus.read_states([10, 1])
+    assert [s.servo_id for s in states] == [10, 1]
+    assert states[0].position_deg == pytest.approx((33 - 500) * 0.24)
+    assert states[0].temp_c == 40
+    assert states[0].vin_v == pytest.approx(10.37)
+    assert states[1].position_deg == pytest.approx((120 - 500) * 0.24)
+
+
+def test_negative_position_near_the_end_stop(arm: SimArm) -> None:
+    # Below 0 pulses the potentiometer still reads (signed 16-bit on the wire).
+    place(arm, {2: 40.0})
+    arm.bus.set_motor_speed(2, -1000)
+    assert wait_for(lambda: arm.bus.read_position_pulses(2) < -20, 2.0)
+    arm.bus.stop_motor(2)
+
+
+# ---------------------------------------------------------------------- motion
+
+
+def test_move_deg_and_wait_until_reached(arm: SimArm) -> None:
+    arm.bus.move_deg(1, 30.0, 0.2)
+    sync(arm)
+    assert abs(position_now(arm, 1) - 625) > 10, "a 0.2 s move must not arrive at once"
+    positions = arm.bus.wait_until_reached({1: 30.0}, tolerance_deg=0.3, timeout_s=2.0)
+    assert positions[1] == pytest.approx(30.0, abs=0.3)
+    assert position_now(arm, 1) == pytest.approx(625, abs=1e-6)
+    assert arm.sim.servo(1).is_loaded
+
+
+def test_wait_until_reached_times_out_naming_the_servo(arm: SimArm) -> None:
+    arm.bus.move_deg(4, -24.0, 0.0)
+    with pytest.raises(MotionTimeoutError, match="servo 4"):
+        arm.bus.wait_until_reached({4: 24.0, 1: 0.0}, timeout_s=0.05)
+
+
+def test_sync_move_starts_and_arrives_together(arm: SimArm) -> None:
+    targets = {1: 24.0, 2: -36.0, 3: 48.0, 4: -12.0, 5: 60.0, 10: 12.0}
+    t0 = time.monotonic()
+    duration = arm.bus.sync_move_deg(targets, 0.4)
+    t1 = time.monotonic()
+    assert duration == pytest.approx(0.4)
+    sync(arm)
+    # MOVE_START reached the servos between t0 and t1 plus its few ms on the wire.
+    start = (t0 + t1 + 0.008) / 2
+    halfway = {}
+    for sid, deg in targets.items():
+        target = 500 + deg / 0.24
+        servo = predicted(arm, sid, start + duration / 2)
+        halfway[sid] = (servo.position_pulses - 500) / (target - 500)
+        assert predicted(arm, sid, t1 + duration + 0.01).position_pulses == pytest.approx(target)
+    assert all(abs(f - 0.5) < 0.06 for f in halfway.values()), halfway
+    # The same start for all: the fractions agree far better than the estimate of it.
+    assert max(halfway.values()) - min(halfway.values()) < 0.005, halfway
+    reached = arm.bus.wait_until_reached(targets, tolerance_deg=0.3, timeout_s=2.0)
+    assert reached == pytest.approx(targets, abs=0.3)
+
+
+def test_sync_move_without_start_uses_move_time_write(arm: SimArm) -> None:
+    arm.bus.sync_move_deg({2: 12.0, 3: -12.0}, 0.1, use_start=False)
+    assert arm.bus.read_move_time(2).position_pulses == 550
+    assert arm.bus.read_move_time(3).position_pulses == 450
+    arm.bus.wait_until_reached({2: 12.0, 3: -12.0}, tolerance_deg=0.3, timeout_s=1.0)
+
+
+def test_speed_limited_move_takes_largest_delta_over_speed(arm: SimArm) -> None:
+    t0 = time.monotonic()
+    duration = arm.bus.move_at_speed_deg(1, 36.0, 120.0)
+    t1 = time.monotonic()
+    assert duration == pytest.approx(36.0 / 120.0)
+    assert arm.bus.read_move_time(1).time_ms == 300
+    assert predicted(arm, 1, t0 + duration - 0.02).position_pulses < 650 - 5
+    assert predicted(arm, 1, t1 + duration + 0.01).position_pulses == pytest.approx(650)
+
+    # Several servos: the largest move (servo 2, 48 deg) sets the time for all.
+    t0 = time.monotonic()
+    duration = arm.bus.sync_move_deg({2: -48.0, 3: 12.0}, speed_deg_s=160.0)
+    t1 = time.monotonic()
+    assert duration == pytest.approx(48.0 / 160.0)
+    sync(arm)
+    for sid, target in ((2, 300), (3, 550)):
+        assert predicted(arm, sid, t0 + duration - 0.02).position_pulses != pytest.approx(target)
+        assert predicted(arm, sid, t1 + duration + 0.01).position_pulses == pytest.approx(target)
+
+
+def test_stop_holds_position_with_torque_on(arm: SimArm) -> None:
+    arm.bus.move_deg(1, 96.0, 0.8)
+    arm.bus.move_deg(2, -96.0, 0.8)
+    assert wait_for(lambda: arm.bus.read_position_deg(1) > 20.0)
+    arm.bus.stop([1])
+    sync(arm)
+    held = position_now(arm, 1)
+    assert 500 + 20 / 0.24 < held < 900, "servo 1 stopped mid-way"
+    assert predicted(arm, 1, time.monotonic() + 1.0).position_pulses == pytest.approx(held)
+    assert arm.bus.read_position_pulses(1) == round(held)
+    assert arm.bus.read_torque(1) is True
+    assert arm.sim.servo(1).is_loaded
+    # Servo 2 was not addressed: it is still on its way.
+    assert predicted(arm, 2, time.monotonic() + 1.0).position_pulses == pytest.approx(100)
+
+    arm.bus.stop()  # broadcast
+    sync(arm)
+    held2 = position_now(arm, 2)
+    assert 100 < held2 < 500
+    assert predicted(arm, 2, time.monotonic() + 1.0).position_pulses == pytest.approx(held2)
+    assert arm.bus.read_torque(2) is True
+
+
+def test_torque_on_and_off(arm: SimArm) -> None:
+    assert arm.bus.read_torque(2) is False  # power-on: unloaded
+    arm.bus.set_torque(2, True)
+    assert arm.bus.read_torque(2) is True
+    assert arm.sim.servo(2).is_loaded
+    arm.bus.set_torque(2, False)
+    assert arm.bus.read_torque(2) is False
+    assert not arm.sim.servo(2).is_loaded
+
+
+# ---------------------------------------------------------------------- settings
+
+
+def test_offset_adjust_read_save(arm: SimArm) -> None:
+    arm.bus.adjust_offset_deg(3, 4.8)
+    assert arm.bus.read_offset_deg(3) == pytest.approx(4.8)
+    assert arm.sim.servo(3).stored_fields()["offset_pulses"] == 0, "not saved yet"
+    arm.bus.save_offset(3)
+    sync(arm)
+    assert arm.sim.servo(3).stored_fields()["offset_pulses"] == 20
+    arm.bus.adjust_offset_deg(3, -7.2)
+    assert arm.bus.read_offset_deg(3) == pytest.approx(-7.2)
+    assert arm.sim.servo(3).stored_fields()["offset_pulses"] == 20
+    with pytest.raises(ConfigError):
+        arm.bus.adjust_offset_deg(3, 31.0)
+
+
+def test_angle_limits_write_read_and_clamp(arm: SimArm) -> None:
+    arm.bus.write_angle_limits_deg(4, -12.0, 24.0)
+    assert arm.bus.read_angle_limits_deg(4) == pytest.approx((-12.0, 24.0))
+    stored = arm.sim.servo(4).stored_fields()
+    assert (stored["min_pulses"], stored["max_pulses"]) == (450, 600)
+    arm.bus.move_deg(4, 60.0)  # the servo clamps the target to its own limit
+    arm.bus.wait_until_reached({4: 24.0}, tolerance_deg=0.3, timeout_s=1.0)
+    assert predicted(arm, 4, time.monotonic() + 0.5).position_pulses == pytest.approx(600)
+    arm.bus.move_deg(4, -60.0)
+    arm.bus.wait_until_reached({4: -12.0}, tolerance_deg=0.3, timeout_s=1.0)
+    assert predicted(arm, 4, time.monotonic() + 0.5).position_pulses == pytest.approx(450)
+    with pytest.raises(ConfigError):
+        arm.bus.write_angle_limits_deg(4, 24.0, -12.0)
+
+
+def test_vin_and_temperature_limits(arm: SimArm) -> None:
+    arm.bus.write_vin_limits_v(5, 7.2, 11.4)
+    assert arm.bus.read_vin_limits_v(5) == pytest.approx((7.2, 11.4))
+    arm.bus.write_temp_limit_c(5, 70)
+    assert arm.bus.read_temp_limit_c(5) == 70
+    stored = arm.sim.servo(5).stored_fields()
+    assert (stored["min_mv"], stored["max_mv"], stored["temp_max_c"]) == (7200, 11400, 70)
+    assert arm.bus.read_vin_limits_v(1) == pytest.approx((6.5, 12.0))  # others untouched
+    assert arm.bus.read_temp_limit_c(1) == 85
+    with pytest.raises(ConfigError):
+        arm.bus.write_temp_limit_c(5, 101)
+    with pytest.raises(ConfigError):
+        arm.bus.write_vin_limits_v(5, 4.0, 11.0)
+
+
+def test_led_on_and_off(arm: SimArm) -> None:
+    assert arm.bus.read_led(10) is True
+    arm.bus.set_led(10, False)
+    assert arm.bus.read_led(10) is False
+    assert arm.sim.servo(10).stored_fields()["is_led_off"] == 1
+    assert arm.bus.read_led(1) is True
+    arm.bus.set_led(10, True)
+    assert arm.bus.read_led(10) is True
+
+
+def test_alarm_mask(arm: SimArm) -> None:
+    assert arm.bus.read_alarm_mask(2) == AlarmFlag(7)
+    mask = AlarmFlag.OVER_TEMPERATURE | AlarmFlag.STALLED
+    arm.bus.write_alarm_mask(2, mask)
+    assert arm.bus.read_alarm_mask(2) == mask
+    arm.bus.write_alarm_mask(2, AlarmFlag.NONE)
+    assert arm.bus.read_alarm_mask(2) == AlarmFlag.NONE
+    assert arm.bus.read_alarm_mask(3) == AlarmFlag(7)
+    with pytest.raises(ConfigError):
+        arm.bus.write_alarm_mask(2, 8)  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------------- motor mode
+
+
+def _turned(arm: SimArm, servo_id: int, dt: float) -> float:
+    """Pulses the model says the horn turns in the next ``dt`` seconds (mod one turn)."""
+    now = time.monotonic()
+    a = predicted(arm, servo_id, now).position_pulses
+    b = predicted(arm, servo_id, now + dt).position_pulses
+    d = (b - a) % FULL_TURN_PULSES
+    return d - FULL_TURN_PULSES if d > FULL_TURN_PULSES / 2 else d
+
+
+def test_motor_mode_turns_until_speed_zero(arm: SimArm) -> None:
+    arm.bus.set_motor_speed(1, 500)
+    mode = arm.bus.read_mode(1)
+    assert (mode.mode, mode.motor_speed) == (ServoMode.MOTOR, 500)
+    # 500/1000 of 300 deg/s = 625 pulses/s.
+    assert _turned(arm, 1, 0.1) == pytest.approx(62.5)
+    first = arm.bus.read_position_pulses(1)
+    assert wait_for(lambda: (arm.bus.read_position_pulses(1) - first) % FULL_TURN_PULSES > 30)
+
+    arm.bus.stop([1])  # MOVE_STOP does not stop a motor
+    sync(arm)
+    assert _turned(arm, 1, 0.1) == pytest.approx(62.5)
+    assert arm.bus.read_mode(1).motor_speed == 500
+
+    arm.bus.stop_motor(1)
+    sync(arm)
+    assert _turned(arm, 1, 0.5) == 0.0
+    mode = arm.bus.read_mode(1)
+    assert (mode.mode, mode.motor_speed) == (ServoMode.MOTOR, 0)
+    assert arm.bus.read_position_pulses(1) == arm.bus.read_position_pulses(1)
+
+    arm.bus.set_motor_speed(1, -1000)
+    sync(arm)
+    assert _turned(arm, 1, 0.1) == pytest.approx(-125.0)
+    arm.bus.set_position_mode(1)
+    sync(arm)
+    assert _turned(arm, 1, 0.5) == 0.0
+    assert arm.bus.read_mode(1).mode is ServoMode.POSITION
+
+
+# ---------------------------------------------------------------------- faults
+
+
+def test_read_faults_supply_out_of_limits(arm: SimArm) -> None:
+    servo = arm.sim.servo(3)
+    arm.bus.set_torque(3, True)
+    assert arm.bus.read_faults(3) == AlarmFlag.NONE
+    servo.supply_mv = 12500
+    assert arm.bus.read_faults(3) == AlarmFlag.OVER_VOLTAGE
+    assert arm.bus.read_vin_v(3) == pytest.approx(12.5)
+    assert arm.bus.read_torque(3) is False, "the fault unloads the motor"
+    servo.supply_mv = 6200
+    assert arm.bus.read_faults(3) == AlarmFlag.OVER_VOLTAGE
+    assert servo.active_faults == AlarmFlag.OVER_VOLTAGE
+    servo.supply_mv = 11100
+    assert arm.bus.read_faults(3) == AlarmFlag.NONE
+    assert arm.bus.read_torque(3) is True, "recovered: torque was asked for"
+    # Narrower limits put the present supply out of them.
+    arm.bus.write_vin_limits_v(3, 6.5, 11.0)
+    assert arm.bus.read_faults(3) == AlarmFlag.OVER_VOLTAGE
+    assert arm.bus.read_faults(2) == AlarmFlag.NONE
+
+
+def test_read_faults_overheated(arm: SimArm) -> None:
+    servo = arm.sim.servo(5)
+    servo.temperature_c = 90.5
+    assert arm.bus.read_faults(5) == AlarmFlag.OVER_TEMPERATURE
+    assert arm.bus.read_temp_c(5) >= 85
+    assert servo.active_faults == AlarmFlag.OVER_TEMPERATURE
+    servo.supply_mv = 12600
+    assert arm.bus.read_faults(5) == AlarmFlag.OVER_TEMPERATURE | AlarmFlag.OVER_VOLTAGE
+    servo.supply_mv = 11100
+    servo.temperature_c = 60.5
+    assert arm.bus.read_faults(5) == AlarmFlag.NONE
+    arm.bus.write_temp_limit_c(5, 55)  # now 60 C is too hot
+    assert arm.bus.read_faults(5) == AlarmFlag.OVER_TEMPERATURE
+    assert arm.bus.read_faults(4) == AlarmFlag.NONE
+
+
+# ---------------------------------------------------------------------- move-time reads
+
+
+def test_read_move_time_and_move_time_wait(arm: SimArm) -> None:
+    arm.bus.move_deg(2, 12.0, 0.25)
+    r = arm.bus.read_move_time(2)
+    assert (r.position_pulses, r.time_ms) == (550, 250)
+    assert r.position_deg == pytest.approx(12.0)
+
+    arm.bus.send(3, Command.MOVE_TIME_WAIT_WRITE, 400, 700)
+    w = arm.bus.read_move_time_wait(3)
+    assert (w.position_pulses, w.time_ms) == (400, 700)
+    assert predicted(arm, 3, time.monotonic() + 1.0).position_pulses == pytest.approx(500)
+    arm.bus.send(254, Command.MOVE_START)
+    r = arm.bus.read_move_time(3)
+    assert (r.position_pulses, r.time_ms) == (400, 700)
+    sync(arm)
+    assert predicted(arm, 3, time.monotonic() + 1.0).position_pulses == pytest.approx(400)
+
+
+def test_servo_that_never_answers_wait_read_gives_typed_timeout(arm: SimArm) -> None:
+    silent = SimServo(3, params=ServoParams(answers_wait_read=False), now=time.monotonic())
+    index = next(i for i, s in enumerate(arm.sim.servos) if s.servo_id == 3)
+    arm.sim.servos[index] = silent
+    t0 = time.monotonic()
+    with pytest.raises(BusTimeoutError) as info:
+        arm.bus.read_move_time_wait(3)
+    elapsed = time.monotonic() - t0
+    assert elapsed <= read_budget_s(arm.bus, 10), f"{elapsed * 1e3:.1f} ms"
+    assert info.value.servo_id == 3
+    assert info.value.command == Command.MOVE_TIME_WAIT_READ
+    # The bus is fine afterwards, for that servo's other reads and for the others.
+    assert arm.bus.read_position_pulses(3) == 500
+    assert arm.bus.read_move_time_wait(2).position_pulses == 500
+
+
+# ---------------------------------------------------------------------- software limits
+
+
+def test_limit_error_before_anything_is_sent(arm: SimArm) -> None:
+    arm.bus.set_limits_deg(1, -10.0, 10.0)
+    before = frames_after_sync(arm)
+    with pytest.raises(LimitError):
+        arm.bus.move_deg(1, 20.0)
+    with pytest.raises(LimitError):
+        arm.bus.move_pulses(1, 100)
+    with pytest.raises(LimitError):
+        arm.bus.move_at_speed_deg(1, -12.0, 50.0)
+    with pytest.raises(LimitError):  # one bad target: nothing goes to any servo
+        arm.bus.sync_move_deg({2: 5.0, 3: 5.0, 1: -20.0}, 0.2)
+    with pytest.raises(LimitError):
+        arm.bus.sync_move_deg({2: 5.0, 1: 11.0}, speed_deg_s=100.0)
+    assert frames_after_sync(arm) == before + 1  # only the sync read
+    for sid in (1, 2, 3):
+        assert predicted(arm, sid, time.monotonic() + 1.0).position_pulses == 500
+    arm.bus.move_deg(1, 9.6)  # inside: sent
+    assert frames_after_sync(arm) == before + 3
+    with pytest.raises(ConfigError):
+        arm.bus.set_limits_deg(1, 10.0, -10.0)
+
+
+def test_limits_given_at_construction(way: str, arm_with: ArmFactory) -> None:
+    arm = arm_with(ARM_SERVO_IDS, limits_deg={2: (-5.0, 5.0)})
+    before = frames_after_sync(arm)
+    with pytest.raises(LimitError):
+        arm.bus.move_deg(2, 6.0)
+    assert frames_after_sync(arm) == before + 1
+
+
+# ---------------------------------------------------------------------- IDs
+
+
+def test_set_id_renumbers_the_one_servo(arm: SimArm) -> None:
+    arm.bus.set_id(5, 7)
+    assert arm.bus.scan([4, 5, 6, 7]).found == [4, 7]
+    assert arm.sim.servo(7).stored_fields()["id"] == 7
+    assert arm.bus.read_id(7) == 7
+    with pytest.raises(BusTimeoutError):
+        arm.bus.read_position_pulses(5)
+
+
+def test_set_id_refuses_when_new_id_is_taken(arm: SimArm) -> None:
+    with pytest.raises(BusConflictError):
+        arm.bus.set_id(1, 2)
+    assert sorted(s.servo_id for s in arm.sim.servos) == [1, 2, 3, 4, 5, 10]
+
+
+def test_set_id_refuses_when_old_id_is_absent(arm: SimArm) -> None:
+    with pytest.raises(BusTimeoutError):
+        arm.bus.set_id(6, 7)
+    assert sorted(s.servo_id for s in arm.sim.servos) == [1, 2, 3, 4, 5, 10]
+
+
+def test_set_id_refuses_two_servos_on_the_old_id(way: str, arm_with: ArmFactory) -> None:
+    arm = arm_with((1, 3, 3))
+    with pytest.raises(BusConflictError):
+        arm.bus.set_id(3, 7)
+    assert [s.servo_id for s in arm.sim.servos] == [1, 3, 3]
+
+
+def test_set_id_refuses_a_new_id_held_by_two_servos(way: str, arm_with: ArmFactory) -> None:
+    # Two servos on 3 garble each other's ID reply, so 3 is not "found": it is still taken.
+    arm = arm_with((1, 3, 3))
+    with pytest.raises(BusConflictError):
+        arm.bus.set_id(1, 3)
+    assert [s.servo_id for s in arm.sim.servos] == [1, 3, 3]
+
+
+def test_id_write_to_broadcast_is_refused(arm: SimArm) -> None:
+    before = frames_after_sync(arm)
+    with pytest.raises(ConfigError, match="broadcast"):
+        arm.bus.send(254, Command.ID_WRITE, 7)
+    assert frames_after_sync(arm) == before + 1
+    assert sorted(s.servo_id for s in arm.sim.servos) == [1, 2, 3, 4, 5, 10]
+
+
+def test_read_id_broadcast_with_one_servo(way: str, arm_with: ArmFactory) -> None:
+    arm = arm_with((42,))
+    assert arm.bus.read_id() == 42
+
+
+# ---------------------------------------------------------------------- threads
+
+
+def test_threads_get_their_own_servos_values(arm: SimArm) -> None:
+    positions = {1: 111.0, 2: 222.0, 3: 333.0, 4: 444.0}
+    place(arm, positions)
+    wrong: list[tuple[int, int]] = []
+    errors: list[BaseException] = []
+    counts = dict.fromkeys(positions, 0)
+
+    def reader(sid: int) -> None:
+        try:
+            for _ in range(200):
+                value = arm.bus.read_position_pulses(sid)
+                counts[sid] += 1
+                if value != positions[sid]:
+                    wrong.append((sid, value))
+        except BaseException as exc:  # reported below
+            errors.append(exc)
+
+    threads = [threading.Thread(target=reader, args=(sid,), name=f"reader-{sid}")
+               for sid in positions]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=30)
+    assert not any(t.is_alive() for t in threads)
+    assert not errors, errors
+    assert not wrong, wrong[:10]
+    assert counts == dict.fromkeys(positions, 200)
+
+
+# ---------------------------------------------------------------------- context manager
+
+
+def test_exception_in_with_block_stops_the_servos(arm: SimArm) -> None:
+    frames: list[int] = []
+    with pytest.raises(RuntimeError, match="operator"), arm.bus as bus:
+        bus.move_deg(1, 96.0, 0.8)
+        assert wait_for(lambda: bus.read_position_deg(1) > 20.0)
+        frames.append(frames_after_sync(arm))
+        raise RuntimeError("operator pressed stop")
+    # Two broadcast MOVE_STOPs, then the port is closed.
+    assert wait_for(lambda: arm.sim.frames_received == frames[0] + 2, 1.0)
+    held = position_now(arm, 1)
+    assert 500 + 20 / 0.24 < held < 900
+    assert predicted(arm, 1, time.monotonic() + 1.0).position_pulses == pytest.approx(held)
+    assert arm.sim.servo(1).is_loaded
+    with pytest.raises(TransportError):  # the port was closed on the way out
+        arm.bus.read_position_pulses(1)
+
+
+def test_clean_exit_from_with_block_sends_nothing(arm: SimArm) -> None:
+    with arm.bus as bus:
+        bus.move_deg(1, 12.0, 0.05)
+        before = frames_after_sync(arm)
+    arm.sim.advance()
+    assert arm.sim.frames_received == before
+    assert predicted(arm, 1, time.monotonic() + 0.5).position_pulses == pytest.approx(550)
+
+
+# ---------------------------------------------------------------------- fixtures
+
+
+@pytest.fixture(params=["inproc-noecho", "inproc-echo", "pty-noecho", "pty-echo"])
+def way(request: pytest.FixtureRequest) -> str:
+    """The four ways of the ``arm`` fixture, for tests that need other servos."""
+    return str(request.param)
+
+
+@pytest.fixture
+def arm_with(way: str) -> Iterator[ArmFactory]:
+    """Build a simulated bus with other IDs (or driver options), the ``way`` given."""
+    made: list[tuple[SimArm, PtyServer | None]] = []
+
+    def make(ids: tuple[int, ...], **bus_kwargs: object) -> SimArm:
+        kind, echo = way.split("-")
+        sim_arm, server = make_sim_arm(kind, ids=ids, echo=echo == "echo", **bus_kwargs)
+        made.append((sim_arm, server))
+        assert sim_arm.bus.echo is (echo == "echo")
+        return sim_arm
+
+    yield make
+    for sim_arm, server in made:
+        sim_arm.bus.close()
+        if server is not None:
+            server.stop()
