@@ -81,8 +81,8 @@ def wait_for(predicate: Callable[[], bool], timeout_s: float = 2.0) -> bool:
     return True
 
 
-def read_budget_s(bus: ServoBus, reply_bytes: int) -> float:
-    return (bus.retries + 1) * bus.timeout_s(6, reply_bytes) + SLACK_S
+def read_budget_s(bus: ServoBus, command: Command) -> float:
+    return bus.read_budget_s(command) + SLACK_S
 
 
 # ---------------------------------------------------------------------- scan
@@ -420,7 +420,7 @@ def test_servo_that_never_answers_wait_read_gives_typed_timeout(arm: SimArm) -> 
     with pytest.raises(BusTimeoutError) as info:
         arm.bus.read_move_time_wait(3)
     elapsed = time.monotonic() - t0
-    assert elapsed <= read_budget_s(arm.bus, 10), f"{elapsed * 1e3:.1f} ms"
+    assert elapsed <= read_budget_s(arm.bus, Command.MOVE_TIME_WAIT_READ), f"{elapsed * 1e3:.1f} ms"
     assert info.value.servo_id == 3
     assert info.value.command == Command.MOVE_TIME_WAIT_READ
     # The bus is fine afterwards, for that servo's other reads and for the others.

@@ -36,9 +36,9 @@ SUPPLY_MV = {1: 11100, 2: 10200, 3: 9300, 4: 8400, 5: 7500, 10: 11900}
 """Distinct supplies, so that one servo's VIN reply is never right for another."""
 
 
-def read_budget_s(bus: ServoBus, reply_bytes: int) -> float:
-    """(retries + 1) attempts of the per-attempt timeout, plus slack."""
-    return (bus.retries + 1) * bus.timeout_s(6, reply_bytes) + SLACK_S
+def read_budget_s(bus: ServoBus, command: Command) -> float:
+    """The driver's stated worst case for a read, plus slack for the OS."""
+    return bus.read_budget_s(command) + SLACK_S
 
 
 def set_supplies(arm: SimArm, supplies: dict[int, int]) -> None:
@@ -87,7 +87,7 @@ def test_stray_bytes_before_the_reply(arm: SimArm, stray: bytes) -> None:
     arm.sim.inject_stray_bytes(stray)
     t0 = time.monotonic()
     assert vin_or_error(arm.bus, 1) == SUPPLY_MV[1]
-    assert time.monotonic() - t0 <= read_budget_s(arm.bus, VIN_REPLY_BYTES)
+    assert time.monotonic() - t0 <= read_budget_s(arm.bus, Command.VIN_READ)
     assert arm.bus.read_vin_v(2) == SUPPLY_MV[2] / 1000
     arm.sim.servo(1).supply_mv = 6800
     assert arm.bus.read_vin_v(1) == 6.8
@@ -110,7 +110,7 @@ def _late_reply_outcomes(arm: SimArm, delays_s: list[float]) -> list[str]:
     problems: list[str] = []
     set_supplies(arm, SUPPLY_MV)
     bus = arm.bus
-    budget = read_budget_s(bus, VIN_REPLY_BYTES)
+    budget = read_budget_s(bus, Command.VIN_READ)
     for i, delay in enumerate(delays_s):
         first, second = 7000 + 10 * i, 9000 + 10 * i
         arm.sim.servo(1).supply_mv = first
@@ -187,7 +187,7 @@ WAY_IDS = ["inproc-noecho", "inproc-echo", "pty-noecho", "pty-echo"]
 def test_every_reply_garbled_never_gives_a_value(kind: str, echo: bool) -> None:
     faults = FaultInjection(corrupt_rate=1.0, directions="tx", seed=3)
     with faulty_bus(kind, echo, faults) as (bus, _sim):
-        budget = read_budget_s(bus, 8)
+        budget = read_budget_s(bus, Command.POS_READ)
         for sid in (1, 2, 10, 1):
             t0 = time.monotonic()
             with pytest.raises(TYPED):
@@ -235,7 +235,7 @@ def test_pyserial_loop_is_an_echoing_adapter_with_no_servo() -> None:
             t0 = time.monotonic()
             with pytest.raises(BusTimeoutError) as info:
                 read(sid)
-            assert time.monotonic() - t0 <= read_budget_s(bus, 8)
+            assert time.monotonic() - t0 <= read_budget_s(bus, Command.POS_READ)
             assert info.value.servo_id == sid
         # Its own ID_READ request coming back is not a servo answering.
         assert bus.scan(range(4)).found == []
@@ -252,12 +252,12 @@ def test_silent_pty_times_out_within_budget() -> None:
         bus = ServoBus.open(path)
         try:
             assert bus.echo is False
-            for command, reply_bytes in ((Command.POS_READ, 8), (Command.VIN_LIMIT_READ, 10)):
+            for command in (Command.POS_READ, Command.VIN_LIMIT_READ):
                 t0 = time.monotonic()
                 with pytest.raises(BusTimeoutError) as info:
                     bus.query(3, command)
                 elapsed = time.monotonic() - t0
-                assert elapsed <= read_budget_s(bus, reply_bytes), f"{elapsed * 1e3:.1f} ms"
+                assert elapsed <= read_budget_s(bus, command), f"{elapsed * 1e3:.1f} ms"
                 assert info.value.command == command
             assert bus.stats["retries"] == 2 * bus.retries
         finally:
@@ -275,7 +275,7 @@ def test_bus_without_servos_times_out_within_budget(retries: int) -> None:
     with pytest.raises(BusTimeoutError, match="did not answer"):
         bus.read_temp_c(4)
     elapsed = time.monotonic() - t0
-    assert elapsed <= read_budget_s(bus, 7), f"{elapsed * 1e3:.1f} ms"
+    assert elapsed <= read_budget_s(bus, Command.TEMP_READ), f"{elapsed * 1e3:.1f} ms"
     # ... and it really waited for each attempt: retries are not skipped.
     assert bus.stats["retries"] == retries
     assert sim.frames_received == retries + 1

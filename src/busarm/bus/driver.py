@@ -76,6 +76,8 @@ DEFAULT_TURNAROUND_S = 0.0005
 DEFAULT_TIMEOUT_MARGIN_S = 0.004
 """Slack on top of the wire time for OS scheduling and adapter jitter."""
 DEFAULT_RETRIES = 2
+STALE_REPLY_S = 1.0
+"""How long after a timeout its reply is still expected to turn up late."""
 SCAN_MARGIN_S = 0.0012
 """Scans use a tighter margin: a late answer is still caught (see ``scan``)."""
 
@@ -153,6 +155,8 @@ class ServoBus:
         self._limits: dict[int, tuple[float, float]] = {}
         self._line_free_at = 0.0
         self._spinning: set[int] = set()  # servos this bus set turning in motor mode
+        # (servo ID, command) -> when a request of it last timed out: its reply may come late.
+        self._late: dict[tuple[int, int], float] = {}
         for sid, (lo, hi) in (limits_deg or {}).items():
             self.set_limits_deg(sid, lo, hi)
         self.echo = echo_mode is EchoMode.ON
@@ -216,6 +220,20 @@ class ServoBus:
         margin = self.timeout_margin_s if margin_s is None else margin_s
         return self.wire_time_s(tx_bytes, rx_bytes) + self.transport.latency_s + margin
 
+    def follow_s(self, rx_bytes: int) -> float:
+        """How long to keep listening after a reply that may be a stale one (see _scan_reply)."""
+        return self.turnaround_s + rx_bytes * self.byte_s + self.timeout_margin_s
+
+    def read_budget_s(self, command: Command) -> float:
+        """The longest a read of ``command`` can take before it returns or raises
+        (on an idle line): every attempt, each with its possible wait for a late reply."""
+        spec = SPECS[command]
+        if spec.reply_length is None:
+            raise ConfigError(f"{command.name} is not a read command")
+        rx = spec.reply_length + 3
+        attempt = self.timeout_s(spec.request_length + 3, rx) + self.follow_s(rx)
+        return (self.retries + 1) * attempt
+
     # ------------------------------------------------------------------ raw transactions
 
     def send(self, servo_id: int, command: Command, *args: int) -> None:
@@ -232,8 +250,8 @@ class ServoBus:
         """Send a read command and return the validated, typed reply (with retries)."""
         plan = self._plans.get((servo_id, command)) or self._plan(servo_id, command)
         buf, at = self._transact(plan, servo_id, command)
-        end = at + plan.reply_bytes - 1
-        return decode_reply(Frame(buf[at + 2], buf[at + 4], bytes(buf[at + 5 : end])))
+        params = bytes(buf[at : at + plan.reply_bytes - 6])
+        return decode_reply(Frame(servo_id, int(command), params))
 
     def _read(self, servo_id: int, command: Command, kind: type[_R]) -> _R:
         reply = self.query(servo_id, command)
@@ -245,8 +263,7 @@ class ServoBus:
         # After every wait for a reply the CPU caches are cold, so fewer objects and
         # calls here is what keeps the client's CPU time per transaction low.
         plan = self._plans.get((servo_id, command)) or self._plan(servo_id, command)
-        buf, at = self._transact(plan, servo_id, command)
-        return plan.unpack_from(buf, at + 5)
+        return plan.unpack_from(*self._transact(plan, servo_id, command))
 
     def _plan(self, servo_id: int, command: Command) -> _ReadPlan:
         spec = SPECS.get(command) if isinstance(command, Command) else None
@@ -298,11 +315,14 @@ class ServoBus:
     ) -> tuple[bytes | bytearray, int]:
         """One request and its validated reply, retried up to ``self.retries`` times.
 
-        Returns the received bytes and where the reply starts in them. This is the hot
-        path: after each wait for a reply the CPU caches are cold, so the common case
-        (the whole reply, and only it, in the first read) is accepted in a few lines.
+        Returns a buffer and the offset of the reply's parameters in it. This is the
+        hot path: after each wait for a reply the CPU caches are cold, so the common
+        case (no recent timeout, no echo, the whole reply and only it in the first
+        read) is accepted in a few lines; everything else goes through ``_finish``.
         """
         with self._lock:
+            if self._late:
+                return self._finish(plan, servo_id, command)
             now = time.monotonic()
             timeout_s = plan.timeout_s
             if self._line_free_at > now:
@@ -313,71 +333,102 @@ class ServoBus:
                 len(data) == n and plan.prefix and not self.echo
                 and data.startswith(plan.prefix) and data[n - 1] == (~sum(data[2 : n - 1])) & 0xFF
             ):
-                return data, 0
+                return data, 5
             return self._finish(plan, servo_id, command, data, now + timeout_s)
 
     def _finish(
-        self, plan: _ReadPlan, servo_id: int, command: Command, first: bytes, deadline: float
-    ) -> tuple[bytearray, int]:
-        """The general case: keep reading this attempt, then retry (lock held)."""
+        self, plan: _ReadPlan, servo_id: int, command: Command,
+        first: bytes | None = None, deadline: float = 0.0,
+    ) -> tuple[bytes, int]:
+        """The general case (lock held): keep reading this attempt, then retry."""
+        key = (servo_id, int(command))
         error: BusTimeoutError | ProtocolError | None = None
         for attempt in range(self.retries + 1):
             if attempt:
                 self.stats["retries"] += 1
+            if first is None:
                 now = time.monotonic()
                 deadline = now + plan.timeout_s + max(self._line_free_at - now, 0.0)
                 first = self.transport.exchange(plan.request, deadline - now)
             try:
-                return self._scan_reply(plan, servo_id, command, bytearray(first), deadline)
+                params = self._scan_reply(plan, servo_id, command, first, deadline,
+                                          self._expect_late(key))
+                self._late.pop(key, None)
+                return params, 0
             except BusTimeoutError as exc:
                 self.stats["timeouts"] += 1
+                if servo_id != BROADCAST_ID:
+                    self._late[key] = time.monotonic()
                 error = exc
             except ProtocolError as exc:
                 self.stats["bad_replies"] += 1
                 error = exc
+            first = None
         assert error is not None
         if self.retries:
             error.args = (f"{error.args[0]} (after {self.retries + 1} attempts)",)
         raise error
 
+    def _expect_late(self, key: tuple[int, int]) -> bool:
+        """Whether a late reply to an earlier, timed-out request of ``key`` may still come."""
+        since = self._late.get(key)
+        if since is not None and time.monotonic() - since > STALE_REPLY_S:
+            del self._late[key]
+            return False
+        return since is not None
+
     def _scan_reply(
-        self, plan: _ReadPlan, servo_id: int, command: Command, buf: bytearray, deadline: float
-    ) -> tuple[bytearray, int]:
-        """Read until the first valid reply in ``buf`` or the deadline; skip everything else."""
-        t = self.transport
-        start = 0
+        self, plan: _ReadPlan, servo_id: int, command: Command, first: bytes,
+        deadline: float, expect_late: bool,
+    ) -> bytes:
+        """Read until our valid reply or the deadline; return its parameters.
+
+        Skipped: line noise, other servos' frames, and our own echo (before which
+        nothing can be the answer: the servo had not heard us yet). When a late reply
+        to an earlier request may still come (``expect_late``), a matching frame may be
+        that stale answer: the line delivers in order, so ours would follow it. Then
+        every matching frame is followed by a wait long enough for another to come,
+        and the last one is ours. A doubt costs time, never a wrong value.
+        """
+        parser = FrameParser()
         echo_pending = self.echo
-        saw_bad = False
-        total = plan.reply_bytes
-        prefix = plan.prefix or _HEADER
-        chunk: bytes | bytearray = buf
-        while chunk:
-            if echo_pending:
-                # Nothing before our own echo can be the answer: the servo had not heard us yet.
-                i = buf.find(plan.request, start)
-                if i >= 0:
-                    start = i + len(plan.request)
-                    echo_pending = False
-            if not echo_pending:
-                j = buf.find(prefix, start)
-                while j >= 0 and len(buf) >= j + total:
-                    end = j + total - 1
-                    if buf[end] == (~sum(buf[j + 2 : end])) & 0xFF and (
-                        plan.prefix or (buf[j + 3] == total - 3 and buf[j + 4] == command)
-                    ):
-                        return buf, j
-                    saw_bad = True
-                    start = j + 1
-                    j = buf.find(prefix, start)
+        want_length = plan.reply_bytes - 3
+        follow_s = self.follow_s(plan.reply_bytes)
+        latest = deadline + follow_s  # at most one follow-up window per attempt
+        found: bytes | None = None
+        chunk: bytes = first
+        unexplained = 0  # bytes that were neither our echo nor a reply
+        while True:
+            unexplained += len(chunk)
+            for frame in parser.feed(chunk):
+                if echo_pending:
+                    if frame.to_bytes() == plan.request:
+                        echo_pending = False
+                        unexplained -= len(plan.request)
+                    continue
+                if (
+                    frame.command == command and frame.length == want_length
+                    and (frame.servo_id == servo_id or servo_id == BROADCAST_ID)
+                ):
+                    if not expect_late:
+                        return frame.params
+                    found = frame.params
+                    unexplained -= want_length + 3
+                    deadline = max(deadline, min(time.monotonic() + follow_s, latest))
             remaining = deadline - time.monotonic()
-            chunk = t.read(256, remaining) if remaining > 0 else b""
-            buf += chunk
+            chunk = self.transport.read(256, remaining) if remaining > 0 else b""
+            if not chunk:
+                break
+        if found is not None:
+            return found
         name = command.name
-        if saw_bad:
-            raise ChecksumError(f"servo {servo_id} {name}: garbled reply", bytes(buf))
-        if echo_pending and buf:
+        if parser.checksum_failures:
+            raise ChecksumError(f"servo {servo_id} {name}: garbled reply", parser.pending)
+        if unexplained > 0:
             raise ProtocolError(
-                f"servo {servo_id} {name}: echo expected but got {bytes(buf).hex(' ')}", bytes(buf)
+                f"servo {servo_id} {name}: {unexplained} byte(s) received, no valid reply"
+                + (" (and our echo did not come back intact)" if echo_pending else ""),
+                parser.pending,
             )
         raise BusTimeoutError(
             f"servo {servo_id} did not answer {name} within {plan.timeout_s * 1e3:.1f} ms",
