@@ -9,14 +9,11 @@ produced by busarm's own codec.
 from __future__ import annotations
 
 import contextlib
-import importlib
 import signal
 import subprocess
 import sys
 import time
 from collections.abc import Iterator
-from pathlib import Path
-from types import ModuleType
 
 import pytest
 import serial
@@ -91,24 +88,8 @@ def test_plain_pyserial_gets_the_exact_reply_bytes() -> None:
         assert transact(port, "55 55 01 03 1c 00", 8) == b""
 
 
-def _lewansoul(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> ModuleType:
-    """The lewansoul-lx16a 0.1 library: installed (``.[peers]``), else its wheel from PyPI."""
-    try:
-        return importlib.import_module("lewansoul_lx16a")
-    except ImportError:
-        pass
-    subprocess.run(
-        [sys.executable, "-m", "pip", "download", "--no-deps", "-q", "-d", str(tmp_path),
-         "lewansoul-lx16a==0.1"],
-        check=True, capture_output=True, timeout=120,
-    )
-    (wheel,) = tmp_path.glob("lewansoul_lx16a-0.1-*.whl")
-    monkeypatch.syspath_prepend(str(wheel))
-    return importlib.import_module("lewansoul_lx16a")
-
-
-def test_lewansoul_lx16a_library(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    lx16a = _lewansoul(tmp_path, monkeypatch)
+def test_lewansoul_lx16a_library() -> None:
+    import lewansoul_lx16a as lx16a  # a test dependency (the dev extra), never used by busarm
     with sim_server("--ids", "1,2") as path:
         with serial.Serial(path, 115200, timeout=0.5) as port:
             controller = lx16a.ServoController(port, timeout=0.5)
