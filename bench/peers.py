@@ -43,7 +43,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from busarm.bench import _percentiles, machine_info, sim_pty_server
+from busarm.bench import latency_percentiles_ms, machine_info, sim_pty_server
 from busarm.bus.driver import ServoBus
 from busarm.sim.bus import ARM_SERVO_IDS, GRIPPER_ID, SimBus, WireTiming
 from busarm.sim.pty import PtyServer
@@ -374,7 +374,7 @@ def bench_rates(reads: int, rounds: int, timeout_s: float) -> list[dict[str, Any
             wrong_examples=dict(wrong.most_common(3)),
             rate=len(latencies) / elapsed if elapsed > 0 else 0.0,
             round_rates=[round(len(g.latencies) / g.elapsed, 1) for g in got_all if g.elapsed],
-            latency_ms=_percentiles(latencies),
+            latency_ms=latency_percentiles_ms(latencies),
             cpu_us_median=round(statistics.median(cpu) * 1e6, 2),
             first_errors=[e for g in got_all for e in g.first_errors][:3],
         )

@@ -12,13 +12,13 @@ from __future__ import annotations
 import os
 import platform
 import select
+import signal
 import statistics
 import subprocess
 import sys
 import termios
 import time
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 
 from busarm.bus.driver import ServoBus
@@ -81,7 +81,8 @@ def machine_info() -> dict[str, str]:
     }
 
 
-def _percentiles(samples_s: Sequence[float]) -> dict[str, float]:
+def latency_percentiles_ms(samples_s: Sequence[float]) -> dict[str, float]:
+    """p50, p90, p99 and max of durations in seconds, in milliseconds."""
     ordered = sorted(samples_s)
 
     def pct(p: float) -> float:
@@ -133,7 +134,7 @@ def _timed_reads(
     cpu = _cpu_per_call_s(call, count)
     wire = bus.wire_time_s(6, _reply_bytes(Command.POS_READ))
     return BenchResult(
-        name, "reads/s", count, count / elapsed, 1.0 / wire, _percentiles(latencies),
+        name, "reads/s", count, count / elapsed, 1.0 / wire, latency_percentiles_ms(latencies),
         round(statistics.median(cpu) * 1e6, 2), errors,
     )
 
@@ -187,7 +188,7 @@ def bench_state_loop(bus: ServoBus, servo_ids: Sequence[int], loops: int) -> Ben
     )
     return BenchResult(
         f"{len(servo_ids)}-servo state loop", "loops/s", loops, loops / elapsed,
-        1.0 / (per_servo * len(servo_ids)), _percentiles(latencies),
+        1.0 / (per_servo * len(servo_ids)), latency_percentiles_ms(latencies),
         round(statistics.median(cpu) * 1e6, 2), errors,
     )
 
@@ -205,31 +206,60 @@ def bench_scan(bus: ServoBus, repeats: int = 3) -> BenchResult:
     best = min(durations)
     return BenchResult(
         "ID scan 0..253", "scans/s", repeats, 1.0 / statistics.median(durations), 1.0 / wire,
-        _percentiles(durations), None, 0,
+        latency_percentiles_ms(durations), None, 0,
         {"found": found, "best_s": round(best, 4),
          "median_s": round(statistics.median(durations), 4)},
     )
 
 
-@contextmanager
-def sim_pty_server(
-    turnaround_ms: float, ids: str = "1,2,3,4,5,10", *, echo: bool = False
-) -> Iterator[str]:
-    """A simulator in its own process on a pseudo-terminal (a fair, separate CPU)."""
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "busarm", "sim", "serve", "--ids", ids,
-         "--turnaround-ms", str(turnaround_ms), *(["--echo"] if echo else [])],
-        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-    )
-    try:
+class SimServerProcess:
+    """``busarm sim serve ARGS`` in its own process (a fair, separate CPU for
+    benchmarks; a real other program for tests). ``with`` yields its pty path; leaving
+    stops it with SIGINT and keeps ``returncode`` and ``stderr``."""
+
+    def __init__(self, *serve_args: str) -> None:
+        self.args = [sys.executable, "-m", "busarm", "sim", "serve", *serve_args]
+        self.returncode: int | None = None
+        self.stderr = ""
+        self._proc: subprocess.Popen[str] | None = None
+
+    def __enter__(self) -> str:
+        proc = subprocess.Popen(
+            self.args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
+        self._proc = proc
         assert proc.stdout is not None
         path = proc.stdout.readline().strip()
         if not path.startswith("/dev/"):
-            raise TransportError(f"simulator did not start (printed {path!r})")
-        yield path
-    finally:
-        proc.terminate()
-        proc.wait(timeout=10)
+            self._stop()
+            raise TransportError(f"simulator did not start: {self.stderr.strip() or path!r}")
+        return path
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop()
+
+    def _stop(self) -> None:
+        proc = self._proc
+        if proc is None:
+            return
+        self._proc = None
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+        try:
+            _, self.stderr = proc.communicate(timeout=5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            _, self.stderr = proc.communicate()
+        self.returncode = proc.returncode
+
+
+def sim_pty_server(
+    turnaround_ms: float, ids: str = "1,2,3,4,5,10", *, echo: bool = False
+) -> SimServerProcess:
+    """The simulated arm for ``busarm bench``, in its own process on a pseudo-terminal."""
+    return SimServerProcess(
+        "--ids", ids, "--turnaround-ms", str(turnaround_ms), *(["--echo"] if echo else [])
+    )
 
 
 def run_bench(

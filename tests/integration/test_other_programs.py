@@ -9,40 +9,24 @@ produced by busarm's own codec.
 from __future__ import annotations
 
 import contextlib
-import signal
-import subprocess
-import sys
 import time
 from collections.abc import Iterator
 
 import pytest
 import serial
 
+from busarm.bench import SimServerProcess
 from busarm.bus.driver import ServoBus
 
 
 @contextlib.contextmanager
 def sim_server(*args: str) -> Iterator[str]:
-    """``busarm sim serve ARGS`` in a subprocess; yields the pty path it prints first,
-    then stops it with SIGINT and checks that it exits cleanly."""
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "busarm", "sim", "serve", *args],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-    )
-    try:
-        assert proc.stdout is not None
-        path = proc.stdout.readline().strip()
-        assert path.startswith("/dev/"), f"no pty path; stderr: {proc.communicate()[1]}"
+    """``busarm sim serve ARGS`` in a subprocess; yields its pty path, then checks
+    that SIGINT stopped it cleanly."""
+    server = SimServerProcess(*args)
+    with server as path:
         yield path
-    finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            _, err = proc.communicate(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.communicate()
-            raise
-    assert proc.returncode == 0, err
+    assert server.returncode == 0, server.stderr
 
 
 def transact(port: serial.Serial, request: str, reply_len: int) -> bytes:

@@ -10,19 +10,15 @@ outlives its time budget.
 
 from __future__ import annotations
 
-import contextlib
 import gc
 import random
-import signal
-import subprocess
-import sys
 import time
 from collections import Counter
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
+from busarm.bench import SimServerProcess
 from busarm.bus.driver import ServoBus
 from busarm.errors import BusTimeoutError, ProtocolError
 from busarm.protocol import Command
@@ -34,33 +30,12 @@ SLACK_S = 0.005
 POSITIONS = {1: 137, 2: 268, 3: 409, 4: 555, 5: 702, 10: 861}
 
 
-@contextlib.contextmanager
-def sim_server(*args: str) -> Iterator[str]:
-    """``busarm sim serve ARGS`` in a subprocess; yields the pty path it prints first."""
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "busarm", "sim", "serve", *args],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-    )
-    try:
-        assert proc.stdout is not None
-        path = proc.stdout.readline().strip()
-        assert path.startswith("/dev/"), f"no pty path; stderr: {proc.communicate()[1]}"
-        yield path
-    finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.communicate(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.communicate()
-
-
 def soak(tmp_path: Path, reads: int, *, echo: bool, seed: int) -> None:
     state = tmp_path / "servos.json"
     save_state(state, [record_from_servo(SimServo(sid, position_pulses=p))
                        for sid, p in POSITIONS.items()])
     faults = ["--drop", "0.01", "--corrupt", "0.01", "--seed", str(seed)]
-    with sim_server("--state", str(state), *faults, *(["--echo"] if echo else [])) as path:
+    with SimServerProcess("--state", str(state), *faults, *(["--echo"] if echo else [])) as path:
         bus = ServoBus.open(path, echo="on" if echo else "off")
         # The budget is the driver's: keep a collection of the earlier tests' objects
         # (a pause of tens of ms, late in a full run) out of the timed calls.
