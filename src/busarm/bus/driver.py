@@ -78,6 +78,10 @@ DEFAULT_TIMEOUT_MARGIN_S = 0.004
 DEFAULT_RETRIES = 2
 STALE_REPLY_S = 1.0
 """How long after a timeout its reply is still expected to turn up late."""
+WAIT_SLACK_S = 2.0
+"""wait_until_reached's default allowance beyond the end of the commanded move."""
+CONFLICT_PROBES = 3
+"""Position reads that decide whether a garbled ID is two servos or line noise."""
 SCAN_MARGIN_S = 0.0012
 """Scans use a tighter margin: a late answer is still caught (see ``scan``)."""
 
@@ -157,6 +161,7 @@ class ServoBus:
         self._spinning: set[int] = set()  # servos this bus set turning in motor mode
         # (servo ID, command) -> when a request of it last timed out: its reply may come late.
         self._late: dict[tuple[int, int], float] = {}
+        self._move_ends: dict[int, float] = {}  # servo ID -> when its last move should end
         for sid, (lo, hi) in (limits_deg or {}).items():
             self.set_limits_deg(sid, lo, hi)
         self.echo = echo_mode is EchoMode.ON
@@ -207,7 +212,7 @@ class ServoBus:
             try:
                 self._send(frame)
             except Exception as exc:  # the bus may be what failed
-                log.warning("emergency stop could not be sent: %s", exc)
+                log.warning("emergency stop: %s", exc)
 
     # ------------------------------------------------------------------ timing
 
@@ -304,8 +309,9 @@ class ServoBus:
             chunk = self.transport.read(64, remaining) if remaining > 0 else b""
             if not chunk:
                 raise BusTimeoutError(
-                    f"echo of {request.hex(' ')} did not come back within {timeout_s * 1e3:.1f} ms "
-                    "(is the adapter really echoing? try echo='off')",
+                    f"sent {request.hex(' ')}, but its echo did not come back within "
+                    f"{timeout_s * 1e3:.1f} ms: is the adapter really echoing? "
+                    "(try echo 'auto' or 'off')",
                     timeout_s=timeout_s,
                 )
             buf += chunk
@@ -484,11 +490,14 @@ class ServoBus:
         check_int_range("position_pulses", position_pulses, 0, 1000)
         self._check_target(servo_id, deg_from_pulses(position_pulses))
         self.send(servo_id, Command.MOVE_TIME_WRITE, position_pulses, move_time_ms)
+        self._moving_until((servo_id,), move_time_ms / 1000.0)
 
     def move_deg(self, servo_id: int, angle_deg: float, duration_s: float = 0.0) -> None:
         """Move to ``angle_deg`` (from the mid-point) at uniform speed over ``duration_s``."""
         pulses = self._check_target(servo_id, angle_deg)
-        self.send(servo_id, Command.MOVE_TIME_WRITE, pulses, ms_from_s(duration_s))
+        time_ms = ms_from_s(duration_s)
+        self.send(servo_id, Command.MOVE_TIME_WRITE, pulses, time_ms)
+        self._moving_until((servo_id,), time_ms / 1000.0)
 
     def move_at_speed_deg(self, servo_id: int, angle_deg: float, speed_deg_s: float) -> float:
         """Move at no more than ``speed_deg_s``; returns the move's duration in seconds."""
@@ -535,6 +544,7 @@ class ServoBus:
                 for sid, p in pulses.items():
                     self.send(sid, Command.MOVE_TIME_WAIT_WRITE, p, time_ms)
                 self.send(BROADCAST_ID, Command.MOVE_START)
+        self._moving_until(pulses, time_ms / 1000.0)
         return time_ms / 1000.0
 
     def stop(self, servo_ids: Iterable[int] | None = None) -> None:
@@ -551,15 +561,20 @@ class ServoBus:
         targets_deg: Mapping[int, float],
         *,
         tolerance_deg: float = 1.0,
-        timeout_s: float = 5.0,
+        timeout_s: float | None = None,
         poll_s: float = 0.02,
     ) -> dict[int, float]:
         """Poll positions until every servo is within ``tolerance_deg`` of its target.
 
         Returns the last positions; raises MotionTimeoutError naming the servos that
-        did not get there within ``timeout_s``.
+        did not get there within ``timeout_s`` (default: until the longest move this
+        bus commanded to them should have ended, plus WAIT_SLACK_S).
         """
         check_range("tolerance_deg", tolerance_deg, 0.0, 240.0, "deg")
+        if timeout_s is None:
+            ends = [self._move_ends.get(sid, 0.0) for sid in targets_deg]
+            timeout_s = max([0.0, *ends]) - time.monotonic()
+            timeout_s = max(timeout_s, 0.0) + WAIT_SLACK_S
         check_range("timeout_s", timeout_s, 0.0, 3600.0, "s")
         check_range("poll_s", poll_s, 0.0, 10.0, "s")
         for sid in targets_deg:
@@ -574,12 +589,25 @@ class ServoBus:
             if time.monotonic() >= deadline:
                 detail = ", ".join(
                     f"servo {s} at {positions[s]:.1f} deg, target {targets_deg[s]:.1f}"
+                    + ("" if self._is_loaded(s) else
+                       " (torque off: it unloaded; check its voltage and temperature limits)")
                     for s in off
                 )
                 raise MotionTimeoutError(
-                    f"not within {tolerance_deg} deg after {timeout_s} s: {detail}"
+                    f"not within {tolerance_deg:g} deg after {timeout_s:.1f} s: {detail}"
                 )
             time.sleep(poll_s)
+
+    def _is_loaded(self, servo_id: int) -> bool:
+        try:
+            return self.read_torque(servo_id)
+        except (BusTimeoutError, ProtocolError):
+            return True  # unknown: say nothing
+
+    def _moving_until(self, servo_ids: Iterable[int], duration_s: float) -> None:
+        end = time.monotonic() + duration_s
+        for sid in servo_ids:
+            self._move_ends[sid] = end
 
     # ------------------------------------------------------------------ motor mode
 
@@ -645,8 +673,16 @@ class ServoBus:
         return self._read(servo_id, Command.MOVE_TIME_WAIT_READ, MoveTimeWaitReply)
 
     def read_id(self, servo_id: int = BROADCAST_ID) -> int:
-        """ID_READ; with the broadcast ID only safe when a single servo is on the bus."""
-        return self._read(servo_id, Command.ID_READ, IdReply).reported_id
+        """ID_READ; with the broadcast ID only safe when a single servo is on the bus
+        (several answering at once raise BusConflictError)."""
+        try:
+            return self._read(servo_id, Command.ID_READ, IdReply).reported_id
+        except ProtocolError as exc:
+            if servo_id != BROADCAST_ID:
+                raise
+            raise BusConflictError(
+                f"more than one servo answered ID_READ on the broadcast ID: {exc}"
+            ) from exc
 
     # ------------------------------------------------------------------ settings
 
@@ -749,8 +785,10 @@ class ServoBus:
 
         Each ID gets a short, baud-derived deadline. A reply that arrives after its
         deadline is still recognised by the ID inside it, so a slow servo is not
-        missed. IDs whose replies come back garbled, or whose position reads are
-        garbled, are reported as ``conflicts`` (two servos sharing an ID).
+        missed. Every ID that answered or garbled is then probed with CONFLICT_PROBES
+        position reads: an ID whose replies stay garbled is reported in ``conflicts``
+        (two servos sharing it), not in ``found``; one that answers once is found.
+        A servo whose every request is lost to noise is not found: scan again.
         """
         ids = [check_servo_id(s) for s in servo_ids]
         request_len = 6
@@ -793,15 +831,35 @@ class ServoBus:
                 collect(chunk, ids[-1] if ids else 0)
         wanted = set(ids)
         found &= wanted
-        conflicts = set(garbled & wanted)
-        for sid in sorted(found):
-            try:
-                self.read_position_pulses(sid)
-            except ProtocolError:
+        # A garbled window may be two servos on one ID, or just line noise: ask again.
+        # Two servos answering together garble nearly every time; noise rarely twice.
+        conflicts: set[int] = set()
+        for sid in sorted((garbled & wanted) | found):
+            probes: list[str] = []
+            while len(probes) < CONFLICT_PROBES and "ok" not in probes:
+                probes.append(self._probe(sid))
+            if "ok" in probes:
+                found.add(sid)
+            elif probes.count("garbled") >= 2:
                 conflicts.add(sid)
+        return ScanResult(sorted(found - conflicts), sorted(conflicts),
+                          time.monotonic() - started)
+
+    def _probe(self, servo_id: int) -> str:
+        """One POS_READ attempt, no retry: "ok", "garbled" (bytes, no valid reply) or "silent"."""
+        plan = self._plans.get((servo_id, Command.POS_READ)) or self._plan(
+            servo_id, Command.POS_READ
+        )
+        with self._lock:
+            deadline = time.monotonic() + plan.timeout_s
+            first = self.transport.exchange(plan.request, plan.timeout_s)
+            try:
+                self._scan_reply(plan, servo_id, Command.POS_READ, first, deadline, False)
             except BusTimeoutError:
-                pass
-        return ScanResult(sorted(found), sorted(conflicts), time.monotonic() - started)
+                return "silent"
+            except ProtocolError:
+                return "garbled"
+            return "ok"
 
     def set_id(self, old_id: int, new_id: int) -> None:
         """Renumber the servo at ``old_id`` to ``new_id``, safely.

@@ -157,6 +157,10 @@ class SimBus:
         settings are loaded from it if it exists and saved to it on every saved write."""
         ids = list(ids)
         now = clock()
+        if state_file is not None and not state_file.parent.is_dir():
+            raise ConfigError(
+                f"state file {state_file}: directory {state_file.parent} does not exist"
+            )
         stored = load_state(state_file) if state_file is not None else None
         servos: list[SimServo] = []
         if stored is not None:
@@ -312,6 +316,14 @@ class SimBus:
                 b ^= rng.randrange(1, 256)
             out.append(b)
         return bytes(out)
+
+    def power_off(self) -> None:
+        """Save what survives power-off (with a state file): stored settings and where
+        each horn now is. Called when a server stops."""
+        if self.state_file is not None:
+            self.advance()
+            with self._lock:
+                self._save()
 
     def _save(self) -> None:
         assert self.state_file is not None

@@ -103,12 +103,15 @@ class PtyServer:
             view = view[n:]
 
     def stop(self) -> None:
-        """Stop serving and close the pseudo-terminal."""
+        """Stop serving, close the pseudo-terminal and power the servos off (saving
+        their state file, if they have one)."""
         if self._stop_w >= 0:
             os.write(self._stop_w, b"x")
         if self._thread is not None:
             self._thread.join(timeout=5)
             self._thread = None
+        if self._master >= 0:
+            self.bus.power_off()
         for fd in (self._master, self._slave, self._stop_r, self._stop_w):
             if fd >= 0:
                 with contextlib.suppress(OSError):
