@@ -23,6 +23,8 @@ from click.testing import CliRunner, Result
 from serial.tools import list_ports
 from serial.tools.list_ports_common import ListPortInfo
 
+from busarm.bus.driver import ServoBus
+from busarm.cli import bus_cmds
 from busarm.cli.main import cli
 from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.pty import PtyServer
@@ -190,9 +192,9 @@ def test_bad_input_is_one_error_exit_2_and_sends_nothing(
     path, bus = pty_sim(servos(1, 2, 3))
     result = run(*args, port=path)
     assert_one_error(result, 2)
-    # Control: one valid write now; the pty delivers bytes in order, so anything the bad
-    # command had sent would be counted before it.
-    assert run("--echo", "off", "stop", "1", port=path).exit_code == 0
+    # Control: one valid write now (broadcast: no presence check); the pty delivers bytes
+    # in order, so anything the bad command had sent would be counted before it.
+    assert run("--echo", "off", "stop", port=path).exit_code == 0
     assert wait_for(lambda: bus.frames_received >= 1)
     time.sleep(0.02)
     assert (bus.frames_received, bus.frames_rejected) == (1, 0)
@@ -404,9 +406,118 @@ def test_sim_serve_and_monitor_as_subprocesses() -> None:
             assert monitor.poll() is None, monitor.communicate()
         code, _, err = _sigint_and_wait(monitor)
         assert code == 0, err
+        assert "interrupted: all servos stopped (holding position)" in err
         assert "Traceback" not in err
     finally:
         code, _, err = _sigint_and_wait(server)
     assert code == 0, err
     assert "Traceback" not in err
     assert f"on {path}" in err
+
+
+# ---------------------------------------------------------------------------- safety checks
+
+
+def test_writes_to_a_missing_servo_fail_and_write_nothing(pty_sim: PtyFactory) -> None:
+    path, bus = pty_sim(servos(1))
+    assert run("move", "1", "100", "--time", "5", port=path).exit_code == 0
+    cases = [(["move", "7", "10"], 1), (["stop", "7"], 1), (["torque", "off", "7"], 1),
+             (["limits", "7", "--temp", "70"], 1), (["led", "7", "off"], 1),
+             (["offset", "7", "3"], 1), (["stop", "1", "7"], 2)]
+    for args, reads in cases:
+        time.sleep(0.02)
+        before = bus.frames_received
+        result = run("--echo", "off", "--retries", "0", *args, port=path)
+        assert assert_one_error(result, 1) == "error: no servo answers at ID 7", args
+        # Only the presence checks (one read per ID) reached the bus: no write, no stop.
+        time.sleep(0.02)
+        assert bus.frames_received - before == reads, args
+    assert bus.servo(1).is_loaded
+    bus.servo(1).advance(time.monotonic())  # the simulation advances when asked
+    position = bus.servo(1).position_pulses
+    time.sleep(0.05)
+    bus.servo(1).advance(time.monotonic())
+    assert bus.servo(1).position_pulses > position  # still moving: nothing stopped it
+
+
+def test_move_outside_the_servos_angle_limits_is_refused(pty_sim: PtyFactory) -> None:
+    path, bus = pty_sim(servos(1, 2))
+    assert run("limits", "2", "--angle", "-30", "30", port=path).exit_code == 0
+    time.sleep(0.02)
+    before = bus.frames_received
+    message = assert_one_error(run("--echo", "off", "move", "2", "60", port=path), 2)
+    assert "+60.0 deg for servo 2" in message and "-30.0..+30.0 deg" in message
+    message = assert_one_error(run("--echo", "off", "move", "--pose", "1=60,2=-45",
+                                   port=path), 2)
+    assert "servo 2" in message
+    time.sleep(0.05)
+    assert bus.frames_received - before == 3  # the limit reads only
+    assert bus.servo(1).position_pulses == bus.servo(2).position_pulses == 500
+    result = run("move", "2", "30", "--time", "0", "--wait", port=path)
+    assert result.exit_code == 0, result.stderr
+
+
+def test_vin_limits_that_would_unload_the_servo_need_force() -> None:
+    message = assert_one_error(run("limits", "1", "--vin", "6", "11"), 2)
+    assert "11.10 V" in message and "6..11 V" in message and "--force" in message
+    assert "12.00 V" in run("limits", "1").stdout
+    result = run("limits", "1", "--vin", "6", "11", "--force")
+    assert result.exit_code == 0, result.stderr
+    assert "11.00 V" in result.stdout
+
+
+def test_monitor_ctrl_c_stops_the_arm(
+    pty_sim: PtyFactory, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path, bus = pty_sim(servos(1))
+
+    def interrupted(*args: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(bus_cmds, "_monitor_loop", interrupted)
+    assert run("move", "1", "100", "--time", "5", port=path).exit_code == 0
+    result = run("monitor", "--ids", "1", port=path)
+    assert result.exit_code == 0, result.stderr
+    assert "interrupted: all servos stopped (holding position)" in result.stderr
+    time.sleep(0.05)
+    bus.servo(1).advance(time.monotonic())
+    held = bus.servo(1).position_pulses
+    time.sleep(0.1)
+    bus.servo(1).advance(time.monotonic())
+    assert bus.servo(1).position_pulses == held < 600
+
+
+def test_ctrl_c_during_a_command_says_the_servos_stopped(
+    pty_sim: PtyFactory, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path, bus = pty_sim(servos(1))
+
+    def interrupted(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(ServoBus, "wait_until_reached", interrupted)
+    result = run("move", "1", "100", "--time", "5", "--wait", port=path)
+    message = assert_one_error(result, 130)
+    assert message == "error: interrupted: all servos stopped (holding position)"
+    time.sleep(0.05)
+    bus.servo(1).advance(time.monotonic())
+    held = bus.servo(1).position_pulses
+    time.sleep(0.1)
+    bus.servo(1).advance(time.monotonic())
+    assert bus.servo(1).position_pulses == held < 600
+
+
+def test_default_simulator_note() -> None:
+    def invoke(*args: str, **env: str | None) -> Result:
+        return CliRunner(mix_stderr=False).invoke(cli, list(args), env=env)
+
+    note = "note: no --port given: using the in-process simulated arm (sim)"
+    result = invoke("stop", BUSARM_PORT=None)
+    assert result.exit_code == 0 and result.stderr.strip() == note, result.stderr
+    assert note not in invoke("--port", "sim", "stop", BUSARM_PORT=None).stderr
+    assert note not in invoke("stop", BUSARM_PORT=SIM).stderr
+    for args in (["encode", "POS_READ", "1"], ["decode", "55 55 01 03 1c df"], ["ports"]):
+        result = invoke(*args, BUSARM_PORT=None)
+        assert note not in result.stderr, args
+    demo = invoke("demo", "--poses", "1", "--no-timing", "--speed", "1000", BUSARM_PORT=None)
+    assert demo.exit_code == 0 and note not in demo.stderr

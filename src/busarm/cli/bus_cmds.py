@@ -10,7 +10,7 @@ from rich.table import Table
 
 from busarm.bus.driver import ServoBus
 from busarm.bus.transport import usb_latency_timer_ms
-from busarm.cli.common import ID_LIST, RangeType, Settings, pass_settings
+from busarm.cli.common import ID_LIST, STOPPED, RangeType, Settings, pass_settings
 from busarm.cli.render import scan_report, scan_with_progress, state_table
 from busarm.protocol import MAX_SERVO_ID
 
@@ -84,8 +84,9 @@ def monitor(
 ) -> None:
     """Live table of position (deg), temperature (C), voltage (V) and torque per servo.
 
-    Refreshes until Ctrl+C (exit code 0) or --count refreshes. When the output is
-    not a terminal, every refresh is printed.
+    Refreshes until Ctrl+C (exit code 0) or --count refreshes. Ctrl+C stops every
+    servo (MOVE_STOP: they hold position). When the output is not a terminal, every
+    refresh is printed.
     """
     with settings.open_bus() as bus:
         try:
@@ -95,8 +96,9 @@ def monitor(
                     settings.out.print("no servos found")
                     return
             _monitor_loop(settings, bus, ids, interval, count)
-        except KeyboardInterrupt:  # the way to end a monitor: not an error
-            settings.err.print("stopped")
+        except KeyboardInterrupt:  # the way to end a monitor: not an error, but stop the arm
+            bus.emergency_stop()
+            settings.err.print(f"interrupted: {STOPPED}", highlight=False)
 
 
 def _monitor_loop(

@@ -7,7 +7,8 @@ input fails before any port is opened and nothing reaches the bus.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
@@ -30,6 +31,20 @@ T = TypeVar("T")
 
 NO_REPLY = "no reply"
 
+SIM_NOTE = "note: no --port given: using the in-process simulated arm (sim)"
+STOPPED = "all servos stopped (holding position)"
+"""What the bus did on its way out of an error: MOVE_STOP to all (ServoBus.__exit__)."""
+
+
+def servos_stopped(exc: BaseException) -> bool:
+    """Whether ``exc`` (or what caused it) left a bus that sent the emergency stop."""
+    seen: BaseException | None = exc
+    while seen is not None:
+        if getattr(seen, "busarm_servos_stopped", False):
+            return True
+        seen = seen.__cause__ or seen.__context__
+    return False
+
 
 @dataclass
 class Settings:
@@ -42,16 +57,49 @@ class Settings:
     retries: int = DEFAULT_RETRIES
     out: Console = field(default_factory=Console)
     err: Console = field(default_factory=lambda: Console(stderr=True))
+    port_given: bool = True
+    """False when neither --port nor BUSARM_PORT was given (the default simulator)."""
 
-    def open_bus(self, port: str | None = None) -> ServoBus:
-        """Open the bus on ``port`` (default: ``--port``); use it inside ``with``."""
-        return ServoBus.open(
+    @contextmanager
+    def open_bus(
+        self, port: str | None = None, check_ids: Iterable[int] = (),
+        check: Callable[[ServoBus, int], object] | None = None,
+    ) -> Iterator[ServoBus]:
+        """Open the bus on ``port`` (default: ``--port``): ``with settings.open_bus() as bus``.
+
+        Each of ``check_ids`` must answer ``check(bus, sid)`` (default: ID_READ) before
+        the body runs; if one does not (or ``check`` raises), the bus is closed with
+        nothing written. An exception leaving the body stops every servo
+        (ServoBus.__exit__), and is marked so that the error message says so.
+        """
+        if port is None and not self.port_given:
+            self.err.print(SIM_NOTE, highlight=False, markup=False)
+        bus = ServoBus.open(
             self.port if port is None else port,
             baudrate=self.baudrate,
             echo=self.echo,
             timeout_margin_s=self.timeout_margin_ms / 1000.0,
             retries=self.retries,
         )
+        try:
+            for sid in check_ids:
+                try:
+                    (check or _ping)(bus, sid)
+                except BusTimeoutError:
+                    raise BusTimeoutError(f"no servo answers at ID {sid}", servo_id=sid) from None
+        except BaseException:
+            bus.close()  # nothing was written: no emergency stop
+            raise
+        with bus:
+            try:
+                yield bus
+            except BaseException as exc:
+                exc.busarm_servos_stopped = True  # type: ignore[attr-defined]
+                raise
+
+
+def _ping(bus: ServoBus, sid: int) -> None:
+    bus.read_id(sid)
 
 
 pass_settings = click.make_pass_decorator(Settings, ensure=True)

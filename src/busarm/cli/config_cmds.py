@@ -68,7 +68,8 @@ def offset(settings: Settings, servo_id: int, offset_deg: float | None, save: bo
     A new offset applies at once (the servo moves) but is lost at power off unless
     --save is given; --save alone stores the current offset.
     """
-    with settings.open_bus() as bus:
+    writes = offset_deg is not None or save
+    with settings.open_bus(check_ids=[servo_id] if writes else []) as bus:
         if offset_deg is not None:
             bus.adjust_offset_deg(servo_id, offset_deg)
         if save:
@@ -87,19 +88,38 @@ def offset(settings: Settings, servo_id: int, offset_deg: float | None, save: bo
               help="Write the input voltage limits in V, 4.5..12 (stored; outside, it unloads).")
 @click.option("--temp", type=click.IntRange(50, 100), metavar="MAX_C",
               help="Write the temperature limit in deg C, 50..100 (stored; above, it unloads).")
+@click.option("--force", is_flag=True,
+              help="Write --vin even if the servo's present voltage is outside it.")
 @pass_settings
 def limits(
     settings: Settings, servo_id: int, angle: tuple[float, float] | None,
-    vin: tuple[float, float] | None, temp: int | None,
+    vin: tuple[float, float] | None, temp: int | None, force: bool,
 ) -> None:
-    """Show servo ID's angle, voltage and temperature limits, or write them."""
+    """Show servo ID's angle, voltage and temperature limits, or write them.
+
+    --vin is refused if the servo's present voltage is outside the new limits (it
+    would unload at once and a loaded joint would drop), unless --force is given.
+    """
     if angle is not None and pulses_from_deg(angle[0]) >= pulses_from_deg(angle[1]):
         raise click.BadParameter(f"min {angle[0]:g} must be below max {angle[1]:g} deg",
                                  param_hint="--angle")
     if vin is not None and mv_from_v(vin[0]) >= mv_from_v(vin[1]):
         raise click.BadParameter(f"min {vin[0]:g} must be below max {vin[1]:g} V",
                                  param_hint="--vin")
-    with settings.open_bus() as bus:
+
+    def check(bus: ServoBus, sid: int) -> None:
+        if vin is None:
+            bus.read_id(sid)
+            return
+        now = bus.read_vin_v(sid)
+        if not force and not vin[0] <= now <= vin[1]:
+            raise ConfigError(
+                f"servo {sid} is at {now:.2f} V, outside the new limits {vin[0]:g}..{vin[1]:g} V: "
+                "it would unload at once (a loaded joint would drop); --force to write anyway"
+            )
+
+    writes = angle is not None or vin is not None or temp is not None
+    with settings.open_bus(check_ids=[servo_id] if writes else [], check=check) as bus:
         if angle is not None:
             bus.write_angle_limits_deg(servo_id, *angle)
         if vin is not None:
@@ -135,7 +155,8 @@ def _limits_table(bus: ServoBus, sid: int) -> Table:
 @pass_settings
 def led(settings: Settings, servo_id: int, state: str | None, alarms: AlarmFlag | None) -> None:
     """Show servo ID's LED and alarm settings, or turn the LED on/off (stored)."""
-    with settings.open_bus() as bus:
+    writes = state is not None or alarms is not None
+    with settings.open_bus(check_ids=[servo_id] if writes else []) as bus:
         if state is not None:
             bus.set_led(servo_id, state == "on")
         if alarms is not None:

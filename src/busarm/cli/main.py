@@ -20,7 +20,7 @@ from busarm.bus.driver import DEFAULT_RETRIES, DEFAULT_TIMEOUT_MARGIN_S
 from busarm.bus.transport import DEFAULT_BAUDRATE
 from busarm.cli import bus_cmds, config_cmds, demo, proto_cmds, servo_cmds, sim_cmds
 from busarm.cli.bench_cmd import bench
-from busarm.cli.common import Settings
+from busarm.cli.common import STOPPED, Settings, servos_stopped
 from busarm.errors import BusArmError, ConfigError
 
 EXIT_BUS_ERROR = 1
@@ -28,7 +28,9 @@ EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
 
 
-def _fail(message: str, code: int) -> NoReturn:
+def _fail(message: str, code: int, exc: BaseException | None = None) -> NoReturn:
+    if exc is not None and servos_stopped(exc):
+        message = f"{message}: {STOPPED}"
     click.echo(f"error: {message}", err=True)
     sys.exit(code)
 
@@ -56,13 +58,13 @@ class BusArmGroup(click.Group):
             try:
                 rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
             except click.ClickException as exc:
-                _fail(exc.format_message(), exc.exit_code)
-            except click.Abort:
-                _fail("interrupted", EXIT_INTERRUPTED)
+                _fail(exc.format_message(), exc.exit_code, exc)
+            except click.Abort as exc:
+                _fail("interrupted", EXIT_INTERRUPTED, exc)
             except ConfigError as exc:
-                _fail(str(exc), EXIT_BAD_INPUT)
+                _fail(str(exc), EXIT_BAD_INPUT, exc)
             except BusArmError as exc:
-                _fail(str(exc) or type(exc).__name__, EXIT_BUS_ERROR)
+                _fail(str(exc) or type(exc).__name__, EXIT_BUS_ERROR, exc)
             except BrokenPipeError:  # `busarm decode ... | head`
                 sys.exit(0)
         if not standalone_mode:
@@ -111,6 +113,7 @@ def cli(
     ctx.obj = Settings(
         port=port, baudrate=baudrate, echo=echo, timeout_margin_ms=timeout_margin_ms,
         retries=retries,
+        port_given=ctx.get_parameter_source("port") is not click.core.ParameterSource.DEFAULT,
     )
 
 

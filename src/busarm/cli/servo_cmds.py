@@ -22,7 +22,7 @@ from busarm.cli.common import (
     try_read,
 )
 from busarm.cli.render import scan_with_progress
-from busarm.errors import BusConflictError, BusTimeoutError
+from busarm.errors import BusConflictError, BusTimeoutError, ConfigError
 from busarm.protocol import (
     BROADCAST_ID,
     MAX_SERVO_ID,
@@ -30,6 +30,7 @@ from busarm.protocol import (
     Command,
     ServoMode,
 )
+from busarm.units import pulses_from_deg
 
 DEFAULT_MOVE_TIME_S = 1.0
 WAIT_SLACK_S = 2.0
@@ -136,7 +137,18 @@ def move(
         pose = {servo_id: angle_deg}
     if duration is not None and speed is not None:
         raise click.UsageError("give either --time or --speed, not both")
-    with settings.open_bus() as bus:
+    targets_by_id = pose
+
+    def within_limits(bus: ServoBus, sid: int) -> None:
+        lo, hi = bus.read_angle_limits_deg(sid)  # doubles as the presence check
+        target = targets_by_id[sid]
+        if not pulses_from_deg(lo) <= pulses_from_deg(target) <= pulses_from_deg(hi):
+            raise ConfigError(
+                f"target {target:+.1f} deg for servo {sid} is outside its angle limits "
+                f"{lo:+.1f}..{hi:+.1f} deg (see: busarm limits {sid})"
+            )
+
+    with settings.open_bus(check_ids=pose, check=within_limits) as bus:
         if speed is not None:
             if len(pose) == 1:
                 ((sid, target),) = pose.items()
@@ -167,7 +179,7 @@ def stop(settings: Settings, ids: tuple[int, ...]) -> None:
 
     Servos in motor mode are not stopped by MOVE_STOP (set their speed to 0).
     """
-    with settings.open_bus() as bus:
+    with settings.open_bus(check_ids=ids) as bus:
         bus.stop(ids or None)
     settings.out.print(f"stopped {_which(ids)}: holding position")
 
@@ -178,7 +190,7 @@ def stop(settings: Settings, ids: tuple[int, ...]) -> None:
 @pass_settings
 def torque(settings: Settings, state: str, ids: tuple[int, ...]) -> None:
     """Torque on (hold position) or off (limp, move by hand); no ID = every servo."""
-    with settings.open_bus() as bus:
+    with settings.open_bus(check_ids=ids) as bus:
         for sid in ids or (BROADCAST_ID,):
             bus.set_torque(sid, state == "on")
     settings.out.print(f"torque {state} for {_which(ids)}")
