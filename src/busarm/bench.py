@@ -149,7 +149,7 @@ def bench_os_floor(bus: ServoBus, servo_id: int, count: int) -> BenchResult | No
     """The same position read done with bare syscalls (flush, write, select, read) on
     the same file descriptor: what any client pays the OS. None if the port has no
     descriptor (URLs, the in-process simulator)."""
-    fd = getattr(bus.transport, "_fd", None)
+    fd = getattr(bus.transport, "fd", None)
     if fd is None:
         return None
     request = encode_request(servo_id, Command.POS_READ)

@@ -33,6 +33,7 @@ from busarm.errors import (
 from busarm.protocol import (
     BROADCAST_ID,
     MAX_SERVO_ID,
+    SERVO_TURNAROUND_S,
     SPECS,
     AlarmFlag,
     AngleLimitReply,
@@ -71,8 +72,6 @@ from busarm.units import (
 
 log = logging.getLogger(__name__)
 
-DEFAULT_TURNAROUND_S = 0.0005
-"""Assumed time a servo takes to start its reply after the request's last byte."""
 DEFAULT_TIMEOUT_MARGIN_S = 0.004
 """Slack on top of the wire time for OS scheduling and adapter jitter."""
 DEFAULT_RETRIES = 2
@@ -137,7 +136,7 @@ class ServoBus:
         transport: Transport,
         *,
         echo: EchoMode | str = EchoMode.AUTO,
-        turnaround_s: float = DEFAULT_TURNAROUND_S,
+        turnaround_s: float = SERVO_TURNAROUND_S,
         timeout_margin_s: float = DEFAULT_TIMEOUT_MARGIN_S,
         retries: int = DEFAULT_RETRIES,
         limits_deg: Mapping[int, tuple[float, float]] | None = None,

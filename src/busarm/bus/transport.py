@@ -104,6 +104,11 @@ class SerialTransport:
         if self._fd is not None:
             self.latency_s = adapter_latency_s(name)
 
+    @property
+    def fd(self) -> int | None:
+        """The OS file descriptor of a device path (None for URL handlers)."""
+        return self._fd
+
     def write(self, data: bytes) -> None:
         try:
             if self._fd is not None:

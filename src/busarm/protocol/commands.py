@@ -16,6 +16,9 @@ BROADCAST_ID = 254
 """Every servo obeys a frame to ID 254; only ID_READ is answered."""
 MAX_SERVO_ID = 253
 HEADER = b"\x55\x55"
+SERVO_TURNAROUND_S = 0.0005
+"""Assumed time a servo takes from the end of a request to the start of its reply:
+the driver's default and the simulator's (both configurable)."""
 
 
 class Command(IntEnum):

@@ -25,6 +25,7 @@ from busarm.errors import ConfigError, ProtocolError
 from busarm.protocol import (
     BROADCAST_ID,
     SAVED_ON_POWER_OFF,
+    SERVO_TURNAROUND_S,
     Command,
     Frame,
     FrameParser,
@@ -34,8 +35,6 @@ from busarm.protocol import (
 from busarm.sim.servo import ServoParams, SimServo
 from busarm.sim.storage import load_state, record_from_servo, save_state, servo_from_record
 
-DEFAULT_TURNAROUND_S = 0.0005
-"""How long a simulated servo takes between the end of a request and its reply."""
 ARM_SERVO_IDS = (1, 2, 3, 4, 5, 10)
 """The JetAuto Pro arm: five 35 kg joints and the 20 kg gripper on ID 10."""
 GRIPPER_ID = 10
@@ -46,7 +45,7 @@ class WireTiming:
     """Line speed and servo turnaround. ``enabled=False`` delivers everything at once."""
 
     baudrate: int = 115200
-    turnaround_s: float = DEFAULT_TURNAROUND_S
+    turnaround_s: float = SERVO_TURNAROUND_S
     enabled: bool = True
 
     @property

@@ -23,7 +23,8 @@ from pathlib import Path
 from urllib.parse import parse_qs, urlsplit
 
 from busarm.errors import ConfigError, TransportError
-from busarm.sim.bus import ARM_SERVO_IDS, DEFAULT_TURNAROUND_S, FaultInjection, SimBus, WireTiming
+from busarm.protocol import SERVO_TURNAROUND_S
+from busarm.sim.bus import ARM_SERVO_IDS, FaultInjection, SimBus, WireTiming
 from busarm.units import parse_ids
 
 _KNOWN = {"ids", "echo", "timing", "turnaround_ms", "drop", "corrupt", "late", "late_ms", "seed",
@@ -58,7 +59,7 @@ def sim_bus_from_url(url: str, baudrate: int = 115200) -> SimBus:
         )
     q = {k: v[-1] for k, v in raw.items()}
     ids = parse_ids(q["ids"]) if "ids" in q else list(ARM_SERVO_IDS)
-    turnaround_ms = _float(q, "turnaround_ms", DEFAULT_TURNAROUND_S * 1000)
+    turnaround_ms = _float(q, "turnaround_ms", SERVO_TURNAROUND_S * 1000)
     if not 0 <= turnaround_ms <= 100:
         raise ConfigError(f"sim URL: turnaround_ms={turnaround_ms} is out of range 0..100")
     timing = WireTiming(baudrate, turnaround_ms / 1000.0, _flag(q, "timing", True))
