@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-$(shell cat pyproject.toml | cksum | cut -d' ' -f1)
 
-.PHONY: demo test lint bench bench-peers clean
+.PHONY: demo test lint bench bench-peers bench-ik clean
 
 $(BIN)/python:
 	@$(PYTHON) -c 'import venv, ensurepip' 2>/dev/null || { \
@@ -36,6 +36,11 @@ bench: $(STAMP)
 bench-peers: $(STAMP)
 	$(BIN)/python -m pip install -q -e '.[peers]'
 	$(BIN)/python bench/peers.py
+
+# IK peers (roboticstoolbox-python, ikpy) are installed only here, for `busarm bench ik --peers`.
+bench-ik: $(STAMP)
+	$(BIN)/python -m pip install -q -e '.[ikbench]'
+	$(BIN)/busarm bench ik --peers
 
 clean:
 	rm -rf $(VENV) build *.egg-info src/*.egg-info .pytest_cache .mypy_cache .ruff_cache .hypothesis

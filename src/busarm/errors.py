@@ -61,17 +61,41 @@ class BusConflictError(BusArmError):
     """More than one servo answered where exactly one was required (duplicate IDs)."""
 
 
+class KinematicsError(BusArmError, ValueError):
+    """A pose the arm's model cannot produce."""
+
+
+class UnreachableError(KinematicsError):
+    """A target outside the workspace: beyond reach, below the table, or past a joint limit.
+
+    ``reason`` is ``"reach"``, ``"table"`` or ``"joint_limit"``; ``joint`` names the joint
+    for a joint limit.
+    """
+
+    def __init__(self, message: str, reason: str = "reach", joint: str | None = None) -> None:
+        super().__init__(message)
+        self.reason = reason
+        self.joint = joint
+
+
+class CalibrationError(ConfigError):
+    """A calibration file that is unreadable or does not match the arm it is used with."""
+
+
 __all__ = [
     "BusArmError",
     "BusConflictError",
     "BusTimeoutError",
+    "CalibrationError",
     "ChecksumError",
     "ConfigError",
+    "KinematicsError",
     "LimitError",
     "MotionTimeoutError",
     "ProtocolError",
     "ServoFaultError",
     "TransportError",
+    "UnreachableError",
 ]
 
 

@@ -353,13 +353,23 @@ def test_offset_limits_led_write_and_read_back() -> None:
 # ---------------------------------------------------------------------------- demo
 
 
-def test_demo_exits_0() -> None:
+def test_demo_picks_and_places_along_straight_lines() -> None:
     result = CliRunner(mix_stderr=False).invoke(
-        cli, ["demo", "--poses", "1", "--no-timing", "--speed", "1000"]
+        cli, ["demo", "--no-timing", "--line-speed", "300"], env={"BUSARM_PORT": None}
     )
     assert result.exit_code == 0, result.stderr
+    assert "no --port given" not in result.stderr  # the demo runs its own simulator
     assert "found 6 servo(s): 1, 2, 3, 4, 5, 10" in result.stdout
-    assert "reach forward" in result.stdout
+    assert "grip: holding the" in result.stdout
+    rows = {
+        line.split("│")[1].strip(): line.split("│")[2:-1]
+        for line in result.stdout.splitlines() if line.count("│") == 8
+    }
+    for step in ("down to grasp", "lift", "carry", "lower", "retreat"):
+        off_line_mm = float(rows[step][-1])
+        assert off_line_mm < 2.0, (step, off_line_mm)
+    x, y, z = (float(v) for v in rows["down to grasp"][1:4])
+    assert abs(x - 200) < 2 and abs(y + 110) < 2 and abs(z - 15) < 2
 
 
 # ---------------------------------------------------------------------------- subprocesses
@@ -519,5 +529,3 @@ def test_default_simulator_note() -> None:
     for args in (["encode", "POS_READ", "1"], ["decode", "55 55 01 03 1c df"], ["ports"]):
         result = invoke(*args, BUSARM_PORT=None)
         assert note not in result.stderr, args
-    demo = invoke("demo", "--poses", "1", "--no-timing", "--speed", "1000", BUSARM_PORT=None)
-    assert demo.exit_code == 0 and note not in demo.stderr

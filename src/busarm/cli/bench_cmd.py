@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from typing import TYPE_CHECKING
 
 import click
 from rich.table import Table
@@ -10,12 +11,15 @@ from rich.table import Table
 from busarm.bench import BenchReport, run_bench, sim_pty_server
 from busarm.cli.common import IdListType, RangeType, Settings, pass_settings
 
+if TYPE_CHECKING:
+    from busarm.arm.ik_bench import IkBenchReport
+
 TARGET_RATIO = 0.90
 TARGET_SCAN_S = 1.0
 TARGET_CPU_US = 30.0
 
 
-@click.command()
+@click.group(invoke_without_command=True)
 @click.option("--ids", "servo_ids", type=IdListType(), default="1,2,3,4,5,10", show_default=True,
               help="Servos on the bus; the first is used for the position-read run.")
 @click.option("--reads", type=click.IntRange(10, 1_000_000), default=3000, show_default=True,
@@ -41,7 +45,10 @@ def bench(
     pseudo-terminal with 115200-baud wire timing, so the numbers include the real
     serial path. On hardware (`--port /dev/ttyUSB0`) this is the first diagnostic to
     run: a rate far below the wire limit points at adapter latency or a noisy bus.
+    `busarm bench ik` measures the arm's inverse kinematics instead.
     """
+    if click.get_current_context().invoked_subcommand is not None:
+        return
     kwargs = dict(servo_ids=servo_ids, reads=reads, loops=loops, scans=scans,
                   turnaround_ms=turnaround_ms, echo=settings.echo)
     if settings.port == "sim":
@@ -86,3 +93,94 @@ def _print(settings: Settings, report: BenchReport) -> None:
         f"scan: best {scan.extra['best_s']} s, median {scan.extra['median_s']} s "
         f"(target <= {TARGET_SCAN_S} s), found {scan.extra['found']}"
     )
+
+
+@bench.command("ik")
+@click.option("--n", "n", type=click.IntRange(10, 1_000_000), default=10_000, show_default=True,
+              help="Random targets for accuracy and single-call timing.")
+@click.option("--batch-n", type=click.IntRange(10, 100_000_000), default=1_000_000,
+              show_default=True, help="Rows for the ik_batch throughput run.")
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--peers", is_flag=True,
+              help="Also time Robotics Toolbox and ikpy on the same targets (make bench-ik).")
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
+@pass_settings
+def bench_ik(
+    settings: Settings, n: int, batch_n: int, seed: int, peers: bool, as_json: bool,
+) -> None:
+    """Accuracy and speed of the arm's closed-form IK (no bus), optionally beside peers."""
+    from busarm.arm.ik_bench import run_ik_bench  # numpy only when asked for
+
+    report = run_ik_bench(n=n, batch_n=batch_n, seed=seed, peers=peers)
+    if as_json:
+        click.echo(json.dumps(report.to_dict(), indent=2))
+    else:
+        _print_ik(settings, report)
+
+
+def _print_ik(settings: Settings, report: IkBenchReport) -> None:
+    from busarm.arm.ik_bench import (
+        POS_TOL_MM,
+        ROT_TOL_DEG,
+        TARGET_BATCH_PER_S,
+        TARGET_SINGLE_US,
+    )
+
+    m, a, o = report.machine, report.accuracy, report.outside
+    out = settings.out
+    out.print(
+        f"[bold]busarm bench ik[/]: {report.arm}\n"
+        f"machine: {m['cpu']}, {m['cores']} cores, Python {m['python']}, {m['os']}"
+    )
+
+    def verdict(good: bool) -> str:
+        return "[green]ok[/]" if good else "[red]FAIL[/]"
+
+    out.print(
+        f"accuracy: {a.n} random joint vectors in the limits (seed {a.seed}), target = FK "
+        f"pose; table check OFF (pure geometry: some put the tool under the table)\n"
+        f"  ik: {a.solutions} solutions, failures {a.failures} (no solution {a.no_solution}, "
+        f"pose > {POS_TOL_MM} mm / {ROT_TOL_DEG} deg {a.wrong_pose}, out of limits "
+        f"{a.out_of_limits}) {verdict(a.failures == 0)}; worst {a.worst_pos_mm:.2e} mm, "
+        f"{a.worst_rot_deg:.2e} deg\n"
+        f"  ik_best failures {a.best_failures} {verdict(a.best_failures == 0)}; ik_batch "
+        f"failures {a.batch_failures} {verdict(a.batch_failures == 0)}, worst "
+        f"{a.batch_worst_pos_mm:.2e} mm, {a.batch_worst_rot_deg:.2e} deg"
+    )
+    refused = o.accepted_ik + o.accepted_batch + o.accepted_ik_no_limits \
+        + o.accepted_batch_no_limits == 0
+    out.print(
+        f"just outside: {o.n} targets with the wrist {o.margin_mm} mm beyond full stretch: "
+        f"accepted by ik {o.accepted_ik}, ik_batch {o.accepted_batch}; with no joint limits "
+        f"and free roll {o.accepted_ik_no_limits} / {o.accepted_batch_no_limits} "
+        f"{verdict(refused)}\n"
+        f"  control, {o.margin_mm} mm inside, no limits: accepted {o.inside_accepted_no_limits}"
+        f"/{o.n} {verdict(o.inside_accepted_no_limits == o.n)}"
+    )
+    table = Table()
+    for col in ("solver", "n", "median us", "p90 us", "rate", "target / ratio"):
+        table.add_column(col, justify="left" if col == "solver" else "right")
+    for t in report.single:
+        target = ""
+        if t.name.startswith("ik_best"):
+            target = f"<= {TARGET_SINGLE_US:g} us {verdict(t.median_us <= TARGET_SINGLE_US)}"
+        table.add_row(f"busarm {t.name}", str(t.n), f"{t.median_us:.2f}", f"{t.p90_us:.2f}",
+                      f"{1e6 / t.median_us:,.0f}/s", target)
+    b = report.batch
+    table.add_row(f"busarm ik_batch{'' if b.all_ok else ' (NOT all ok)'}", f"{b.n:,}",
+                  "", "", f"{b.solves_per_s:,.0f}/s",
+                  f">= {TARGET_BATCH_PER_S:,.0f}/s {verdict(b.solves_per_s >= TARGET_BATCH_PER_S)}")
+    for p in report.peers:
+        table.add_row(p.name,
+                      str(p.n), f"{p.median_us:.2f}", f"{p.p90_us:.2f}",
+                      f"{1e6 / p.median_us:,.0f}/s", f"{p.ratio:g}x busarm")
+    out.print(table)
+    out.print(f"timing: {report.timing_method}; timer overhead {report.timer_overhead_ns:g} ns")
+    for p in report.peers:
+        out.print(f"{p.name}: {p.version}; ok {p.success}/{p.n} (claims {p.claimed}), median "
+                  f"error {p.median_pos_mm:.1e} mm, {p.median_rot_deg:.1e} deg")
+    if report.peers:
+        out.print(f"ratio = peer median / busarm ik_best median on the same targets; "
+                  f"ok = within {POS_TOL_MM} mm and {ROT_TOL_DEG} deg and within the limits")
+    if report.peers_note:
+        out.print(f"[yellow]{report.peers_note}[/]")

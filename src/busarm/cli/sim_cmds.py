@@ -54,10 +54,12 @@ def sim() -> None:
 @click.option("--state", type=click.Path(dir_okay=False, path_type=Path),
               help="JSON file of the servos' stored settings (IDs, offsets, limits): loaded "
                    "if it exists (then --ids is ignored), rewritten on every stored write.")
+@click.option("--block", is_flag=True,
+              help="A 3 cm block sits between the gripper's fingers (servo 10 stops on it).")
 @pass_settings
 def serve(
     settings: Settings, ids: list[int], echo: bool, no_timing: bool, turnaround_ms: float,
-    drop: float, corrupt: float, seed: int, state: Path | None,
+    drop: float, corrupt: float, seed: int, state: Path | None, block: bool,
 ) -> None:
     """Serve simulated servos on a new pseudo-terminal until SIGINT or SIGTERM.
 
@@ -74,6 +76,8 @@ def serve(
         faults=FaultInjection(drop_rate=drop, corrupt_rate=corrupt, seed=seed),
         state_file=state,
     )
+    if block:
+        bus.put_block_in_gripper()
     server = PtyServer(bus)
     path = server.open()
     click.echo(path)

@@ -38,6 +38,8 @@ from busarm.sim.storage import load_state, record_from_servo, save_state, servo_
 ARM_SERVO_IDS = (1, 2, 3, 4, 5, 10)
 """The JetAuto Pro arm: five 35 kg joints and the 20 kg gripper on ID 10."""
 GRIPPER_ID = 10
+BLOCK_GRIP_PULSES = 540.0
+"""Where the gripper stops when it closes on a 3 cm block (field notes: about 540)."""
 
 
 @dataclass(frozen=True)
@@ -221,6 +223,14 @@ class SimBus:
         """Make the next reply arrive ``delay_s`` late (a servo busy, a slow adapter)."""
         with self._lock:
             self._pending_delay = delay_s
+
+    def put_block_in_gripper(self, present: bool = True) -> None:
+        """Put (or take away) a 3 cm block between the gripper's fingers: closing on it
+        stops the gripper servo at BLOCK_GRIP_PULSES, as a real block would."""
+        with self._lock:
+            gripper = self.servo(GRIPPER_ID)
+            gripper.advance(self.clock())
+            gripper.set_obstacle(None, BLOCK_GRIP_PULSES if present else None)
 
     def servo(self, servo_id: int) -> SimServo:
         """The (first) simulated servo answering to ``servo_id``."""

@@ -11,22 +11,20 @@ File layout::
 
     {"format": "busarm-sim-servos", "version": 1, "servos": [{"id": 1, ...}, ...]}
 
-``save_state`` writes a temporary file in the same directory, flushes and fsyncs it,
-renames it over the old file (``os.replace``, atomic on POSIX and Windows) and fsyncs
-the directory, so a crash at any point leaves either the old file or the new one,
-never a mix. A temporary file a crash leaves behind is ignored by ``load_state``.
+``save_state`` writes through ``busarm.fileio.atomic_path`` (temporary file, fsync,
+rename, directory fsync), so a crash at any point leaves either the old file or the new
+one, never a mix. A temporary file a crash leaves behind is ignored by ``load_state``.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from busarm.errors import ConfigError
+from busarm.fileio import write_text_atomic
 from busarm.sim.servo import ServoParams, SimServo
 
 FORMAT_NAME = "busarm-sim-servos"
@@ -80,45 +78,7 @@ def save_state(path: Path, servos: Sequence[Mapping[str, float]]) -> None:
         {"format": FORMAT_NAME, "version": FORMAT_VERSION, "servos": records},
         indent=1, sort_keys=True, allow_nan=False,
     )
-    directory = path.parent
-    try:
-        fd, tmp_name = tempfile.mkstemp(dir=directory, prefix=f".{path.name}.", suffix=".tmp")
-    except OSError as exc:
-        raise ConfigError(f"cannot write simulator state {path}: {exc}") from exc
-    tmp = Path(tmp_name)
-    try:
-        # mkstemp makes the file private (0600); keep the old file's mode, or 0644.
-        try:
-            mode = path.stat().st_mode & 0o777
-        except OSError:
-            mode = 0o644
-        os.chmod(tmp, mode)
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.write("\n")
-            f.flush()
-            os.fsync(f.fileno())  # the data is on disk before the name points at it
-        os.replace(tmp, path)
-    except BaseException as exc:
-        # Also on KeyboardInterrupt: never leave a stray temporary file when we can help it.
-        tmp.unlink(missing_ok=True)
-        if isinstance(exc, OSError):
-            raise ConfigError(f"cannot write simulator state {path}: {exc}") from exc
-        raise
-    _fsync_directory(directory)  # make the rename itself durable
-
-
-def _fsync_directory(directory: Path) -> None:
-    try:
-        fd = os.open(directory, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
-    except OSError:
-        return  # a platform that cannot open directories (Windows): rename is all we get
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass  # some filesystems refuse fsync on a directory; the data itself is synced
-    finally:
-        os.close(fd)
+    write_text_atomic(path, text + "\n", "simulator state")
 
 
 def load_state(path: Path) -> list[dict[str, float]] | None:

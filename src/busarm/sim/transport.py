@@ -12,6 +12,7 @@ URL query parameters (all optional):
 ``late_ms``     how late                                             50
 ``seed``        fault generator seed                                 0
 ``state``       path of a power-off state file                       (none)
+``block``       1 = a 3 cm block sits between the gripper's fingers  0
 =============== ==================================================== =================
 """
 
@@ -28,7 +29,7 @@ from busarm.sim.bus import ARM_SERVO_IDS, FaultInjection, SimBus, WireTiming
 from busarm.units import parse_ids
 
 _KNOWN = {"ids", "echo", "timing", "turnaround_ms", "drop", "corrupt", "late", "late_ms", "seed",
-          "state"}
+          "state", "block"}
 
 
 def _float(q: dict[str, str], key: str, default: float) -> float:
@@ -71,9 +72,12 @@ def sim_bus_from_url(url: str, baudrate: int = 115200) -> SimBus:
         seed=int(_float(q, "seed", 0)),
     )
     state = Path(q["state"]) if q.get("state") else None
-    return SimBus.with_ids(
+    bus = SimBus.with_ids(
         ids, timing=timing, echo=_flag(q, "echo", False), faults=faults, state_file=state
     )
+    if _flag(q, "block", False):
+        bus.put_block_in_gripper()
+    return bus
 
 
 class SimTransport:

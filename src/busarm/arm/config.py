@@ -1,0 +1,456 @@
+"""The arm's description from a TOML file: joints, servo IDs, pulse maps, limits, links.
+
+One file describes one arm of the family (base yaw, shoulder, elbow and wrist pitch,
+wrist roll, gripper). ``load_arm_config("jetauto_pro")`` gives the shipped JetAuto Pro
+arm; any other path is read as a file. Every value is checked when the file is read,
+and an error names the file, the key, the bad value and the allowed range.
+
+Conventions (docs/design.md, "Arm"): joint angles are the thetas of the modified-DH
+model in degrees; the servo position of a joint is
+``pulses = 500 + direction * (angle_deg - angle_at_center_deg) / 0.24``.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from busarm.errors import ConfigError, LimitError
+from busarm.units import (
+    CENTER_PULSES,
+    DEG_PER_PULSE,
+    MOVE_TIME_MAX_MS,
+    POSITION_MAX_PULSES,
+    POSITION_MIN_PULSES,
+)
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+FORMAT_NAME = "busarm.arm"
+FORMAT_VERSION = 1
+JOINT_COUNT = 5
+JOINT_ROLES = ("base yaw", "shoulder pitch", "elbow pitch", "wrist pitch", "wrist roll")
+SHIPPED = ("jetauto_pro",)
+DEFAULT_ARM = "jetauto_pro"
+
+
+@dataclass(frozen=True)
+class JointConfig:
+    """One joint: its servo, the pulse map and the limits, in degrees."""
+
+    name: str
+    servo_id: int
+    angle_at_center_deg: float
+    direction: int
+    min_deg: float
+    max_deg: float
+    max_speed_deg_s: float
+
+    def servo_deg_from_angle_deg(self, angle_deg: float) -> float:
+        """The servo's angle from its mid-point (uncalibrated) for a joint angle."""
+        return self.direction * (angle_deg - self.angle_at_center_deg)
+
+    def angle_deg_from_servo_deg(self, servo_deg: float) -> float:
+        """The joint angle for the servo's angle from its mid-point (uncalibrated)."""
+        return self.angle_at_center_deg + self.direction * servo_deg
+
+    def pulses_from_angle_deg(self, angle_deg: float) -> float:
+        """Servo position in (fractional) pulses for a joint angle, uncalibrated."""
+        return CENTER_PULSES + self.servo_deg_from_angle_deg(angle_deg) / DEG_PER_PULSE
+
+    def angle_deg_from_pulses(self, position_pulses: float) -> float:
+        """Joint angle for a servo position in pulses, uncalibrated."""
+        return self.angle_deg_from_servo_deg((position_pulses - CENTER_PULSES) * DEG_PER_PULSE)
+
+    def check_angle(self, angle_deg: float, tolerance_deg: float = 1e-9) -> None:
+        """Raise LimitError naming the joint if ``angle_deg`` is outside its limits."""
+        if isinstance(angle_deg, bool) or not isinstance(angle_deg, int | float):
+            raise ConfigError(f"{self.name} angle must be a number of degrees, got {angle_deg!r}")
+        if not math.isfinite(angle_deg) or not (
+            self.min_deg - tolerance_deg <= angle_deg <= self.max_deg + tolerance_deg
+        ):
+            raise LimitError(
+                f"{self.name} = {angle_deg:.3f} deg is outside its limits "
+                f"{self.min_deg:g}..{self.max_deg:g} deg"
+            )
+
+
+@dataclass(frozen=True)
+class GripperConfig:
+    """The gripper servo: open and closed positions in pulses."""
+
+    servo_id: int
+    open_pulses: int
+    closed_pulses: int
+    grip_time_s: float
+    holding_margin_pulses: int
+
+    @property
+    def min_pulses(self) -> int:
+        return min(self.open_pulses, self.closed_pulses)
+
+    @property
+    def max_pulses(self) -> int:
+        return max(self.open_pulses, self.closed_pulses)
+
+    def check_pulses(self, position_pulses: int) -> None:
+        """Raise LimitError if a gripper position is outside open..closed."""
+        if isinstance(position_pulses, bool) or not isinstance(position_pulses, int):
+            raise ConfigError(f"gripper position must be whole pulses, got {position_pulses!r}")
+        if not self.min_pulses <= position_pulses <= self.max_pulses:
+            raise LimitError(
+                f"gripper position {position_pulses} pulses is outside "
+                f"{self.min_pulses}..{self.max_pulses} (open {self.open_pulses}, "
+                f"closed {self.closed_pulses})"
+            )
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """Link lengths in millimetres (see the DH table in docs/design.md)."""
+
+    base_height_mm: float
+    upper_arm_mm: float
+    forearm_mm: float
+    wrist_mm: float
+    tool_mm: float
+
+    @property
+    def wrist_to_tip_mm(self) -> float:
+        """Wrist pitch axis to the tool point, along the tool axis."""
+        return self.wrist_mm + self.tool_mm
+
+
+@dataclass(frozen=True)
+class ArmConfig:
+    """A whole arm, as read from its TOML file."""
+
+    name: str
+    geometry: Geometry
+    joints: tuple[JointConfig, ...]
+    gripper: GripperConfig
+    table_z_mm: float = 0.0
+    preferred_pitch_deg: float = -90.0
+    poses_deg: dict[str, tuple[float, ...]] = field(default_factory=dict)
+    action_columns: tuple[int, ...] = ()
+    source: str = "<memory>"
+
+    @property
+    def joint_ids(self) -> tuple[int, ...]:
+        return tuple(j.servo_id for j in self.joints)
+
+    @property
+    def servo_ids(self) -> tuple[int, ...]:
+        """Every servo of the arm: the joints, then the gripper."""
+        return (*self.joint_ids, self.gripper.servo_id)
+
+    @property
+    def limits_deg(self) -> tuple[tuple[float, float], ...]:
+        return tuple((j.min_deg, j.max_deg) for j in self.joints)
+
+    def joint(self, name_or_index: str | int) -> JointConfig:
+        """A joint by name or by 1-based number (1 = base yaw)."""
+        if isinstance(name_or_index, int) and not isinstance(name_or_index, bool):
+            if not 1 <= name_or_index <= len(self.joints):
+                raise ConfigError(
+                    f"joint number {name_or_index} is out of range 1..{len(self.joints)}"
+                )
+            return self.joints[name_or_index - 1]
+        for j in self.joints:
+            if j.name == name_or_index:
+                return j
+        raise ConfigError(
+            f"no joint named {name_or_index!r}; joints: {', '.join(j.name for j in self.joints)}"
+        )
+
+    def pose(self, name: str) -> tuple[float, ...]:
+        """A named joint pose from the file's [poses] table (``home``, ``upright``...)."""
+        try:
+            return self.poses_deg[name]
+        except KeyError:
+            raise ConfigError(
+                f"no pose named {name!r} in {self.source}; poses: {', '.join(self.poses_deg)}"
+            ) from None
+
+    def check_joints(self, angles_deg: object) -> tuple[float, ...]:
+        """Return five joint angles as floats, or raise naming the first bad one."""
+        if isinstance(angles_deg, str | bytes) or not hasattr(angles_deg, "__len__"):
+            raise ConfigError(f"joint angles must be {JOINT_COUNT} numbers, got {angles_deg!r}")
+        values = list(angles_deg)  # type: ignore[call-overload]
+        if len(values) != len(self.joints):
+            raise ConfigError(
+                f"expected {len(self.joints)} joint angles, got {len(values)}: {values!r}"
+            )
+        for j, v in zip(self.joints, values, strict=True):
+            j.check_angle(v)
+        return tuple(float(v) for v in values)
+
+
+# ---------------------------------------------------------------------- loading
+
+
+def load_arm_config(name_or_path: str | Path = DEFAULT_ARM) -> ArmConfig:
+    """A shipped arm by name (``jetauto_pro``) or any TOML file by path."""
+    text: str
+    if isinstance(name_or_path, str) and name_or_path in SHIPPED:
+        source = f"{name_or_path} (shipped)"
+        text = (resources.files("busarm.arm") / "configs" / f"{name_or_path}.toml").read_text(
+            encoding="utf-8"
+        )
+    else:
+        path = Path(name_or_path)
+        source = str(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise ConfigError(
+                f"arm config {path}: no such file (shipped arms: {', '.join(SHIPPED)})"
+            ) from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ConfigError(f"arm config {path}: cannot read it: {exc}") from None
+    return arm_config_from_toml(text, source)
+
+
+def arm_config_from_toml(text: str, source: str = "<string>") -> ArmConfig:
+    """Parse and check an arm description; errors name ``source`` and the key."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"arm config {source}: not valid TOML: {exc}") from None
+    return _Reader(source).arm(data)
+
+
+class _Reader:
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def fail(self, key: str, message: str) -> ConfigError:
+        return ConfigError(f"arm config {self.source}: {key}: {message}")
+
+    def table(self, data: dict[str, Any], key: str) -> dict[str, Any]:
+        value = data.get(key)
+        if not isinstance(value, dict):
+            raise self.fail(key, "missing table" if value is None else "must be a table")
+        return value
+
+    def number(
+        self, data: dict[str, Any], key: str, where: str, lo: float, hi: float,
+        default: float | None = None,
+    ) -> float:
+        value = data.get(key, default)
+        name = f"{where}.{key}"
+        if value is None:
+            raise self.fail(name, "missing")
+        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(
+            value
+        ):
+            raise self.fail(name, f"must be a number, got {value!r}")
+        if not lo <= value <= hi:
+            raise self.fail(name, f"{value!r} is out of range {lo:g}..{hi:g}")
+        return float(value)
+
+    def integer(
+        self, data: dict[str, Any], key: str, where: str, lo: int, hi: int,
+        default: int | None = None,
+    ) -> int:
+        value = data.get(key, default)
+        name = f"{where}.{key}"
+        if value is None:
+            raise self.fail(name, "missing")
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.fail(name, f"must be an integer, got {value!r}")
+        if not lo <= value <= hi:
+            raise self.fail(name, f"{value} is out of range {lo}..{hi}")
+        return int(value)
+
+    def unknown(self, data: dict[str, Any], where: str, known: set[str]) -> None:
+        extra = sorted(set(data) - known)
+        if extra:
+            raise self.fail(where, f"unknown key(s) {extra}; known: {sorted(known)}")
+
+    def arm(self, data: dict[str, Any]) -> ArmConfig:
+        self.unknown(
+            data, "top level",
+            {"format", "version", "name", "geometry", "workspace", "joints", "gripper", "poses",
+             "action_groups"},
+        )
+        if data.get("format") != FORMAT_NAME:
+            raise self.fail("format", f"must be {FORMAT_NAME!r}, got {data.get('format')!r}")
+        if data.get("version") != FORMAT_VERSION:
+            raise self.fail(
+                "version", f"{data.get('version')!r}; this busarm reads version {FORMAT_VERSION}"
+            )
+        name = data.get("name")
+        if not isinstance(name, str) or not name.strip():
+            raise self.fail("name", f"must be a non-empty string, got {name!r}")
+        geometry = self.geometry(self.table(data, "geometry"))
+        workspace = data.get("workspace", {})
+        if not isinstance(workspace, dict):
+            raise self.fail("workspace", "must be a table")
+        self.unknown(workspace, "workspace", {"table_z_mm", "preferred_pitch_deg"})
+        table_z = self.number(workspace, "table_z_mm", "workspace", -1000, 1000, 0.0)
+        preferred = self.number(workspace, "preferred_pitch_deg", "workspace", -180, 180, -90.0)
+        joints = self.joints(data.get("joints"))
+        gripper = self.gripper(self.table(data, "gripper"))
+        ids = [j.servo_id for j in joints] + [gripper.servo_id]
+        if len(set(ids)) != len(ids):
+            raise self.fail("servo_id", f"servo IDs must be distinct, got {ids}")
+        poses = self.poses(data.get("poses", {}), joints)
+        columns = self.columns(data.get("action_groups", {}), ids)
+        if geometry.base_height_mm <= geometry.upper_arm_mm:
+            # Then the elbow could reach the table plane, which the IK does not check.
+            raise self.fail(
+                "geometry.base_height_mm",
+                f"{geometry.base_height_mm:g} must exceed upper_arm_mm "
+                f"{geometry.upper_arm_mm:g} (the elbow must stay above the base plane)",
+            )
+        return ArmConfig(
+            name=name.strip(), geometry=geometry, joints=tuple(joints), gripper=gripper,
+            table_z_mm=table_z, preferred_pitch_deg=preferred, poses_deg=poses,
+            action_columns=columns, source=self.source,
+        )
+
+    def geometry(self, data: dict[str, Any]) -> Geometry:
+        keys = ("base_height_mm", "upper_arm_mm", "forearm_mm", "wrist_mm", "tool_mm")
+        self.unknown(data, "geometry", set(keys))
+        values = {k: self.number(data, k, "geometry", 0.0, 2000.0) for k in keys}
+        for k in ("upper_arm_mm", "forearm_mm", "tool_mm"):
+            if values[k] <= 0:
+                raise self.fail(f"geometry.{k}", f"{values[k]:g} must be > 0")
+        return Geometry(**values)
+
+    def joints(self, data: object) -> list[JointConfig]:
+        if not isinstance(data, list) or len(data) != JOINT_COUNT:
+            raise self.fail(
+                "joints",
+                f"need exactly {JOINT_COUNT} [[joints]] tables in order: {', '.join(JOINT_ROLES)}",
+            )
+        out = []
+        names: set[str] = set()
+        keys = {"name", "servo_id", "angle_at_center_deg", "direction", "min_deg", "max_deg",
+                "max_speed_deg_s"}
+        for i, raw in enumerate(data, start=1):
+            where = f"joints[{i}] ({JOINT_ROLES[i - 1]})"
+            if not isinstance(raw, dict):
+                raise self.fail(where, "must be a table")
+            self.unknown(raw, where, keys)
+            name = raw.get("name", f"joint{i}")
+            if not isinstance(name, str) or not name or name in names:
+                raise self.fail(
+                    f"{where}.name", f"must be a distinct non-empty string, got {name!r}"
+                )
+            names.add(name)
+            direction = raw.get("direction")
+            if direction not in (1, -1) or isinstance(direction, bool):
+                raise self.fail(f"{where}.direction", f"must be 1 or -1, got {direction!r}")
+            joint = JointConfig(
+                name=name,
+                servo_id=self.integer(raw, "servo_id", where, 0, 253),
+                angle_at_center_deg=self.number(raw, "angle_at_center_deg", where, -360, 360),
+                direction=direction,
+                min_deg=self.number(raw, "min_deg", where, -360, 360),
+                max_deg=self.number(raw, "max_deg", where, -360, 360),
+                max_speed_deg_s=self.number(raw, "max_speed_deg_s", where, 1.0, 1000.0),
+            )
+            if joint.min_deg >= joint.max_deg:
+                raise self.fail(
+                    where, f"min_deg {joint.min_deg:g} must be less than max_deg {joint.max_deg:g}"
+                )
+            for limit in (joint.min_deg, joint.max_deg):
+                p = joint.pulses_from_angle_deg(limit)
+                if not POSITION_MIN_PULSES - 1e-9 <= p <= POSITION_MAX_PULSES + 1e-9:
+                    raise self.fail(
+                        where,
+                        f"limit {limit:g} deg maps to {p:.1f} pulses, outside the servo's "
+                        f"{POSITION_MIN_PULSES}..{POSITION_MAX_PULSES}",
+                    )
+            out.append(joint)
+        return out
+
+    def gripper(self, data: dict[str, Any]) -> GripperConfig:
+        keys = {"servo_id", "open_pulses", "closed_pulses", "grip_time_s", "holding_margin_pulses"}
+        self.unknown(data, "gripper", keys)
+        g = GripperConfig(
+            servo_id=self.integer(data, "servo_id", "gripper", 0, 253),
+            open_pulses=self.integer(
+                data, "open_pulses", "gripper", POSITION_MIN_PULSES, POSITION_MAX_PULSES
+            ),
+            closed_pulses=self.integer(
+                data, "closed_pulses", "gripper", POSITION_MIN_PULSES, POSITION_MAX_PULSES
+            ),
+            grip_time_s=self.number(data, "grip_time_s", "gripper", 0.05, MOVE_TIME_MAX_MS / 1000),
+            holding_margin_pulses=self.integer(
+                data, "holding_margin_pulses", "gripper", 1, 500, 20
+            ),
+        )
+        if abs(g.open_pulses - g.closed_pulses) <= g.holding_margin_pulses:
+            raise self.fail(
+                "gripper",
+                f"open_pulses {g.open_pulses} and closed_pulses {g.closed_pulses} must be more "
+                f"than holding_margin_pulses {g.holding_margin_pulses} apart",
+            )
+        return g
+
+    def poses(
+        self, data: object, joints: list[JointConfig]
+    ) -> dict[str, tuple[float, ...]]:
+        if not isinstance(data, dict):
+            raise self.fail("poses", "must be a table")
+        out: dict[str, tuple[float, ...]] = {}
+        for key, value in data.items():
+            if not key.endswith("_deg"):
+                raise self.fail(f"poses.{key}", "pose names end in _deg (joint angles in degrees)")
+            if not isinstance(value, list) or len(value) != len(joints) or not all(
+                isinstance(v, int | float) and not isinstance(v, bool) for v in value
+            ):
+                raise self.fail(f"poses.{key}", f"must be {len(joints)} numbers, got {value!r}")
+            for j, v in zip(joints, value, strict=True):
+                try:
+                    j.check_angle(float(v))
+                except ConfigError as exc:
+                    raise self.fail(f"poses.{key}", str(exc)) from None
+            out[key.removesuffix("_deg")] = tuple(float(v) for v in value)
+        if "home" not in out:
+            raise self.fail("poses.home_deg", "missing (the pose `busarm arm home` goes to)")
+        return out
+
+    def columns(self, data: object, ids: list[int]) -> tuple[int, ...]:
+        if not isinstance(data, dict):
+            raise self.fail("action_groups", "must be a table")
+        self.unknown(data, "action_groups", {"columns"})
+        columns = data.get("columns", ids)
+        if not isinstance(columns, list) or not columns or not all(
+            isinstance(c, int) and not isinstance(c, bool) for c in columns
+        ):
+            raise self.fail(
+                "action_groups.columns", f"must be a list of servo IDs, got {columns!r}"
+            )
+        unknown = [c for c in columns if c not in ids]
+        if unknown or len(set(columns)) != len(columns):
+            raise self.fail(
+                "action_groups.columns",
+                f"{columns} must be distinct servo IDs of this arm ({ids})",
+            )
+        return tuple(columns)
+
+
+__all__ = [
+    "DEFAULT_ARM",
+    "FORMAT_NAME",
+    "FORMAT_VERSION",
+    "JOINT_COUNT",
+    "SHIPPED",
+    "ArmConfig",
+    "Geometry",
+    "GripperConfig",
+    "JointConfig",
+    "arm_config_from_toml",
+    "load_arm_config",
+]

@@ -1,0 +1,137 @@
+"""Time scaling and straight-line paths. Pure: numbers in, numbers out.
+
+A profile maps normalised time ``tau`` in [0, 1] to path progress ``s`` in [0, 1]:
+
+- ``min_jerk``: s = 10 tau^3 - 15 tau^4 + 6 tau^5 (zero speed and acceleration at both
+  ends; peak speed 1.875x the average);
+- ``trapezoidal``: constant acceleration for the first quarter, cruise, constant
+  deceleration for the last quarter (peak speed 4/3 of the average);
+- ``linear``: uniform speed (what the servos do on their own within one move).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from busarm.errors import ConfigError
+
+TRAPEZOID_RAMP = 0.25
+"""Fraction of a trapezoidal move spent accelerating (and again decelerating)."""
+
+
+def _min_jerk(tau: float) -> float:
+    return tau * tau * tau * (10.0 + tau * (-15.0 + 6.0 * tau))
+
+
+def _trapezoidal(tau: float) -> float:
+    f = TRAPEZOID_RAMP
+    peak = 1.0 / (1.0 - f)  # the speed that covers the path in unit time
+    if tau < f:
+        return 0.5 * peak / f * tau * tau
+    if tau > 1.0 - f:
+        u = 1.0 - tau
+        return 1.0 - 0.5 * peak / f * u * u
+    return peak * (tau - 0.5 * f)
+
+
+def _linear(tau: float) -> float:
+    return tau
+
+
+PROFILES: dict[str, tuple[Callable[[float], float], float]] = {
+    "min_jerk": (_min_jerk, 1.875),
+    "trapezoidal": (_trapezoidal, 1.0 / (1.0 - TRAPEZOID_RAMP)),
+    "linear": (_linear, 1.0),
+}
+"""name -> (s(tau), peak speed as a multiple of the average speed)."""
+
+
+def check_profile(name: str) -> tuple[Callable[[float], float], float]:
+    """The profile function and its peak-speed factor; ConfigError naming the choices."""
+    try:
+        return PROFILES[name]
+    except (KeyError, TypeError):
+        raise ConfigError(
+            f"profile {name!r} is unknown; choose one of {', '.join(PROFILES)}"
+        ) from None
+
+
+def progress(profile: str, tau: float) -> float:
+    """Path progress s(tau) of a profile, tau clamped to [0, 1]."""
+    fn, _ = check_profile(profile)
+    return fn(min(max(tau, 0.0), 1.0))
+
+
+def duration_for_speed(profile: str, distance: float, peak_speed: float) -> float:
+    """The shortest duration in which ``distance`` is covered with the profile's peak
+    speed at most ``peak_speed`` (same units per second)."""
+    _, factor = check_profile(profile)
+    if not (math.isfinite(peak_speed) and peak_speed > 0):
+        raise ConfigError(f"speed {peak_speed!r} must be > 0")
+    return abs(distance) * factor / peak_speed
+
+
+def sample_times(duration_s: float, rate_hz: float) -> list[float]:
+    """Waypoint times after the start: every 1/rate_hz, the last one exactly at the end."""
+    if not (math.isfinite(duration_s) and duration_s > 0):
+        raise ConfigError(f"duration_s = {duration_s!r} must be > 0")
+    n = max(1, math.ceil(duration_s * rate_hz - 1e-9))
+    return [duration_s * k / n for k in range(1, n + 1)]
+
+
+@dataclass(frozen=True)
+class LinePath:
+    """A straight line of the tool point with pitch (the short way) and roll interpolated."""
+
+    start: tuple[float, float, float, float, float]
+    end: tuple[float, float, float, float, float]
+
+    @property
+    def length_mm(self) -> float:
+        return math.dist(self.start[:3], self.end[:3])
+
+    @property
+    def turn_deg(self) -> float:
+        """The larger of the pitch and roll changes."""
+        return max(abs(_short(self.end[3] - self.start[3])), abs(self.end[4] - self.start[4]))
+
+    def at(self, s: float) -> tuple[float, float, float, float, float]:
+        """The pose at progress ``s`` in [0, 1]."""
+        a, b = self.start, self.end
+        x, y, z = (a[i] + (b[i] - a[i]) * s for i in range(3))
+        pitch = a[3] + _short(b[3] - a[3]) * s
+        # Roll is the wrist joint itself (within +-120 deg): never the short way via 180.
+        roll = a[4] + (b[4] - a[4]) * s
+        return (x, y, z, pitch, roll)
+
+    def distance_mm(self, points_mm: Sequence[Sequence[float]]) -> npt.NDArray[np.float64]:
+        """Distance of each point from the line segment, in mm."""
+        p = np.asarray(points_mm, dtype=float)[:, :3]
+        a = np.asarray(self.start[:3])
+        d = np.asarray(self.end[:3]) - a
+        length2 = float(d @ d)
+        if length2 == 0.0:
+            return np.linalg.norm(p - a, axis=1)  # type: ignore[no-any-return]
+        t = np.clip((p - a) @ d / length2, 0.0, 1.0)
+        return np.linalg.norm(p - (a + t[:, None] * d), axis=1)  # type: ignore[no-any-return]
+
+
+def _short(delta_deg: float) -> float:
+    """The shortest signed turn for an angle difference."""
+    return (delta_deg + 180.0) % 360.0 - 180.0
+
+
+__all__ = [
+    "PROFILES",
+    "TRAPEZOID_RAMP",
+    "LinePath",
+    "check_profile",
+    "duration_for_speed",
+    "progress",
+    "sample_times",
+]

@@ -1,0 +1,571 @@
+"""``arm`` and ``actions``: the arm in millimetres and joint degrees, and action groups.
+
+``arm fk``, ``arm ik``, ``arm urdf`` and ``arm workspace`` need no bus: they work from
+the arm config alone. Everything else opens ``--port`` and checks the arm's servos
+(and the calibration) before it moves anything.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import click
+from rich.table import Table
+
+from busarm.arm.actions import ActionFrame, ActionGroup, read_d6a, write_d6a
+from busarm.arm.arm import DEFAULT_SPEED_DEG_S, Arm
+from busarm.arm.calibration import (
+    Calibration,
+    load_calibration,
+    save_calibration,
+    solve_calibration,
+)
+from busarm.arm.config import ArmConfig, load_arm_config
+from busarm.arm.kinematics import ArmKinematics, Pose
+from busarm.arm.motion import PROFILES
+from busarm.cli.common import RangeType, Settings, pass_settings
+from busarm.errors import ConfigError
+from busarm.units import DEG_PER_PULSE
+
+MM = RangeType("coordinate", -2000.0, 2000.0, "mm")
+DEG = RangeType("angle", -360.0, 360.0, "deg")
+JOINT_SPEED = RangeType("speed", 0.1, 1000.0, "deg/s")
+LINE_SPEED = RangeType("speed", 0.1, 1000.0, "mm/s")
+DURATION = RangeType("duration", 0.0, 30.0, "s")
+DEFAULT_CALIBRATION_OUT = "arm-calibration.json"
+NUMBERS = {"ignore_unknown_options": True}
+"""Let negative numbers through as arguments (``arm fk 0 -90 0 -90 0``)."""
+
+
+class ArmContext:
+    """The arm options of the ``arm`` and ``actions`` groups, loaded on first use."""
+
+    def __init__(self, settings: Settings, config: str, calibration: str | None) -> None:
+        self.settings = settings
+        self._config_name = config
+        self._calibration_path = calibration
+        self._config: ArmConfig | None = None
+
+    @property
+    def config(self) -> ArmConfig:
+        if self._config is None:
+            self._config = load_arm_config(self._config_name)
+        return self._config
+
+    @property
+    def kin(self) -> ArmKinematics:
+        return ArmKinematics.from_config(self.config)
+
+    def calibration(self) -> Calibration | None:
+        if self._calibration_path is None:
+            return None
+        return load_calibration(self._calibration_path)
+
+    @contextmanager
+    def open(self, *, check: bool = True) -> Iterator[Arm]:
+        """The arm on ``--port``: every servo must answer first (nothing is written if one
+        does not); an exception in the body stops and holds the arm."""
+        calibration = self.calibration()
+        with self.settings.open_bus(check_ids=self.config.servo_ids) as bus:
+            yield Arm(bus, self.config, calibration, check=check)
+
+
+pass_arm = click.make_pass_decorator(ArmContext)
+
+_CONFIG_HELP = "Arm description: a shipped name (jetauto_pro) or a TOML file."
+_CAL_HELP = "Calibration file from `busarm arm calibrate` (default: none, nominal zeros)."
+
+
+def _arm_options(f: Callable[..., Any]) -> Callable[..., Any]:
+    f = click.option("--calibration", envvar="BUSARM_CALIBRATION", show_envvar=True,
+                     type=click.Path(dir_okay=False), help=_CAL_HELP)(f)
+    return click.option("--config", "config", envvar="BUSARM_ARM", default="jetauto_pro",
+                        show_default=True, show_envvar=True, help=_CONFIG_HELP)(f)
+
+
+@click.group()
+@_arm_options
+@pass_settings
+@click.pass_context
+def arm(ctx: click.Context, settings: Settings, config: str, calibration: str | None) -> None:
+    """The arm: pose, kinematics, moves in mm, calibration, URDF and workspace.
+
+    Joint angles are the model's (degrees; all servos at 500 pulses = straight up, joints
+    2 and 4 then read -90); positions are the tool point in mm in the base frame (x
+    forward, z up from the base plane); pitch -90 points the tool straight down.
+    """
+    ctx.obj = ArmContext(settings, config, calibration)
+
+
+@click.group()
+@_arm_options
+@pass_settings
+@click.pass_context
+def actions(ctx: click.Context, settings: Settings, config: str, calibration: str | None) -> None:
+    """Action groups in the vendor's .d6a format: show, play, record by teaching."""
+    ctx.obj = ArmContext(settings, config, calibration)
+
+
+# ---------------------------------------------------------------------- output helpers
+
+
+def _pose_dict(pose: Pose) -> dict[str, float]:
+    return {
+        "x_mm": round(pose.x_mm, 4), "y_mm": round(pose.y_mm, 4), "z_mm": round(pose.z_mm, 4),
+        "pitch_deg": round(pose.pitch_deg, 4), "roll_deg": round(pose.roll_deg, 4),
+    }
+
+
+def _joints_dict(config: ArmConfig, joints: Sequence[float]) -> dict[str, float]:
+    return {j.name: round(a, 4) for j, a in zip(config.joints, joints, strict=True)}
+
+
+def _pose_text(pose: Pose) -> str:
+    return (f"x {pose.x_mm:.1f}  y {pose.y_mm:.1f}  z {pose.z_mm:.1f} mm  "
+            f"pitch {pose.pitch_deg:.1f}  roll {pose.roll_deg:.1f} deg")
+
+
+def _joints_text(config: ArmConfig, joints: Sequence[float]) -> str:
+    return "  ".join(f"{j.name} {a:.2f}" for j, a in zip(config.joints, joints, strict=True))
+
+
+def _emit(settings: Settings, as_json: bool, data: object, text: str) -> None:
+    if as_json:
+        click.echo(json.dumps(data))
+    else:
+        settings.out.print(text, highlight=False, markup=False)
+
+
+# ---------------------------------------------------------------------- model-only
+
+
+@arm.command(context_settings=NUMBERS)
+@click.argument("joints", nargs=-1, type=DEG)
+@click.option("--json", "as_json", is_flag=True, help="Print JSON.")
+@click.option("--batch", is_flag=True,
+              help="Read JSON lines from stdin, each [j1..j5] or {\"joints\": [...]}; "
+                   "print one JSON line each.")
+@click.option("--matrix", is_flag=True, help="Also print the 4x4 tool2base transform (mm).")
+@pass_arm
+def fk(ac: ArmContext, joints: tuple[float, ...], as_json: bool, batch: bool,
+       matrix: bool) -> None:
+    """Forward kinematics: the tool pose for five joint angles (deg). No bus needed."""
+    kin = ac.kin
+    if batch:
+        if joints:
+            raise ConfigError("give joint angles or --batch, not both")
+        _batch(lambda item: _fk_item(ac.config, kin, item))
+        return
+    q = ac.config.check_joints(joints)
+    pose = kin.fk(q)
+    data: dict[str, Any] = {"joints_deg": list(q), "pose": _pose_dict(pose)}
+    text = _pose_text(pose)
+    if matrix:
+        m = kin.fk_matrix(q)
+        data["tool2base"] = [[round(v, 6) for v in row] for row in m.tolist()]
+        text += "\n" + "\n".join("  ".join(f"{v:10.4f}" for v in row) for row in m.tolist())
+    _emit(ac.settings, as_json, data, text)
+
+
+def _fk_item(config: ArmConfig, kin: ArmKinematics, item: object) -> dict[str, Any]:
+    raw = item.get("joints") if isinstance(item, dict) else item
+    q = config.check_joints(raw)
+    return {"joints_deg": list(q), "pose": _pose_dict(kin.fk(q))}
+
+
+@arm.command(context_settings=NUMBERS)
+@click.argument("x", type=MM)
+@click.argument("y", type=MM)
+@click.argument("z", type=MM)
+@click.option("--pitch", type=DEG, help="Tool pitch in deg (-90 = straight down); "
+              "without it the feasible pitch nearest the config's preferred one is chosen.")
+@click.option("--roll", type=DEG, help="Wrist roll in deg (default: 0).")
+@click.option("--all", "all_solutions", is_flag=True, help="Every solution, not just the first.")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON.")
+@pass_arm
+def ik(ac: ArmContext, x: float, y: float, z: float, pitch: float | None, roll: float | None,
+       all_solutions: bool, as_json: bool) -> None:
+    """Inverse kinematics: joint angles for a tool point in mm. No bus needed.
+
+    For many targets use `busarm arm ik-batch` (JSON lines on stdin).
+    """
+    result = _ik_item(ac.config, ac.kin, {"x": x, "y": y, "z": z, "pitch": pitch, "roll": roll},
+                      all_solutions)
+    if as_json:
+        click.echo(json.dumps(result))
+        return
+    out = ac.settings.out
+    for q in result["solutions"]:
+        out.print(_joints_text(ac.config, q.values()), highlight=False)
+    out.print(f"pitch {result['pitch_deg']:.3f} deg"
+              + ("" if pitch is not None else " (chosen: free pitch)"), highlight=False)
+
+
+@arm.command("ik-batch")
+@click.option("--all", "all_solutions", is_flag=True, help="Every solution per target.")
+@pass_arm
+def ik_batch(ac: ArmContext, all_solutions: bool) -> None:
+    """IK for JSON lines on stdin: {"x":..,"y":..,"z":..[,"pitch":..][,"roll":..]}.
+
+    One JSON line out per line in: the solution(s), or {"error": ...} for that target
+    (the exit code is then 3). No bus needed.
+    """
+    kin = ac.kin
+    _batch(lambda item: _ik_item(ac.config, kin, item, all_solutions))
+
+
+def _ik_item(config: ArmConfig, kin: ArmKinematics, item: object,
+             all_solutions: bool) -> dict[str, Any]:
+    if isinstance(item, list) and 3 <= len(item) <= 5:
+        item = dict(zip(("x", "y", "z", "pitch", "roll"), item, strict=False))
+    if not isinstance(item, dict):
+        raise ConfigError(f"expected {{\"x\", \"y\", \"z\"[, \"pitch\", \"roll\"]}}, got {item!r}")
+    unknown = set(item) - {"x", "y", "z", "pitch", "roll"}
+    if unknown or not {"x", "y", "z"} <= set(item):
+        raise ConfigError(f"target needs x, y, z (mm) and may have pitch, roll (deg): {item!r}")
+    x, y, z = item["x"], item["y"], item["z"]
+    pitch, roll = item.get("pitch"), item.get("roll")
+    if pitch is None:
+        q, chosen = kin.ik_free_pitch(
+            x, y, z, roll, preferred_pitch_deg=config.preferred_pitch_deg
+        )
+        sols = [q]
+        if all_solutions:
+            sols = kin.ik(x, y, z, chosen, roll) or sols
+    else:
+        chosen = float(pitch)
+        sols = [kin.ik_best(x, y, z, pitch, roll)]
+        if all_solutions:
+            sols = kin.ik(x, y, z, pitch, roll)
+    return {
+        "target": {"x_mm": x, "y_mm": y, "z_mm": z, "pitch_deg": pitch, "roll_deg": roll},
+        "pitch_deg": round(chosen, 6),
+        "solutions": [_joints_dict(config, q) for q in sols],
+    }
+
+
+def _batch(solve: Callable[[object], dict[str, Any]]) -> None:
+    """JSON lines in, JSON lines out; a bad line gives an error line and exit code 3."""
+    failed = 0
+    for n, line in enumerate(sys.stdin, start=1):
+        if not line.strip():
+            continue
+        try:
+            item = json.loads(line)
+            click.echo(json.dumps(solve(item)))
+        except (ValueError, ConfigError) as exc:  # JSONDecodeError is a ValueError
+            failed += 1
+            reason = getattr(exc, "reason", None)
+            click.echo(json.dumps({"line": n, "error": str(exc), "reason": reason}))
+    if failed:
+        click.echo(f"error: {failed} line(s) failed", err=True)
+        sys.exit(3)
+
+
+@arm.command()
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write to this file (atomically) instead of stdout.")
+@pass_arm
+def urdf(ac: ArmContext, output: Path | None) -> None:
+    """The arm's URDF (metres, radians), generated from the config. No bus needed."""
+    from busarm.arm.urdf import urdf_from_config, write_urdf
+
+    if output is None:
+        click.echo(urdf_from_config(ac.config), nl=False)
+        return
+    write_urdf(ac.config, output)
+    ac.settings.err.print(f"wrote {output}", highlight=False)
+
+
+@arm.command()
+@click.option("--png", "png", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Picture to write (top view of the top-down grasp area, side reach).")
+@click.option("--grasp-height", type=RangeType("height", 0.0, 300.0, "mm"), default=15.0,
+              show_default=True, help="Tool point height above the table for the top view.")
+@click.option("--cell", type=RangeType("cell", 0.5, 20.0, "mm"), default=2.0, show_default=True,
+              help="Grid cell size.")
+@pass_arm
+def workspace(ac: ArmContext, png: Path, grasp_height: float, cell: float) -> None:
+    """A picture of where the arm reaches: the table for a top-down grasp, and the side."""
+    from busarm.arm.workspace import render_workspace_png
+
+    summary = render_workspace_png(ac.config, png, grasp_height_mm=grasp_height, cell_mm=cell)
+    ac.settings.out.print(f"wrote {png}: {summary}", highlight=False)
+
+
+# ---------------------------------------------------------------------- on the bus
+
+
+@arm.command()
+@click.option("--json", "as_json", is_flag=True, help="Print JSON.")
+@pass_arm
+def pose(ac: ArmContext, as_json: bool) -> None:
+    """The measured joint angles, the tool pose and the gripper position."""
+    with ac.open() as a:
+        q = a.read_joints_deg()
+        p = a.kin.fk(q)
+        grip = a.read_gripper_pulses()
+    data = {"joints_deg": _joints_dict(ac.config, q), "pose": _pose_dict(p),
+            "gripper_pulses": grip}
+    _emit(ac.settings, as_json, data,
+          f"{_joints_text(ac.config, q)}\n{_pose_text(p)}\ngripper {grip} pulses")
+
+
+def _move_options(f: Callable[..., Any]) -> Callable[..., Any]:
+    f = click.option("--duration", type=DURATION, help="Move time in s (all joints together).")(f)
+    return click.option(
+        "--speed", type=JOINT_SPEED,
+        help=f"Fastest joint speed in deg/s (default {DEFAULT_SPEED_DEG_S:g}).",
+    )(f)
+
+
+@arm.command("move-to", context_settings=NUMBERS)
+@click.argument("x", type=MM)
+@click.argument("y", type=MM)
+@click.argument("z", type=MM)
+@click.option("--pitch", type=DEG, help="Tool pitch in deg; default: free pitch.")
+@click.option("--roll", type=DEG, help="Wrist roll in deg; default: keep the present roll.")
+@click.option("--line", is_flag=True, help="Straight tool line (streamed IK), not a joint move.")
+@click.option("--line-speed", type=LINE_SPEED, default=80.0, show_default=True,
+              help="Peak tool speed of a --line move, mm/s.")
+@click.option("--profile", type=click.Choice(list(PROFILES)), default="min_jerk",
+              show_default=True, help="Speed profile of a --line move.")
+@_move_options
+@pass_arm
+def move_to(ac: ArmContext, x: float, y: float, z: float, pitch: float | None,
+            roll: float | None, line: bool, line_speed: float, profile: str,
+            speed: float | None, duration: float | None) -> None:
+    """Move the tool point to X Y Z mm (checked in full before anything moves)."""
+    with ac.open() as a:
+        start = a.read_joints_deg()
+        # Plan first: an unreachable target fails here, with the arm untouched.
+        target, chosen = a.solve(x, y, z, pitch, roll, current_deg=start)
+        if line:
+            a.move_line(x, y, z, chosen, roll, speed_mm_s=line_speed, duration_s=duration,
+                        profile=profile)
+        else:
+            a.move_joints(target, speed_deg_s=speed, duration_s=duration)
+        q = a.read_joints_deg()
+    ac.settings.out.print(f"at {_pose_text(a.kin.fk(q))}", highlight=False)
+
+
+@arm.command("move-joints", context_settings=NUMBERS)
+@click.argument("joints", nargs=5, type=DEG)
+@_move_options
+@pass_arm
+def move_joints(ac: ArmContext, joints: tuple[float, ...], speed: float | None,
+                duration: float | None) -> None:
+    """Move to five joint angles (deg), all joints starting and arriving together."""
+    with ac.open() as a:
+        took = a.move_joints(joints, speed_deg_s=speed, duration_s=duration)
+        q = a.read_joints_deg()
+    ac.settings.out.print(f"moved in {took:.2f} s: {_joints_text(ac.config, q)}", highlight=False)
+
+
+@arm.command()
+@_move_options
+@pass_arm
+def home(ac: ArmContext, speed: float | None, duration: float | None) -> None:
+    """Go to the config's home pose."""
+    with ac.open() as a:
+        a.move_joints(ac.config.pose("home"), speed_deg_s=speed, duration_s=duration)
+        p = a.read_pose()
+    ac.settings.out.print(f"home: {_pose_text(p)}", highlight=False)
+
+
+@arm.command()
+@click.argument("action", type=click.Choice(["open", "close"]))
+@pass_arm
+def gripper(ac: ArmContext, action: str) -> None:
+    """Open the gripper, or close it and tell whether it holds something."""
+    with ac.open() as a:
+        if action == "open":
+            pos = a.open_gripper()
+            ac.settings.out.print(f"gripper open at {pos} pulses", highlight=False)
+            return
+        result = a.grip()
+    state = "holding an object" if result.is_holding else "closed on nothing"
+    ac.settings.out.print(
+        f"gripper {state}: stopped at {result.position_pulses} pulses "
+        f"({result.short_of_closed_pulses} short of closed)", highlight=False,
+    )
+
+
+@arm.command()
+@click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path),
+              default=DEFAULT_CALIBRATION_OUT, show_default=True, help="Calibration file to write.")
+@click.option("--pose", "pose_name", default="upright", show_default=True,
+              help="Reference pose (a pose of the config) the arm is put in.")
+@click.option("--software-only", is_flag=True,
+              help="Do not write the servos' offsets; keep every correction in the file.")
+@click.option("--yes", is_flag=True,
+              help="Non-interactive: the arm is already in the reference pose; no questions.")
+@pass_arm
+def calibrate(ac: ArmContext, out_path: Path, pose_name: str, software_only: bool,
+              yes: bool) -> None:
+    """Measure each joint's zero: torque off, put the arm in the reference pose, confirm.
+
+    Errors within +-30 deg go into the servo's own offset (saved in the servo);
+    the rest into the calibration file. Then use it with --calibration FILE.
+    """
+    settings = ac.settings
+    reference = ac.config.pose(pose_name)
+    with ac.open(check=False) as a:
+        a.set_torque(False)
+        if not yes:
+            settings.err.print(
+                f"Torque is off. Move the arm by hand to the [bold]{pose_name}[/bold] pose "
+                f"({_joints_text(ac.config, reference)} deg), hold it still."
+            )
+            click.confirm("Is the arm in that pose?", default=True, abort=True, err=True)
+        measured = {}
+        present = {}
+        for j in ac.config.joints:
+            measured[j.servo_id] = a.bus.read_position_deg(j.servo_id)
+            present[j.servo_id] = round(a.bus.read_offset_deg(j.servo_id) / DEG_PER_PULSE)
+        cal = solve_calibration(ac.config, reference, measured, present,
+                                use_hardware_offset=not software_only)
+        table = Table(title=f"calibration of {ac.config.name}", title_justify="left")
+        for col in ("joint", "servo", "read (deg)", "servo offset (deg)", "software (deg)"):
+            table.add_column(col, justify="right")
+        for j, c in zip(ac.config.joints, cal.joints, strict=True):
+            table.add_row(j.name, str(j.servo_id), f"{measured[j.servo_id]:+.2f}",
+                          f"{c.hardware_offset_deg:+.2f}", f"{c.software_offset_deg:+.3f}")
+        settings.out.print(table)
+        if not yes:
+            click.confirm(f"Write the servo offsets and {out_path}?", default=True, abort=True,
+                          err=True)
+        for c in cal.joints:
+            if present[c.servo_id] != c.hardware_offset_pulses:
+                a.bus.adjust_offset_deg(c.servo_id, c.hardware_offset_deg)
+                a.bus.save_offset(c.servo_id)
+        for c in cal.joints:  # read back: the servo must hold what we wrote
+            got = round(a.bus.read_offset_deg(c.servo_id) / DEG_PER_PULSE)
+            if got != c.hardware_offset_pulses:
+                raise ConfigError(
+                    f"servo {c.servo_id} kept offset {got} pulses, not "
+                    f"{c.hardware_offset_pulses}: calibration not written"
+                )
+        save_calibration(out_path, cal)
+        _hold(a, settings)
+    settings.out.print(f"wrote {out_path}; use it with `busarm arm --calibration {out_path} ...`"
+                       f" or BUSARM_CALIBRATION={out_path}", highlight=False)
+
+
+def _hold(a: Arm, settings: Settings) -> None:
+    limp = a.hold_here()
+    if limp:
+        settings.err.print(f"warning: servos {limp} are outside their limits: left limp "
+                           "(torque off); move them back by hand", highlight=False)
+
+
+# ---------------------------------------------------------------------- action groups
+
+
+def _group_table(ac: ArmContext, group: ActionGroup) -> Table:
+    table = Table(title=f"{len(group.frames)} frames, {group.total_duration_ms / 1000:.1f} s",
+                  title_justify="left")
+    table.add_column("#", justify="right")
+    table.add_column("time (ms)", justify="right")
+    columns = ac.config.action_columns
+    for sid in columns:
+        table.add_column(f"servo {sid}", justify="right")
+    for n, frame in enumerate(group.frames, start=1):
+        table.add_row(str(n), str(frame.duration_ms), *(str(p) for p in frame.positions_pulses))
+    return table
+
+
+@actions.command()
+@click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--json", "as_json", is_flag=True, help="Print JSON.")
+@pass_arm
+def show(ac: ArmContext, file: Path, as_json: bool) -> None:
+    """Show the frames of a .d6a file (pulses, and joint angles in JSON). No bus needed."""
+    group = read_d6a(file)
+    if as_json:
+        columns = ac.config.action_columns
+        frames = []
+        for frame in group.frames:
+            item: dict[str, Any] = {
+                "duration_ms": frame.duration_ms,
+                "pulses": {str(s): p for s, p in zip(columns, frame.positions_pulses,
+                                                     strict=False)},
+            }
+            if group.servo_count == len(columns):
+                by_id = dict(zip(columns, frame.positions_pulses, strict=True))
+                item["joints_deg"] = {
+                    j.name: round(j.angle_deg_from_pulses(by_id[j.servo_id]), 3)
+                    for j in ac.config.joints if j.servo_id in by_id
+                }
+            frames.append(item)
+        click.echo(json.dumps({"file": str(file), "columns": list(columns), "frames": frames}))
+        return
+    ac.settings.out.print(_group_table(ac, group))
+
+
+@actions.command()
+@click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--speed-scale", type=RangeType("speed scale", 0.1, 10.0, "x"), default=1.0,
+              show_default=True, help="Play faster (>1) or slower (<1).")
+@pass_arm
+def play(ac: ArmContext, file: Path, speed_scale: float) -> None:
+    """Play a .d6a action group; Ctrl+C stops the arm and holds it."""
+    group = read_d6a(file)
+    with ac.open() as a:
+        a.action_targets(group)  # every frame checked before the first moves
+        played = a.play(group, speed_scale=speed_scale)
+    ac.settings.out.print(f"played {played} of {len(group.frames)} frames", highlight=False)
+
+
+@actions.command()
+@click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--interval", type=RangeType("interval", 0.05, 60.0, "s"),
+              help="Capture a frame every INTERVAL s (default: one per Enter key).")
+@click.option("--frames", "max_frames", type=click.IntRange(1, 10000),
+              help="Stop after this many frames (default: Ctrl+C, or 'q' + Enter).")
+@click.option("--time-ms", type=click.IntRange(0, 30000),
+              help="Time of each frame in ms (default: the interval, or 1000).")
+@pass_arm
+def record(ac: ArmContext, file: Path, interval: float | None, max_frames: int | None,
+           time_ms: int | None) -> None:
+    """Record an action group by teaching: torque off, move the arm by hand.
+
+    Each Enter (or each --interval) captures the present pose as one frame. At the end
+    the servos hold where they are and FILE is written (atomically).
+    """
+    settings = ac.settings
+    duration_ms = time_ms if time_ms is not None else (
+        round(interval * 1000) if interval else 1000)
+    frames: list[ActionFrame] = []
+    with ac.open() as a:
+        a.set_torque(False)
+        settings.err.print("torque off: move the arm by hand; "
+                           + ("Ctrl+C ends" if interval else "Enter captures, q + Enter ends"))
+        try:
+            while max_frames is None or len(frames) < max_frames:
+                if interval:
+                    time.sleep(interval if frames else 0.0)
+                else:
+                    line = sys.stdin.readline()
+                    if not line or line.strip().lower() == "q":
+                        break
+                frames.append(a.record_frame(duration_ms))
+                settings.err.print(f"frame {len(frames)}: "
+                                   f"{' '.join(str(p) for p in frames[-1].positions_pulses)}")
+        except KeyboardInterrupt:
+            pass  # the end of an --interval recording
+        finally:
+            _hold(a, settings)
+    if not frames:
+        raise ConfigError("no frame recorded: nothing written")
+    write_d6a(file, ActionGroup(tuple(frames)))
+    settings.out.print(f"wrote {len(frames)} frames to {file}", highlight=False)
+
+
+COMMANDS = [arm, actions]

@@ -1,0 +1,88 @@
+"""Atomic file writes: a file is either the old one or the new one, never half of each.
+
+Every file busarm writes (simulator state, calibration, action groups, pictures) goes
+through :func:`atomic_path`: the content is made in a temporary file in the same
+directory, synced to disk, renamed over the target (``os.replace``, atomic on POSIX
+and Windows) and the directory synced, so a crash or Ctrl+C at any point leaves the
+old file or the new one.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from busarm.errors import ConfigError
+
+
+@contextmanager
+def atomic_path(path: Path | str, what: str = "file") -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; on a clean exit it replaces ``path``.
+
+    Whatever the body writes to the temporary path becomes ``path`` in one step; if the
+    body raises (Ctrl+C included) the temporary file is removed and ``path`` is left as
+    it was. OS errors become ConfigError naming ``what`` and the path.
+    """
+    path = Path(path)
+    directory = path.parent if str(path.parent) else Path(".")
+    try:
+        fd, tmp_name = tempfile.mkstemp(dir=directory, prefix=f".{path.name}.", suffix=".tmp")
+        os.close(fd)
+    except OSError as exc:
+        raise ConfigError(f"cannot write {what} {path}: {exc}") from exc
+    tmp = Path(tmp_name)
+    try:
+        yield tmp
+        # mkstemp makes the file private (0600); keep the old file's mode, or 0644.
+        try:
+            mode = path.stat().st_mode & 0o777
+        except OSError:
+            mode = 0o644
+        os.chmod(tmp, mode)
+        _fsync_file(tmp)  # the data is on disk before the name points at it
+        os.replace(tmp, path)
+    except BaseException as exc:
+        tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise ConfigError(f"cannot write {what} {path}: {exc}") from exc
+        raise
+    _fsync_directory(directory)  # make the rename itself durable
+
+
+def write_text_atomic(path: Path | str, text: str, what: str = "file") -> None:
+    """Write ``text`` (UTF-8) to ``path`` atomically."""
+    with atomic_path(path, what) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def write_bytes_atomic(path: Path | str, data: bytes, what: str = "file") -> None:
+    """Write ``data`` to ``path`` atomically."""
+    with atomic_path(path, what) as tmp:
+        tmp.write_bytes(data)
+
+
+def _fsync_file(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _fsync_directory(directory: Path) -> None:
+    try:
+        fd = os.open(directory, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    except OSError:
+        return  # a platform that cannot open directories (Windows): rename is all we get
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass  # some filesystems refuse fsync on a directory; the data itself is synced
+    finally:
+        os.close(fd)
+
+
+__all__ = ["atomic_path", "write_bytes_atomic", "write_text_atomic"]

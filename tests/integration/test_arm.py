@@ -1,0 +1,511 @@
+"""The Arm end to end on the simulator: joint moves, Cartesian lines, the gripper,
+emergency stops, action groups and calibration.
+
+Nothing of busarm is mocked. Frames the arm writes are captured by wrapping the
+transport's ``write`` (test instrumentation only) and decoded with the protocol's own
+parser. Where timing does not matter the simulator runs without wire timing, and the
+property test runs on a virtual clock shared by the arm and the simulator.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import SimpleNamespace
+from unittest import mock
+
+import pytest
+from hypothesis import HealthCheck, event, given, settings
+from hypothesis import strategies as st
+
+from busarm.arm.actions import ActionFrame, ActionGroup, read_d6a, write_d6a
+from busarm.arm.arm import Arm
+from busarm.arm.calibration import Calibration, JointCalibration, solve_calibration
+from busarm.arm.config import ArmConfig, load_arm_config
+from busarm.arm.motion import LinePath
+from busarm.bus.driver import ServoBus
+from busarm.errors import (
+    CalibrationError,
+    ConfigError,
+    KinematicsError,
+    LimitError,
+    UnreachableError,
+)
+from busarm.protocol import BROADCAST_ID, Command, FrameParser, Request, decode_request
+from busarm.sim.bus import SimBus, WireTiming
+from busarm.sim.transport import SimTransport
+from busarm.units import DEG_PER_PULSE
+
+VENDOR = Path(__file__).resolve().parents[1] / "data" / "vendor"
+MOVES = (Command.MOVE_TIME_WRITE, Command.MOVE_TIME_WAIT_WRITE)
+UPRIGHT = (0.0, -90.0, 0.0, -90.0, 0.0)
+
+
+@dataclass
+class Rig:
+    """An Arm on an in-process SimBus, with every frame the host wrote."""
+
+    arm: Arm
+    sim: SimBus
+    bus: ServoBus
+    config: ArmConfig
+    writes: list[bytes] = field(default_factory=list)
+    hook: Callable[[bytes], None] | None = None
+
+    def requests(self, start: int = 0) -> list[Request]:
+        parser = FrameParser()
+        out = []
+        for data in self.writes[start:]:
+            out.extend(decode_request(f) for f in parser.feed(data))
+        return out
+
+    def moves(self, start: int = 0) -> list[Request]:
+        return [r for r in self.requests(start) if r.command in MOVES]
+
+    def positions(self) -> dict[int, float]:
+        self.sim.advance()
+        return {s.servo_id: s.position_pulses for s in self.sim.servos}
+
+    def close(self) -> None:
+        self.bus.close()
+
+
+def make_rig(
+    *, timing: bool = False, clock: Callable[[], float] = time.monotonic,
+    calibration: Calibration | None = None, sim: SimBus | None = None,
+) -> Rig:
+    if sim is None:
+        sim = SimBus.with_ids(timing=WireTiming(enabled=timing), clock=clock)
+    transport = SimTransport(sim)
+    config = load_arm_config()
+    writes: list[bytes] = []
+    rig_box: list[Rig] = []
+    original = transport.write
+
+    def write(data: bytes) -> None:
+        writes.append(bytes(data))
+        if rig_box and rig_box[0].hook is not None:
+            rig_box[0].hook(bytes(data))
+        original(data)
+
+    transport.write = write  # type: ignore[method-assign]
+    bus = ServoBus(transport)
+    arm = Arm(bus, config, calibration)
+    rig = Rig(arm, sim, bus, config, writes)
+    rig_box.append(rig)
+    return rig
+
+
+@pytest.fixture
+def rig() -> Iterator[Rig]:
+    r = make_rig()
+    yield r
+    r.close()
+
+
+def stable_positions(rig: Rig, seconds: float = 0.3) -> dict[int, float]:
+    """Positions now; asserts they do not change over ``seconds``."""
+    before = rig.positions()
+    time.sleep(seconds)
+    after = rig.positions()
+    for sid in before:
+        assert abs(after[sid] - before[sid]) <= 0.5, (sid, before[sid], after[sid])
+    return after
+
+
+# ---------------------------------------------------------------------------- joint moves
+
+
+def test_joint_move_arrives_synchronized(rig: Rig) -> None:
+    target = (30.0, -60.0, 40.0, -100.0, 20.0)
+    start = len(rig.writes)
+    took = rig.arm.move_joints(target, speed_deg_s=90.0)
+    # The largest delta (elbow, 40 deg) at 90 deg/s, in whole ms.
+    assert took == pytest.approx(math.ceil(40.0 / 90.0 * 1000) / 1000)
+    q = rig.arm.read_joints_deg()
+    assert all(abs(a - b) <= 1.5 for a, b in zip(q, target, strict=True)), q
+    requests = rig.requests(start)
+    waits = [r for r in requests if r.command is Command.MOVE_TIME_WAIT_WRITE]
+    assert sorted(r.servo_id for r in waits) == [1, 2, 3, 4, 5]
+    assert {r.args[1] for r in waits} == {round(took * 1000)}
+    assert any(r.command is Command.MOVE_START and r.servo_id == BROADCAST_ID for r in requests)
+
+
+def test_too_short_duration_raises_and_sends_nothing(rig: Rig) -> None:
+    rig.bus.read_temp_c(1)
+    before = rig.sim.frames_received
+    with pytest.raises(LimitError, match="elbow_pitch"):
+        rig.arm.move_joints((0.0, -90.0, 90.0, -90.0, 0.0), duration_s=0.4)  # 225 deg/s
+    assert rig.sim.frames_received == before + 5  # the five position reads only
+    assert rig.moves() == []
+
+
+# ---------------------------------------------------------------------------- property
+
+
+class VirtualClock:
+    def __init__(self) -> None:
+        self.t = 1000.0
+
+    def monotonic(self) -> float:
+        return self.t
+
+    def sleep(self, dt: float) -> None:
+        self.t += max(dt, 0.0)
+
+
+def _pulse_limits(config: ArmConfig) -> dict[int, tuple[int, int]]:
+    out = {}
+    for j in config.joints:
+        a, b = j.pulses_from_angle_deg(j.min_deg), j.pulses_from_angle_deg(j.max_deg)
+        out[j.servo_id] = (math.ceil(min(a, b) - 1e-9), math.floor(max(a, b) + 1e-9))
+    return out
+
+
+coord = st.floats(-450, 450, allow_nan=False)
+pitch = st.one_of(st.none(), st.sampled_from([-90.0, -60.0, -30.0, 0.0]), st.floats(-180, 180))
+timing_kw = st.one_of(
+    st.just({}),
+    st.builds(lambda s: {"speed_deg_s": s}, st.floats(1.0, 1000.0)),
+    st.builds(lambda d: {"duration_s": d}, st.floats(0.0, 5.0)),
+)
+near_x, near_y, near_z = st.floats(80, 260), st.floats(-180, 180), st.floats(0, 220)
+near_pitch = st.one_of(st.none(), st.just(-90.0), st.floats(-100, -40))
+op_to = st.one_of(
+    st.tuples(st.just("to"), coord, coord, st.floats(-150, 550), pitch, timing_kw),
+    st.tuples(st.just("to"), near_x, near_y, near_z, near_pitch, timing_kw),
+)
+line_kw = st.fixed_dictionaries({
+    "speed_mm_s": st.floats(5.0, 1000.0),
+    "profile": st.sampled_from(["min_jerk", "trapezoidal", "linear"]),
+    "rate_hz": st.sampled_from([10.0, 25.0, 50.0, 100.0]),
+})
+op_line_near = st.tuples(st.just("line"), near_x, near_y, near_z, near_pitch, line_kw)
+op_line = st.tuples(
+    st.just("line"), coord, coord, st.floats(-150, 550), pitch,
+    st.fixed_dictionaries({
+        "speed_mm_s": st.floats(5.0, 1000.0),
+        "profile": st.sampled_from(["min_jerk", "trapezoidal", "linear"]),
+        "rate_hz": st.sampled_from([10.0, 25.0, 50.0, 100.0]),
+    }),
+)
+op_joints = st.tuples(
+    st.just("joints"),
+    st.tuples(st.floats(-130, 130), st.floats(-190, 10), st.floats(-130, 130),
+              st.floats(-210, 30), st.floats(-130, 130)),
+    timing_kw,
+)
+
+
+@settings(max_examples=40, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(ops=st.lists(st.one_of(op_to, op_line_near, op_line_near, op_line, op_joints),
+                    min_size=1, max_size=4))
+def test_every_move_frame_is_within_limits_and_speeds(ops: list[tuple]) -> None:  # type: ignore[type-arg]
+    clock = VirtualClock()
+    fake_time = SimpleNamespace(monotonic=clock.monotonic, sleep=clock.sleep)
+    with mock.patch("busarm.arm.arm.time", fake_time):
+        rig = make_rig(clock=clock.monotonic)
+        try:
+            limits = _pulse_limits(rig.config)
+            speed = {j.servo_id: j.max_speed_deg_s for j in rig.config.joints}
+            previous = {sid: round(p) for sid, p in rig.positions().items()}
+            for op in ops:
+                start = len(rig.writes)
+                try:
+                    if op[0] == "to":
+                        _, x, y, z, p, kw = op
+                        rig.arm.move_to(x, y, z, p, wait=False, **kw)
+                    elif op[0] == "line":
+                        _, x, y, z, p, kw = op
+                        rig.arm.move_line(x, y, z, p, wait=False, **kw)
+                    else:
+                        _, q, kw = op
+                        rig.arm.move_joints(q, wait=False, **kw)
+                except (UnreachableError, LimitError, ConfigError, KinematicsError):
+                    assert rig.moves(start) == [], op
+                    event(f"{op[0]} refused")
+                    continue
+                moves = rig.moves(start)
+                event(f"{op[0]} moved")
+                for r in moves:
+                    pos, ms = r.args
+                    lo, hi = limits[r.servo_id]
+                    assert lo <= pos <= hi, (op, r)
+                    delta = abs(pos - previous[r.servo_id])
+                    if delta > 1:
+                        assert ms > 0, (op, r)
+                        implied = (delta - 1) * DEG_PER_PULSE / (ms / 1000.0)
+                        assert implied <= speed[r.servo_id] * (1 + 1e-9), (op, r, implied)
+                    previous[r.servo_id] = pos
+                clock.sleep(31.0)  # every servo arrives before the next operation
+                got = {sid: round(p) for sid, p in rig.positions().items()}
+                for sid, pos in previous.items():
+                    assert abs(got[sid] - pos) <= 1, (op, sid, got[sid], pos)
+        finally:
+            rig.close()
+
+
+# ---------------------------------------------------------------------------- Cartesian line
+
+
+def test_straight_line_tracks_within_2_mm_with_wire_timing() -> None:
+    rig = make_rig(timing=True)
+    try:
+        rig.arm.move_to(150, -100, 60, -90, speed_deg_s=180.0)
+        record = rig.arm.move_line(150, 100, 60, -90, speed_mm_s=200.0, record=True)
+        assert len(record.measured) > 20
+        poses = [rig.arm.kin.fk(q) for _, q in record.measured]
+        points = [(p.x_mm, p.y_mm, p.z_mm) for p in poses]
+        path = LinePath((150.0, -100.0, 60.0, -90.0, 0.0), (150.0, 100.0, 60.0, -90.0, 0.0))
+        deviation = float(path.distance_mm(points).max())
+        print(f"max deviation from the 200 mm line: {deviation:.3f} mm "
+              f"over {len(points)} samples in {record.duration_s:.2f} s")
+        assert deviation <= 2.0
+        end = rig.arm.read_pose()
+        assert math.dist((end.x_mm, end.y_mm, end.z_mm), (150, 100, 60)) <= 2.0
+    finally:
+        rig.close()
+
+
+# ---------------------------------------------------------------------------- gripper
+
+
+def test_grip_on_a_block_is_holding(rig: Rig) -> None:
+    rig.sim.put_block_in_gripper()
+    result = rig.arm.grip()
+    assert result.is_holding
+    assert abs(result.position_pulses - 540) <= 3, result
+
+
+def test_grip_on_nothing_is_not_holding(rig: Rig) -> None:
+    result = rig.arm.grip()
+    assert not result.is_holding
+    g = rig.config.gripper
+    # The arm counts the gripper as arrived within a quarter of the holding margin.
+    assert abs(result.position_pulses - g.closed_pulses) <= g.holding_margin_pulses // 4 + 1
+    assert result.short_of_closed_pulses <= g.holding_margin_pulses, result
+    assert abs(rig.arm.open_gripper() - g.open_pulses) <= g.holding_margin_pulses // 4 + 1
+
+
+# ---------------------------------------------------------------------------- emergencies
+
+
+def test_exception_in_with_block_stops_the_arm() -> None:
+    rig = make_rig()
+    target = (90.0, -90.0, 0.0, -90.0, 0.0)
+    with pytest.raises(RuntimeError, match="boom"), rig.arm as a:
+        a.move_joints(target, duration_s=3.0, wait=False)
+        time.sleep(0.3)
+        raise RuntimeError("boom")
+    after = stable_positions(rig)
+    assert abs(after[1] - 500) > 10  # it moved
+    assert abs(after[1] - (500 - 90 / DEG_PER_PULSE)) > 50  # and stopped well short
+    assert any(
+        r.command is Command.MOVE_STOP and r.servo_id == BROADCAST_ID for r in rig.requests()
+    )
+
+
+def test_keyboard_interrupt_during_stream_stops_the_arm(rig: Rig) -> None:
+    a = rig.arm
+    a.move_joints((0.0, -120.0, 60.0, -90.0, 0.0), speed_deg_s=180.0)
+    start_q = a.read_joints_deg()
+    times, joints = a.plan_line(150, 100, 60, -90, start_deg=start_q, speed_mm_s=100.0)
+    assert times[-1] > 1.0
+    count = [0]
+    interrupted_at: list[int] = []
+
+    def hook(data: bytes) -> None:
+        count[0] += 1
+        if count[0] == 40 and not interrupted_at:
+            interrupted_at.append(len(rig.writes))
+            raise KeyboardInterrupt
+
+    rig.hook = hook
+    with pytest.raises(KeyboardInterrupt):
+        a.stream(times, joints)
+    rig.hook = None
+    after = rig.requests(interrupted_at[0])
+    assert any(r.command is Command.MOVE_STOP and r.servo_id == BROADCAST_ID for r in after)
+    assert not [r for r in after if r.command in MOVES]
+    stable_positions(rig)
+    final_pulses = a.servo_pulses(joints[-1])
+    got = rig.positions()
+    assert any(abs(got[sid] - p) > 5 for sid, p in final_pulses.items())
+
+
+# ---------------------------------------------------------------------------- action groups
+
+
+def test_vendor_action_group_plays(rig: Rig) -> None:
+    group = read_d6a(VENDOR / "arm_action_1.d6a")
+    played = rig.arm.play(group, speed_scale=2.0)
+    assert played == len(group.frames)
+    assert any(r.servo_id == 2 and r.args[0] == 788 for r in rig.moves())
+    last = group.frames[-1].positions_pulses
+    expected = [j.angle_deg_from_pulses(p) for j, p in zip(rig.config.joints, last, strict=False)]
+    q = rig.arm.wait(expected)
+    assert all(abs(a - b) <= 1.5 for a, b in zip(q, expected, strict=True)), q
+
+
+def test_out_of_limit_action_group_sends_nothing(rig: Rig) -> None:
+    group = ActionGroup((
+        ActionFrame(500, (500, 600, 500, 500, 500, 500)),
+        ActionFrame(500, (500, 500, 500, 1000, 500, 500)),  # wrist beyond -200 deg
+    ))
+    rig.bus.read_temp_c(1)
+    before = rig.sim.frames_received
+    with pytest.raises(ConfigError, match="frame 2"):
+        rig.arm.play(group)
+    assert rig.sim.frames_received == before
+    assert rig.moves() == []
+
+
+def test_stop_event_stops_playback_and_holds(rig: Rig) -> None:
+    group = ActionGroup(tuple(
+        ActionFrame(1000, (p, 500, 500, 500, 500, 500)) for p in (650, 800, 650)
+    ))
+    stop = threading.Event()
+    timer = threading.Timer(0.4, stop.set)
+    timer.start()
+    try:
+        played = rig.arm.play(group, stop_event=stop)
+    finally:
+        timer.join()
+    assert played == 1
+    after = stable_positions(rig)
+    assert 510 < after[1] < 640  # stopped on the way to 650
+    assert any(r.command is Command.MOVE_STOP for r in rig.requests())
+
+
+def test_record_frames_by_hand_and_play_them_back(rig: Rig, tmp_path: Path) -> None:
+    now = time.monotonic()
+    rig.sim.servo(1).move_by_hand(600, now)
+    rig.sim.servo(3).move_by_hand(400, now)
+    rig.sim.servo(10).move_by_hand(300, now)
+    first = rig.arm.record_frame(700)
+    assert first == ActionFrame(700, (600, 500, 400, 500, 500, 300))
+    now = time.monotonic()
+    rig.sim.servo(2).move_by_hand(450, now)
+    rig.sim.servo(4).move_by_hand(560, now)
+    second = rig.arm.record_frame(700)
+    assert second == ActionFrame(700, (600, 450, 400, 560, 500, 300))
+
+    path = tmp_path / "taught.d6a"
+    write_d6a(path, ActionGroup((second, first, second)))
+    group = read_d6a(path)
+    assert group.frames == (second, first, second)
+    rig.arm.set_torque(True)
+    assert rig.arm.play(group) == 3
+    got = rig.positions()
+    for sid, p in zip(rig.config.action_columns, second.positions_pulses, strict=True):
+        assert abs(got[sid] - p) <= 2, (sid, got[sid], p)
+    assert any(r.servo_id == 4 and r.args[0] == 500 for r in rig.moves())
+
+
+# ---------------------------------------------------------------------------- calibration
+
+
+def _displaced_sim(servo_id: int = 3, pulses: int = 512) -> SimBus:
+    """The arm upright, with one horn off by ``pulses - 500`` (moved there, then unloaded)."""
+    sim = SimBus.with_ids(timing=WireTiming(enabled=False))
+    with ServoBus(SimTransport(sim)) as bus:
+        bus.move_pulses(servo_id, pulses, 0)
+        time.sleep(0.05)
+        bus.set_torque(servo_id, False)
+    sim.advance()
+    assert round(sim.servo(servo_id).position_pulses) == pulses
+    return sim
+
+
+def _measure(sim: SimBus, config: ArmConfig) -> tuple[dict[int, float], dict[int, int]]:
+    with ServoBus(SimTransport(sim)) as bus:
+        measured = {j.servo_id: bus.read_position_deg(j.servo_id) for j in config.joints}
+        present = {
+            j.servo_id: round(bus.read_offset_deg(j.servo_id) / DEG_PER_PULSE)
+            for j in config.joints
+        }
+    return measured, present
+
+
+def test_calibration_with_hardware_offset() -> None:
+    config = load_arm_config()
+    sim = _displaced_sim()
+    measured, present = _measure(sim, config)
+    cal = solve_calibration(config, UPRIGHT, measured, present)
+    by_id = {c.servo_id: c for c in cal.joints}
+    # The horn reads 12 pulses high at the reference: the servo's offset takes +12.
+    assert by_id[3].hardware_offset_pulses == 12
+    assert abs(by_id[3].software_offset_deg) < 1e-6
+    assert all(c.hardware_offset_pulses == 0 for c in cal.joints if c.servo_id != 3)
+
+    # Before the offset is written, the servo's stored 0 contradicts the calibration.
+    with ServoBus(SimTransport(sim)) as bus, pytest.raises(CalibrationError, match="servo 3"):
+        Arm(bus, config, cal)
+
+    with ServoBus(SimTransport(sim)) as bus:  # write it as `busarm arm calibrate` does
+        bus.adjust_offset_deg(3, by_id[3].hardware_offset_deg)
+        bus.save_offset(3)
+    rig = make_rig(sim=sim, calibration=cal)
+    try:
+        q = rig.arm.read_joints_deg()
+        assert abs(q[2]) <= 0.25, q
+        assert all(abs(a - b) <= 0.25 for a, b in zip(q, UPRIGHT, strict=True)), q
+    finally:
+        rig.close()
+
+    # Nominal (identity) calibration, or a different offset, against the re-zeroed servo.
+    wrong = Calibration(cal.arm, tuple(
+        JointCalibration(c.name, c.servo_id, 11 if c.servo_id == 3 else 0) for c in cal.joints
+    ))
+    for other in (None, wrong):
+        with ServoBus(SimTransport(sim)) as bus, pytest.raises(CalibrationError, match="servo 3"):
+            Arm(bus, config, other)
+
+
+def test_software_only_calibration() -> None:
+    config = load_arm_config()
+    sim = _displaced_sim()
+    uncalibrated = make_rig(sim=sim)
+    try:
+        assert uncalibrated.arm.read_joints_deg()[2] == pytest.approx(-12 * DEG_PER_PULSE)
+    finally:
+        uncalibrated.close()
+    measured, present = _measure(sim, config)
+    cal = solve_calibration(config, UPRIGHT, measured, present, use_hardware_offset=False)
+    by_id = {c.servo_id: c for c in cal.joints}
+    assert all(c.hardware_offset_pulses == 0 for c in cal.joints)
+    assert by_id[3].software_offset_deg == pytest.approx(12 * DEG_PER_PULSE)
+    rig = make_rig(sim=sim, calibration=cal)
+    try:
+        q = rig.arm.read_joints_deg()
+        assert all(abs(a - b) <= 0.25 for a, b in zip(q, UPRIGHT, strict=True)), q
+        # Moves are corrected too: joint 3 = 0 puts the horn back at 512.
+        rig.arm.move_joints(UPRIGHT, duration_s=0.1)
+        assert round(rig.positions()[3]) == 512
+    finally:
+        rig.close()
+
+
+def test_calibration_for_other_joints_raises() -> None:
+    config = load_arm_config()
+    identity = Calibration.identity(config)
+    other_ids = Calibration(identity.arm, tuple(
+        JointCalibration(c.name, 7 if c.servo_id == 3 else c.servo_id) for c in identity.joints
+    ))
+    fewer = Calibration(identity.arm, identity.joints[:4])
+    renamed = Calibration(identity.arm, tuple(
+        JointCalibration("knee" if c.servo_id == 3 else c.name, c.servo_id)
+        for c in identity.joints
+    ))
+    sim = SimBus.with_ids(timing=WireTiming(enabled=False))
+    for cal in (other_ids, fewer, renamed):
+        with ServoBus(SimTransport(sim)) as bus:
+            sim.frames_received = 0
+            with pytest.raises(CalibrationError, match="calibrate"):
+                Arm(bus, config, cal)
+            assert sim.frames_received == 0
