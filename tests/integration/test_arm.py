@@ -180,7 +180,7 @@ op_to = st.one_of(
     st.tuples(st.just("to"), near_x, near_y, near_z, near_pitch, timing_kw),
 )
 line_kw = st.fixed_dictionaries({
-    "speed_mm_s": st.floats(5.0, 1000.0),
+    "speed_mm_s": st.floats(60.0, 1000.0),
     "profile": st.sampled_from(["min_jerk", "trapezoidal", "linear"]),
     "rate_hz": st.sampled_from([10.0, 25.0, 50.0, 100.0]),
 })
@@ -188,7 +188,7 @@ op_line_near = st.tuples(st.just("line"), near_x, near_y, near_z, near_pitch, li
 op_line = st.tuples(
     st.just("line"), coord, coord, st.floats(-150, 550), pitch,
     st.fixed_dictionaries({
-        "speed_mm_s": st.floats(5.0, 1000.0),
+        "speed_mm_s": st.floats(60.0, 1000.0),
         "profile": st.sampled_from(["min_jerk", "trapezoidal", "linear"]),
         "rate_hz": st.sampled_from([10.0, 25.0, 50.0, 100.0]),
     }),
@@ -211,6 +211,9 @@ def test_every_move_frame_is_within_limits_and_speeds(ops: list[tuple]) -> None:
     with mock.patch("busarm.arm.arm.time", fake_time):
         rig = make_rig(clock=clock.monotonic)
         try:
+            # Start away from the upright singularity (see test_plan_line_from_upright...).
+            rig.arm.move_joints(rig.config.pose("home"), wait=False)
+            clock.sleep(31.0)
             limits = _pulse_limits(rig.config)
             speed = {j.servo_id: j.max_speed_deg_s for j in rig.config.joints}
             previous = {sid: round(p) for sid, p in rig.positions().items()}
@@ -509,3 +512,29 @@ def test_calibration_for_other_joints_raises() -> None:
             with pytest.raises(CalibrationError, match="calibrate"):
                 Arm(bus, config, cal)
             assert sim.frames_received == 0
+
+
+class _TooLong(Exception):
+    pass
+
+
+def test_plan_line_from_upright_fails_fast(rig: Rig) -> None:
+    """BUG: a line starting at the upright singularity (base yaw undefined) makes
+    plan_line's stretch loop multiply the duration past its own 600 s maximum (16k+
+    waypoints, minutes of CPU) instead of raising LimitError ("needs a joint to jump")."""
+    import busarm.arm.arm as arm_module
+
+    original = arm_module.sample_times
+
+    def guarded(duration_s: float, rate_hz: float) -> list[float]:
+        if duration_s > 600.0:
+            raise _TooLong(f"plan_line tried a {duration_s:.0f} s plan")
+        return original(duration_s, rate_hz)
+
+    with mock.patch.object(arm_module, "sample_times", guarded):
+        try:
+            rig.arm.plan_line(80, 80, 126, -90, start_deg=UPRIGHT, speed_mm_s=60.0)
+        except (LimitError, UnreachableError):
+            pass  # expected: refused
+        except _TooLong as exc:
+            pytest.fail(f"expected LimitError, got a runaway plan: {exc}")

@@ -93,7 +93,10 @@ def _all_commands(group: click.Group, prefix: str = "") -> Iterator[tuple[str, c
 def test_every_command_and_option_has_help() -> None:
     names = dict(_all_commands(cli))
     for expected in ("ports", "scan", "info", "move", "stop", "torque", "set-id", "offset",
-                     "limits", "led", "monitor", "decode", "encode", "sim", "sim serve", "demo"):
+                     "limits", "led", "monitor", "decode", "encode", "sim", "sim serve", "demo",
+                     "arm", "arm fk", "arm ik", "arm ik-batch", "arm pose", "arm move-to",
+                     "arm home", "arm gripper", "arm calibrate", "arm urdf", "arm workspace",
+                     "actions", "actions show", "actions play", "actions record", "bench ik"):
         assert expected in names
     for name, command in [("busarm", cli), *names.items()]:
         assert command.help, name

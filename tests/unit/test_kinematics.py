@@ -9,6 +9,7 @@ docstring's words. Randomness is seeded.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 
@@ -29,8 +30,10 @@ UPRIGHT = (0.0, -90.0, 0.0, -90.0, 0.0)
 HOME = (0.0, -150.0, 120.0, -60.0, 0.0)
 FOUR = (0.0, 50.0, 500.0, 60.0, 90.0)
 """A target with all four solutions (bearing 90: base yaw 90 or -90; roll 90 or -90)."""
-POS_TOL_MM = 1e-6
-ROT_TOL_DEG = 1e-6
+# Near full stretch the elbow angle is only determined to ~sqrt(machine epsilon) by a
+# pose (the singularity), which costs a few 1e-6 mm; the issue asks for 1e-3.
+POS_TOL_MM = 1e-4
+ROT_TOL_DEG = 1e-4
 
 Array = npt.NDArray[np.float64]
 
@@ -276,7 +279,7 @@ def test_ik_orders_solutions_by_motion_from_current() -> None:
         assert ordered[0] == pytest.approx(target)
         assert KIN.ik_best(*FOUR, current_deg=current) == pytest.approx(target)
         worst = [motion(s, current)[0] for s in ordered]
-        assert all(a <= b + 1e-9 for a, b in zip(worst, worst[1:], strict=False)), worst
+        assert all(a <= b + 1e-9 for a, b in itertools.pairwise(worst)), worst
         assert sorted(map(tuple, np.round(ordered, 9))) == sorted(map(tuple, np.round(sols, 9)))
 
 
@@ -313,7 +316,8 @@ def test_ik_sum_breaks_ties_that_differ_only_by_rounding() -> None:
     assert got == pytest.approx(want, abs=1e-9), (
         f"ik_best chose {np.round(got, 2).tolist()} (sum {motion(got, current)[1]:.1f} deg) "
         f"over {np.round(want, 2).tolist()} (sum {motion(want, current)[1]:.1f} deg): their "
-        f"largest changes differ only by {abs(motion(got, current)[0] - best_max):.1g} deg"
+        f"largest changes are equal but for rounding "
+        f"({abs(motion(got, current)[0] - motion(want, current)[0]):.1e} deg apart)"
     )
 
 
@@ -351,6 +355,22 @@ def test_targets_behind_the_base_round_trip(target: tuple[float, ...]) -> None:
                 assert abs(wrap_deg(s[4] - roll - 180)) < 1e-6
     if abs(bearing) > 120:  # base yaw cannot face it: every solution reaches over the back
         assert all(abs(wrap_deg(s[0] - bearing - 180)) < 1e-6 for s in sols)
+
+
+@pytest.mark.parametrize(
+    "q", [(0.0, -180.0, -1e-6, 0.0, 0.0), (0.0, -180.0, 1e-6, 0.0, 0.0),
+          (0.0, 0.0, 1e-6, -90.0, 0.0), (0.0, -90.0, 0.0, 20.0, 0.0)],
+)
+def test_ik_round_trips_a_limit_pose_with_a_nearly_straight_elbow(q: tuple[float, ...]) -> None:
+    """A joint exactly at its limit, the elbow within 1e-6 deg of straight: q is valid."""
+    pose = KIN.fk(q)
+    sols = KIN.ik(*pose, current_deg=q)
+    assert sols, (
+        f"ik(fk({q}) = {tuple(round(v, 7) for v in pose)}) found no solution though q is "
+        "within the limits: near full stretch the elbow angle is only known to ~1e-8 rad, "
+        "which moves the shoulder past the 1e-9 rad limit tolerance"
+    )
+    assert_same_transform(KIN.fk_matrix(sols[0]), KIN.fk_matrix(q), f"q={q}")
 
 
 def test_ik_on_the_base_axis_keeps_the_current_bearing() -> None:
@@ -536,12 +556,13 @@ def test_fk_rejects_a_non_sequence_with_config_error(joints: object) -> None:
         except ConfigError as exc:
             assert "5 joint angles" in str(exc)
             continue
-        except Exception as exc:  # noqa: BLE001 - the point is which class it is
+        except Exception as exc:  # the point is which class it is
             pytest.fail(f"{f.__name__}({joints!r}) raised {type(exc).__name__}: {exc}, "
                         "not ConfigError")
         pytest.fail(f"{f.__name__}({joints!r}) accepted it")
-    with pytest.raises(ConfigError, match="5 joint angles"):
-        KIN.ik(200, 0, 50, -90, current_deg=joints)  # type: ignore[arg-type]
+    if joints is not None:  # current_deg=None means "no current pose"
+        with pytest.raises(ConfigError, match="5 joint angles"):
+            KIN.ik(200, 0, 50, -90, current_deg=joints)  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize(
@@ -603,7 +624,7 @@ def test_batch_bad_values_raise_config_error(call: object, what: str) -> None:
         call()  # type: ignore[operator]
     except ConfigError:
         return
-    except Exception as exc:  # noqa: BLE001 - the point is which class it is
+    except Exception as exc:  # the point is which class it is
         pytest.fail(f"{what}: raised {type(exc).__name__}: {exc}, not ConfigError")
     pytest.fail(f"{what}: accepted")
 
@@ -639,6 +660,9 @@ FREE_PITCH_TARGETS = [
     ("jetauto_pro", (250, -80, 120), 30.0, None),
     ("jetauto_pro", (0, 0, 400), None, (10, -90, 0, -90, 0)),
     ("jetauto_pro", (30, 20, 560), -100.0, None),
+    ("jetauto_pro", (-60, 260, 330), None, None),  # three intervals
+    ("jetauto_pro", (0, 0, 100), None, None),  # on the axis; an interval wraps past 180
+    ("jetauto_pro", (600, 0, 100), None, None),  # out of reach: no interval
     (ARMPI, (150, 50, 20), None, None),
     (ARMPI, (-100, 30, 200), 100.0, None),
 ]
@@ -653,9 +677,9 @@ def test_pitch_intervals_agree_with_brute_force(
     intervals = kin.pitch_intervals(*point, roll, current_deg=current)
     for lo, hi in intervals:
         assert -180 <= lo < 180 and lo <= hi < lo + 360
-    assert all(a[1] < b[0] for a, b in zip(intervals, intervals[1:], strict=False))
+    assert all(a[1] < b[0] for a, b in itertools.pairwise(intervals))
     rng = np.random.default_rng(31)
-    pitches = np.concatenate([np.arange(-180, 180, 0.05), rng.uniform(-180, 180, 500)])
+    pitches = np.concatenate([np.arange(-180, 180, 0.1), rng.uniform(-180, 180, 500)])
     feasible = 0
     for p in pitches:
         p = float(p)

@@ -50,6 +50,11 @@ MAX_RATE_HZ = 100.0
 DEFAULT_TOLERANCE_DEG = 1.5
 """Position feedback is whole pulses (0.24 deg), and a loaded servo settles a pulse or two
 short; a wait within this counts as arrived."""
+MAX_LINE_S = 600.0
+"""The longest straight-line move planned."""
+JUMP_DEG = 20.0
+"""A joint change between two waypoints above this is a jump, not motion (at 50 Hz and
+180 deg/s a joint moves 3.6 deg per waypoint)."""
 MAX_TURN_SPEED_DEG_S = 90.0
 """Pitch and roll change no faster than this on a Cartesian line."""
 
@@ -140,11 +145,8 @@ class Arm:
         self, exc_type: type[BaseException] | None, exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None:
-        try:
-            if exc_type is not None:
-                self.bus.emergency_stop()
-        finally:
-            self.close()
+        # The bus's own exit: emergency stop (hold) on an exception, then close.
+        self.bus.__exit__(exc_type, exc, tb)
 
     # ------------------------------------------------------------------ checks
 
@@ -448,13 +450,21 @@ class Arm:
                     ) from None
                 joints.append(q)
                 previous = q
+            steps = zip([start_q, *joints[:-1]], joints, strict=True)
+            if any(abs(a - b) > JUMP_DEG for p, q in steps for a, b in zip(p, q, strict=True)):
+                raise LimitError(
+                    "the line needs a joint to jump (it passes a singularity, such as the "
+                    "base axis, or switches elbow): move there with move_to instead"
+                )
             ratio = self._speed_ratio(start_q, times, joints)
             if ratio <= 1.0:
                 return times, joints
             duration_s *= ratio * 1.02
+            if duration_s > MAX_LINE_S:
+                break
         raise LimitError(
-            "the line needs a joint to jump (it passes a singularity or switches elbow): "
-            "move there with move_to instead"
+            f"the line would take over {MAX_LINE_S:g} s within the joints' speed limits: "
+            "move there with move_to, or in shorter lines"
         )
 
     def _speed_ratio(
@@ -651,6 +661,15 @@ class Arm:
         stop = stop_event or threading.Event()
         played = 0
 
+        # Speeds too, frame to frame (the first from where the arm is), before any move.
+        previous: Sequence[float] = self.read_joints_deg()
+        for n, (seconds, joints, _) in enumerate(frames, start=1):
+            try:
+                self._joint_move_duration(previous, joints, seconds / speed_scale, None)
+            except LimitError as exc:
+                raise LimitError(f"action frame {n}: {exc}") from None
+            previous = joints
+
         def run() -> None:
             nonlocal played
             gid = self.config.gripper.servo_id
@@ -659,8 +678,6 @@ class Arm:
                     break
                 duration = seconds / speed_scale
                 pulses = self.servo_pulses(joints)
-                current = self.read_joints_deg()
-                self._joint_move_duration(current, joints, max(duration, 1e-3), None)
                 if grip is not None:
                     pulses[gid] = grip
                 self._send_pulses(pulses, duration)

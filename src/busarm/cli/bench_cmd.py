@@ -100,7 +100,8 @@ def _print(settings: Settings, report: BenchReport) -> None:
               help="Random targets for accuracy and single-call timing.")
 @click.option("--batch-n", type=click.IntRange(10, 100_000_000), default=1_000_000,
               show_default=True, help="Rows for the ik_batch throughput run.")
-@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--seed", type=int, default=0, show_default=True,
+              help="Seed of the random joint vectors and targets.")
 @click.option("--peers", is_flag=True,
               help="Also time Robotics Toolbox and ikpy on the same targets (make bench-ik).")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
