@@ -19,7 +19,8 @@ import json
 import numpy as np
 
 from busarm.arm.config import load_arm_config
-from busarm.arm.ik_bench import (
+from busarm.arm.kinematics import ArmKinematics
+from busarm.bench_ik import (
     PEER_Q0_DEG,
     POS_TOL_MM,
     ROT_TOL_DEG,
@@ -28,7 +29,6 @@ from busarm.arm.ik_bench import (
     random_joints,
     run_ik_bench,
 )
-from busarm.arm.kinematics import ArmKinematics
 
 
 def robot_ik_lm_caveat(n: int, seed: int) -> dict[str, int]:

@@ -12,7 +12,7 @@ from busarm.bench import BenchReport, run_bench, sim_pty_server
 from busarm.cli.common import IdListType, RangeType, Settings, pass_settings
 
 if TYPE_CHECKING:
-    from busarm.arm.ik_bench import IkBenchReport
+    from busarm.bench_ik import IkBenchReport
 
 TARGET_RATIO = 0.90
 TARGET_SCAN_S = 1.0
@@ -110,7 +110,7 @@ def bench_ik(
     settings: Settings, n: int, batch_n: int, seed: int, peers: bool, as_json: bool,
 ) -> None:
     """Accuracy and speed of the arm's closed-form IK (no bus), optionally beside peers."""
-    from busarm.arm.ik_bench import run_ik_bench  # numpy only when asked for
+    from busarm.bench_ik import run_ik_bench  # numpy only when asked for
 
     report = run_ik_bench(n=n, batch_n=batch_n, seed=seed, peers=peers)
     if as_json:
@@ -120,7 +120,7 @@ def bench_ik(
 
 
 def _print_ik(settings: Settings, report: IkBenchReport) -> None:
-    from busarm.arm.ik_bench import (
+    from busarm.bench_ik import (
         POS_TOL_MM,
         ROT_TOL_DEG,
         TARGET_BATCH_PER_S,
