@@ -327,7 +327,7 @@ class Arm:
         """
         target = self.config.check_joints(joints_deg)
         servo_targets = {
-            j.servo_id: j.servo_deg_from_angle_deg(a) + self._sw[j.servo_id]
+            j.servo_id: (self.pulses_exact(j, a) - CENTER_PULSES) * DEG_PER_PULSE
             for j, a in zip(self.config.joints, target, strict=True)
         }
         # Joint and servo degrees differ only by sign and offset: the tolerance carries over.
@@ -593,7 +593,8 @@ class Arm:
         """Wait for the gripper to arrive or stop moving (blocked); its final position."""
         sid = self.config.gripper.servo_id
         margin = self.config.gripper.holding_margin_pulses
-        deadline = time.monotonic() + duration_s + 2.0
+        move_end = time.monotonic() + duration_s + 0.1
+        deadline = move_end + 2.0
         time.sleep(min(duration_s, 0.05))
         last = self.bus.read_position_pulses(sid)
         still = 0
@@ -603,7 +604,8 @@ class Arm:
             if abs(now - target) <= margin // 4 + 1:
                 return now
             still = still + 1 if abs(now - last) <= 1 else 0
-            if still >= 3 and time.monotonic() > deadline - 2.0 + 0.1:
+            # Stopped short for three polls after the move should have ended: blocked.
+            if still >= 3 and time.monotonic() > move_end:
                 return now
             last = now
         return last
@@ -701,7 +703,9 @@ class Arm:
             by_id[j.servo_id] = min(max(round(nominal), POSITION_MIN_PULSES), POSITION_MAX_PULSES)
         gid = self.config.gripper.servo_id
         if gid in columns:
-            by_id[gid] = min(max(self.read_gripper_pulses(), 0), 1000)
+            by_id[gid] = min(
+                max(self.read_gripper_pulses(), POSITION_MIN_PULSES), POSITION_MAX_PULSES
+            )
         try:
             return ActionFrame(duration_ms, tuple(by_id[c] for c in columns))
         except KeyError as exc:
