@@ -82,11 +82,24 @@ class CalibrationError(ConfigError):
     """A calibration file that is unreadable or does not match the arm it is used with."""
 
 
+class VisionError(BusArmError):
+    """A camera image could not be turned into what was asked (no frame, nothing found)."""
+
+
+class CameraError(VisionError, OSError):
+    """A camera source that cannot be opened or stopped delivering frames."""
+
+
+class TwinError(BusArmError):
+    """The digital twin cannot be built or rendered (MuJoCo or its OpenGL backend missing)."""
+
+
 __all__ = [
     "BusArmError",
     "BusConflictError",
     "BusTimeoutError",
     "CalibrationError",
+    "CameraError",
     "ChecksumError",
     "ConfigError",
     "KinematicsError",
@@ -95,7 +108,9 @@ __all__ = [
     "ProtocolError",
     "ServoFaultError",
     "TransportError",
+    "TwinError",
     "UnreachableError",
+    "VisionError",
 ]
 
 

@@ -6,8 +6,9 @@ driver. ``open_transport`` picks one from a port string:
 - ``/dev/ttyUSB0``, ``COM3``: a serial device (pyserial, with a direct file-descriptor
   fast path on POSIX);
 - ``socket://``, ``rfc2217://``, ``loop://``, ``spy://`` ...: any pyserial URL;
-- ``sim`` or ``sim://?ids=1,2,3``: the in-process simulator, imported lazily by name
-  so that this layer never imports it.
+- ``sim`` or ``sim://?ids=1,2,3``: the in-process simulator, and ``twin`` or
+  ``twin://?seed=3``: the digital twin, each imported lazily by name so that this layer
+  never imports them.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ DEFAULT_BAUDRATE = 115200
 # Scheme -> "module:callable(url, baudrate) -> Transport", imported only when used.
 TRANSPORT_SCHEMES: dict[str, str] = {
     "sim": "busarm.sim.transport:open_sim_transport",
+    "twin": "busarm.twin.transport:open_twin_transport",
 }
 
 

@@ -212,6 +212,12 @@ class SimBus:
         with self._lock:
             return self._out[0][0] if self._out else None
 
+    @property
+    def lock(self) -> threading.Lock:
+        """The lock every bus operation holds; an outside model that advances or reads
+        the servos (the twin's physics) holds it too."""
+        return self._lock
+
     # ------------------------------------------------------------------ test hooks
 
     def inject_stray_bytes(self, data: bytes) -> None:

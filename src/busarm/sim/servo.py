@@ -328,6 +328,10 @@ class SimServo:
         self._eff_before = 0.0
         self._eff_after = 0.0
         self._start_drive(self._now, position, 0, 0.0, 0.0, 0, _INF)
+        self.horn_sensor: Callable[[], float] | None = None
+        """Set by an outside physics model (the digital twin): where the horn really is,
+        in physical pulses. POS_READ then reports it instead of the model's own motion,
+        which becomes the command the physics follows."""
 
     def __repr__(self) -> str:
         return (
@@ -831,7 +835,8 @@ class SimServo:
         return VinReply(self._supply_mv)
 
     def _pos_read(self, request: Request, t: float) -> Reply:
-        logical = self._wrap(self._phys_at(t)) - self._offset
+        sensed = self.horn_sensor() if self.horn_sensor is not None else self._phys_at(t)
+        logical = self._wrap(sensed) - self._offset
         return PositionReply(_clamp_int(logical, -32768, 32767))
 
     def _or_motor_mode_write(self, request: Request, t: float) -> None:

@@ -32,7 +32,8 @@ _KNOWN = {"ids", "echo", "timing", "turnaround_ms", "drop", "corrupt", "late", "
           "state", "block"}
 
 
-def _float(q: dict[str, str], key: str, default: float) -> float:
+def query_float(q: dict[str, str], key: str, default: float) -> float:
+    """A number from a URL query (``default`` when absent); ConfigError naming the key."""
     if key not in q:
         return default
     try:
@@ -41,7 +42,8 @@ def _float(q: dict[str, str], key: str, default: float) -> float:
         raise ConfigError(f"sim URL: {key}={q[key]!r} is not a number") from None
 
 
-def _flag(q: dict[str, str], key: str, default: bool) -> bool:
+def query_flag(q: dict[str, str], key: str, default: bool) -> bool:
+    """A 0/1 flag from a URL query (``default`` when absent); ConfigError naming the key."""
     if key not in q:
         return default
     if q[key] not in ("0", "1"):
@@ -60,22 +62,22 @@ def sim_bus_from_url(url: str, baudrate: int = 115200) -> SimBus:
         )
     q = {k: v[-1] for k, v in raw.items()}
     ids = parse_ids(q["ids"]) if "ids" in q else list(ARM_SERVO_IDS)
-    turnaround_ms = _float(q, "turnaround_ms", SERVO_TURNAROUND_S * 1000)
+    turnaround_ms = query_float(q, "turnaround_ms", SERVO_TURNAROUND_S * 1000)
     if not 0 <= turnaround_ms <= 100:
         raise ConfigError(f"sim URL: turnaround_ms={turnaround_ms} is out of range 0..100")
-    timing = WireTiming(baudrate, turnaround_ms / 1000.0, _flag(q, "timing", True))
+    timing = WireTiming(baudrate, turnaround_ms / 1000.0, query_flag(q, "timing", True))
     faults = FaultInjection(
-        drop_rate=_float(q, "drop", 0.0),
-        corrupt_rate=_float(q, "corrupt", 0.0),
-        late_rate=_float(q, "late", 0.0),
-        late_s=_float(q, "late_ms", 50.0) / 1000.0,
-        seed=int(_float(q, "seed", 0)),
+        drop_rate=query_float(q, "drop", 0.0),
+        corrupt_rate=query_float(q, "corrupt", 0.0),
+        late_rate=query_float(q, "late", 0.0),
+        late_s=query_float(q, "late_ms", 50.0) / 1000.0,
+        seed=int(query_float(q, "seed", 0)),
     )
     state = Path(q["state"]) if q.get("state") else None
     bus = SimBus.with_ids(
-        ids, timing=timing, echo=_flag(q, "echo", False), faults=faults, state_file=state
+        ids, timing=timing, echo=query_flag(q, "echo", False), faults=faults, state_file=state
     )
-    if _flag(q, "block", False):
+    if query_flag(q, "block", False):
         bus.put_block_in_gripper()
     return bus
 

@@ -1,0 +1,125 @@
+"""The twin camera's lens: an ideal render bent by a real distortion model.
+
+MuJoCo renders pinhole images only. To give the vision layer a camera with real
+intrinsics and lens distortion, the scene is rendered by an ideal pinhole camera wide
+enough to cover every ray the lens sees, then each output pixel fetches the colour of
+its ray: output pixel -> undistorted normalised coordinates (OpenCV's model, solved
+iteratively) -> render pixel, once into a remap table; per frame it is one cv2.remap.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from busarm.errors import ConfigError
+
+FloatArray = npt.NDArray[np.float64]
+
+WIDE_ANGLE_DISTORTION = (-0.30, 0.12, 0.0008, -0.0006, -0.02)
+"""k1 k2 p1 p2 k3 of the default twin lens: a cheap wide-angle USB camera's barrel
+distortion (about 64 px at the corners), stronger than the vendor's calibration file,
+so undistortion and calibration are exercised for real."""
+
+
+@dataclass(frozen=True)
+class LensSpec:
+    """A camera's true intrinsics (what calibration has to find): OpenCV pinhole model."""
+
+    width_px: int = 640
+    height_px: int = 480
+    fx_px: float = 473.45
+    fy_px: float = 474.22
+    cx_px: float = 323.55
+    cy_px: float = 238.60
+    distortion: tuple[float, ...] = WIDE_ANGLE_DISTORTION
+    oversample: float = 1.0
+    """Render pixels per output pixel at the image centre (1 = the same density)."""
+    _maps: list[tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]] = field(
+        default_factory=list, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        for name, lo, hi in (("width_px", 16, 4096), ("height_px", 16, 4096)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                raise ConfigError(f"lens {name} = {v!r} is out of range {lo}..{hi}")
+        for name in ("fx_px", "fy_px", "cx_px", "cy_px", "oversample"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+                raise ConfigError(f"lens {name} = {v!r} must be a positive number")
+        if len(self.distortion) not in (4, 5, 8) or not all(
+                math.isfinite(d) and abs(d) < 10 for d in self.distortion):
+            raise ConfigError(f"lens distortion = {self.distortion!r}: expected 4, 5 or 8 "
+                              "finite OpenCV coefficients (k1 k2 p1 p2 [k3 [k4 k5 k6]])")
+
+    @property
+    def camera_matrix(self) -> FloatArray:
+        return np.array([[self.fx_px, 0.0, self.cx_px], [0.0, self.fy_px, self.cy_px],
+                         [0.0, 0.0, 1.0]])
+
+    @property
+    def dist_coeffs(self) -> FloatArray:
+        return np.asarray(self.distortion, dtype=float)
+
+    def _border_rays(self) -> FloatArray:
+        """Undistorted normalised coordinates of points all around the image border."""
+        w, h = self.width_px, self.height_px
+        n = 64
+        xs = np.linspace(-0.5, w - 0.5, n)
+        ys = np.linspace(-0.5, h - 0.5, n)
+        border = np.concatenate([
+            np.stack([xs, np.full(n, -0.5)], 1), np.stack([xs, np.full(n, h - 0.5)], 1),
+            np.stack([np.full(n, -0.5), ys], 1), np.stack([np.full(n, w - 0.5), ys], 1)])
+        return self.normalized_from_pixels(border)
+
+    def normalized_from_pixels(self, pixels_px: npt.ArrayLike) -> FloatArray:
+        """Undistorted normalised image coordinates (x/z, y/z) of pixels."""
+        pts = np.asarray(pixels_px, dtype=np.float64).reshape(-1, 1, 2)
+        criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+        out = cv2.undistortPointsIter(pts, self.camera_matrix, self.dist_coeffs, None, None,
+                                      criteria)
+        result: FloatArray = out.reshape(-1, 2)
+        return result
+
+    def render_geometry(self) -> tuple[int, int, float]:
+        """(width, height, vertical fov in degrees) of the ideal render behind the lens.
+
+        The render is centred on the optical axis with square pixels of focal length
+        ``oversample * max(fx, fy)``, just large enough to hold every border ray.
+        """
+        rays = self._border_rays()
+        f = self.oversample * max(self.fx_px, self.fy_px)
+        half_w = float(np.max(np.abs(rays[:, 0]))) * f + 2.0
+        half_h = float(np.max(np.abs(rays[:, 1]))) * f + 2.0
+        width, height = 2 * math.ceil(half_w), 2 * math.ceil(half_h)
+        fovy = math.degrees(2 * math.atan(height / 2 / f))
+        return width, height, fovy
+
+    def remap_tables(self) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+        """cv2.remap tables: for each output pixel, where its ray lands in the render."""
+        if self._maps:
+            return self._maps[0]
+        width, height, fovy = self.render_geometry()
+        f = height / 2 / math.tan(math.radians(fovy) / 2)
+        u, v = np.meshgrid(np.arange(self.width_px, dtype=np.float64),
+                           np.arange(self.height_px, dtype=np.float64))
+        rays = self.normalized_from_pixels(np.stack([u.ravel(), v.ravel()], 1))
+        # OpenGL renders the optical axis through the middle of the image: in OpenCV's
+        # pixel-centre convention that is ((W - 1) / 2, (H - 1) / 2).
+        map_x = (rays[:, 0] * f + (width - 1) / 2).reshape(self.height_px, self.width_px)
+        map_y = (rays[:, 1] * f + (height - 1) / 2).reshape(self.height_px, self.width_px)
+        maps = cv2.convertMaps(map_x.astype(np.float32), map_y.astype(np.float32),
+                               cv2.CV_16SC2)
+        self._maps.append((maps[0], maps[1]))
+        return self._maps[0]
+
+    def apply(self, render: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
+        """The image this lens makes of an ideal render (from ``render_geometry``)."""
+        map1, map2 = self.remap_tables()
+        out: npt.NDArray[np.uint8] = cv2.remap(render, map1, map2, cv2.INTER_LINEAR,
+                                               borderMode=cv2.BORDER_REPLICATE)
+        return out

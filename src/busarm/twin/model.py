@@ -1,0 +1,283 @@
+"""The twin's MJCF model, generated from the arm config and a scene.
+
+Nothing here is typed twice: link lengths and joint limits come from ``ArmConfig``,
+the modified-DH frames from its geometry (body i sits at RotX(alpha) TransX(a)
+TransZ(d) in its parent and turns about its own z, so MuJoCo's joint angle is the DH
+theta), blocks and bins from the ``Scene``. MuJoCo works in metres and radians; only
+this module and ``twin.py`` see them.
+
+Provenance and grade (MuJoCo Menagerie style) of the numbers that are not in the arm
+config, all "C: plausible, not identified on hardware":
+
+=========================== ============ =================================================
+servo stall torque          3.43 N m     35 kg cm joints (vendor); gripper 1.96 N m (20 kg cm)
+servo stiffness kp          410 N m/rad  full torque at 2 pulses (0.48 deg) of error
+joint damping / armature    2.0 / 0.01   gearbox losses and reflected rotor inertia (guess)
+link masses                 0.10-0.25 kg a servo and a bracket per link (guess)
+gripper gap                 0.1875 mm/p  fingers touch at closed_pulses; 30 mm at 540 (field notes)
+block                       30 mm, 20 g  a wooden toy cube (density 0.74)
+friction finger/block       1.2          rubber pad on wood (guess)
+=========================== ============ =================================================
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from busarm.arm.config import ArmConfig
+from busarm.twin.scene import COLORS, Scene
+
+FloatArray = npt.NDArray[np.float64]
+
+M_PER_MM = 0.001
+TIMESTEP_S = 0.002
+JOINT_TORQUE_NM = 35 * 0.0980665   # 35 kg cm
+GRIPPER_TORQUE_NM = 20 * 0.0980665  # 20 kg cm
+SERVO_KP_NM_PER_RAD = 410.0
+JOINT_DAMPING = 2.0
+JOINT_ARMATURE = 0.01
+FINGER_GAP_MM_PER_PULSE = 0.1875
+"""Finger gap change per gripper pulse: the fingers touch at ``closed_pulses`` and stand
+30 mm apart at 540 (field notes), linearly in between."""
+FINGER_PAD_MM = (10.0, 16.0, 36.0)
+"""One finger pad's thickness (along the closing axis), width and length."""
+ARM_RGBA = "0.13 0.13 0.14 1"
+TABLE_RGB = (0.78, 0.76, 0.72)
+TABLE_THICKNESS_MM = 20.0
+LINK_MASS_KG = (0.25, 0.15, 0.12, 0.10, 0.15)
+
+
+@dataclass(frozen=True)
+class CameraMount:
+    """Where the arm camera sits: a pose in the wrist-pitch link's DH frame (frame 4).
+
+    ``cam2link`` follows OpenCV's camera axes (x right, y down, z forward), in mm.
+    """
+
+    cam2link: FloatArray
+
+    @classmethod
+    def jetauto(cls, behind_mm: float = 51.0, above_mm: float = 64.0,
+                tilt_deg: float = 0.0) -> CameraMount:
+        """The vendor's mount: ``behind_mm`` behind and ``above_mm`` above the wrist pitch
+        axis (field notes), looking along the tool, tilted ``tilt_deg`` toward it.
+
+        In frame 4 the tool axis is +y and "above" (seen with the tool horizontal) is +x.
+        """
+        t = math.radians(tilt_deg)
+        z_cam = np.array([-math.sin(t), math.cos(t), 0.0])   # forward, tilted down
+        y_cam = np.array([-math.cos(t), -math.sin(t), 0.0])  # image down
+        x_cam = np.cross(y_cam, z_cam)
+        m = np.eye(4)
+        m[:3, 0], m[:3, 1], m[:3, 2] = x_cam, y_cam, z_cam
+        m[:3, 3] = (above_mm, -behind_mm, 0.0)
+        return cls(m)
+
+
+def _fmt(values: npt.ArrayLike) -> str:
+    return " ".join(f"{v:.9g}" for v in np.asarray(values, dtype=float).ravel())
+
+
+def quat_from_matrix(r: FloatArray) -> FloatArray:
+    """MuJoCo's (w, x, y, z) quaternion of a rotation matrix."""
+    w = math.sqrt(max(0.0, 1.0 + r[0, 0] + r[1, 1] + r[2, 2])) / 2
+    x = math.sqrt(max(0.0, 1.0 + r[0, 0] - r[1, 1] - r[2, 2])) / 2
+    y = math.sqrt(max(0.0, 1.0 - r[0, 0] + r[1, 1] - r[2, 2])) / 2
+    z = math.sqrt(max(0.0, 1.0 - r[0, 0] - r[1, 1] + r[2, 2])) / 2
+    x = math.copysign(x, r[2, 1] - r[1, 2])
+    y = math.copysign(y, r[0, 2] - r[2, 0])
+    z = math.copysign(z, r[1, 0] - r[0, 1])
+    q = np.array([w, x, y, z])
+    return q / np.linalg.norm(q)
+
+
+def _rot_x(angle_rad: float) -> FloatArray:
+    c, s = math.cos(angle_rad), math.sin(angle_rad)
+    return np.array([[1.0, 0, 0], [0, c, -s], [0, s, c]])
+
+
+MJ_FROM_CV = np.diag([1.0, -1.0, -1.0])
+"""A MuJoCo camera looks along its -z with +y up; OpenCV's along +z with +y down."""
+
+
+@dataclass(frozen=True)
+class TwinModelSpec:
+    """What the generated model needs besides the arm config and the scene."""
+
+    mount: CameraMount
+    camera_fovy_deg: float
+    """Vertical field of view of the arm camera's ideal (undistorted) render."""
+    render_size_px: tuple[int, int]
+    """(width, height) the arm camera is rendered at, before the lens is applied."""
+    overview_size_px: tuple[int, int] = (640, 480)
+    textures: tuple[tuple[str, bytes, float, float], ...] = ()
+    """Board images: (file name, PNG bytes, width mm, height mm), one per scene board."""
+
+
+def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
+    """The whole world as MJCF text (assets, if any, are passed to MuJoCo separately)."""
+    g = config.geometry
+    m = M_PER_MM
+    lim = [(math.radians(j.min_deg), math.radians(j.max_deg)) for j in config.joints]
+    names = [j.name for j in config.joints]
+    table_z = config.table_z_mm * m
+    t = scene.table
+    pad_t, pad_w, pad_l = (v * m for v in FINGER_PAD_MM)
+    max_half_gap = (config.gripper.max_pulses - config.gripper.min_pulses) \
+        * FINGER_GAP_MM_PER_PULSE / 2 * m
+    cam = spec.mount.cam2link
+    cam_quat = quat_from_matrix(cam[:3, :3] @ MJ_FROM_CV)
+    width = max(spec.render_size_px[0], spec.overview_size_px[0])
+    height = max(spec.render_size_px[1], spec.overview_size_px[1])
+    # Servo angle per metre of one finger's travel (the gripper actuator's gear).
+    finger_gear = -1.0 / (FINGER_GAP_MM_PER_PULSE / 2 * m / math.radians(0.24))
+
+    out: list[str] = []
+    w = out.append
+    w('<mujoco model="busarm twin">')
+    w('  <compiler angle="radian" autolimits="true"/>')
+    w(f'  <option timestep="{TIMESTEP_S}" integrator="implicitfast" cone="elliptic" '
+      'impratio="10"/>')
+    w(f'  <visual><global offwidth="{width}" offheight="{height}"/>'
+      '<quality shadowsize="2048" offsamples="4"/>'
+      '<headlight ambient="0.35 0.35 0.35" diffuse="0.45 0.45 0.45" specular="0 0 0"/>'
+      '</visual>')
+    w('  <asset>')
+    r, gg, b = TABLE_RGB
+    w(f'    <material name="table" rgba="{r} {gg} {b} 1" specular="0" shininess="0"/>')
+    for color, (cr, cg, cb) in COLORS.items():
+        w(f'    <material name="{color}" rgba="{cr} {cg} {cb} 1" specular="0.05" '
+          'shininess="0.1"/>')
+    w('    <material name="tray" rgba="0.55 0.55 0.57 1" specular="0"/>')
+    for i, (fname, _data, _w, _h) in enumerate(spec.textures):
+        w(f'    <texture name="board{i}" type="2d" file="{fname}"/>')
+        w(f'    <material name="board{i}" texture="board{i}" specular="0" shininess="0"/>')
+    w('  </asset>')
+    w('  <default>')
+    w(f'    <default class="arm"><joint damping="{JOINT_DAMPING}" armature="{JOINT_ARMATURE}" '
+      'frictionloss="0.05"/>')
+    w(f'      <geom contype="2" conaffinity="1" rgba="{ARM_RGBA}" density="0"/></default>')
+    w('    <default class="object"><geom contype="1" conaffinity="1" condim="4" '
+      'friction="1.0 0.01 0.001" solref="0.004 1"/></default>')
+    w('  </default>')
+    w('  <worldbody>')
+    w('    <light name="top" pos="0.1 0 1.6" dir="0 0 -1" diffuse="0.55 0.55 0.55" '
+      'specular="0 0 0" castshadow="false"/>')
+    tx, ty = (t.x_min_mm + t.x_max_mm) / 2 * m, (t.y_min_mm + t.y_max_mm) / 2 * m
+    hx, hy = (t.x_max_mm - t.x_min_mm) / 2 * m, (t.y_max_mm - t.y_min_mm) / 2 * m
+    th = TABLE_THICKNESS_MM / 2 * m
+    w(f'    <geom name="table" class="object" type="box" material="table" '
+      f'pos="{_fmt((tx, ty, table_z - th))}" size="{_fmt((hx, hy, th))}"/>')
+    # Overview camera: high above the front edge, looking down at the whole table.
+    w('    <camera name="overview" pos="0.62 0 0.75" xyaxes="0 1 0 -0.8 0 0.6" fovy="60"/>')
+    for i, (board, (_f, _d, bw, bh)) in enumerate(zip(scene.boards, spec.textures, strict=True)):
+        yaw = math.radians(board.yaw_deg)
+        # The board's origin is its first corner; the plane geom is placed by its centre.
+        cx = board.x_mm + math.cos(yaw) * bw / 2 - math.sin(yaw) * bh / 2
+        cy = board.y_mm + math.sin(yaw) * bw / 2 + math.cos(yaw) * bh / 2
+        w(f'    <geom name="board{i}" type="plane" material="board{i}" contype="0" '
+          f'conaffinity="0" pos="{_fmt((cx * m, cy * m, table_z + 0.0004))}" '
+          f'euler="0 0 {yaw:.9g}" size="{_fmt((bw / 2 * m, bh / 2 * m, 0.01))}"/>')
+    for i, tray in enumerate(scene.bins):
+        s, wall = tray.size_mm / 2 * m, tray.wall_mm * m
+        k = 0.002  # wall thickness, m
+        w(f'    <body name="bin{i}" pos="{_fmt((tray.x_mm * m, tray.y_mm * m, table_z))}">')
+        w(f'      <geom class="object" type="box" material="tray" pos="0 0 0.001" '
+          f'size="{_fmt((s, s, 0.001))}"/>')
+        for px, py, sx, sy in ((s - k, 0, k, s), (-s + k, 0, k, s), (0, s - k, s, k),
+                               (0, -s + k, s, k)):
+            w(f'      <geom class="object" type="box" material="tray" '
+              f'pos="{_fmt((px, py, wall / 2))}" size="{_fmt((sx, sy, wall / 2))}"/>')
+        w(f'      <geom type="box" material="{tray.color}" contype="0" conaffinity="0" '
+          f'pos="{_fmt((s + 0.006, 0, 0.0006))}" size="{_fmt((0.004, s, 0.0006))}"/>')
+        w('    </body>')
+    for i, block in enumerate(scene.blocks):
+        half = block.size_mm / 2 * m
+        quat = (math.cos(math.radians(block.yaw_deg) / 2), 0, 0,
+                math.sin(math.radians(block.yaw_deg) / 2))
+        w(f'    <body name="block{i}" pos="{_fmt((block.x_mm * m, block.y_mm * m, table_z + half))}"'
+          f' quat="{_fmt(quat)}">')
+        w(f'      <freejoint name="block{i}"/>')
+        w(f'      <geom name="block{i}" class="object" type="box" material="{block.color}" '
+          f'size="{_fmt((half, half, half))}" mass="{block.mass_g / 1000:.6g}" '
+          'friction="1.2 0.02 0.002"/>')
+        w('    </body>')
+
+    # The arm: modified DH, body i at RotX(alpha) TransX(a) TransZ(d), turning about z.
+    dh = [(0.0, 0.0, g.base_height_mm), (-math.pi / 2, 0.0, 0.0), (0.0, g.upper_arm_mm, 0.0),
+          (0.0, g.forearm_mm, 0.0), (-math.pi / 2, 0.0, g.wrist_mm)]
+    base_r = 0.045
+    w(f'    <geom name="base" class="arm" type="cylinder" contype="0" conaffinity="0" '
+      f'pos="0 0 {table_z + 0.02:.9g}" size="{base_r} 0.02"/>')
+    w(f'    <geom name="column" class="arm" type="cylinder" contype="0" conaffinity="0" '
+      f'pos="0 0 {table_z + g.base_height_mm * m / 2:.9g}" '
+      f'size="0.022 {g.base_height_mm * m / 2 - 0.01:.9g}"/>')
+    indent = "    "
+    link_geoms = [
+        # link1: the shoulder bracket on top of the column.
+        '<geom class="arm" type="box" size="0.03 0.03 0.02" contype="0" conaffinity="0"/>',
+        f'<geom class="arm" type="capsule" size="0.018" fromto="0 0 0 {g.upper_arm_mm * m:.9g} 0 0"/>',
+        f'<geom class="arm" type="capsule" size="0.016" fromto="0 0 0 {g.forearm_mm * m:.9g} 0 0"/>',
+        f'<geom class="arm" type="capsule" size="0.016" fromto="0 0 0 0 {g.wrist_mm * m:.9g} 0"/>',
+        '<geom class="arm" type="box" size="0.03 0.018 0.015" pos="0 0 0.0"/>',
+    ]
+    for i, ((alpha, a, d), name, (lo, hi)) in enumerate(zip(dh, names, lim, strict=True)):
+        rot = _rot_x(alpha)
+        pos = np.array([a, 0.0, 0.0]) + rot @ np.array([0.0, 0.0, d])
+        pos_m = pos * m
+        if i == 0:
+            pos_m[2] += table_z
+        w(f'{indent}<body name="link{i + 1}" childclass="arm" pos="{_fmt(pos_m)}" '
+          f'quat="{_fmt(quat_from_matrix(rot))}">')
+        mass = LINK_MASS_KG[i]
+        com = [(0, 0, 0), (g.upper_arm_mm * m / 2, 0, 0), (g.forearm_mm * m / 2, 0, 0),
+               (0, g.wrist_mm * m / 2, 0), (0, 0, 0.04)][i]
+        w(f'{indent}  <inertial pos="{_fmt(com)}" mass="{mass}" '
+          f'diaginertia="{_fmt((mass * 0.0006,) * 3)}"/>')
+        w(f'{indent}  <joint name="{name}" axis="0 0 1" range="{lo:.9g} {hi:.9g}"/>')
+        w(f'{indent}  {link_geoms[i]}')
+        if i == 3:
+            cam_pos = cam[:3, 3] * m
+            w(f'{indent}  <camera name="arm_camera" pos="{_fmt(cam_pos)}" '
+              f'quat="{_fmt(cam_quat)}" fovy="{spec.camera_fovy_deg:.9g}"/>')
+            w(f'{indent}  <geom class="arm" type="box" size="0.02 0.012 0.012" '
+              f'pos="{_fmt(cam_pos + cam[:3, :3] @ np.array([0, 0, -0.014]))}" '
+              f'quat="{_fmt(quat_from_matrix(cam[:3, :3]))}" contype="0" conaffinity="0"/>')
+        indent += "  "
+    # The gripper on link 5 (tool axis z5): a palm, then two fingers sliding along y5.
+    tool = g.tool_mm * m
+    palm_len = tool - pad_l - 0.004
+    w(f'{indent}<geom class="arm" type="box" size="0.014 0.028 {palm_len / 2:.9g}" '
+      f'pos="0 0 {palm_len / 2:.9g}"/>')
+    w(f'{indent}<site name="tool" pos="0 0 {tool:.9g}" size="0.004"/>')
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        w(f'{indent}<body name="finger_{side}" pos="0 0 {tool - pad_l / 2:.9g}">')
+        w(f'{indent}  <inertial pos="0 {sign * pad_t:.9g} 0" mass="0.02" '
+          'diaginertia="2e-6 2e-6 2e-6"/>')
+        w(f'{indent}  <joint name="finger_{side}" type="slide" axis="0 {sign:g} 0" '
+          f'range="0 {max_half_gap:.9g}" damping="20" armature="2" frictionloss="0"/>')
+        w(f'{indent}  <geom name="finger_{side}" type="box" condim="4" '
+          f'friction="1.2 0.02 0.002" solref="0.004 1" solimp="0.95 0.99 0.001" '
+          f'pos="0 {sign * pad_t / 2:.9g} 0" size="{_fmt((pad_w / 2, pad_t / 2, pad_l / 2))}"/>')
+        w(f'{indent}</body>')
+    for _ in range(5):
+        indent = indent[:-2]
+        w(f'{indent}</body>')
+    w('  </worldbody>')
+    w('  <equality><joint joint1="finger_right" joint2="finger_left" polycoef="0 1 0 0 0" '
+      'solref="0.004 1"/></equality>')
+    w('  <actuator>')
+    for name, (lo, hi) in zip(names, lim, strict=True):
+        w(f'    <position name="{name}" joint="{name}" kp="{SERVO_KP_NM_PER_RAD}" '
+          f'ctrlrange="{lo - 0.2:.9g} {hi + 0.2:.9g}" '
+          f'forcerange="{-JOINT_TORQUE_NM:.6g} {JOINT_TORQUE_NM:.6g}"/>')
+    w(f'    <position name="gripper" joint="finger_left" gear="{finger_gear:.9g}" '
+      f'kp="{SERVO_KP_NM_PER_RAD}" ctrllimited="false" '
+      f'forcerange="{-GRIPPER_TORQUE_NM:.6g} {GRIPPER_TORQUE_NM:.6g}"/>')
+    w('  </actuator>')
+    w('</mujoco>')
+    return "\n".join(line for line in out if line)

@@ -1,0 +1,81 @@
+"""The twin as an in-process transport: ``--port twin`` or ``twin://?seed=3&blocks=5``.
+
+URL query parameters (all optional):
+
+=========== =========================================================== ==============
+``seed``    seed of the random scene                                    0
+``blocks``  how many blocks in the random scene                         5
+``colors``  block colours of the random scene, comma separated          red,green,blue
+``scene``   a scene file instead of a random scene                      (none)
+``config``  arm config name or file                                     jetauto_pro
+``echo``    1 = the adapter echoes every byte sent                      0
+``timing``  0 = no wire timing (replies at once)                        1
+=========== =========================================================== ==============
+
+The twin opened this way is the process's active twin (``active_twin()``): the
+``twin`` camera source shows its arm camera. Closing the transport closes the twin.
+"""
+
+from __future__ import annotations
+
+from urllib.parse import parse_qs, urlsplit
+
+from busarm.arm.config import load_arm_config
+from busarm.errors import ConfigError
+from busarm.sim.bus import WireTiming
+from busarm.sim.transport import SimTransport, query_flag, query_float
+from busarm.twin.scene import Scene, load_scene, random_scene
+from busarm.twin.twin import Twin
+
+_KNOWN = {"seed", "blocks", "colors", "scene", "config", "echo", "timing"}
+
+
+def twin_query(url: str) -> dict[str, str]:
+    """The query of a ``twin``/``twin://?...`` URL, unknown keys refused."""
+    query = urlsplit(url).query if "://" in url else ""
+    raw = parse_qs(query, keep_blank_values=True)
+    unknown = set(raw) - _KNOWN
+    if unknown:
+        raise ConfigError(f"twin URL: unknown parameter(s) {sorted(unknown)}; "
+                          f"known: {sorted(_KNOWN)}")
+    return {k: v[-1] for k, v in raw.items()}
+
+
+def scene_from_query(q: dict[str, str]) -> Scene:
+    """The scene a twin URL asks for: a file, or a seeded random scene."""
+    if q.get("scene"):
+        if "seed" in q or "blocks" in q or "colors" in q:
+            raise ConfigError("twin URL: give either scene= or seed=/blocks=/colors=, not both")
+        return load_scene(q["scene"])
+    seed = query_float(q, "seed", 0)
+    blocks = query_float(q, "blocks", 5)
+    if not (seed.is_integer() and blocks.is_integer()):
+        raise ConfigError(f"twin URL: seed and blocks must be whole numbers, got {seed}, {blocks}")
+    colors = q.get("colors", "red,green,blue").split(",")
+    return random_scene(int(seed), int(blocks), [c.strip() for c in colors if c.strip()])
+
+
+def twin_from_url(url: str, baudrate: int = 115200) -> Twin:
+    """A real-time twin configured by a ``twin://?...`` URL."""
+    q = twin_query(url)
+    scene = scene_from_query(q)
+    config = load_arm_config(q.get("config") or "jetauto_pro")
+    timing = WireTiming(baudrate, enabled=query_flag(q, "timing", True))
+    return Twin(config, scene, timing=timing, echo=query_flag(q, "echo", False))
+
+
+class TwinTransport(SimTransport):
+    """A transport to a twin's simulated bus; closing it closes the twin."""
+
+    def __init__(self, twin: Twin, name: str = "twin") -> None:
+        super().__init__(twin.bus, name)
+        self.twin = twin
+
+    def close(self) -> None:
+        super().close()
+        self.twin.close()
+
+
+def open_twin_transport(url: str, baudrate: int = 115200) -> TwinTransport:
+    """Entry point used by ``busarm.bus.transport.open_transport`` for ``twin``/``twin://``."""
+    return TwinTransport(twin_from_url(url, baudrate), name=url)

@@ -1,0 +1,455 @@
+"""The digital twin: MuJoCo physics of the arm, table, blocks and camera, coupled to the
+servo simulator so that the same code drives it through the same bytes as a real arm.
+
+The coupling, every control tick (``CONTROL_PERIOD_S``), under the simulated bus's lock:
+
+- each ``SimServo`` is advanced to now; where its firmware model says the horn should
+  be (its commanded motion: speed limits, offsets, faults, MOVE_STOP) becomes the target
+  of the joint's position actuator, whose torque is limited to the servo's stall torque;
+  an unloaded servo (torque off, a fault) gives no torque at all;
+- physics steps up to now;
+- the simulated joint angles become what POS_READ reports (``SimServo.horn_sensor``), so a
+  gripper closing on a block stalls short of closed and a loaded joint sags as it would;
+- each actuator's torque, as a fraction of stall torque, heats its servo model
+  (``SimServo.external_effort``).
+
+Time is the wall clock (``time.monotonic``), so programs on the bus see real timing; a
+background thread keeps physics up to date, and every render first catches up. Blocks
+settle for ``SETTLE_S`` of simulated time before the clock starts, so a seeded scene
+looks the same every time.
+"""
+
+from __future__ import annotations
+
+import ctypes.util
+import math
+import os
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from busarm.arm.config import ArmConfig, load_arm_config
+from busarm.arm.kinematics import ArmKinematics
+from busarm.errors import ConfigError, TwinError
+from busarm.protocol import Command, Request
+from busarm.sim.bus import SimBus, WireTiming
+from busarm.sim.servo import ServoParams, SimServo
+from busarm.twin.lens import LensSpec
+from busarm.twin.model import (
+    FINGER_GAP_MM_PER_PULSE,
+    GRIPPER_TORQUE_NM,
+    JOINT_TORQUE_NM,
+    M_PER_MM,
+    MJ_FROM_CV,
+    SERVO_KP_NM_PER_RAD,
+    CameraMount,
+    TwinModelSpec,
+    build_mjcf,
+)
+from busarm.twin.scene import Block, Scene, random_scene
+
+FloatArray = npt.NDArray[np.float64]
+ImageArray = npt.NDArray[np.uint8]
+
+CONTROL_PERIOD_S = 0.004
+SETTLE_S = 0.4
+MAX_CATCH_UP_S = 0.25
+"""At most this much simulated time per tick: after a longer stall (a debugger, a loaded
+machine) the twin's clock slips rather than integrating seconds in one go."""
+EFFORT_STEP = 0.05
+GL_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri (or libosmesa6 for MUJOCO_GL=osmesa)"
+
+
+def _choose_gl_backend() -> str:
+    """MUJOCO_GL as given, else EGL or OSMesa, whichever this machine has."""
+    given = os.environ.get("MUJOCO_GL")
+    if given:
+        return given
+    if ctypes.util.find_library("EGL"):
+        return "egl"
+    if ctypes.util.find_library("OSMesa"):
+        return "osmesa"
+    raise TwinError(f"no headless OpenGL for the twin's camera: install {GL_PACKAGES} "
+                    "(Debian/Ubuntu: sudo apt-get install ...), or set MUJOCO_GL")
+
+
+def _import_mujoco() -> Any:
+    os.environ["MUJOCO_GL"] = os.environ.get("MUJOCO_GL") or _choose_gl_backend()
+    if os.environ["MUJOCO_GL"] == "egl":
+        os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    try:
+        import mujoco
+    except ImportError as exc:
+        raise TwinError(f"the twin needs MuJoCo: pip install mujoco ({exc})") from exc
+    return mujoco
+
+
+class _ManualClock:
+    """A clock that moves only when told (``Twin(realtime=False)``: tests, benchmarks)."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+@dataclass(frozen=True)
+class BlockState:
+    """Where a block really is (ground truth, mm and degrees, base frame)."""
+
+    index: int
+    color: str
+    x_mm: float
+    y_mm: float
+    z_mm: float
+    yaw_deg: float
+    size_mm: float
+    is_upright: bool
+
+
+_ACTIVE: list[Twin] = []
+
+
+def active_twin() -> Twin | None:
+    """The twin most recently opened in this process and not closed, if any."""
+    return _ACTIVE[-1] if _ACTIVE else None
+
+
+class Twin:
+    """A physically simulated arm, table, blocks and camera behind a simulated servo bus.
+
+    ``twin.bus`` is the ``SimBus`` to talk to (``--port twin`` wraps it in a transport);
+    ``render_camera()`` gives the arm camera's image through its lens.
+    """
+
+    def __init__(
+        self,
+        config: ArmConfig | None = None,
+        scene: Scene | None = None,
+        *,
+        lens: LensSpec | None = None,
+        mount: CameraMount | None = None,
+        start_joints_deg: Sequence[float] | None = None,
+        gripper_pulses: int | None = None,
+        realtime: bool = True,
+        timing: WireTiming | None = None,
+        echo: bool = False,
+        board_textures: Sequence[tuple[str, bytes, float, float]] = (),
+    ) -> None:
+        self.mujoco = _import_mujoco()
+        self.config = config if config is not None else load_arm_config()
+        self.scene = scene if scene is not None else random_scene(0)
+        self.lens = lens if lens is not None else LensSpec()
+        self.mount = mount if mount is not None else CameraMount.jetauto()
+        self.kin = ArmKinematics.from_config(self.config, check_table=False)
+        cfg = self.config
+        start = cfg.check_joints(start_joints_deg if start_joints_deg is not None
+                                 else cfg.pose("home"))
+        g = cfg.gripper
+        grip = g.open_pulses if gripper_pulses is None else gripper_pulses
+        g.check_pulses(grip)
+        if len(board_textures) != len(self.scene.boards):
+            raise ConfigError(f"{len(self.scene.boards)} board(s) in the scene but "
+                              f"{len(board_textures)} texture(s) given")
+        width, height, fovy = self.lens.render_geometry()
+        spec = TwinModelSpec(self.mount, fovy, (width, height), textures=tuple(board_textures))
+        self.mjcf = build_mjcf(cfg, self.scene, spec)
+        mj = self.mujoco
+        try:
+            self.model = mj.MjModel.from_xml_string(
+                self.mjcf, {name: data for name, data, _w, _h in board_textures})
+        except ValueError as exc:
+            raise TwinError(f"MuJoCo rejected the generated model: {exc}") from exc
+        self.data = mj.MjData(self.model)
+        self._render_size = (width, height)
+        self._lock = threading.RLock()
+        self._local = threading.local()
+        self._renderers: list[Any] = []
+        self._closed = False
+        self.slipped_s = 0.0
+
+        m = self.model
+        self._joint_qpos = [m.joint(j.name).qposadr[0] for j in cfg.joints]
+        self._joint_act = [m.actuator(j.name).id for j in cfg.joints]
+        self._finger_qpos = m.joint("finger_left").qposadr[0]
+        self._finger_right_qpos = m.joint("finger_right").qposadr[0]
+        self._grip_act = m.actuator("gripper").id
+        self._block_body = [m.body(f"block{i}").id for i in range(len(self.scene.blocks))]
+        self._block_qpos = [m.joint(f"block{i}").qposadr[0] for i in range(len(self.scene.blocks))]
+        self._block_dof = [m.joint(f"block{i}").dofadr[0] for i in range(len(self.scene.blocks))]
+        self._link4 = m.body("link4").id
+        self._torque = [JOINT_TORQUE_NM] * len(cfg.joints) + [GRIPPER_TORQUE_NM]
+        self._acts = [*self._joint_act, self._grip_act]
+        self._loaded = [True] * len(self._acts)
+
+        # Start: arm at rest in the start pose, servos holding it, blocks settled.
+        d = self.data
+        for adr, act, angle in zip(self._joint_qpos, self._joint_act, start, strict=True):
+            d.qpos[adr] = math.radians(angle)
+            d.ctrl[act] = math.radians(angle)
+        half_gap = self._half_gap_m(grip)
+        d.qpos[self._finger_qpos] = d.qpos[self._finger_right_qpos] = half_gap
+        d.ctrl[self._grip_act] = self._grip_ctrl(half_gap)
+        mj.mj_forward(m, d)
+        mj.mj_step(m, d, nstep=round(SETTLE_S / m.opt.timestep))
+        d.time = 0.0
+
+        self.realtime = realtime
+        self._manual = None if realtime else _ManualClock()
+        self.clock: Callable[[], float] = time.monotonic if realtime else self._manual  # type: ignore[assignment]
+        self._t0 = self.clock()
+        servos: list[SimServo] = []
+        for j, angle in zip(cfg.joints, start, strict=True):
+            servos.append(SimServo(j.servo_id, params=ServoParams.arm_35kg(),
+                                   position_pulses=j.pulses_from_angle_deg(angle), now=self._t0))
+        servos.append(SimServo(g.servo_id, params=ServoParams.gripper(),
+                               position_pulses=float(grip), now=self._t0))
+        self._sensed = [s.physical_pulses for s in servos]
+        for k, servo in enumerate(servos):
+            # Powered on and holding the start pose, as after the vendor's start-up move.
+            servo.handle(Request(servo.servo_id, Command.MOVE_TIME_WRITE,
+                                 (round(servo.physical_pulses), 0)), self._t0)
+            servo.horn_sensor = self._sensor(k)
+        self.servos = servos
+        self.bus = SimBus(servos, timing=timing or WireTiming(), echo=echo, clock=self.clock)
+        self._read_sensors()
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        if realtime:
+            self._thread = threading.Thread(target=self._run, name="busarm-twin", daemon=True)
+            self._thread.start()
+        _ACTIVE.append(self)
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def close(self) -> None:
+        """Stop the physics thread and free the renderers."""
+        if self._closed:
+            return
+        self._closed = True
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2)
+        for r in self._renderers:
+            r.close()
+        self._renderers.clear()
+        if self in _ACTIVE:
+            _ACTIVE.remove(self)
+
+    def __enter__(self) -> Twin:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ coupling
+
+    def _half_gap_m(self, gripper_pulses: float) -> float:
+        closed = self.config.gripper.closed_pulses
+        sign = 1.0 if closed >= self.config.gripper.open_pulses else -1.0
+        return max(0.0, sign * (closed - gripper_pulses) * FINGER_GAP_MM_PER_PULSE / 2
+                   * M_PER_MM)
+
+    def _pulses_from_half_gap(self, half_gap_m: float) -> float:
+        closed = self.config.gripper.closed_pulses
+        sign = 1.0 if closed >= self.config.gripper.open_pulses else -1.0
+        return closed - sign * half_gap_m / M_PER_MM * 2 / FINGER_GAP_MM_PER_PULSE
+
+    def _grip_ctrl(self, half_gap_m: float) -> float:
+        return float(self.model.actuator_gear[self._grip_act, 0]) * half_gap_m
+
+    def _sensor(self, k: int) -> Callable[[], float]:
+        return lambda: self._sensed[k]
+
+    def _read_sensors(self) -> None:
+        d = self.data
+        for k, (j, adr) in enumerate(zip(self.config.joints, self._joint_qpos, strict=True)):
+            self._sensed[k] = j.pulses_from_angle_deg(math.degrees(d.qpos[adr]))
+        self._sensed[-1] = self._pulses_from_half_gap(float(d.qpos[self._finger_qpos]))
+
+    def _set_loaded(self, k: int, loaded: bool) -> None:
+        if self._loaded[k] == loaded:
+            return
+        self._loaded[k] = loaded
+        act = self._acts[k]
+        kp = SERVO_KP_NM_PER_RAD if loaded else 0.0
+        self.model.actuator_gainprm[act, 0] = kp
+        self.model.actuator_biasprm[act, 1] = -kp
+
+    def _tick(self) -> None:
+        """Bring physics up to the clock, following the servos' commands."""
+        mj, m, d = self.mujoco, self.model, self.data
+        with self.bus.lock, self._lock:
+            now = self.clock()
+            behind = now - self._t0 - d.time
+            if behind < m.opt.timestep:
+                return
+            if behind > MAX_CATCH_UP_S:
+                self.slipped_s += behind - MAX_CATCH_UP_S
+                self._t0 += behind - MAX_CATCH_UP_S
+                behind = MAX_CATCH_UP_S
+            cfg = self.config
+            for k, (servo, j) in enumerate(zip(self.servos, cfg.joints, strict=False)):
+                servo.advance(now)
+                d.ctrl[self._joint_act[k]] = math.radians(
+                    j.angle_deg_from_pulses(servo.physical_pulses))
+                self._set_loaded(k, servo.is_loaded)
+            grip = self.servos[-1]
+            grip.advance(now)
+            d.ctrl[self._grip_act] = self._grip_ctrl(self._half_gap_m(grip.physical_pulses))
+            self._set_loaded(len(self.servos) - 1, grip.is_loaded)
+            mj.mj_step(m, d, nstep=int(behind / m.opt.timestep))
+            self._read_sensors()
+            for k, servo in enumerate(self.servos):
+                if not self._loaded[k]:
+                    continue
+                effort = min(1.0, abs(float(d.actuator_force[self._acts[k]])) / self._torque[k])
+                effort = round(effort / EFFORT_STEP) * EFFORT_STEP
+                if effort != servo.external_effort:
+                    servo.external_effort = effort
+
+    def _run(self) -> None:
+        while not self._stop.wait(CONTROL_PERIOD_S):
+            self._tick()
+
+    def step(self, duration_s: float) -> None:
+        """Advance a twin made with ``realtime=False`` by ``duration_s`` of simulated time."""
+        if self._manual is None:
+            raise ConfigError("step() is for a twin made with realtime=False; "
+                              "a real-time twin follows the wall clock")
+        if not (math.isfinite(duration_s) and 0 <= duration_s <= 3600):
+            raise ConfigError(f"duration_s = {duration_s!r} is out of range 0..3600")
+        end = self._manual.now + duration_s
+        while self._manual.now < end - 1e-12:
+            self._manual.now = min(end, self._manual.now + CONTROL_PERIOD_S)
+            self._tick()
+
+    def sync(self) -> None:
+        """Catch physics up with the clock now (before reading or rendering)."""
+        self._tick()
+
+    # ------------------------------------------------------------------ ground truth
+
+    def joints_deg(self) -> tuple[float, ...]:
+        """The simulated joint angles (ground truth, not quantised to pulses)."""
+        with self._lock:
+            return tuple(math.degrees(self.data.qpos[a]) for a in self._joint_qpos)
+
+    def finger_gap_mm(self) -> float:
+        with self._lock:
+            return 2 * float(self.data.qpos[self._finger_qpos]) / M_PER_MM
+
+    def link2base(self) -> FloatArray:
+        """The wrist-pitch link's frame (DH frame 4) in the base frame, mm (ground truth)."""
+        with self._lock:
+            return self._body_pose_mm(self._link4)
+
+    def cam2base(self) -> FloatArray:
+        """The arm camera's pose (OpenCV axes, mm) in the base frame: ground truth."""
+        return self.link2base() @ self.mount.cam2link
+
+    def _body_pose_mm(self, body: int) -> FloatArray:
+        out = np.eye(4)
+        out[:3, :3] = self.data.xmat[body].reshape(3, 3)
+        out[:3, 3] = self.data.xpos[body] / M_PER_MM
+        return out
+
+    def blocks(self) -> list[BlockState]:
+        """Every block's true pose."""
+        out = []
+        with self._lock:
+            for i, (block, body) in enumerate(zip(self.scene.blocks, self._block_body,
+                                                  strict=True)):
+                pose = self._body_pose_mm(body)
+                r = pose[:3, :3]
+                # Yaw of whichever face points up, folded into (-45, 45] for a cube.
+                up_axis = int(np.argmax(np.abs(r[2, :])))
+                side = r[:, (up_axis + 1) % 3]
+                yaw = math.degrees(math.atan2(side[1], side[0]))
+                yaw = (yaw + 45.0) % 90.0 - 45.0
+                out.append(BlockState(
+                    i, block.color, float(pose[0, 3]), float(pose[1, 3]),
+                    float(pose[2, 3]), yaw, block.size_mm,
+                    bool(abs(r[2, up_axis]) > math.cos(math.radians(10)))))
+        return out
+
+    def place_block(self, index: int, x_mm: float, y_mm: float, yaw_deg: float = 0.0,
+                    z_mm: float | None = None) -> None:
+        """Put block ``index`` at (x, y), standing on the table unless ``z_mm`` is given
+        (a hand moving it: fault injection, benchmarks). It starts at rest."""
+        if isinstance(index, bool) or not isinstance(index, int) or not (
+                0 <= index < len(self.scene.blocks)):
+            raise ConfigError(f"block index {index!r} is out of range "
+                              f"0..{len(self.scene.blocks) - 1}")
+        for name, v in (("x_mm", x_mm), ("y_mm", y_mm), ("yaw_deg", yaw_deg)):
+            if not math.isfinite(v):
+                raise ConfigError(f"{name} = {v!r} must be finite")
+        block: Block = self.scene.blocks[index]
+        if not self.scene.table.contains(x_mm, y_mm, block.radius_mm):
+            raise ConfigError(f"({x_mm:g}, {y_mm:g}) mm is off the table")
+        z = (self.config.table_z_mm + block.size_mm / 2) if z_mm is None else z_mm
+        with self._lock:
+            adr, dof = self._block_qpos[index], self._block_dof[index]
+            half = math.radians(yaw_deg) / 2
+            self.data.qpos[adr:adr + 7] = (x_mm * M_PER_MM, y_mm * M_PER_MM, z * M_PER_MM,
+                                           math.cos(half), 0.0, 0.0, math.sin(half))
+            self.data.qvel[dof:dof + 6] = 0.0
+            self.mujoco.mj_forward(self.model, self.data)
+
+    # ------------------------------------------------------------------ rendering
+
+    def _renderer(self, width: int, height: int) -> Any:
+        cache = getattr(self._local, "renderers", None)
+        if cache is None:
+            cache = self._local.renderers = {}
+        key = (width, height)
+        if key not in cache:
+            try:
+                cache[key] = self.mujoco.Renderer(self.model, height, width)
+            except Exception as exc:  # the GL backend's own errors vary by backend
+                raise TwinError(
+                    f"cannot render with MUJOCO_GL={os.environ.get('MUJOCO_GL')}: {exc}; "
+                    f"install {GL_PACKAGES}") from exc
+            self._renderers.append(cache[key])
+        return cache[key]
+
+    def render_ideal(self, camera: str = "arm_camera") -> ImageArray:
+        """The ideal pinhole render (RGB) of a camera: no lens (``overview`` is 640x480)."""
+        size = self._render_size if camera == "arm_camera" else (640, 480)
+        renderer = self._renderer(*size)
+        if self.realtime:
+            self.sync()
+        with self._lock:
+            renderer.update_scene(self.data, camera=camera)
+        image: ImageArray = renderer.render()
+        return image
+
+    def render_camera(self) -> ImageArray:
+        """The arm camera's image as the vision layer gets it: BGR, through the lens."""
+        import cv2
+
+        return self.lens.apply(cv2.cvtColor(self.render_ideal("arm_camera"), cv2.COLOR_RGB2BGR))
+
+    def render_overview(self) -> ImageArray:
+        """The overview camera (BGR, 640x480, no lens): the whole table from above the front."""
+        import cv2
+
+        out: ImageArray = cv2.cvtColor(self.render_ideal("overview"), cv2.COLOR_RGB2BGR)
+        return out
+
+    def cam_mj_check(self) -> FloatArray:
+        """The arm camera's pose as MuJoCo has it, in OpenCV axes and mm (for tests)."""
+        with self._lock:
+            cam = self.model.camera("arm_camera").id
+            out = np.eye(4)
+            out[:3, :3] = self.data.cam_xmat[cam].reshape(3, 3) @ MJ_FROM_CV
+            out[:3, 3] = self.data.cam_xpos[cam] / M_PER_MM
+            return out
