@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-$(shell cat pyproject.toml | cksum | cut -d' ' -f1)
 
-.PHONY: demo test lint bench bench-peers bench-ik clean
+.PHONY: demo test lint bench bench-peers bench-ik gl clean
 
 $(BIN)/python:
 	@$(PYTHON) -c 'import venv, ensurepip' 2>/dev/null || { \
@@ -17,10 +17,24 @@ $(STAMP): $(BIN)/python pyproject.toml
 	$(BIN)/python -m pip install -q -e '.[dev]'
 	@rm -f $(VENV)/.installed-*; touch $@
 
-demo: $(STAMP)
+# The twin renders its cameras offscreen with Mesa's EGL on the CPU; install it when it
+# is missing and we are root, else say what to install.
+GL_OK := $(shell ldconfig -p 2>/dev/null | grep -q 'libEGL_mesa.so' && echo yes)
+gl:
+ifneq ($(GL_OK),yes)
+	@if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	  echo "installing Mesa EGL (offscreen OpenGL) for the twin's cameras"; \
+	  apt-get update -qq && apt-get install -y -qq libegl1 libegl-mesa0 libgl1-mesa-dri >/dev/null; \
+	else \
+	  echo "the twin's cameras need Mesa EGL: sudo apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri" >&2; \
+	  exit 1; \
+	fi
+endif
+
+demo: $(STAMP) gl
 	$(BIN)/busarm demo
 
-test: $(STAMP)
+test: $(STAMP) gl
 	$(BIN)/ruff check src tests bench
 	$(BIN)/mypy
 	$(BIN)/python -m pytest -q

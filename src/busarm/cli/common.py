@@ -130,6 +130,11 @@ def _number(text: str, what: str) -> float:
     return value
 
 
+def parse_float_list(text: str, what: str) -> list[float]:
+    """Comma-separated finite numbers; ConfigError naming ``what`` and the bad one."""
+    return [_number(t.strip(), what) for t in text.split(",")]
+
+
 def parse_int(text: str, what: str) -> int:
     """An integer from decimal (or 0x/0b/0o) text; ConfigError naming ``what`` if not."""
     t = text.strip()

@@ -18,7 +18,16 @@ import click
 from busarm import __version__
 from busarm.bus.driver import DEFAULT_RETRIES, DEFAULT_TIMEOUT_MARGIN_S
 from busarm.bus.transport import DEFAULT_BAUDRATE
-from busarm.cli import arm_cmds, bus_cmds, config_cmds, demo, proto_cmds, servo_cmds, sim_cmds
+from busarm.cli import (
+    arm_cmds,
+    bus_cmds,
+    config_cmds,
+    demo,
+    proto_cmds,
+    servo_cmds,
+    sim_cmds,
+    twin_cmds,
+)
 from busarm.cli.bench_cmd import bench
 from busarm.cli.common import STOPPED, Settings, servos_stopped
 from busarm.errors import BusArmError, ConfigError
@@ -117,7 +126,9 @@ def cli(
     )
 
 
-for _module in (bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, demo):
+for _module in (
+    bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, twin_cmds, demo,
+):
     for _command in _module.COMMANDS:
         cli.add_command(_command)
 

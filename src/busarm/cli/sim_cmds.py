@@ -90,7 +90,7 @@ def serve(
         + "); Ctrl+C or SIGTERM to stop",
         err=True,
     )
-    restore = _interrupt_on_signals()
+    restore = interrupt_on_signals()
     try:
         server.serve_forever()
     except KeyboardInterrupt:
@@ -101,7 +101,7 @@ def serve(
     click.echo("simulator stopped", err=True)
 
 
-def _interrupt_on_signals() -> Callable[[], None]:
+def interrupt_on_signals() -> Callable[[], None]:
     """Make SIGINT and SIGTERM raise KeyboardInterrupt (even if SIGINT was inherited as
     ignored, as in background jobs); return a function restoring the old handlers."""
     if threading.current_thread() is not threading.main_thread():

@@ -39,7 +39,7 @@ class LensSpec:
     distortion: tuple[float, ...] = WIDE_ANGLE_DISTORTION
     oversample: float = 1.0
     """Render pixels per output pixel at the image centre (1 = the same density)."""
-    _maps: list[tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]] = field(
+    _maps: list[tuple[npt.NDArray[np.int16], npt.NDArray[np.uint16]]] = field(
         default_factory=list, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -80,10 +80,10 @@ class LensSpec:
         """Undistorted normalised image coordinates (x/z, y/z) of pixels."""
         pts = np.asarray(pixels_px, dtype=np.float64).reshape(-1, 1, 2)
         criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
-        out = cv2.undistortPointsIter(pts, self.camera_matrix, self.dist_coeffs, None, None,
+        eye = np.eye(3)  # no rectification, and the identity as the new camera: x/z, y/z
+        out = cv2.undistortPointsIter(pts, self.camera_matrix, self.dist_coeffs, eye, eye,
                                       criteria)
-        result: FloatArray = out.reshape(-1, 2)
-        return result
+        return np.asarray(out, dtype=np.float64).reshape(-1, 2)
 
     def render_geometry(self) -> tuple[int, int, float]:
         """(width, height, vertical fov in degrees) of the ideal render behind the lens.
@@ -99,7 +99,7 @@ class LensSpec:
         fovy = math.degrees(2 * math.atan(height / 2 / f))
         return width, height, fovy
 
-    def remap_tables(self) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+    def remap_tables(self) -> tuple[npt.NDArray[np.int16], npt.NDArray[np.uint16]]:
         """cv2.remap tables: for each output pixel, where its ray lands in the render."""
         if self._maps:
             return self._maps[0]
@@ -114,12 +114,11 @@ class LensSpec:
         map_y = (rays[:, 1] * f + (height - 1) / 2).reshape(self.height_px, self.width_px)
         maps = cv2.convertMaps(map_x.astype(np.float32), map_y.astype(np.float32),
                                cv2.CV_16SC2)
-        self._maps.append((maps[0], maps[1]))
+        self._maps.append((np.asarray(maps[0], np.int16), np.asarray(maps[1], np.uint16)))
         return self._maps[0]
 
     def apply(self, render: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
         """The image this lens makes of an ideal render (from ``render_geometry``)."""
         map1, map2 = self.remap_tables()
-        out: npt.NDArray[np.uint8] = cv2.remap(render, map1, map2, cv2.INTER_LINEAR,
-                                               borderMode=cv2.BORDER_REPLICATE)
-        return out
+        out = cv2.remap(render, map1, map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        return np.asarray(out, dtype=np.uint8)

@@ -92,7 +92,16 @@ def quat_from_matrix(r: FloatArray) -> FloatArray:
     y = math.copysign(y, r[0, 2] - r[2, 0])
     z = math.copysign(z, r[1, 0] - r[0, 1])
     q = np.array([w, x, y, z])
-    return q / np.linalg.norm(q)
+    out: FloatArray = q / np.linalg.norm(q)
+    return out
+
+
+def _link_geom(radius_m: float, end_m: tuple[float, float, float]) -> str:
+    """A capsule from the link's origin to ``end_m``, or a ball where the link has no length."""
+    if float(np.linalg.norm(end_m)) < 1e-3:
+        return f'<geom class="arm" type="sphere" size="{radius_m}"/>'
+    return (f'<geom class="arm" type="capsule" size="{radius_m}" '
+            f'fromto="0 0 0 {_fmt(end_m)}"/>')
 
 
 def _rot_x(angle_rad: float) -> FloatArray:
@@ -192,15 +201,13 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
                                (0, -s + k, s, k)):
             w(f'      <geom class="object" type="box" material="tray" '
               f'pos="{_fmt((px, py, wall / 2))}" size="{_fmt((sx, sy, wall / 2))}"/>')
-        w(f'      <geom type="box" material="{tray.color}" contype="0" conaffinity="0" '
-          f'pos="{_fmt((s + 0.006, 0, 0.0006))}" size="{_fmt((0.004, s, 0.0006))}"/>')
         w('    </body>')
     for i, block in enumerate(scene.blocks):
         half = block.size_mm / 2 * m
         quat = (math.cos(math.radians(block.yaw_deg) / 2), 0, 0,
                 math.sin(math.radians(block.yaw_deg) / 2))
-        w(f'    <body name="block{i}" pos="{_fmt((block.x_mm * m, block.y_mm * m, table_z + half))}"'
-          f' quat="{_fmt(quat)}">')
+        pos = (block.x_mm * m, block.y_mm * m, table_z + half)
+        w(f'    <body name="block{i}" pos="{_fmt(pos)}" quat="{_fmt(quat)}">')
         w(f'      <freejoint name="block{i}"/>')
         w(f'      <geom name="block{i}" class="object" type="box" material="{block.color}" '
           f'size="{_fmt((half, half, half))}" mass="{block.mass_g / 1000:.6g}" '
@@ -220,17 +227,15 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
     link_geoms = [
         # link1: the shoulder bracket on top of the column.
         '<geom class="arm" type="box" size="0.03 0.03 0.02" contype="0" conaffinity="0"/>',
-        f'<geom class="arm" type="capsule" size="0.018" fromto="0 0 0 {g.upper_arm_mm * m:.9g} 0 0"/>',
-        f'<geom class="arm" type="capsule" size="0.016" fromto="0 0 0 {g.forearm_mm * m:.9g} 0 0"/>',
-        f'<geom class="arm" type="capsule" size="0.016" fromto="0 0 0 0 {g.wrist_mm * m:.9g} 0"/>',
+        _link_geom(0.018, (g.upper_arm_mm * m, 0, 0)),
+        _link_geom(0.016, (g.forearm_mm * m, 0, 0)),
+        _link_geom(0.016, (0, g.wrist_mm * m, 0)),
         '<geom class="arm" type="box" size="0.03 0.018 0.015" pos="0 0 0.0"/>',
     ]
     for i, ((alpha, a, d), name, (lo, hi)) in enumerate(zip(dh, names, lim, strict=True)):
         rot = _rot_x(alpha)
         pos = np.array([a, 0.0, 0.0]) + rot @ np.array([0.0, 0.0, d])
-        pos_m = pos * m
-        if i == 0:
-            pos_m[2] += table_z
+        pos_m = pos * m  # the base frame is MuJoCo's world frame (the table may be offset)
         w(f'{indent}<body name="link{i + 1}" childclass="arm" pos="{_fmt(pos_m)}" '
           f'quat="{_fmt(quat_from_matrix(rot))}">')
         mass = LINK_MASS_KG[i]

@@ -73,7 +73,7 @@ class Block:
 
 @dataclass(frozen=True)
 class Bin:
-    """A low open tray where blocks of ``color`` go: outer side ``size_mm``, walls ``wall_mm`` high."""
+    """An open tray for blocks of ``color``: outer side ``size_mm``, walls ``wall_mm`` high."""
 
     color: str
     x_mm: float
@@ -247,7 +247,7 @@ def random_scene(
 
 # ---------------------------------------------------------------------- files
 
-def _table_from(data: dict[str, Any], cls: type, key: str, source: str) -> Any:
+def _table_from(data: dict[str, Any], cls: Any, key: str, source: str) -> Any:
     fields = cls.__dataclass_fields__
     unknown = sorted(set(data) - set(fields))
     if unknown:

@@ -243,6 +243,10 @@ class Twin:
         if self in _ACTIVE:
             _ACTIVE.remove(self)
 
+    @property
+    def is_closed(self) -> bool:
+        return self._closed
+
     def __enter__(self) -> Twin:
         return self
 
@@ -436,14 +440,16 @@ class Twin:
         """The arm camera's image as the vision layer gets it: BGR, through the lens."""
         import cv2
 
-        return self.lens.apply(cv2.cvtColor(self.render_ideal("arm_camera"), cv2.COLOR_RGB2BGR))
+        bgr = np.asarray(cv2.cvtColor(self.render_ideal("arm_camera"), cv2.COLOR_RGB2BGR),
+                         dtype=np.uint8)
+        return self.lens.apply(bgr)
 
     def render_overview(self) -> ImageArray:
         """The overview camera (BGR, 640x480, no lens): the whole table from above the front."""
         import cv2
 
-        out: ImageArray = cv2.cvtColor(self.render_ideal("overview"), cv2.COLOR_RGB2BGR)
-        return out
+        return np.asarray(cv2.cvtColor(self.render_ideal("overview"), cv2.COLOR_RGB2BGR),
+                          dtype=np.uint8)
 
     def cam_mj_check(self) -> FloatArray:
         """The arm camera's pose as MuJoCo has it, in OpenCV axes and mm (for tests)."""

@@ -1,0 +1,152 @@
+"""``twin serve | snapshot | scene``: the digital twin from the command line.
+
+MuJoCo is imported when a command runs, so the rest of the CLI never depends on it.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import click
+
+from busarm.cli.common import Settings, pass_settings
+from busarm.errors import ConfigError
+
+
+def scene_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """--scene FILE or --seed/--blocks/--colors: what stands on the twin's table."""
+    func = click.option("--colors", default="red,green,blue", show_default=True,
+                        help="Block colours of a random scene, comma separated.")(func)
+    func = click.option("--blocks", type=click.IntRange(0, 12), default=5, show_default=True,
+                        help="How many blocks in a random scene.")(func)
+    func = click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=None,
+                        help="Seed of a random scene (default 0).")(func)
+    func = click.option("--scene", "scene_file",
+                        type=click.Path(dir_okay=False, path_type=Path),
+                        help="A scene file (busarm twin scene writes one to edit).")(func)
+    return func
+
+
+def make_scene(scene_file: Path | None, seed: int | None, blocks: int, colors: str) -> Any:
+    """The scene the options ask for (a file, or a seeded random scene)."""
+    from busarm.twin.scene import load_scene, random_scene
+
+    if scene_file is not None:
+        if seed is not None:
+            raise ConfigError("give either --scene or --seed, not both")
+        return load_scene(scene_file)
+    names = [c.strip() for c in colors.split(",") if c.strip()]
+    return random_scene(seed or 0, blocks, names)
+
+
+@click.group()
+def twin() -> None:
+    """The digital twin: a physically simulated arm, table, blocks and camera (MuJoCo).
+
+    Programs drive it through the same servo bytes as a real arm: `--port twin` in this
+    process, or `busarm twin serve` on a pseudo-terminal for any program.
+    """
+
+
+@twin.command()
+@scene_options
+@click.option("--config", default="jetauto_pro", show_default=True,
+              help="Arm config name or TOML file.")
+@click.option("--echo", is_flag=True, help="Echo every byte the host sends (one-wire adapter).")
+@click.option("--camera-port", type=click.IntRange(0, 65535), default=0, show_default=True,
+              help="TCP port on 127.0.0.1 for the camera (0: any free port).")
+@pass_settings
+def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks: int,
+          colors: str, config: str, echo: bool, camera_port: int) -> None:
+    """Serve the twin's servos on a pseudo-terminal and its camera on 127.0.0.1.
+
+    The first line of stdout is the device path (open it with any serial program), the
+    second the camera source for `--camera` (twin://127.0.0.1:PORT). Runs until SIGINT
+    or SIGTERM.
+    """
+    from busarm.arm.config import load_arm_config
+    from busarm.cli.sim_cmds import interrupt_on_signals
+    from busarm.sim.bus import WireTiming
+    from busarm.sim.pty import PtyServer
+    from busarm.twin.camera import CameraServer
+    from busarm.twin.twin import Twin
+
+    scene = make_scene(scene_file, seed, blocks, colors)
+    with Twin(load_arm_config(config), scene, timing=WireTiming(settings.baudrate),
+              echo=echo) as tw:
+        camera = CameraServer(tw, camera_port)
+        server = PtyServer(tw.bus)
+        path = server.open()
+        click.echo(path)
+        click.echo(camera.start())
+        sys.stdout.flush()
+        click.echo(f"twin: {len(scene.blocks)} blocks ({scene.source}), servos on {path}, "
+                   f"camera on {camera.url}; Ctrl+C or SIGTERM to stop", err=True)
+        restore = interrupt_on_signals()
+        try:
+            server.serve_forever()
+        except KeyboardInterrupt:
+            pass
+        finally:
+            restore()
+            server.stop()
+            camera.stop()
+    click.echo("twin stopped", err=True)
+
+
+@twin.command()
+@scene_options
+@click.option("--png", "png", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Where to write the picture (arm camera left, overview right).")
+@click.option("--pose", default="look", show_default=True,
+              help="Named pose of the arm config to render the arm in.")
+@click.option("--joints", "joints", default=None,
+              help="Joint angles in degrees, comma separated (instead of --pose).")
+@click.option("--config", default="jetauto_pro", show_default=True,
+              help="Arm config name or TOML file.")
+@click.option("--no-lens", is_flag=True, help="The arm camera without lens distortion.")
+def snapshot(scene_file: Path | None, seed: int | None, blocks: int, colors: str, png: Path,
+             pose: str, joints: str | None, config: str, no_lens: bool) -> None:
+    """Render the scene from the arm camera and from an overview camera, without a viewer."""
+    import cv2
+    import numpy as np
+
+    from busarm.arm.config import load_arm_config
+    from busarm.cli.common import parse_float_list
+    from busarm.twin.lens import LensSpec
+    from busarm.twin.twin import Twin
+    from busarm.vision.annotate import save_image
+
+    cfg = load_arm_config(config)
+    start = parse_float_list(joints, "joint angle") if joints is not None else cfg.pose(pose)
+    scene = make_scene(scene_file, seed, blocks, colors)
+    lens = LensSpec(distortion=(0.0, 0.0, 0.0, 0.0)) if no_lens else None
+    with Twin(cfg, scene, lens=lens, start_joints_deg=start, realtime=False) as tw:
+        arm_view = tw.render_camera()
+        overview = tw.render_overview()
+    h = arm_view.shape[0]
+    scaled = np.asarray(cv2.resize(overview, (round(overview.shape[1] * h / overview.shape[0]), h)),
+                        dtype=np.uint8)
+    save_image(png, np.hstack([arm_view, scaled]))
+    click.echo(f"wrote {png}: arm camera ({arm_view.shape[1]}x{h}) and overview")
+
+
+@twin.command()
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True)
+@click.option("--blocks", type=click.IntRange(0, 12), default=5, show_default=True)
+@click.option("--colors", default="red,green,blue", show_default=True)
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The scene file to write (TOML).")
+def scene(seed: int, blocks: int, colors: str, output: Path) -> None:
+    """Write a seeded random scene to a file, to edit and use with --scene."""
+    from busarm.twin.scene import save_scene
+
+    s = make_scene(None, seed, blocks, colors)
+    save_scene(output, s)
+    click.echo(f"wrote {output}: {len(s.blocks)} blocks, {len(s.bins)} bins")
+
+
+COMMANDS = [twin]

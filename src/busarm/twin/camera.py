@@ -1,0 +1,176 @@
+"""The twin's arm camera as a vision camera source, in this process or over loopback.
+
+- ``twin``: the active twin of this process (the one ``--port twin`` opened), or, when
+  there is none, a new one (``twin://?seed=3&blocks=5`` picks its scene, as for the port);
+- ``twin://127.0.0.1:PORT``: the camera of a ``busarm twin serve`` in another process.
+
+The wire format of the loopback camera is one request byte ``F`` per frame, answered by
+a header (magic ``BATF``, width, height as uint32, capture time as float64
+``time.monotonic()``, which all processes on one Linux machine share) and the BGR bytes.
+The server binds 127.0.0.1 only.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import socketserver
+import struct
+import threading
+from urllib.parse import urlsplit
+
+import numpy as np
+
+from busarm.errors import CameraError, ConfigError
+from busarm.twin.twin import Twin, active_twin
+from busarm.vision.camera import CameraFrame
+
+_HEADER = struct.Struct("<4sIId")
+_MAGIC = b"BATF"
+LOOPBACK = "127.0.0.1"
+SOCKET_TIMEOUT_S = 5.0
+
+
+class TwinCamera:
+    """Frames from a twin in this process (its arm camera, or the overview camera)."""
+
+    def __init__(self, twin: Twin, *, view: str = "arm", owns_twin: bool = False) -> None:
+        if view not in ("arm", "overview"):
+            raise ConfigError(f"twin camera view {view!r}; allowed: arm, overview")
+        self.twin = twin
+        self.view = view
+        self.name = "twin" if view == "arm" else "twin overview"
+        self.width_px = twin.lens.width_px if view == "arm" else 640
+        self.height_px = twin.lens.height_px if view == "arm" else 480
+        self._owns = owns_twin
+        self._sequence = 0
+        self._closed = False
+
+    def read(self) -> CameraFrame:
+        if self._closed:
+            raise CameraError(f"{self.name}: camera is closed")
+        if self.twin.is_closed:
+            raise CameraError(f"{self.name}: the twin was closed")
+        image = self.twin.render_camera() if self.view == "arm" else self.twin.render_overview()
+        stamp = self.twin.clock()
+        self._sequence += 1
+        return CameraFrame(image, stamp, self._sequence, self.name)
+
+    def close(self) -> None:
+        self._closed = True
+        if self._owns:
+            self.twin.close()
+
+    def __enter__(self) -> TwinCamera:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class RemoteTwinCamera:
+    """Frames from ``busarm twin serve``'s camera server on this machine."""
+
+    def __init__(self, host: str, port: int) -> None:
+        if host not in (LOOPBACK, "localhost"):
+            raise ConfigError(f"twin camera host {host!r}: only this machine "
+                              f"({LOOPBACK}) serves twin frames")
+        self.name = f"twin://{host}:{port}"
+        try:
+            self._sock = socket.create_connection((LOOPBACK, port), timeout=SOCKET_TIMEOUT_S)
+        except OSError as exc:
+            raise CameraError(f"no camera at {self.name}: {exc} (is `busarm twin serve` "
+                              "running?)") from exc
+        self._sequence = 0
+        first = self.read()
+        self.height_px, self.width_px = first.image.shape[:2]
+
+    def _recv(self, n: int) -> bytes:
+        buf = bytearray()
+        while len(buf) < n:
+            try:
+                chunk = self._sock.recv(n - len(buf))
+            except OSError as exc:
+                raise CameraError(f"{self.name}: {exc}") from exc
+            if not chunk:
+                raise CameraError(f"{self.name}: the twin server closed the connection")
+            buf += chunk
+        return bytes(buf)
+
+    def read(self) -> CameraFrame:
+        try:
+            self._sock.sendall(b"F")
+        except OSError as exc:
+            raise CameraError(f"{self.name}: {exc}") from exc
+        magic, width, height, stamp = _HEADER.unpack(self._recv(_HEADER.size))
+        if magic != _MAGIC or not (0 < width <= 4096 and 0 < height <= 4096):
+            raise CameraError(f"{self.name}: not a twin camera server (bad header)")
+        data = self._recv(width * height * 3)
+        self._sequence += 1
+        image = np.frombuffer(data, dtype=np.uint8).reshape(height, width, 3).copy()
+        return CameraFrame(image, stamp, self._sequence, self.name)
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError):
+            self._sock.close()
+
+    def __enter__(self) -> RemoteTwinCamera:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def open_twin_camera(spec: str, **options: object) -> TwinCamera | RemoteTwinCamera:
+    """Entry point of the ``twin`` camera scheme (see the module docstring)."""
+    view = str(options.pop("view", "arm"))
+    if options:
+        raise ConfigError(f"twin camera: unknown option(s) {sorted(options)}; known: view")
+    parts = urlsplit(spec) if "://" in spec else None
+    if parts is not None and parts.netloc:
+        if parts.port is None or parts.hostname is None:
+            raise ConfigError(f"twin camera {spec!r}: expected twin://127.0.0.1:PORT")
+        return RemoteTwinCamera(parts.hostname, parts.port)
+    twin = active_twin()
+    if twin is not None and (parts is None or not parts.query):
+        return TwinCamera(twin, view=view)
+    from busarm.twin.transport import twin_from_url
+
+    return TwinCamera(twin_from_url(spec), view=view, owns_twin=True)
+
+
+class CameraServer:
+    """Serves a twin's arm camera on 127.0.0.1 (port 0: any free port)."""
+
+    def __init__(self, twin: Twin, port: int = 0) -> None:
+        camera = TwinCamera(twin)
+
+        class Handler(socketserver.BaseRequestHandler):
+            def handle(self) -> None:
+                sock: socket.socket = self.request
+                while sock.recv(1) == b"F":
+                    frame = camera.read()
+                    h, w = frame.image.shape[:2]
+                    sock.sendall(_HEADER.pack(_MAGIC, w, h, frame.timestamp_s)
+                                 + frame.image.tobytes())
+
+        class Server(socketserver.ThreadingTCPServer):
+            daemon_threads = True
+            allow_reuse_address = True
+
+        try:
+            self._server = Server((LOOPBACK, port), Handler)
+        except OSError as exc:
+            raise ConfigError(f"cannot serve the twin camera on {LOOPBACK}:{port}: {exc}") from exc
+        self.port: int = self._server.server_address[1]
+        self.url = f"twin://{LOOPBACK}:{self.port}"
+        self._thread = threading.Thread(target=self._server.serve_forever,
+                                        name="busarm-twin-camera", daemon=True)
+
+    def start(self) -> str:
+        self._thread.start()
+        return self.url
+
+    def stop(self) -> None:
+        self._server.shutdown()
+        self._server.server_close()
