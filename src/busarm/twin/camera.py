@@ -148,11 +148,16 @@ class CameraServer:
         class Handler(socketserver.BaseRequestHandler):
             def handle(self) -> None:
                 sock: socket.socket = self.request
-                while sock.recv(1) == b"F":
-                    frame = camera.read()
-                    h, w = frame.image.shape[:2]
-                    sock.sendall(_HEADER.pack(_MAGIC, w, h, frame.timestamp_s)
-                                 + frame.image.tobytes())
+                try:
+                    while sock.recv(1) == b"F":
+                        frame = camera.read()
+                        h, w = frame.image.shape[:2]
+                        sock.sendall(_HEADER.pack(_MAGIC, w, h, frame.timestamp_s)
+                                     + frame.image.tobytes())
+                except (OSError, CameraError):
+                    pass  # the client went away, or the twin closed: end this connection
+                finally:
+                    twin.release_renderers()
 
         class Server(socketserver.ThreadingTCPServer):
             daemon_threads = True

@@ -77,6 +77,28 @@ class CameraMount:
         m[:3, 3] = (above_mm, -behind_mm, 0.0)
         return cls(m)
 
+    def offset(self, translation_mm: tuple[float, float, float],
+               rotation_deg: tuple[float, float, float]) -> CameraMount:
+        """This mount moved by ``translation_mm`` and turned by ``rotation_deg`` (a rotation
+        vector) in its own camera axes: how a real camera sits on its bracket."""
+        rotvec = np.radians(np.asarray(rotation_deg, dtype=float))
+        angle = float(np.linalg.norm(rotvec))
+        rot = np.eye(3)
+        if angle > 0:
+            k = rotvec / angle
+            kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+            rot = np.eye(3) + math.sin(angle) * kx + (1 - math.cos(angle)) * kx @ kx
+        delta = np.eye(4)
+        delta[:3, :3] = rot
+        delta[:3, 3] = translation_mm
+        return CameraMount(self.cam2link @ delta)
+
+
+AS_BUILT_MOUNT_ERROR = ((1.8, -2.4, 1.1), (1.3, -0.9, 0.6))
+"""How far the twin's camera sits from the drawing's position (mm, and a rotation
+vector in degrees, in camera axes): a real bracket is never exactly where the drawing
+says, so hand-eye calibration has something to find."""
+
 
 def _fmt(values: npt.ArrayLike) -> str:
     return " ".join(f"{v:.9g}" for v in np.asarray(values, dtype=float).ravel())
@@ -123,8 +145,9 @@ class TwinModelSpec:
     render_size_px: tuple[int, int]
     """(width, height) the arm camera is rendered at, before the lens is applied."""
     overview_size_px: tuple[int, int] = (640, 480)
-    textures: tuple[tuple[str, bytes, float, float], ...] = ()
-    """Board images: (file name, PNG bytes, width mm, height mm), one per scene board."""
+    textures: tuple[tuple[str, bytes, float, float, FloatArray], ...] = ()
+    """Board prints: (file name, PNG bytes, width mm, height mm, image2base), one per scene
+    board (see busarm.twin.boards)."""
 
 
 def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
@@ -162,7 +185,7 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
         w(f'    <material name="{color}" rgba="{cr} {cg} {cb} 1" specular="0.05" '
           'shininess="0.1"/>')
     w('    <material name="tray" rgba="0.55 0.55 0.57 1" specular="0"/>')
-    for i, (fname, _data, _w, _h) in enumerate(spec.textures):
+    for i, (fname, _data, _w, _h, _pose) in enumerate(spec.textures):
         w(f'    <texture name="board{i}" type="2d" file="{fname}"/>')
         w(f'    <material name="board{i}" texture="board{i}" specular="0" shininess="0"/>')
     w('  </asset>')
@@ -183,14 +206,11 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
       f'pos="{_fmt((tx, ty, table_z - th))}" size="{_fmt((hx, hy, th))}"/>')
     # Overview camera: high above the front edge, looking down at the whole table.
     w('    <camera name="overview" pos="0.62 0 0.75" xyaxes="0 1 0 -0.8 0 0.6" fovy="60"/>')
-    for i, (board, (_f, _d, bw, bh)) in enumerate(zip(scene.boards, spec.textures, strict=True)):
-        yaw = math.radians(board.yaw_deg)
-        # The board's origin is its first corner; the plane geom is placed by its centre.
-        cx = board.x_mm + math.cos(yaw) * bw / 2 - math.sin(yaw) * bh / 2
-        cy = board.y_mm + math.sin(yaw) * bw / 2 + math.cos(yaw) * bh / 2
+    for i, (_f, _d, bw, bh, image2base) in enumerate(spec.textures):
+        pos = image2base[:3, 3] * m + (0.0, 0.0, 0.0004)  # just above the table top
         w(f'    <geom name="board{i}" type="plane" material="board{i}" contype="0" '
-          f'conaffinity="0" pos="{_fmt((cx * m, cy * m, table_z + 0.0004))}" '
-          f'euler="0 0 {yaw:.9g}" size="{_fmt((bw / 2 * m, bh / 2 * m, 0.01))}"/>')
+          f'conaffinity="0" pos="{_fmt(pos)}" quat="{_fmt(quat_from_matrix(image2base[:3, :3]))}" '
+          f'size="{_fmt((bw / 2 * m, bh / 2 * m, 0.01))}"/>')
     for i, tray in enumerate(scene.bins):
         s, wall = tray.size_mm / 2 * m, tray.wall_mm * m
         k = 0.002  # wall thickness, m

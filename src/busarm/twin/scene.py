@@ -37,7 +37,7 @@ COLORS: dict[str, tuple[float, float, float]] = {
 """Block colours the twin can paint (linear RGB 0..1): matte, as wooden toy blocks."""
 
 DEFAULT_BLOCK_MM = 30.0
-BOARD_KINDS = ("chessboard", "tags")
+BOARD_KINDS = ("chessboard", "charuco", "tags")
 
 
 @dataclass(frozen=True)

@@ -7,6 +7,8 @@ URL query parameters (all optional):
 ``blocks``  how many blocks in the random scene                         5
 ``colors``  block colours of the random scene, comma separated          red,green,blue
 ``scene``   a scene file instead of a random scene                      (none)
+``board``   a calibration board on the table: chessboard, charuco, tags (none; then
+            ``blocks`` defaults to 0)
 ``config``  arm config name or file                                     jetauto_pro
 ``echo``    1 = the adapter echoes every byte sent                      0
 ``timing``  0 = no wire timing (replies at once)                        1
@@ -18,16 +20,18 @@ The twin opened this way is the process's active twin (``active_twin()``): the
 
 from __future__ import annotations
 
+from dataclasses import replace
 from urllib.parse import parse_qs, urlsplit
 
 from busarm.arm.config import load_arm_config
 from busarm.errors import ConfigError
 from busarm.sim.bus import WireTiming
 from busarm.sim.transport import SimTransport, query_flag, query_float
+from busarm.twin.boards import BOARD_SPECS, calibration_board
 from busarm.twin.scene import Scene, load_scene, random_scene
 from busarm.twin.twin import Twin
 
-_KNOWN = {"seed", "blocks", "colors", "scene", "config", "echo", "timing"}
+_KNOWN = {"seed", "blocks", "colors", "scene", "config", "echo", "timing", "board"}
 
 
 def twin_query(url: str) -> dict[str, str]:
@@ -44,15 +48,22 @@ def twin_query(url: str) -> dict[str, str]:
 def scene_from_query(q: dict[str, str]) -> Scene:
     """The scene a twin URL asks for: a file, or a seeded random scene."""
     if q.get("scene"):
-        if "seed" in q or "blocks" in q or "colors" in q:
-            raise ConfigError("twin URL: give either scene= or seed=/blocks=/colors=, not both")
+        if {"seed", "blocks", "colors", "board"} & set(q):
+            raise ConfigError("twin URL: give either scene= or seed=/blocks=/colors=/board=")
         return load_scene(q["scene"])
+    board = q.get("board")
+    if board is not None and board not in BOARD_SPECS:
+        raise ConfigError(f"twin URL: board={board!r}; allowed: {', '.join(BOARD_SPECS)}")
     seed = query_float(q, "seed", 0)
-    blocks = query_float(q, "blocks", 5)
+    blocks = query_float(q, "blocks", 0 if board else 5)
     if not (seed.is_integer() and blocks.is_integer()):
         raise ConfigError(f"twin URL: seed and blocks must be whole numbers, got {seed}, {blocks}")
     colors = q.get("colors", "red,green,blue").split(",")
-    return random_scene(int(seed), int(blocks), [c.strip() for c in colors if c.strip()])
+    scene = random_scene(int(seed), int(blocks), [c.strip() for c in colors if c.strip()],
+                         bins=board is None)
+    if board is None:
+        return scene
+    return replace(scene, boards=(calibration_board(board),), source=f"{scene.source}, {board}")
 
 
 def twin_from_url(url: str, baudrate: int = 115200) -> Twin:

@@ -40,8 +40,10 @@ from busarm.errors import ConfigError, TwinError
 from busarm.protocol import Command, Request
 from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.servo import ServoParams, SimServo
+from busarm.twin.boards import board2base, scene_textures
 from busarm.twin.lens import LensSpec
 from busarm.twin.model import (
+    AS_BUILT_MOUNT_ERROR,
     FINGER_GAP_MM_PER_PULSE,
     GRIPPER_TORQUE_NM,
     JOINT_TORQUE_NM,
@@ -141,13 +143,13 @@ class Twin:
         realtime: bool = True,
         timing: WireTiming | None = None,
         echo: bool = False,
-        board_textures: Sequence[tuple[str, bytes, float, float]] = (),
     ) -> None:
         self.mujoco = _import_mujoco()
         self.config = config if config is not None else load_arm_config()
         self.scene = scene if scene is not None else random_scene(0)
         self.lens = lens if lens is not None else LensSpec()
-        self.mount = mount if mount is not None else CameraMount.jetauto()
+        self.mount = mount if mount is not None else CameraMount.jetauto().offset(
+            *AS_BUILT_MOUNT_ERROR)
         self.kin = ArmKinematics.from_config(self.config, check_table=False)
         cfg = self.config
         start = cfg.check_joints(start_joints_deg if start_joints_deg is not None
@@ -155,16 +157,14 @@ class Twin:
         g = cfg.gripper
         grip = g.open_pulses if gripper_pulses is None else gripper_pulses
         g.check_pulses(grip)
-        if len(board_textures) != len(self.scene.boards):
-            raise ConfigError(f"{len(self.scene.boards)} board(s) in the scene but "
-                              f"{len(board_textures)} texture(s) given")
+        board_textures = scene_textures(self.scene, cfg.table_z_mm)
         width, height, fovy = self.lens.render_geometry()
         spec = TwinModelSpec(self.mount, fovy, (width, height), textures=tuple(board_textures))
         self.mjcf = build_mjcf(cfg, self.scene, spec)
         mj = self.mujoco
         try:
             self.model = mj.MjModel.from_xml_string(
-                self.mjcf, {name: data for name, data, _w, _h in board_textures})
+                self.mjcf, {name: data for name, data, _w, _h, _pose in board_textures})
         except ValueError as exc:
             raise TwinError(f"MuJoCo rejected the generated model: {exc}") from exc
         self.data = mj.MjData(self.model)
@@ -237,8 +237,9 @@ class Twin:
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=2)
-        for r in self._renderers:
-            r.close()
+        self.release_renderers()
+        # Renderers of threads that did not release theirs: their GL context cannot be
+        # made current here, so they are left to the process's exit.
         self._renderers.clear()
         if self in _ACTIVE:
             _ACTIVE.remove(self)
@@ -356,6 +357,10 @@ class Twin:
         with self._lock:
             return self._body_pose_mm(self._link4)
 
+    def board2base(self, index: int = 0) -> FloatArray:
+        """Where board ``index`` of the scene lies: its own frame in the base frame (mm)."""
+        return board2base(self.scene.boards[index], self.config.table_z_mm)
+
     def cam2base(self) -> FloatArray:
         """The arm camera's pose (OpenCV axes, mm) in the base frame: ground truth."""
         return self.link2base() @ self.mount.cam2link
@@ -409,6 +414,14 @@ class Twin:
             self.mujoco.mj_forward(self.model, self.data)
 
     # ------------------------------------------------------------------ rendering
+
+    def release_renderers(self) -> None:
+        """Close the renderers this thread made (a GL context lives in its thread)."""
+        cache = getattr(self._local, "renderers", None) or {}
+        for renderer in cache.values():
+            renderer.close()
+            self._renderers.remove(renderer)
+        self._local.renderers = {}
 
     def _renderer(self, width: int, height: int) -> Any:
         cache = getattr(self._local, "renderers", None)
