@@ -1,0 +1,169 @@
+"""Where the blocks are, in millimetres in the arm's base frame, from the wrist camera.
+
+``BlockLocator`` ties the pieces together for one picture: colour blobs
+(busarm.vision.color) -> each blob's yaw on the table (its oriented rectangle's edge,
+cast onto the table) -> the block's position from its silhouette centroid
+(busarm.vision.localize) with the camera pose = forward kinematics of the joints
+*measured* when the picture was taken x the hand-eye calibration -> whether a grasp
+reaches it. ``locate_averaged`` merges several pictures taken from the same pose.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from busarm.arm.kinematics import ArmKinematics
+from busarm.errors import ConfigError, UnreachableError, VisionError
+from busarm.vision.calibration import CameraIntrinsics, HandEyeResult
+from busarm.vision.color import ColorDetector, Detection
+from busarm.vision.localize import (
+    BlockLocation,
+    average_locations,
+    camera_to_base,
+    locate_blocks,
+    table_points_from_pixels,
+)
+
+FloatArray = npt.NDArray[np.float64]
+
+CAMERA_LINK = 3
+"""Index of the wrist-pitch link's frame in ``ArmKinematics.frames`` (DH frame 4)."""
+MATCH_RADIUS_MM = 20.0
+"""Sightings of one block in several pictures are closer than this."""
+
+
+@dataclass(frozen=True)
+class Sighting:
+    """A block seen in a picture: colour, where it is, and whether the arm reaches it.
+
+    ``reachable``: a grasp at the block's centre height is within the arm's reach and
+    limits (any pitch); ``top_down``: straight down works too; ``reason`` says why not.
+    """
+
+    color: str
+    location: BlockLocation
+    detection: Detection | None
+    reachable: bool
+    top_down: bool
+    reason: str = ""
+    detections: tuple[Detection, ...] = field(default=(), repr=False)
+
+    def to_dict(self) -> dict[str, object]:
+        loc = self.location
+        return {
+            "color": self.color, "x_mm": round(loc.x_mm, 2), "y_mm": round(loc.y_mm, 2),
+            "z_mm": round(loc.z_mm, 2), "yaw_deg": round(loc.yaw_deg, 2),
+            "frames": loc.frames, "spread_max_mm": round(loc.spread_max_mm, 2),
+            "reachable": self.reachable, "top_down": self.top_down, "reason": self.reason,
+            "centroid_px": [round(v, 2) for v in loc.centroid_px],
+        }
+
+
+def link2base(kin: ArmKinematics, joints_deg: Sequence[float]) -> FloatArray:
+    """The camera link's frame (DH frame 4) in the base frame for measured joints (mm)."""
+    return kin.frames(joints_deg)[CAMERA_LINK]
+
+
+class BlockLocator:
+    """Finds and locates blocks in wrist-camera pictures (see the module docstring)."""
+
+    def __init__(
+        self, kin: ArmKinematics, intrinsics: CameraIntrinsics, hand_eye: HandEyeResult,
+        detector: ColorDetector, *, table_z_mm: float = 0.0, block_size_mm: float = 30.0,
+    ) -> None:
+        if not (math.isfinite(block_size_mm) and 5.0 <= block_size_mm <= 200.0):
+            raise ConfigError(f"block_size_mm = {block_size_mm!r} is out of range 5..200")
+        if not math.isfinite(table_z_mm):
+            raise ConfigError(f"table_z_mm = {table_z_mm!r} must be finite")
+        self.kin = kin
+        self.intrinsics = intrinsics
+        self.cam2link = hand_eye.cam2link
+        self.detector = detector
+        self.table_z_mm = float(table_z_mm)
+        self.block_size_mm = float(block_size_mm)
+
+    def cam2base(self, joints_deg: Sequence[float]) -> FloatArray:
+        return camera_to_base(link2base(self.kin, joints_deg), self.cam2link)
+
+    def _table_yaws(self, detections: Sequence[Detection], cam2base: FloatArray) -> list[float]:
+        """Each blob's yaw on the table: its rectangle's edge direction cast onto the
+        top-face plane (a square's yaw is known modulo 90 deg)."""
+        if not detections:
+            return []
+        pts = []
+        for d in detections:
+            a = math.radians(d.yaw_deg)
+            half = max(d.rect_size_px) / 2
+            cu, cv = d.rect_center_px
+            pts += [(cu - half * math.cos(a), cv - half * math.sin(a)),
+                    (cu + half * math.cos(a), cv + half * math.sin(a))]
+        table = table_points_from_pixels(np.asarray(pts), self.intrinsics, cam2base,
+                                         self.table_z_mm + self.block_size_mm)
+        yaws = []
+        for i in range(len(detections)):
+            dx, dy = table[2 * i + 1, :2] - table[2 * i, :2]
+            yaws.append((math.degrees(math.atan2(dy, dx)) + 45.0) % 90.0 - 45.0)
+        return yaws
+
+    def locate(self, image: npt.NDArray[np.uint8], joints_deg: Sequence[float]
+               ) -> list[Sighting]:
+        """Every block in ``image``, taken with the arm at the measured ``joints_deg``."""
+        detections = self.detector.detect(image)
+        cam2base = self.cam2base(joints_deg)
+        if not detections:
+            return []
+        try:
+            yaws = self._table_yaws(detections, cam2base)
+        except VisionError:
+            yaws = [0.0] * len(detections)
+        locations = locate_blocks(
+            np.array([d.centroid_px for d in detections]), self.intrinsics, cam2base,
+            table_z_mm=self.table_z_mm, block_size_mm=self.block_size_mm, yaw_deg=yaws)
+        return [self._sighting(d.color, loc, d) for d, loc in
+                zip(detections, locations, strict=True)]
+
+    def _sighting(self, color: str, loc: BlockLocation, detection: Detection | None,
+                  detections: tuple[Detection, ...] = ()) -> Sighting:
+        z_grasp = self.table_z_mm + self.block_size_mm / 2
+        top_down, reachable, reason = True, True, ""
+        try:
+            self.kin.ik_best(loc.x_mm, loc.y_mm, z_grasp, -90.0)
+        except UnreachableError:
+            top_down = False
+            try:
+                self.kin.ik_free_pitch(loc.x_mm, loc.y_mm, z_grasp)
+            except UnreachableError as exc:
+                reachable, reason = False, str(exc)
+        return Sighting(color, loc, detection, reachable, top_down, reason, detections)
+
+    def locate_averaged(self, pictures: Sequence[tuple[npt.NDArray[np.uint8], Sequence[float]]]
+                        ) -> list[Sighting]:
+        """Blocks seen in several pictures, each located once per picture and averaged
+        (a block seen in fewer than half of them is dropped as a glimpse)."""
+        if not pictures:
+            raise ConfigError("locate_averaged needs at least one picture")
+        groups: list[list[Sighting]] = []
+        for image, joints in pictures:
+            for s in self.locate(image, joints):
+                for group in groups:
+                    ref = group[0].location
+                    if group[0].color == s.color and math.hypot(
+                            ref.x_mm - s.location.x_mm, ref.y_mm - s.location.y_mm
+                    ) < MATCH_RADIUS_MM:
+                        group.append(s)
+                        break
+                else:
+                    groups.append([s])
+        out = []
+        for group in groups:
+            if 2 * len(group) < len(pictures):
+                continue
+            loc = average_locations([s.location for s in group])
+            dets = tuple(s.detection for s in group if s.detection is not None)
+            out.append(self._sighting(group[0].color, loc, dets[-1] if dets else None, dets))
+        return out
