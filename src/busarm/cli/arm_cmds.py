@@ -68,11 +68,11 @@ class ArmContext:
         return load_calibration(self._calibration_path)
 
     @contextmanager
-    def open(self, *, check: bool = True) -> Iterator[Arm]:
-        """The arm on ``--port``: every servo must answer first (nothing is written if one
-        does not); an exception in the body stops and holds the arm."""
+    def open(self, *, check: bool = True, port: str | None = None) -> Iterator[Arm]:
+        """The arm on ``port`` (default ``--port``): every servo must answer first (nothing
+        is written if one does not); an exception in the body stops and holds the arm."""
         calibration = self.calibration()
-        with self.settings.open_bus(check_ids=self.config.servo_ids) as bus:
+        with self.settings.open_bus(port, check_ids=self.config.servo_ids) as bus:
             yield Arm(bus, self.config, calibration, check=check)
 
 
@@ -82,7 +82,7 @@ _CONFIG_HELP = "Arm description: a shipped name (jetauto_pro) or a TOML file."
 _CAL_HELP = "Calibration file from `busarm arm calibrate` (default: none, nominal zeros)."
 
 
-def _arm_options(f: Callable[..., Any]) -> Callable[..., Any]:
+def arm_options(f: Callable[..., Any]) -> Callable[..., Any]:
     f = click.option("--calibration", envvar="BUSARM_CALIBRATION", show_envvar=True,
                      type=click.Path(dir_okay=False), help=_CAL_HELP)(f)
     return click.option("--config", "config", envvar="BUSARM_ARM", default="jetauto_pro",
@@ -90,7 +90,7 @@ def _arm_options(f: Callable[..., Any]) -> Callable[..., Any]:
 
 
 @click.group()
-@_arm_options
+@arm_options
 @pass_settings
 @click.pass_context
 def arm(ctx: click.Context, settings: Settings, config: str, calibration: str | None) -> None:
@@ -104,7 +104,7 @@ def arm(ctx: click.Context, settings: Settings, config: str, calibration: str | 
 
 
 @click.group()
-@_arm_options
+@arm_options
 @pass_settings
 @click.pass_context
 def actions(ctx: click.Context, settings: Settings, config: str, calibration: str | None) -> None:

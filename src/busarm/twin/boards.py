@@ -27,7 +27,7 @@ from busarm.vision.calibration import (
 FloatArray = npt.NDArray[np.float64]
 
 BOARD_SPECS: dict[str, BoardSpec] = {
-    "chessboard": ChessboardSpec(inner_cols=9, inner_rows=6, square_mm=20.0),
+    "chessboard": ChessboardSpec(inner_cols=9, inner_rows=6, square_mm=16.0),
     "charuco": CharucoSpec(squares_x=8, squares_y=6, square_mm=25.0, marker_mm=18.0),
     "tags": TagBoardSpec(cols=5, rows=4, tag_mm=30.0, gap_mm=10.0),
 }
@@ -86,7 +86,7 @@ CALIBRATION_BOARD_CENTRE_MM = (210.0, 0.0)
 
 
 def calibration_board(kind: str, centre_mm: tuple[float, float] = CALIBRATION_BOARD_CENTRE_MM,
-                      yaw_deg: float = 0.0) -> Board:
+                      yaw_deg: float = 90.0) -> Board:
     """A board of ``kind`` whose pattern is centred at ``centre_mm`` on the table."""
     w, h = board_spec(kind).extent_mm
     yaw = math.radians(yaw_deg)

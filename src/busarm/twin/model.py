@@ -176,7 +176,7 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
       'impratio="10"/>')
     w(f'  <visual><global offwidth="{width}" offheight="{height}"/>'
       '<quality shadowsize="2048" offsamples="4"/>'
-      '<headlight ambient="0.35 0.35 0.35" diffuse="0.45 0.45 0.45" specular="0 0 0"/>'
+      '<headlight ambient="0.12 0.12 0.12" diffuse="0.1 0.1 0.1" specular="0 0 0"/>'
       '</visual>')
     w('  <asset>')
     r, gg, b = TABLE_RGB
@@ -197,8 +197,13 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
       'friction="1.0 0.01 0.001" solref="0.004 1"/></default>')
     w('  </default>')
     w('  <worldbody>')
-    w('    <light name="top" pos="0.1 0 1.6" dir="0 0 -1" diffuse="0.55 0.55 0.55" '
+    # A room, not a spotlight: light from above and, softer, from four sides, so the
+    # side faces of a block are shaded but keep their colour (as under ceiling lights).
+    w('    <light name="top" pos="0.1 0 1.6" dir="0 0 -1" diffuse="0.25 0.25 0.25" '
       'specular="0 0 0" castshadow="false"/>')
+    for k, (dx, dy) in enumerate(((1, 0), (-1, 0), (0, 1), (0, -1))):
+        w(f'    <light name="side{k}" directional="true" dir="{-dx} {-dy} -0.6" '
+          'diffuse="0.25 0.25 0.25" specular="0 0 0" castshadow="false"/>')
     tx, ty = (t.x_min_mm + t.x_max_mm) / 2 * m, (t.y_min_mm + t.y_max_mm) / 2 * m
     hx, hy = (t.x_max_mm - t.x_min_mm) / 2 * m, (t.y_max_mm - t.y_min_mm) / 2 * m
     th = TABLE_THICKNESS_MM / 2 * m

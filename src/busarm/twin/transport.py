@@ -54,8 +54,8 @@ def scene_from_query(q: dict[str, str]) -> Scene:
     board = q.get("board")
     if board is not None and board not in BOARD_SPECS:
         raise ConfigError(f"twin URL: board={board!r}; allowed: {', '.join(BOARD_SPECS)}")
-    seed = query_float(q, "seed", 0)
-    blocks = query_float(q, "blocks", 0 if board else 5)
+    seed = query_float(q, "seed", 0.0)
+    blocks = query_float(q, "blocks", 0.0 if board else 5.0)
     if not (seed.is_integer() and blocks.is_integer()):
         raise ConfigError(f"twin URL: seed and blocks must be whole numbers, got {seed}, {blocks}")
     colors = q.get("colors", "red,green,blue").split(",")

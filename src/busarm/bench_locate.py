@@ -1,0 +1,242 @@
+"""``busarm bench locate``: how well the wrist camera locates blocks, against the twin's truth.
+
+Everything the measurement uses comes from our own flows, run in the twin exactly as on
+hardware: the intrinsics from chessboard pictures (``busarm camera calibrate``), the
+hand-eye from tag-board pictures (``busarm camera handeye``), the joints from POS_READ.
+The twin's true lens, camera mount and block poses are read only to score the result.
+
+Placements: blocks are put (one picture holds several) at random over the table the
+arm reaches with a top-down grasp, wherever one of the survey poses (the ``look`` pose
+turned to several base bearings) sees them whole and clear of the gripper.
+"""
+
+from __future__ import annotations
+
+import math
+import platform
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from busarm.apps.camera_calibration import (
+    calibration_views,
+    capture_views,
+    hand_eye_from_views,
+    intrinsics_from_views,
+    sees_points,
+)
+from busarm.apps.locate import BlockLocator
+from busarm.arm.arm import Arm
+from busarm.errors import ConfigError, UnreachableError
+from busarm.twin.boards import BOARD_SPECS
+from busarm.twin.camera import TwinCamera
+from busarm.twin.lens import LensSpec
+from busarm.bus.driver import ServoBus
+from busarm.twin.scene import COLORS, Scene, random_scene
+from busarm.twin.transport import TwinTransport
+from busarm.twin.twin import Twin
+from busarm.vision.calibration import (
+    CameraIntrinsics,
+    HandEyeResult,
+    load_hand_eye,
+    load_intrinsics,
+    save_hand_eye,
+    save_intrinsics,
+)
+from busarm.vision.color import ColorDetector, default_thresholds
+
+SURVEY_BEARINGS_DEG = (-90.0, -45.0, 0.0, 45.0, 90.0)
+REACH_RADIUS_MM = (125.0, 265.0)
+BLOCK_GAP_MM = 50.0
+
+Progress = Callable[[str], None]
+
+
+def _quiet(_: str) -> None:
+    pass
+
+
+def open_twin_arm(url_or_scene: str | Scene) -> tuple[Arm, Twin]:
+    """An Arm on a new real-time twin (its transport owns the twin)."""
+    if isinstance(url_or_scene, Scene):
+        twin = Twin(scene=url_or_scene)
+        try:
+            return Arm(ServoBus(TwinTransport(twin)), twin.config), twin
+        except BaseException:
+            twin.close()
+            raise
+    arm = Arm.open(url_or_scene)
+    transport = arm.bus.transport
+    assert isinstance(transport, TwinTransport)
+    return arm, transport.twin
+
+
+def calibrate_in_twin(out_dir: Path, *, intrinsics_views: int = 20, hand_eye_views: int = 16,
+                      seed: int = 0, progress: Progress = _quiet
+                      ) -> tuple[Path, Path, dict[str, Any]]:
+    """Run both calibration flows in the twin; write and return the two files."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    intr_path, he_path = out_dir / "camera.json", out_dir / "hand_eye.json"
+    summary: dict[str, Any] = {}
+    arm, twin = open_twin_arm("twin://?board=chessboard")
+    with arm, TwinCamera(twin) as camera:
+        spec = BOARD_SPECS["chessboard"]
+        poses = calibration_views(arm.kin, spec, twin.board2base(0), intrinsics_views, seed=seed)
+        views = capture_views(arm, camera, poses, spec,
+                              progress=lambda i, n, v: progress(f"intrinsics view {i + 1}/{n}"))
+        result = intrinsics_from_views(views)
+        save_intrinsics(intr_path, result)
+        summary["intrinsics"] = {"rms_px": result.rms_px, "views": len(views),
+                                 "fx_px": result.intrinsics.fx, "fy_px": result.intrinsics.fy,
+                                 "cx_px": result.intrinsics.cx, "cy_px": result.intrinsics.cy}
+    intrinsics = load_intrinsics(intr_path)
+    arm, twin = open_twin_arm("twin://?board=tags")
+    with arm, TwinCamera(twin) as camera:
+        spec = BOARD_SPECS["tags"]
+        poses = calibration_views(arm.kin, spec, twin.board2base(0), hand_eye_views,
+                                  seed=seed + 1)
+        views = capture_views(arm, camera, poses, spec,
+                              progress=lambda i, n, v: progress(f"hand-eye view {i + 1}/{n}"))
+        he = hand_eye_from_views(views, intrinsics)
+        save_hand_eye(he_path, he)
+        truth = twin.mount.cam2link
+        delta = np.linalg.inv(truth) @ he.cam2link
+        summary["hand_eye"] = {
+            "rms_px": he.rms_px, "views": len(he.views_used),
+            "error_vs_truth_mm": float(np.linalg.norm(delta[:3, 3])),
+            "error_vs_truth_deg": math.degrees(math.acos(
+                max(-1.0, min(1.0, (np.trace(delta[:3, :3]) - 1) / 2)))),
+        }
+    return intr_path, he_path, summary
+
+
+@dataclass
+class AccuracyReport:
+    """Localisation errors (mm, horizontal) of every placement, and what was missed."""
+
+    errors_mm: list[float] = field(default_factory=list)
+    missed: int = 0
+    wrong_color: int = 0
+    pictures: int = 0
+    seconds: float = 0.0
+
+    def summary(self) -> dict[str, Any]:
+        e = np.asarray(self.errors_mm) if self.errors_mm else np.asarray([math.nan])
+        return {
+            "placements": len(self.errors_mm) + self.missed, "located": len(self.errors_mm),
+            "missed": self.missed, "wrong_color": self.wrong_color, "pictures": self.pictures,
+            "median_mm": float(np.median(e)), "p95_mm": float(np.percentile(e, 95)),
+            "max_mm": float(np.max(e)), "mean_mm": float(np.mean(e)),
+            "seconds": round(self.seconds, 1),
+        }
+
+
+def _block_corners(x: float, y: float, yaw_deg: float, size: float, table_z: float
+                   ) -> np.ndarray:
+    h = size / 2
+    c, s = math.cos(math.radians(yaw_deg)), math.sin(math.radians(yaw_deg))
+    pts = [(x + c * dx - s * dy, y + s * dx + c * dy, table_z + z)
+           for dx in (-h, h) for dy in (-h, h) for z in (0.0, size)]
+    return np.asarray(pts)
+
+
+def localisation_accuracy(
+    intrinsics: CameraIntrinsics, hand_eye: HandEyeResult, *, placements: int = 200,
+    per_picture: int = 5, seed: int = 0, progress: Progress = _quiet,
+) -> AccuracyReport:
+    """Place blocks over the reachable table and score where the camera puts them."""
+    if not 1 <= per_picture <= 8:
+        raise ConfigError(f"per_picture = {per_picture} is out of range 1..8")
+    if not 1 <= placements <= 100_000:
+        raise ConfigError(f"placements = {placements} is out of range 1..100000")
+    colors = list(COLORS)
+    scene = random_scene(seed, per_picture, colors, bins=False)
+    rng = np.random.default_rng(seed)
+    report = AccuracyReport()
+    start = time.monotonic()
+    arm, twin = open_twin_arm(scene)
+    with arm, TwinCamera(twin) as camera:
+        locator = BlockLocator(arm.kin, intrinsics, hand_eye, ColorDetector(default_thresholds()),
+                               table_z_mm=arm.config.table_z_mm)
+        look = arm.config.pose("look")
+        size = scene.blocks[0].size_mm
+        table_z = arm.config.table_z_mm
+        pictures_per_pose = math.ceil(placements / per_picture / len(SURVEY_BEARINGS_DEG))
+        for bearing in SURVEY_BEARINGS_DEG:
+            pose = (bearing, *look[1:])
+            arm.move_joints(pose, speed_deg_s=120.0)
+            time.sleep(0.3)
+            cam2base = twin.cam2base()  # truth: only to choose placements the camera sees
+            for _ in range(pictures_per_pose):
+                if len(report.errors_mm) + report.missed >= placements:
+                    break
+                spots: list[tuple[float, float, float]] = []
+                for _try in range(4000):
+                    if len(spots) == per_picture:
+                        break
+                    r = math.sqrt(rng.uniform(REACH_RADIUS_MM[0] ** 2, REACH_RADIUS_MM[1] ** 2))
+                    b = math.radians(bearing + rng.uniform(-60.0, 60.0))
+                    x, y, yaw = r * math.cos(b), r * math.sin(b), rng.uniform(-45.0, 45.0)
+                    if abs(math.degrees(b)) > 120.0 or any(
+                            math.hypot(x - sx, y - sy) < BLOCK_GAP_MM for sx, sy, _ in spots):
+                        continue
+                    if not sees_points(_block_corners(x, y, yaw, size, table_z), cam2base,
+                                       intrinsics, margin_px=6.0):
+                        continue
+                    try:
+                        arm.kin.ik_best(x, y, table_z + size / 2, -90.0)
+                    except UnreachableError:
+                        continue
+                    spots.append((x, y, yaw))
+                for i, (x, y, yaw) in enumerate(spots):
+                    twin.place_block(i, x, y, yaw)
+                for i in range(len(spots), per_picture):  # park unused blocks out of sight
+                    twin.place_block(i, -150.0 + 40.0 * i, -350.0)
+                frame = camera.read()
+                joints = arm.read_joints_deg()
+                sightings = locator.locate(frame.image, joints)
+                report.pictures += 1
+                truth = twin.blocks()[: len(spots)]
+                for t in truth:
+                    near = [s for s in sightings
+                            if math.hypot(s.location.x_mm - t.x_mm, s.location.y_mm - t.y_mm) < 25]
+                    if not near:
+                        report.missed += 1
+                        continue
+                    best = min(near, key=lambda s: math.hypot(s.location.x_mm - t.x_mm,
+                                                             s.location.y_mm - t.y_mm))
+                    if best.color != t.color:
+                        report.wrong_color += 1
+                    report.errors_mm.append(math.hypot(best.location.x_mm - t.x_mm,
+                                                       best.location.y_mm - t.y_mm))
+                progress(f"bearing {bearing:+.0f}: {len(report.errors_mm)} located, "
+                         f"{report.missed} missed")
+    report.seconds = time.monotonic() - start
+    return report
+
+
+def run_locate_bench(*, placements: int = 200, seed: int = 0, work_dir: Path | None = None,
+                     intrinsics_views: int = 20, hand_eye_views: int = 16,
+                     progress: Progress = _quiet) -> dict[str, Any]:
+    """Calibrate in the twin with our flows, then measure localisation accuracy."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = work_dir or Path(tmp)
+        intr_path, he_path, calib = calibrate_in_twin(
+            out, intrinsics_views=intrinsics_views, hand_eye_views=hand_eye_views, seed=seed,
+            progress=progress)
+        intrinsics = load_intrinsics(intr_path)
+        hand_eye = load_hand_eye(he_path, intrinsics=intrinsics)
+        report = localisation_accuracy(intrinsics, hand_eye, placements=placements, seed=seed,
+                                       progress=progress)
+    return {
+        "machine": {"cpu": platform.processor() or platform.machine(),
+                    "python": platform.python_version()},
+        "calibration": calib,
+        "accuracy": report.summary(),
+        "twin_lens_distortion": list(LensSpec().distortion),
+    }

@@ -1,0 +1,218 @@
+"""``camera calibrate | handeye``: calibrate the wrist camera with the arm moving it.
+
+On the twin (``--port twin``) both run without a person: the twin lays the board on
+its table and its camera takes the pictures. On hardware they ask before each picture
+(``--yes`` does not ask). ``camera calibrate --images DIR`` calibrates from pictures
+taken any other way, without an arm.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import click
+
+from busarm.cli.arm_cmds import ArmContext, arm_options
+from busarm.cli.common import Settings, pass_settings
+from busarm.errors import ConfigError
+
+DEFAULT_INTRINSICS_OUT = "camera.json"
+DEFAULT_HAND_EYE_OUT = "hand_eye.json"
+INTRINSIC_BOARDS = ("chessboard", "charuco")
+
+pass_arm = click.make_pass_decorator(ArmContext)
+
+
+def is_twin_port(port: str) -> bool:
+    return port == "twin" or port.startswith("twin://")
+
+
+def twin_port_with_board(port: str, board: str) -> str:
+    """The twin URL with ``board`` on its table, unless the URL already sets the scene."""
+    if "board=" in port or "scene=" in port:
+        return port
+    if port == "twin":
+        return f"twin://?board={board}"
+    return port + ("&" if "?" in port else "?") + f"board={board}"
+
+
+def default_camera(settings: Settings, camera: str | None) -> str:
+    if camera is not None:
+        return camera
+    if is_twin_port(settings.port):
+        return "twin"
+    raise ConfigError("--camera is required with a real arm (e.g. --camera /dev/video0); "
+                      "the twin's camera is the default only with --port twin")
+
+
+def _confirm(settings: Settings, yes: bool) -> Any:
+    if yes or is_twin_port(settings.port):
+        return None
+
+    def ask(i: int, n: int) -> bool:
+        answer = click.prompt(f"view {i + 1}/{n}: Enter to take the picture, s to skip",
+                              default="", show_default=False)
+        return str(answer).strip().lower() != "s"
+
+    return ask
+
+
+def _board_at(text: str) -> tuple[float, float]:
+    from busarm.cli.common import parse_float_list
+
+    values = parse_float_list(text, "board centre X,Y in mm")
+    if len(values) != 2:
+        raise ConfigError(f"--board-at takes X,Y in mm, got {text!r}")
+    return values[0], values[1]
+
+
+@click.group()
+@arm_options
+@pass_settings
+@click.pass_context
+def camera(ctx: click.Context, settings: Settings, config: str, calibration: str | None) -> None:
+    """Calibrate the wrist camera: intrinsics (lens), then hand-eye (where it sits)."""
+    ctx.obj = ArmContext(settings, config, calibration)
+
+
+def _progress(settings: Settings) -> Any:
+    def show(i: int, n: int, view: Any) -> None:
+        seen = "board found" if view.observation is not None else "no board"
+        settings.err.print(f"view {i + 1}/{n}: {seen}", highlight=False)
+    return show
+
+
+@camera.command()
+@click.option("--camera", "camera_src", default=None,
+              help="Camera source (/dev/video0, a folder, twin...); default: the twin's.")
+@click.option("--board", type=click.Choice(INTRINSIC_BOARDS), default="chessboard",
+              show_default=True, help="The printed board to look at.")
+@click.option("--model", type=click.Choice(["pinhole", "fisheye"]), default="pinhole",
+              show_default=True, help="Lens model: pinhole (OpenCV k1..k3) or fisheye.")
+@click.option("--views", type=click.IntRange(6, 60), default=20, show_default=True,
+              help="Pictures to take.")
+@click.option("--board-at", "board_at", default="210,0", show_default=True,
+              help="Where the board's centre lies on the table, X,Y in mm (base frame).")
+@click.option("--images", type=click.Path(file_okay=False, exists=True, path_type=Path),
+              help="Calibrate from the pictures in this folder instead (no arm).")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the view plan.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
+              default=DEFAULT_INTRINSICS_OUT, show_default=True)
+@click.option("--yes", is_flag=True, help="Do not ask before each picture (hardware).")
+@pass_arm
+def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, views: int,
+              board_at: str, images: Path | None, seed: int, output: Path, yes: bool) -> None:
+    """Find the camera's intrinsics and lens distortion from pictures of a board.
+
+    The arm takes the camera through views of the board from many angles, then the
+    calibration is written to OUTPUT (busarm.camera_intrinsics, version 1).
+    """
+    from busarm.apps.camera_calibration import (
+        calibration_views,
+        capture_views,
+        intrinsics_from_views,
+    )
+    from busarm.twin.boards import BOARD_SPECS, board2base, calibration_board
+    from busarm.vision.calibration import calibrate_intrinsics, find_board, save_intrinsics
+    from busarm.vision.camera import EndOfFrames, open_camera
+
+    spec = BOARD_SPECS[board]
+    settings = ac.settings
+    if images is not None:
+        with open_camera(str(images)) as source:
+            observations, size = [], (source.width_px, source.height_px)
+            while True:
+                try:
+                    frame = source.read()
+                except EndOfFrames:
+                    break
+                observations.append(find_board(frame.image, spec))
+        result = calibrate_intrinsics(observations, size, model)
+    else:
+        centre = _board_at(board_at)
+        where = board2base(calibration_board(board, centre), ac.config.table_z_mm)
+        port = settings.port
+        if is_twin_port(port):
+            port = twin_port_with_board(port, board)
+        else:
+            settings.err.print(f"Lay the {spec.describe()} flat with its centre at "
+                               f"({centre[0]:g}, {centre[1]:g}) mm, its long side across "
+                               "the arm's front.", highlight=False)
+        poses = calibration_views(ac.kin, spec, where, views, seed=seed)
+        source_name = default_camera(settings, camera_src)
+        with ac.open(port=port) as arm, open_camera(source_name) as source:
+            taken = capture_views(arm, source, poses, spec,
+                                  confirm=_confirm(settings, yes), progress=_progress(settings))
+            arm.move_joints(ac.config.pose("home"))
+        result = intrinsics_from_views(taken, model)
+    save_intrinsics(output, result, board=spec.describe())
+    i = result.intrinsics
+    settings.out.print(
+        f"wrote {output}: {i.model}, fx {i.fx:.2f} fy {i.fy:.2f} cx {i.cx:.2f} cy {i.cy:.2f} px, "
+        f"distortion {[round(float(d), 5) for d in i.distortion]}; reprojection rms "
+        f"{result.rms_px:.3f} px over {len(result.per_view_rms_px)} views", highlight=False)
+
+
+@camera.command()
+@click.option("--intrinsics", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              default=DEFAULT_INTRINSICS_OUT, show_default=True,
+              help="The camera's intrinsics, from `busarm camera calibrate`.")
+@click.option("--camera", "camera_src", default=None,
+              help="Camera source (/dev/video0, twin...); default: the twin's.")
+@click.option("--views", type=click.IntRange(4, 60), default=16, show_default=True)
+@click.option("--board-at", "board_at", default="210,0", show_default=True,
+              help="Where the tag board's centre lies on the table, X,Y in mm.")
+@click.option("--seed", type=int, default=1, show_default=True, help="Seed of the view plan.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
+              default=DEFAULT_HAND_EYE_OUT, show_default=True)
+@click.option("--yes", is_flag=True, help="Do not ask before each picture (hardware).")
+@pass_arm
+def handeye(ac: ArmContext, intrinsics: Path, camera_src: str | None, views: int,
+            board_at: str, seed: int, output: Path, yes: bool) -> None:
+    """Find where the camera sits on the wrist from pictures of a fixed AprilTag board.
+
+    The arm looks at the board (tag36h11 grid) from many poses; the camera's pose on the
+    wrist-pitch link is solved from the *measured* joints and written to OUTPUT
+    (busarm.hand_eye, version 1).
+    """
+    from busarm.apps.camera_calibration import (
+        calibration_views,
+        capture_views,
+        hand_eye_from_views,
+    )
+    from busarm.twin.boards import BOARD_SPECS, board2base, calibration_board
+    from busarm.vision.calibration import load_intrinsics, save_hand_eye
+    from busarm.vision.camera import open_camera
+
+    settings = ac.settings
+    intr = load_intrinsics(intrinsics)
+    spec = BOARD_SPECS["tags"]
+    centre = _board_at(board_at)
+    where = board2base(calibration_board("tags", centre), ac.config.table_z_mm)
+    port = settings.port
+    if is_twin_port(port):
+        port = twin_port_with_board(port, "tags")
+    else:
+        settings.err.print(f"Lay the {spec.describe()} flat with its centre at "
+                           f"({centre[0]:g}, {centre[1]:g}) mm; it must not move.",
+                           highlight=False)
+    poses = calibration_views(ac.kin, spec, where, views, intrinsics_guess=intr, seed=seed)
+    source_name = default_camera(settings, camera_src)
+    with ac.open(port=port) as arm, open_camera(source_name) as source:
+        if (source.width_px, source.height_px) != (intr.width_px, intr.height_px):
+            raise ConfigError(f"{intrinsics} is for {intr.width_px}x{intr.height_px} pictures; "
+                              f"{source_name} gives {source.width_px}x{source.height_px}")
+        taken = capture_views(arm, source, poses, spec, confirm=_confirm(settings, yes),
+                              progress=_progress(settings))
+        arm.move_joints(ac.config.pose("home"))
+    result = hand_eye_from_views(taken, intr)
+    save_hand_eye(output, result)
+    t = result.cam2link[:3, 3]
+    settings.out.print(
+        f"wrote {output}: camera at ({t[0]:.1f}, {t[1]:.1f}, {t[2]:.1f}) mm on the "
+        f"{result.link} link (+-{result.translation_std_mm:.2f} mm); reprojection rms "
+        f"{result.rms_px:.3f} px over {len(result.views_used)} views", highlight=False)
+
+
+COMMANDS = [camera]
