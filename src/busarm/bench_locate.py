@@ -50,6 +50,8 @@ from busarm.vision.calibration import (
 )
 from busarm.vision.color import ColorDetector, default_thresholds
 
+TARGET_MEDIAN_MM = 2.0
+TARGET_P95_MM = 5.0
 SURVEY_BEARINGS_DEG = (-90.0, -45.0, 0.0, 45.0, 90.0)
 REACH_RADIUS_MM = (125.0, 265.0)
 BLOCK_GAP_MM = 50.0
