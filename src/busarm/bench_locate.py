@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from busarm.apps.camera_calibration import (
     calibration_views,
@@ -32,11 +33,11 @@ from busarm.apps.camera_calibration import (
 )
 from busarm.apps.locate import BlockLocator
 from busarm.arm.arm import Arm
+from busarm.bus.driver import ServoBus
 from busarm.errors import ConfigError, UnreachableError
 from busarm.twin.boards import BOARD_SPECS
 from busarm.twin.camera import TwinCamera
 from busarm.twin.lens import LensSpec
-from busarm.bus.driver import ServoBus
 from busarm.twin.scene import COLORS, Scene, random_scene
 from busarm.twin.transport import TwinTransport
 from busarm.twin.twin import Twin
@@ -139,7 +140,7 @@ class AccuracyReport:
 
 
 def _block_corners(x: float, y: float, yaw_deg: float, size: float, table_z: float
-                   ) -> np.ndarray:
+                   ) -> npt.NDArray[np.float64]:
     h = size / 2
     c, s = math.cos(math.radians(yaw_deg)), math.sin(math.radians(yaw_deg))
     pts = [(x + c * dx - s * dy, y + s * dx + c * dy, table_z + z)

@@ -27,8 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from busarm.arm.arm import Arm
 from busarm.apps.locate import CAMERA_LINK, link2base
+from busarm.arm.arm import Arm
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import ConfigError, UnreachableError, VisionError
 from busarm.twin.model import CameraMount
@@ -71,7 +71,8 @@ def _board_grid(spec: BoardSpec, board2base: FloatArray, n: int = 9) -> FloatArr
     w, h = spec.extent_mm
     u, v = np.meshgrid(np.linspace(0, w, n), np.linspace(0, h, n))
     pts = np.stack([u.ravel(), v.ravel(), np.zeros(u.size), np.ones(u.size)], 1)
-    return (board2base @ pts.T).T[:, :3]
+    out: FloatArray = (board2base @ pts.T).T[:, :3]
+    return out
 
 
 def sees_points(points_base: FloatArray, cam2base: FloatArray, intrinsics: CameraIntrinsics,

@@ -107,24 +107,25 @@ def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks:
               help="Joint angles in degrees, comma separated (instead of --pose).")
 @click.option("--config", default="jetauto_pro", show_default=True,
               help="Arm config name or TOML file.")
-@click.option("--no-lens", is_flag=True, help="The arm camera without lens distortion.")
+@click.option("--lens", type=click.Choice(["wide", "vendor", "none"]), default="wide",
+              show_default=True, help="The arm camera's lens distortion.")
 def snapshot(scene_file: Path | None, seed: int | None, blocks: int, colors: str, png: Path,
-             pose: str, joints: str | None, config: str, no_lens: bool) -> None:
+             pose: str, joints: str | None, config: str, lens: str) -> None:
     """Render the scene from the arm camera and from an overview camera, without a viewer."""
     import cv2
     import numpy as np
 
     from busarm.arm.config import load_arm_config
     from busarm.cli.common import parse_float_list
-    from busarm.twin.lens import LensSpec
+    from busarm.twin.lens import lens_by_name
     from busarm.twin.twin import Twin
     from busarm.vision.annotate import save_image
 
     cfg = load_arm_config(config)
     start = parse_float_list(joints, "joint angle") if joints is not None else cfg.pose(pose)
     scene = make_scene(scene_file, seed, blocks, colors)
-    lens = LensSpec(distortion=(0.0, 0.0, 0.0, 0.0)) if no_lens else None
-    with Twin(cfg, scene, lens=lens, start_joints_deg=start, realtime=False) as tw:
+    with Twin(cfg, scene, lens=lens_by_name(lens), start_joints_deg=start,
+              realtime=False) as tw:
         arm_view = tw.render_camera()
         overview = tw.render_overview()
     h = arm_view.shape[0]

@@ -26,6 +26,10 @@ distortion (about 64 px at the corners), stronger than the vendor's calibration 
 so undistortion and calibration are exercised for real."""
 
 
+VENDOR_DISTORTION = (-0.0275, -0.0005, -0.0059, -0.0034, -0.0356)
+"""The vendor's own calibration file's coefficients (field notes): a mild lens."""
+
+
 @dataclass(frozen=True)
 class LensSpec:
     """A camera's true intrinsics (what calibration has to find): OpenCV pinhole model."""
@@ -122,3 +126,18 @@ class LensSpec:
         map1, map2 = self.remap_tables()
         out = cv2.remap(render, map1, map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         return np.asarray(out, dtype=np.uint8)
+
+
+LENSES = {
+    "wide": LensSpec(),
+    "vendor": LensSpec(distortion=VENDOR_DISTORTION),
+    "none": LensSpec(distortion=(0.0, 0.0, 0.0, 0.0)),
+}
+"""Named lenses for the twin's camera (``twin://?lens=NAME``, ``twin snapshot --lens``)."""
+
+
+def lens_by_name(name: str) -> LensSpec:
+    try:
+        return LENSES[name]
+    except KeyError:
+        raise ConfigError(f"lens {name!r}; allowed: {', '.join(LENSES)}") from None

@@ -212,18 +212,20 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
     # Overview camera: high above the front edge, looking down at the whole table.
     w('    <camera name="overview" pos="0.62 0 0.75" xyaxes="0 1 0 -0.8 0 0.6" fovy="60"/>')
     for i, (_f, _d, bw, bh, image2base) in enumerate(spec.textures):
-        pos = image2base[:3, 3] * m + (0.0, 0.0, 0.0004)  # just above the table top
+        board_pos = image2base[:3, 3] * m + (0.0, 0.0, 0.0004)  # just above the table top
+        board_quat = quat_from_matrix(image2base[:3, :3])
         w(f'    <geom name="board{i}" type="plane" material="board{i}" contype="0" '
-          f'conaffinity="0" pos="{_fmt(pos)}" quat="{_fmt(quat_from_matrix(image2base[:3, :3]))}" '
+          f'conaffinity="0" pos="{_fmt(board_pos)}" quat="{_fmt(board_quat)}" '
           f'size="{_fmt((bw / 2 * m, bh / 2 * m, 0.01))}"/>')
     for i, tray in enumerate(scene.bins):
         s, wall = tray.size_mm / 2 * m, tray.wall_mm * m
-        k = 0.002  # wall thickness, m
+        t_w = 0.002  # wall thickness, m
         w(f'    <body name="bin{i}" pos="{_fmt((tray.x_mm * m, tray.y_mm * m, table_z))}">')
         w(f'      <geom class="object" type="box" material="tray" pos="0 0 0.001" '
           f'size="{_fmt((s, s, 0.001))}"/>')
-        for px, py, sx, sy in ((s - k, 0, k, s), (-s + k, 0, k, s), (0, s - k, s, k),
-                               (0, -s + k, s, k)):
+        walls = ((s - t_w, 0.0, t_w, s), (-s + t_w, 0.0, t_w, s), (0.0, s - t_w, s, t_w),
+                 (0.0, -s + t_w, s, t_w))
+        for px, py, sx, sy in walls:
             w(f'      <geom class="object" type="box" material="tray" '
               f'pos="{_fmt((px, py, wall / 2))}" size="{_fmt((sx, sy, wall / 2))}"/>')
         w('    </body>')
@@ -231,8 +233,8 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
         half = block.size_mm / 2 * m
         quat = (math.cos(math.radians(block.yaw_deg) / 2), 0, 0,
                 math.sin(math.radians(block.yaw_deg) / 2))
-        pos = (block.x_mm * m, block.y_mm * m, table_z + half)
-        w(f'    <body name="block{i}" pos="{_fmt(pos)}" quat="{_fmt(quat)}">')
+        block_pos = (block.x_mm * m, block.y_mm * m, table_z + half)
+        w(f'    <body name="block{i}" pos="{_fmt(block_pos)}" quat="{_fmt(quat)}">')
         w(f'      <freejoint name="block{i}"/>')
         w(f'      <geom name="block{i}" class="object" type="box" material="{block.color}" '
           f'size="{_fmt((half, half, half))}" mass="{block.mass_g / 1000:.6g}" '

@@ -10,6 +10,7 @@ URL query parameters (all optional):
 ``board``   a calibration board on the table: chessboard, charuco, tags (none; then
             ``blocks`` defaults to 0)
 ``config``  arm config name or file                                     jetauto_pro
+``lens``    the camera's lens: wide (strong barrel), vendor, none          wide
 ``echo``    1 = the adapter echoes every byte sent                      0
 ``timing``  0 = no wire timing (replies at once)                        1
 =========== =========================================================== ==============
@@ -28,10 +29,11 @@ from busarm.errors import ConfigError
 from busarm.sim.bus import WireTiming
 from busarm.sim.transport import SimTransport, query_flag, query_float
 from busarm.twin.boards import BOARD_SPECS, calibration_board
+from busarm.twin.lens import lens_by_name
 from busarm.twin.scene import Scene, load_scene, random_scene
 from busarm.twin.twin import Twin
 
-_KNOWN = {"seed", "blocks", "colors", "scene", "config", "echo", "timing", "board"}
+_KNOWN = {"seed", "blocks", "colors", "scene", "config", "echo", "timing", "board", "lens"}
 
 
 def twin_query(url: str) -> dict[str, str]:
@@ -72,7 +74,8 @@ def twin_from_url(url: str, baudrate: int = 115200) -> Twin:
     scene = scene_from_query(q)
     config = load_arm_config(q.get("config") or "jetauto_pro")
     timing = WireTiming(baudrate, enabled=query_flag(q, "timing", True))
-    return Twin(config, scene, timing=timing, echo=query_flag(q, "echo", False))
+    return Twin(config, scene, lens=lens_by_name(q.get("lens", "wide")), timing=timing,
+                echo=query_flag(q, "echo", False))
 
 
 class TwinTransport(SimTransport):
