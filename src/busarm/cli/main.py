@@ -21,12 +21,14 @@ from busarm.bus.transport import DEFAULT_BAUDRATE
 from busarm.cli import (
     arm_cmds,
     bus_cmds,
+    camera_cmds,
     config_cmds,
     demo,
     proto_cmds,
     servo_cmds,
     sim_cmds,
     twin_cmds,
+    vision_cmds,
 )
 from busarm.cli.bench_cmd import bench
 from busarm.cli.common import STOPPED, Settings, servos_stopped
@@ -127,7 +129,8 @@ def cli(
 
 
 for _module in (
-    bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, twin_cmds, demo,
+    bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, twin_cmds, camera_cmds,
+    vision_cmds, demo,
 ):
     for _command in _module.COMMANDS:
         cli.add_command(_command)

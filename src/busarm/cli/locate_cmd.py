@@ -1,0 +1,108 @@
+"""``vision locate``: where the blocks are on the table, in mm in the arm's base frame.
+
+Needs the arm (for the camera's pose: forward kinematics of the measured joints) and
+both camera calibrations (``busarm camera calibrate``, ``busarm camera handeye``).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import click
+
+from busarm.cli.arm_cmds import ArmContext
+from busarm.cli.camera_cmds import DEFAULT_HAND_EYE_OUT, DEFAULT_INTRINSICS_OUT, default_camera
+from busarm.cli.common import RangeType, Settings, pass_settings
+
+BLOCK = RangeType("block size", 5.0, 200.0, "mm")
+
+
+@click.command()
+@click.option("--camera", "camera_src", default=None,
+              help="Camera source (/dev/video0, twin...); default: the twin's with --port twin.")
+@click.option("--intrinsics", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              default=DEFAULT_INTRINSICS_OUT, show_default=True,
+              help="Camera intrinsics from `busarm camera calibrate`.")
+@click.option("--hand-eye", "hand_eye", type=click.Path(dir_okay=False, exists=True,
+                                                         path_type=Path),
+              default=DEFAULT_HAND_EYE_OUT, show_default=True,
+              help="Camera pose on the wrist from `busarm camera handeye`.")
+@click.option("--pose", default="look", show_default=True,
+              help="Named pose of the arm config to look from.")
+@click.option("--here", is_flag=True, help="Look from where the arm is (do not move).")
+@click.option("--frames", type=click.IntRange(1, 100), default=3, show_default=True,
+              help="Pictures to average.")
+@click.option("--thresholds", type=click.Path(dir_okay=False), default=None,
+              help="Colour thresholds (our TOML or the vendor's lab_config.yaml).")
+@click.option("--colors", default=None, help="Only these colours, comma separated.")
+@click.option("--block-mm", "block_mm", type=BLOCK, default=30.0, show_default=True,
+              help="Side of the (cubic) blocks.")
+@click.option("--config", default="jetauto_pro", show_default=True,
+              help="Arm description: a shipped name or a TOML file.")
+@click.option("--save", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Write the annotated picture to this folder.")
+@click.option("--json", "as_json", is_flag=True, help="One JSON object with every block.")
+@pass_settings
+def locate(settings: Settings, camera_src: str | None, intrinsics: Path, hand_eye: Path,
+           pose: str, here: bool, frames: int, thresholds: str | None, colors: str | None,
+           block_mm: float, config: str, save: Path | None, as_json: bool) -> None:
+    """Find the blocks and print where they are on the table (mm, base frame).
+
+    Positions are the block's centre on the table; "reach" says whether a grasp at the
+    block reaches (top-down, tilted, or why not).
+    """
+    from busarm.apps.locate import BlockLocator
+    from busarm.vision.annotate import annotate, save_image
+    from busarm.vision.calibration import load_hand_eye, load_intrinsics
+    from busarm.vision.camera import open_camera
+    from busarm.vision.color import (
+        ColorDetector,
+        default_thresholds,
+        load_thresholds,
+        parse_color_names,
+    )
+
+    ac = ArmContext(settings, config, None)
+    intr = load_intrinsics(intrinsics)
+    he = load_hand_eye(hand_eye, intrinsics=intr)
+    table = load_thresholds(thresholds) if thresholds else default_thresholds()
+    detector = ColorDetector(table, colors=parse_color_names(colors) if colors else None)
+    source_name = default_camera(settings, camera_src)
+    with ac.open() as arm, open_camera(source_name) as source:
+        if (source.width_px, source.height_px) != (intr.width_px, intr.height_px):
+            from busarm.errors import ConfigError
+
+            raise ConfigError(f"{intrinsics} is for {intr.width_px}x{intr.height_px} pictures; "
+                              f"{source_name} gives {source.width_px}x{source.height_px}")
+        if not here:
+            arm.move_joints(ac.config.pose(pose))
+            time.sleep(0.3)  # let the arm settle and the camera deliver a fresh frame
+        locator = BlockLocator(arm.kin, intr, he, detector, table_z_mm=ac.config.table_z_mm,
+                               block_size_mm=block_mm)
+        pictures = []
+        for _ in range(frames):
+            image = source.read().image
+            pictures.append((image, arm.read_joints_deg()))
+    sightings = locator.locate_averaged(pictures)
+    if save is not None:
+        save.mkdir(parents=True, exist_ok=True)
+        lines = [f"{s.color} ({s.location.x_mm:.1f}, {s.location.y_mm:.1f}) mm"
+                 + ("" if s.reachable else " out of reach") for s in sightings]
+        dets = [s.detection for s in sightings if s.detection is not None]
+        save_image(save / "locate.png", annotate(pictures[-1][0], dets, text_lines=lines))
+    if as_json:
+        click.echo(json.dumps({"frames": frames, "blocks": [s.to_dict() for s in sightings]}))
+        return
+    if not sightings:
+        click.echo("no blocks found")
+        return
+    for s in sightings:
+        loc = s.location
+        reach = ("top-down" if s.top_down else "tilted") if s.reachable else \
+            f"out of reach ({s.reason})"
+        click.echo(
+            f"{s.color:7s} x {loc.x_mm:7.1f}  y {loc.y_mm:7.1f}  z {loc.z_mm:5.1f} mm  "
+            f"yaw {loc.yaw_deg:6.1f} deg  frames {loc.frames} (spread {loc.spread_max_mm:.1f} "
+            f"mm)  reach: {reach}")
