@@ -33,6 +33,7 @@ from busarm.apps.camera_calibration import (
 )
 from busarm.apps.locate import BlockLocator
 from busarm.arm.arm import Arm
+from busarm.arm.config import load_arm_config
 from busarm.bus.driver import ServoBus
 from busarm.errors import ConfigError, UnreachableError
 from busarm.twin.boards import BOARD_SPECS
@@ -242,4 +243,74 @@ def run_locate_bench(*, placements: int = 200, seed: int = 0, work_dir: Path | N
         "calibration": calib,
         "accuracy": report.summary(),
         "twin_lens_distortion": list(LensSpec().distortion),
+    }
+
+
+# ---------------------------------------------------------------------- speed
+
+TARGET_SPEEDUP = 2.0
+TARGET_LOCATE_FPS = 500.0
+
+
+def twin_pictures(count: int = 24, *, seed: int = 0, blocks: tuple[int, int] = (4, 6)
+                  ) -> list[tuple[npt.NDArray[np.uint8], tuple[float, ...]]]:
+    """Arm-camera pictures of seeded twin scenes (3 colours, ``blocks`` blocks), each with
+    the joints it was taken at, from the ``look`` pose turned to several bearings."""
+    rng = np.random.default_rng(seed)
+    config = load_arm_config()
+    look = config.pose("look")
+    out = []
+    for i in range(count):
+        scene = random_scene(seed + i, int(rng.integers(blocks[0], blocks[1] + 1)), bins=False)
+        joints = (float(rng.uniform(-20.0, 20.0)), *look[1:])
+        with Twin(config, scene, realtime=False, start_joints_deg=joints) as twin:
+            out.append((twin.render_camera(), twin.joints_deg()))
+    return out
+
+
+def run_vision_bench(*, pictures: int = 24, seed: int = 0, seconds_per_case: float = 3.0,
+                     intrinsics: CameraIntrinsics | None = None,
+                     hand_eye: HandEyeResult | None = None) -> dict[str, Any]:
+    """Detection (ours beside the vendor-style pipeline) and detect + localise speed on
+    one core, on 640x480 twin pictures. Without calibration files the twin's true lens
+    and camera mount stand in: the timing does not depend on their values."""
+    import cv2
+
+    from busarm.arm.kinematics import ArmKinematics
+    from busarm.bench_vision import bench_detection
+    from busarm.twin.model import AS_BUILT_MOUNT_ERROR, CameraMount
+
+    shots = twin_pictures(pictures, seed=seed)
+    thresholds = default_thresholds().select(["red", "green", "blue"])
+    detection = bench_detection([img for img, _ in shots], thresholds,
+                                seconds_per_case=seconds_per_case)
+    if intrinsics is None or hand_eye is None:
+        lens = LensSpec()
+        intrinsics = CameraIntrinsics("pinhole", lens.width_px, lens.height_px,
+                                      lens.camera_matrix, lens.dist_coeffs)
+        cam2link = CameraMount.jetauto().offset(*AS_BUILT_MOUNT_ERROR).cam2link
+        hand_eye = HandEyeResult(cam2link, np.eye(4), 0.0, (), (), intrinsics)
+    kin = ArmKinematics.from_config(load_arm_config())
+    locator = BlockLocator(kin, intrinsics, hand_eye, ColorDetector(thresholds))
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        found = sum(len(locator.locate(img, q)) for img, q in shots)  # warm-up
+        rates = []
+        for _ in range(3):
+            n, start = 0, time.perf_counter()
+            while time.perf_counter() - start < seconds_per_case / 3:
+                for img, q in shots:
+                    locator.locate(img, q)
+                    n += 1
+            rates.append(n / (time.perf_counter() - start))
+    finally:
+        cv2.setNumThreads(threads)
+    return {
+        "machine": {"cpu": platform.processor() or platform.machine(),
+                    "python": platform.python_version()},
+        "pictures": len(shots), "blocks_located": found,
+        "detection": detection,
+        "detect_and_locate_fps": round(float(np.median(rates)), 1),
+        "detect_and_locate_fps_rounds": [round(r, 1) for r in rates],
     }

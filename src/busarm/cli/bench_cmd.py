@@ -228,3 +228,37 @@ def bench_locate(settings: Settings, placements: int, seed: int, keep: Path | No
         f"({'[green]ok[/]' if ok_median else '[red]FAIL[/]'} <= {TARGET_MEDIAN_MM:g}), "
         f"p95 {a['p95_mm']:.2f} mm ({'[green]ok[/]' if ok_p95 else '[red]FAIL[/]'} "
         f"<= {TARGET_P95_MM:g}), max {a['max_mm']:.2f} mm")
+
+
+@bench.command("vision")
+@click.option("--pictures", type=click.IntRange(1, 1000), default=24, show_default=True,
+              help="Twin pictures (640x480, 4-6 blocks) to cycle over.")
+@click.option("--seconds", type=click.FloatRange(0.5, 600.0), default=3.0, show_default=True,
+              help="Time per measured case.")
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
+@pass_settings
+def bench_vision(settings: Settings, pictures: int, seconds: float, seed: int,
+                 as_json: bool) -> None:
+    """Colour detection beside the vendor-style pipeline, and full detect + localise, on
+    one core at 640x480 (twin pictures)."""
+    from busarm.bench_locate import TARGET_LOCATE_FPS, TARGET_SPEEDUP, run_vision_bench
+
+    report = run_vision_bench(pictures=pictures, seed=seed, seconds_per_case=seconds)
+    if as_json:
+        click.echo(json.dumps(report, indent=2))
+        return
+    d = report["detection"]
+    agree = d["agreement"]
+    ok_speed = d["speedup"] >= TARGET_SPEEDUP
+    ok_loc = report["detect_and_locate_fps"] >= TARGET_LOCATE_FPS
+    settings.out.print(
+        f"[bold]busarm bench vision[/]: {report['pictures']} twin pictures "
+        f"{d['width_px']}x{d['height_px']}, one core\n"
+        f"vendor-style pipeline {d['vendor_fps']:.0f} frames/s, ours {d['ours_fps']:.0f} "
+        f"frames/s: {d['speedup']:.2f}x ({'[green]ok[/]' if ok_speed else '[red]FAIL[/]'} "
+        f">= {TARGET_SPEEDUP:g}x); same blocks in {agree['same_counts_frames']}/{d['frames']} "
+        f"pictures\n"
+        f"detect + localise: {report['detect_and_locate_fps']:.0f} frames/s "
+        f"({'[green]ok[/]' if ok_loc else '[red]FAIL[/]'} >= {TARGET_LOCATE_FPS:g}), "
+        f"{report['blocks_located']} blocks located")
