@@ -286,10 +286,13 @@ def run_vision_bench(*, pictures: int = 24, seed: int = 0, seconds_per_case: flo
                                 seconds_per_case=seconds_per_case)
     if intrinsics is None or hand_eye is None:
         lens = LensSpec()
-        intrinsics = CameraIntrinsics("pinhole", lens.width_px, lens.height_px,
-                                      lens.camera_matrix, lens.dist_coeffs)
+        intrinsics = CameraIntrinsics(model="pinhole", width_px=lens.width_px,
+                                      height_px=lens.height_px,
+                                      camera_matrix=lens.camera_matrix,
+                                      distortion=lens.dist_coeffs)
         cam2link = CameraMount.jetauto().offset(*AS_BUILT_MOUNT_ERROR).cam2link
-        hand_eye = HandEyeResult(cam2link, np.eye(4), 0.0, (), (), intrinsics)
+        hand_eye = HandEyeResult(cam2link=cam2link, board2base=np.eye(4), rms_px=0.0,
+                                 per_view_rms_px=(), views_used=(), intrinsics=intrinsics)
     kin = ArmKinematics.from_config(load_arm_config())
     locator = BlockLocator(kin, intrinsics, hand_eye, ColorDetector(thresholds))
     threads = cv2.getNumThreads()
