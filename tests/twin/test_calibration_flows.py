@@ -130,3 +130,37 @@ def test_camera_commands_refuse_bad_input(tmp_path: Path) -> None:
     assert result.exit_code == 2 and "--board-at" in result.stderr
     result = run("camera", "calibrate", port="sim")
     assert result.exit_code == 2 and "--camera is required" in result.stderr
+
+
+def test_vision_locate_prints_where_the_blocks_are(calibrated: tuple[Path, Path],
+                                                    tmp_path: Path) -> None:
+    from busarm.twin.scene import random_scene
+
+    intr, he = calibrated
+    result = run("vision", "locate", "--intrinsics", str(intr), "--hand-eye", str(he),
+                 "--frames", "2", "--json", "--save", str(tmp_path),
+                 port="twin://?seed=4&blocks=5")
+    assert result.exit_code == 0, result.stderr
+    found = json.loads(result.stdout)["blocks"]
+    truth = random_scene(4, 5).blocks
+    assert len(found) == len(truth)
+    for block in truth:
+        best = min(found, key=lambda f: math.hypot(f["x_mm"] - block.x_mm,
+                                                    f["y_mm"] - block.y_mm))
+        assert best["color"] == block.color
+        assert math.hypot(best["x_mm"] - block.x_mm, best["y_mm"] - block.y_mm) < 2.0
+        assert best["reachable"] and best["frames"] == 2
+    assert (tmp_path / "locate.png").stat().st_size > 10_000
+
+
+def test_vision_locate_refuses_mismatched_calibrations(calibrated: tuple[Path, Path],
+                                                        tmp_path: Path) -> None:
+    intr, he = calibrated
+    data = json.loads(intr.read_text())
+    data["width_px"], data["height_px"] = 1280, 720
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps(data))
+    result = run("vision", "locate", "--intrinsics", str(other), "--hand-eye", str(he))
+    assert result.exit_code == 2, (result.stdout, result.stderr)
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
