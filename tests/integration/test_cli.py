@@ -96,7 +96,10 @@ def test_every_command_and_option_has_help() -> None:
                      "limits", "led", "monitor", "decode", "encode", "sim", "sim serve", "demo",
                      "arm", "arm fk", "arm ik", "arm ik-batch", "arm pose", "arm move-to",
                      "arm home", "arm gripper", "arm calibrate", "arm urdf", "arm workspace",
-                     "actions", "actions show", "actions play", "actions record", "bench ik"):
+                     "actions", "actions show", "actions play", "actions record", "bench ik",
+                     "twin", "twin serve", "twin snapshot", "twin scene", "camera",
+                     "camera calibrate", "camera handeye", "vision", "vision detect",
+                     "vision locate", "bench vision", "bench locate"):
         assert expected in names
     for name, command in [("busarm", cli), *names.items()]:
         assert command.help, name

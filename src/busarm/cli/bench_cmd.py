@@ -235,7 +235,8 @@ def bench_locate(settings: Settings, placements: int, seed: int, keep: Path | No
               help="Twin pictures (640x480, 4-6 blocks) to cycle over.")
 @click.option("--seconds", type=click.FloatRange(0.5, 600.0), default=3.0, show_default=True,
               help="Time per measured case.")
-@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--seed", type=int, default=0, show_default=True,
+              help="Seed of the twin scenes pictured.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @pass_settings
 def bench_vision(settings: Settings, pictures: int, seconds: float, seed: int,

@@ -98,7 +98,8 @@ def _progress(settings: Settings) -> Any:
               help="Calibrate from the pictures in this folder instead (no arm).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the view plan.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
-              default=DEFAULT_INTRINSICS_OUT, show_default=True)
+              default=DEFAULT_INTRINSICS_OUT, show_default=True,
+              help="Where to write the intrinsics (JSON).")
 @click.option("--yes", is_flag=True, help="Do not ask before each picture (hardware).")
 @pass_arm
 def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, views: int,
@@ -160,12 +161,14 @@ def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, vi
               help="The camera's intrinsics, from `busarm camera calibrate`.")
 @click.option("--camera", "camera_src", default=None,
               help="Camera source (/dev/video0, twin...); default: the twin's.")
-@click.option("--views", type=click.IntRange(4, 60), default=16, show_default=True)
+@click.option("--views", type=click.IntRange(4, 60), default=16, show_default=True,
+              help="Pictures to take.")
 @click.option("--board-at", "board_at", default="210,0", show_default=True,
               help="Where the tag board's centre lies on the table, X,Y in mm.")
 @click.option("--seed", type=int, default=1, show_default=True, help="Seed of the view plan.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
-              default=DEFAULT_HAND_EYE_OUT, show_default=True)
+              default=DEFAULT_HAND_EYE_OUT, show_default=True,
+              help="Where to write the hand-eye calibration (JSON).")
 @click.option("--yes", is_flag=True, help="Do not ask before each picture (hardware).")
 @pass_arm
 def handeye(ac: ArmContext, intrinsics: Path, camera_src: str | None, views: int,

@@ -136,9 +136,12 @@ def snapshot(scene_file: Path | None, seed: int | None, blocks: int, colors: str
 
 
 @twin.command()
-@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True)
-@click.option("--blocks", type=click.IntRange(0, 12), default=5, show_default=True)
-@click.option("--colors", default="red,green,blue", show_default=True)
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
+              help="Seed of the random scene.")
+@click.option("--blocks", type=click.IntRange(0, 12), default=5, show_default=True,
+              help="How many blocks.")
+@click.option("--colors", default="red,green,blue", show_default=True,
+              help="Block colours, comma separated.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="The scene file to write (TOML).")
 def scene(seed: int, blocks: int, colors: str, output: Path) -> None:
