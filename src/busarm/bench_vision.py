@@ -22,6 +22,8 @@ from typing import Any
 import cv2
 import numpy as np
 
+from busarm.twin.model import TABLE_RGB
+from busarm.twin.scene import COLORS
 from busarm.vision.camera import UInt8Image, check_bgr_image
 from busarm.vision.color import (
     DEFAULT_MIN_AREA_PX,
@@ -32,13 +34,7 @@ from busarm.vision.color import (
 )
 
 # The twin's materials (linear RGB 0..1), as rendered under white light.
-BLOCK_RGB: dict[str, tuple[float, float, float]] = {
-    "red": (0.80, 0.12, 0.10),
-    "green": (0.12, 0.55, 0.20),
-    "blue": (0.10, 0.25, 0.80),
-    "yellow": (0.90, 0.80, 0.10),
-}
-TABLE_RGB = (0.78, 0.76, 0.72)
+BLOCK_RGB: dict[str, tuple[float, float, float]] = COLORS
 ARM_RGB = (0.12, 0.12, 0.13)
 
 

@@ -12,11 +12,15 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 from types import FrameType
+from typing import TYPE_CHECKING
 
 import click
 
 from busarm.cli.common import CheckedType, Settings, pass_settings
 from busarm.units import parse_ids
+
+if TYPE_CHECKING:
+    from busarm.sim.pty import PtyServer
 
 
 class SimIdsType(CheckedType):
@@ -90,6 +94,12 @@ def serve(
         + "); Ctrl+C or SIGTERM to stop",
         err=True,
     )
+    serve_until_stopped(server)
+    click.echo("simulator stopped", err=True)
+
+
+def serve_until_stopped(server: PtyServer) -> None:
+    """Serve until SIGINT or SIGTERM, then stop the server (which powers the servos off)."""
     restore = interrupt_on_signals()
     try:
         server.serve_forever()
@@ -98,7 +108,6 @@ def serve(
     finally:
         restore()
         server.stop()
-    click.echo("simulator stopped", err=True)
 
 
 def interrupt_on_signals() -> Callable[[], None]:

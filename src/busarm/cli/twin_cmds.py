@@ -68,7 +68,7 @@ def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks:
     or SIGTERM.
     """
     from busarm.arm.config import load_arm_config
-    from busarm.cli.sim_cmds import interrupt_on_signals
+    from busarm.cli.sim_cmds import serve_until_stopped
     from busarm.sim.bus import WireTiming
     from busarm.sim.pty import PtyServer
     from busarm.twin.camera import CameraServer
@@ -85,14 +85,9 @@ def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks:
         sys.stdout.flush()
         click.echo(f"twin: {len(scene.blocks)} blocks ({scene.source}), servos on {path}, "
                    f"camera on {camera.url}; Ctrl+C or SIGTERM to stop", err=True)
-        restore = interrupt_on_signals()
         try:
-            server.serve_forever()
-        except KeyboardInterrupt:
-            pass
+            serve_until_stopped(server)
         finally:
-            restore()
-            server.stop()
             camera.stop()
     click.echo("twin stopped", err=True)
 
