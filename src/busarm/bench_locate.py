@@ -197,10 +197,11 @@ def localisation_accuracy(
                     except UnreachableError:
                         continue
                     spots.append((x, y, yaw))
-                for i, (x, y, yaw) in enumerate(spots):
-                    twin.place_block(i, x, y, yaw)
+                poses: dict[int, tuple[float, float, float, float | None]] = {
+                    i: (x, y, yaw, None) for i, (x, y, yaw) in enumerate(spots)}
                 for i in range(len(spots), per_picture):  # park unused blocks out of sight
-                    twin.place_block(i, -150.0 + 40.0 * i, -350.0)
+                    poses[i] = (-150.0 + 40.0 * i, -350.0, 0.0, None)
+                twin.place_blocks(poses)
                 frame = camera.read()
                 joints = arm.read_joints_deg()
                 sightings = locator.locate(frame.image, joints)

@@ -394,23 +394,36 @@ class Twin:
                     z_mm: float | None = None) -> None:
         """Put block ``index`` at (x, y), standing on the table unless ``z_mm`` is given
         (a hand moving it: fault injection, benchmarks). It starts at rest."""
-        if isinstance(index, bool) or not isinstance(index, int) or not (
-                0 <= index < len(self.scene.blocks)):
-            raise ConfigError(f"block index {index!r} is out of range "
-                              f"0..{len(self.scene.blocks) - 1}")
-        for name, v in (("x_mm", x_mm), ("y_mm", y_mm), ("yaw_deg", yaw_deg)):
-            if not math.isfinite(v):
-                raise ConfigError(f"{name} = {v!r} must be finite")
-        block: Block = self.scene.blocks[index]
-        if not self.scene.table.contains(x_mm, y_mm, block.radius_mm):
-            raise ConfigError(f"({x_mm:g}, {y_mm:g}) mm is off the table")
-        z = (self.config.table_z_mm + block.size_mm / 2) if z_mm is None else z_mm
-        with self._lock:
-            adr, dof = self._block_qpos[index], self._block_dof[index]
+        self.place_blocks({index: (x_mm, y_mm, yaw_deg, z_mm)})
+
+    def place_blocks(
+        self, poses: dict[int, tuple[float, float, float, float | None]],
+    ) -> None:
+        """Move several blocks at once, ``{index: (x, y, yaw, z or None)}``, in one physics
+        instant, so none is ever put inside another's old place. Checked before any moves."""
+        checked = []
+        for index, (x_mm, y_mm, yaw_deg, z_mm) in poses.items():
+            if isinstance(index, bool) or not isinstance(index, int) or not (
+                    0 <= index < len(self.scene.blocks)):
+                raise ConfigError(f"block index {index!r} is out of range "
+                                  f"0..{len(self.scene.blocks) - 1}")
+            for name, v in (("x_mm", x_mm), ("y_mm", y_mm), ("yaw_deg", yaw_deg)):
+                if not math.isfinite(v):
+                    raise ConfigError(f"{name} = {v!r} must be finite")
+            block: Block = self.scene.blocks[index]
+            if not self.scene.table.contains(x_mm, y_mm, block.radius_mm):
+                raise ConfigError(f"block {index} at ({x_mm:g}, {y_mm:g}) mm is off the table")
+            z = (self.config.table_z_mm + block.size_mm / 2) if z_mm is None else z_mm
+            if not math.isfinite(z):
+                raise ConfigError(f"z_mm = {z_mm!r} must be finite")
             half = math.radians(yaw_deg) / 2
-            self.data.qpos[adr:adr + 7] = (x_mm * M_PER_MM, y_mm * M_PER_MM, z * M_PER_MM,
-                                           math.cos(half), 0.0, 0.0, math.sin(half))
-            self.data.qvel[dof:dof + 6] = 0.0
+            checked.append((index, (x_mm * M_PER_MM, y_mm * M_PER_MM, z * M_PER_MM,
+                                    math.cos(half), 0.0, 0.0, math.sin(half))))
+        with self._lock:
+            for index, qpos in checked:
+                adr, dof = self._block_qpos[index], self._block_dof[index]
+                self.data.qpos[adr:adr + 7] = qpos
+                self.data.qvel[dof:dof + 6] = 0.0
             self.mujoco.mj_forward(self.model, self.data)
 
     # ------------------------------------------------------------------ rendering
