@@ -20,10 +20,11 @@ import threading
 from urllib.parse import urlsplit
 
 import numpy as np
+import numpy.typing as npt
 
 from busarm.errors import CameraError, ConfigError
 from busarm.twin.twin import Twin, active_twin
-from busarm.vision.camera import CameraFrame
+from busarm.vision.camera import CameraBase
 
 _HEADER = struct.Struct("<4sIId")
 _MAGIC = b"BATF"
@@ -31,59 +32,49 @@ LOOPBACK = "127.0.0.1"
 SOCKET_TIMEOUT_S = 5.0
 
 
-class TwinCamera:
+class TwinCamera(CameraBase):
     """Frames from a twin in this process (its arm camera, or the overview camera)."""
 
     def __init__(self, twin: Twin, *, view: str = "arm", owns_twin: bool = False) -> None:
         if view not in ("arm", "overview"):
             raise ConfigError(f"twin camera view {view!r}; allowed: arm, overview")
+        arm = view == "arm"
+        super().__init__("twin" if arm else "twin overview",
+                         twin.lens.width_px if arm else 640, twin.lens.height_px if arm else 480)
         self.twin = twin
         self.view = view
-        self.name = "twin" if view == "arm" else "twin overview"
-        self.width_px = twin.lens.width_px if view == "arm" else 640
-        self.height_px = twin.lens.height_px if view == "arm" else 480
         self._owns = owns_twin
-        self._sequence = 0
-        self._closed = False
 
-    def read(self) -> CameraFrame:
-        if self._closed:
-            raise CameraError(f"{self.name}: camera is closed")
+    def _grab(self) -> npt.NDArray[np.uint8]:
         if self.twin.is_closed:
             raise CameraError(f"{self.name}: the twin was closed")
-        image = self.twin.render_camera() if self.view == "arm" else self.twin.render_overview()
-        stamp = self.twin.clock()
-        self._sequence += 1
-        return CameraFrame(image, stamp, self._sequence, self.name)
+        return self.twin.render_camera() if self.view == "arm" else self.twin.render_overview()
 
-    def close(self) -> None:
-        self._closed = True
+    def _release(self) -> None:
         if self._owns:
             self.twin.close()
 
-    def __enter__(self) -> TwinCamera:
-        return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-class RemoteTwinCamera:
+class RemoteTwinCamera(CameraBase):
     """Frames from ``busarm twin serve``'s camera server on this machine."""
 
     def __init__(self, host: str, port: int) -> None:
         if host not in (LOOPBACK, "localhost"):
             raise ConfigError(f"twin camera host {host!r}: only this machine "
                               f"({LOOPBACK}) serves twin frames")
-        self.name = f"twin://{host}:{port}"
+        name = f"twin://{host}:{port}"
         try:
             self._sock = socket.create_connection((LOOPBACK, port), timeout=SOCKET_TIMEOUT_S)
         except OSError as exc:
-            raise CameraError(f"no camera at {self.name}: {exc} (is `busarm twin serve` "
+            raise CameraError(f"no camera at {name}: {exc} (is `busarm twin serve` "
                               "running?)") from exc
-        self._sequence = 0
-        first = self.read()
-        self.height_px, self.width_px = first.image.shape[:2]
+        try:
+            first = self._fetch()
+        except BaseException:
+            self._sock.close()
+            raise
+        height, width = first.shape[:2]
+        super().__init__(name, width, height)
 
     def _recv(self, n: int) -> bytes:
         buf = bytearray()
@@ -91,34 +82,29 @@ class RemoteTwinCamera:
             try:
                 chunk = self._sock.recv(n - len(buf))
             except OSError as exc:
-                raise CameraError(f"{self.name}: {exc}") from exc
+                raise CameraError(f"twin camera: {exc}") from exc
             if not chunk:
-                raise CameraError(f"{self.name}: the twin server closed the connection")
+                raise CameraError("twin camera: the twin server closed the connection")
             buf += chunk
         return bytes(buf)
 
-    def read(self) -> CameraFrame:
+    def _fetch(self) -> npt.NDArray[np.uint8]:
         try:
             self._sock.sendall(b"F")
         except OSError as exc:
-            raise CameraError(f"{self.name}: {exc}") from exc
-        magic, width, height, stamp = _HEADER.unpack(self._recv(_HEADER.size))
+            raise CameraError(f"twin camera: {exc}") from exc
+        magic, width, height, _stamp = _HEADER.unpack(self._recv(_HEADER.size))
         if magic != _MAGIC or not (0 < width <= 4096 and 0 < height <= 4096):
-            raise CameraError(f"{self.name}: not a twin camera server (bad header)")
+            raise CameraError("twin camera: not a twin camera server (bad header)")
         data = self._recv(width * height * 3)
-        self._sequence += 1
-        image = np.frombuffer(data, dtype=np.uint8).reshape(height, width, 3).copy()
-        return CameraFrame(image, stamp, self._sequence, self.name)
+        return np.frombuffer(data, dtype=np.uint8).reshape(height, width, 3).copy()
 
-    def close(self) -> None:
+    def _grab(self) -> npt.NDArray[np.uint8]:
+        return self._fetch()
+
+    def _release(self) -> None:
         with contextlib.suppress(OSError):
             self._sock.close()
-
-    def __enter__(self) -> RemoteTwinCamera:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 def open_twin_camera(spec: str, **options: object) -> TwinCamera | RemoteTwinCamera:
