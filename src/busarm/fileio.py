@@ -32,7 +32,7 @@ def atomic_path(path: Path | str, what: str = "file") -> Iterator[Path]:
         fd, tmp_name = tempfile.mkstemp(dir=directory, prefix=f".{path.name}.", suffix=".tmp")
         os.close(fd)
     except OSError as exc:
-        raise ConfigError(f"cannot write {what} {path}: {exc}") from exc
+        raise ConfigError(f"cannot write {what} {path}: {exc.strerror or exc}") from exc
     tmp = Path(tmp_name)
     try:
         yield tmp
@@ -47,7 +47,7 @@ def atomic_path(path: Path | str, what: str = "file") -> Iterator[Path]:
     except BaseException as exc:
         tmp.unlink(missing_ok=True)
         if isinstance(exc, OSError):
-            raise ConfigError(f"cannot write {what} {path}: {exc}") from exc
+            raise ConfigError(f"cannot write {what} {path}: {exc.strerror or exc}") from exc
         raise
     _fsync_directory(directory)  # make the rename itself durable
 

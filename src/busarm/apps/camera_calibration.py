@@ -133,6 +133,8 @@ def calibration_views(
     """``count`` joint poses looking at the board from spread-out viewpoints."""
     if isinstance(count, bool) or not isinstance(count, int) or not 3 <= count <= 100:
         raise ConfigError(f"views = {count!r} is out of range 3..100")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
+        raise ConfigError(f"seed = {seed!r} is out of range 0..{2**32 - 1}")
     guess = intrinsics_guess or CameraIntrinsics.vendor_default()
     grid = _board_grid(spec, board2base)
     centre = grid.mean(axis=0)
@@ -195,17 +197,39 @@ def capture_views(
     return views
 
 
+MAX_INTRINSICS_RMS_PX = 1.0
+"""A calibration worse than this is refused (a good one is 0.1-0.5 px)."""
+MAX_HAND_EYE_RMS_PX = 2.0
+"""A hand-eye fit worse than this is refused: wrong intrinsics, or the board moved."""
+MAX_HAND_EYE_STD_MM = 3.0
+"""... and so is one whose camera position is this uncertain (too little motion)."""
+
+
 def intrinsics_from_views(views: Sequence[CalibrationView], model: str = "pinhole"
                           ) -> IntrinsicsResult:
-    """Camera intrinsics from the board pictures (see busarm.vision.calibration)."""
+    """Camera intrinsics from the board pictures (see busarm.vision.calibration); a fit
+    whose reprojection error says it is wrong raises VisionError instead."""
     if not views:
         raise VisionError("no pictures were taken")
     h, w = views[0].image.shape[:2]
-    return calibrate_intrinsics([v.observation for v in views], (w, h), model)
+    result = calibrate_intrinsics([v.observation for v in views], (w, h), model)
+    if result.rms_px > MAX_INTRINSICS_RMS_PX:
+        raise VisionError(
+            f"the calibration does not fit its pictures: reprojection rms {result.rms_px:.2f} "
+            f"px (at most {MAX_INTRINSICS_RMS_PX:g}); is the board flat, sharp and still?")
+    return result
 
 
 def hand_eye_from_views(views: Sequence[CalibrationView], intrinsics: CameraIntrinsics
                         ) -> HandEyeResult:
-    """The camera's pose on the wrist-pitch link from board pictures at measured joints."""
-    return calibrate_hand_eye([v.link2base for v in views], [v.observation for v in views],
-                              intrinsics)
+    """The camera's pose on the wrist-pitch link from board pictures at measured joints;
+    a fit whose errors say it is wrong raises VisionError instead."""
+    result = calibrate_hand_eye([v.link2base for v in views],
+                                [v.observation for v in views], intrinsics)
+    if result.rms_px > MAX_HAND_EYE_RMS_PX or result.translation_std_mm > MAX_HAND_EYE_STD_MM:
+        raise VisionError(
+            f"the hand-eye fit is poor: reprojection rms {result.rms_px:.2f} px (at most "
+            f"{MAX_HAND_EYE_RMS_PX:g}), camera position +-{result.translation_std_mm:.2f} mm "
+            f"(at most {MAX_HAND_EYE_STD_MM:g}); are the intrinsics for this camera, and did "
+            "the board stay still?")
+    return result

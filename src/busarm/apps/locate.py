@@ -33,6 +33,13 @@ FloatArray = npt.NDArray[np.float64]
 
 CAMERA_LINK = 3
 """Index of the wrist-pitch link's frame in ``ArmKinematics.frames`` (DH frame 4)."""
+CAMERA_LINK_NAME = "wrist_pitch"
+MAX_CAMERA_OFFSET_MM = 300.0
+NOT_BLOCK_COLORS = ("black", "white")
+"""Colours the vendor's threshold file has for other jobs (lines, the table): never blocks."""
+AREA_RANGE = (0.35, 3.5)
+"""A blob counts as a block when its area is this many times the block's top face seen
+from where it is: less is a glimpse or a speck, more is not a block (a table, an arm)."""
 MATCH_RADIUS_MM = 20.0
 """Sightings of one block in several pictures are closer than this."""
 
@@ -80,6 +87,13 @@ class BlockLocator:
             raise ConfigError(f"block_size_mm = {block_size_mm!r} is out of range 5..200")
         if not math.isfinite(table_z_mm):
             raise ConfigError(f"table_z_mm = {table_z_mm!r} must be finite")
+        if hand_eye.link != CAMERA_LINK_NAME:
+            raise ConfigError(f"the hand-eye calibration places the camera on the {hand_eye.link!r}"
+                              f" link; the wrist camera rides the {CAMERA_LINK_NAME!r} link")
+        reach = float(np.linalg.norm(hand_eye.cam2link[:3, 3]))
+        if reach > MAX_CAMERA_OFFSET_MM:
+            raise ConfigError(f"the hand-eye calibration puts the camera {reach:.0f} mm from the "
+                              f"wrist; a wrist camera sits within {MAX_CAMERA_OFFSET_MM:g} mm")
         self.kin = kin
         self.intrinsics = intrinsics
         self.cam2link = hand_eye.cam2link
@@ -113,7 +127,7 @@ class BlockLocator:
     def locate(self, image: npt.NDArray[np.uint8], joints_deg: Sequence[float]
                ) -> list[Sighting]:
         """Every block in ``image``, taken with the arm at the measured ``joints_deg``."""
-        detections = self.detector.detect(image)
+        detections = [d for d in self.detector.detect(image) if d.color not in NOT_BLOCK_COLORS]
         cam2base = self.cam2base(joints_deg)
         if not detections:
             return []
@@ -125,7 +139,12 @@ class BlockLocator:
             np.array([d.centroid_px for d in detections]), self.intrinsics, cam2base,
             table_z_mm=self.table_z_mm, block_size_mm=self.block_size_mm, yaw_deg=yaws)
         return [self._sighting(d.color, loc, d) for d, loc in
-                zip(detections, locations, strict=True)]
+                zip(detections, locations, strict=True) if self._block_sized(d, loc, cam2base)]
+
+    def _block_sized(self, d: Detection, loc: BlockLocation, cam2base: FloatArray) -> bool:
+        depth = float(np.linalg.norm(np.array([loc.x_mm, loc.y_mm, loc.z_mm]) - cam2base[:3, 3]))
+        top_px = (self.intrinsics.fx * self.block_size_mm / max(depth, 1.0)) ** 2
+        return AREA_RANGE[0] * top_px <= d.area_px <= AREA_RANGE[1] * top_px
 
     def _sighting(self, color: str, loc: BlockLocation, detection: Detection | None,
                   detections: tuple[Detection, ...] = ()) -> Sighting:

@@ -101,7 +101,7 @@ def _print(settings: Settings, report: BenchReport) -> None:
               help="Random targets for accuracy and single-call timing.")
 @click.option("--batch-n", type=click.IntRange(10, 100_000_000), default=1_000_000,
               show_default=True, help="Rows for the ik_batch throughput run.")
-@click.option("--seed", type=int, default=0, show_default=True,
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="Seed of the random joint vectors and targets.")
 @click.option("--peers", is_flag=True,
               help="Also time Robotics Toolbox and ikpy on the same targets (make bench-ik).")
@@ -191,7 +191,7 @@ def _print_ik(settings: Settings, report: IkBenchReport) -> None:
 @bench.command("locate")
 @click.option("--placements", type=click.IntRange(1, 100_000), default=200, show_default=True,
               help="Block placements to locate (several per picture).")
-@click.option("--seed", type=int, default=0, show_default=True,
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="Seed of the calibration views and the placements.")
 @click.option("--keep", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Keep the calibration files the run makes in this folder.")
@@ -235,7 +235,7 @@ def bench_locate(settings: Settings, placements: int, seed: int, keep: Path | No
               help="Twin pictures (640x480, 4-6 blocks) to cycle over.")
 @click.option("--seconds", type=click.FloatRange(0.5, 600.0), default=3.0, show_default=True,
               help="Time per measured case.")
-@click.option("--seed", type=int, default=0, show_default=True,
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="Seed of the twin scenes pictured.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @pass_settings

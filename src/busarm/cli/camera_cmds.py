@@ -8,8 +8,11 @@ taken any other way, without an arm.
 
 from __future__ import annotations
 
+import os
+import sys
 from pathlib import Path
 from typing import Any
+from urllib.parse import parse_qs, urlsplit
 
 import click
 
@@ -30,7 +33,11 @@ def is_twin_port(port: str) -> bool:
 
 def twin_port_with_board(port: str, board: str) -> str:
     """The twin URL with ``board`` on its table, unless the URL already sets the scene."""
-    if "board=" in port or "scene=" in port:
+    given = parse_qs(urlsplit(port).query).get("board") if "://" in port else None
+    if given and given[-1] != board:
+        raise ConfigError(f"{port}: this step looks for a {board} board, but the twin's "
+                          f"table has a {given[-1]} board (board={board})")
+    if given or "scene=" in port:
         return port
     if port == "twin":
         return f"twin://?board={board}"
@@ -47,8 +54,12 @@ def default_camera(settings: Settings, camera: str | None) -> str:
 
 
 def _confirm(settings: Settings, yes: bool) -> Any:
+    """Asks before each picture on hardware (None: take them all)."""
     if yes or is_twin_port(settings.port):
         return None
+    if not sys.stdin.isatty():
+        raise ConfigError("no terminal to ask on before each picture: add --yes to take "
+                          "them all without asking")
 
     def ask(i: int, n: int) -> bool:
         answer = click.prompt(f"view {i + 1}/{n}: Enter to take the picture, s to skip",
@@ -56,6 +67,14 @@ def _confirm(settings: Settings, yes: bool) -> Any:
         return str(answer).strip().lower() != "s"
 
     return ask
+
+
+def check_writable(path: Path) -> None:
+    """Refuse an output file that cannot be written, before any arm motion."""
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir() or not os.access(folder, os.W_OK):
+        raise ConfigError(f"cannot write {path}: folder {folder} does not exist or is not "
+                          "writable")
 
 
 def _board_at(text: str) -> tuple[float, float]:
@@ -96,7 +115,8 @@ def _progress(settings: Settings) -> Any:
               help="Where the board's centre lies on the table, X,Y in mm (base frame).")
 @click.option("--images", type=click.Path(file_okay=False, exists=True, path_type=Path),
               help="Calibrate from the pictures in this folder instead (no arm).")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the view plan.")
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
+              help="Seed of the view plan.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
               default=DEFAULT_INTRINSICS_OUT, show_default=True,
               help="Where to write the intrinsics (JSON).")
@@ -120,6 +140,7 @@ def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, vi
 
     spec = BOARD_SPECS[board]
     settings = ac.settings
+    check_writable(output)
     if images is not None:
         with open_camera(str(images)) as source:
             observations, size = [], (source.width_px, source.height_px)
@@ -133,6 +154,9 @@ def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, vi
     else:
         centre = _board_at(board_at)
         where = board2base(calibration_board(board, centre), ac.config.table_z_mm)
+        source_name = default_camera(settings, camera_src)
+        confirm = _confirm(settings, yes)
+        poses = calibration_views(ac.kin, spec, where, views, seed=seed)
         port = settings.port
         if is_twin_port(port):
             port = twin_port_with_board(port, board)
@@ -140,19 +164,17 @@ def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, vi
             settings.err.print(f"Lay the {spec.describe()} flat with its centre at "
                                f"({centre[0]:g}, {centre[1]:g}) mm, its long side across "
                                "the arm's front.", highlight=False)
-        poses = calibration_views(ac.kin, spec, where, views, seed=seed)
-        source_name = default_camera(settings, camera_src)
         with ac.open(port=port) as arm, open_camera(source_name) as source:
-            taken = capture_views(arm, source, poses, spec,
-                                  confirm=_confirm(settings, yes), progress=_progress(settings))
+            taken = capture_views(arm, source, poses, spec, confirm=confirm,
+                                  progress=_progress(settings))
             arm.move_joints(ac.config.pose("home"))
         result = intrinsics_from_views(taken, model)
     save_intrinsics(output, result, board=spec.describe())
     i = result.intrinsics
-    settings.out.print(
+    click.echo(
         f"wrote {output}: {i.model}, fx {i.fx:.2f} fy {i.fy:.2f} cx {i.cx:.2f} cy {i.cy:.2f} px, "
         f"distortion {[round(float(d), 5) for d in i.distortion]}; reprojection rms "
-        f"{result.rms_px:.3f} px over {len(result.per_view_rms_px)} views", highlight=False)
+        f"{result.rms_px:.3f} px over {len(result.per_view_rms_px)} views")
 
 
 @camera.command()
@@ -165,7 +187,8 @@ def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, vi
               help="Pictures to take.")
 @click.option("--board-at", "board_at", default="210,0", show_default=True,
               help="Where the tag board's centre lies on the table, X,Y in mm.")
-@click.option("--seed", type=int, default=1, show_default=True, help="Seed of the view plan.")
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True,
+              help="Seed of the view plan.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
               default=DEFAULT_HAND_EYE_OUT, show_default=True,
               help="Where to write the hand-eye calibration (JSON).")
@@ -189,10 +212,14 @@ def handeye(ac: ArmContext, intrinsics: Path, camera_src: str | None, views: int
     from busarm.vision.camera import open_camera
 
     settings = ac.settings
+    check_writable(output)
     intr = load_intrinsics(intrinsics)
     spec = BOARD_SPECS["tags"]
     centre = _board_at(board_at)
     where = board2base(calibration_board("tags", centre), ac.config.table_z_mm)
+    source_name = default_camera(settings, camera_src)
+    confirm = _confirm(settings, yes)
+    poses = calibration_views(ac.kin, spec, where, views, intrinsics_guess=intr, seed=seed)
     port = settings.port
     if is_twin_port(port):
         port = twin_port_with_board(port, "tags")
@@ -200,22 +227,20 @@ def handeye(ac: ArmContext, intrinsics: Path, camera_src: str | None, views: int
         settings.err.print(f"Lay the {spec.describe()} flat with its centre at "
                            f"({centre[0]:g}, {centre[1]:g}) mm; it must not move.",
                            highlight=False)
-    poses = calibration_views(ac.kin, spec, where, views, intrinsics_guess=intr, seed=seed)
-    source_name = default_camera(settings, camera_src)
     with ac.open(port=port) as arm, open_camera(source_name) as source:
         if (source.width_px, source.height_px) != (intr.width_px, intr.height_px):
             raise ConfigError(f"{intrinsics} is for {intr.width_px}x{intr.height_px} pictures; "
                               f"{source_name} gives {source.width_px}x{source.height_px}")
-        taken = capture_views(arm, source, poses, spec, confirm=_confirm(settings, yes),
+        taken = capture_views(arm, source, poses, spec, confirm=confirm,
                               progress=_progress(settings))
         arm.move_joints(ac.config.pose("home"))
     result = hand_eye_from_views(taken, intr)
     save_hand_eye(output, result)
     t = result.cam2link[:3, 3]
-    settings.out.print(
+    click.echo(
         f"wrote {output}: camera at ({t[0]:.1f}, {t[1]:.1f}, {t[2]:.1f}) mm on the "
         f"{result.link} link (+-{result.translation_std_mm:.2f} mm); reprojection rms "
-        f"{result.rms_px:.3f} px over {len(result.views_used)} views", highlight=False)
+        f"{result.rms_px:.3f} px over {len(result.views_used)} views")
 
 
 COMMANDS = [camera]

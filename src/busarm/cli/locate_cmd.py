@@ -16,7 +16,7 @@ from busarm.cli.arm_cmds import ArmContext
 from busarm.cli.camera_cmds import DEFAULT_HAND_EYE_OUT, DEFAULT_INTRINSICS_OUT, default_camera
 from busarm.cli.common import RangeType, Settings, pass_settings
 
-BLOCK = RangeType("block size", 5.0, 200.0, "mm")
+BLOCK = RangeType("block size", 10.0, 60.0, "mm")
 
 
 @click.command()
@@ -50,10 +50,11 @@ def locate(settings: Settings, camera_src: str | None, intrinsics: Path, hand_ey
            block_mm: float, config: str, save: Path | None, as_json: bool) -> None:
     """Find the blocks and print where they are on the table (mm, base frame).
 
-    Positions are the block's centre on the table; "reach" says whether a grasp at the
-    block reaches (top-down, tilted, or why not).
+    x and y are the block's centre, z its top face; "reach" says whether a grasp at the
+    block reaches (top-down, tilted, or why not). Blobs that are not block-sized are
+    left out, and so are the vendor's black and white (lines, the table) unless asked.
     """
-    from busarm.apps.locate import BlockLocator
+    from busarm.apps.locate import NOT_BLOCK_COLORS, BlockLocator
     from busarm.vision.annotate import annotate, save_image
     from busarm.vision.calibration import load_hand_eye, load_intrinsics
     from busarm.vision.camera import open_camera
@@ -68,7 +69,9 @@ def locate(settings: Settings, camera_src: str | None, intrinsics: Path, hand_ey
     intr = load_intrinsics(intrinsics)
     he = load_hand_eye(hand_eye, intrinsics=intr)
     table = load_thresholds(thresholds) if thresholds else default_thresholds()
-    detector = ColorDetector(table, colors=parse_color_names(colors) if colors else None)
+    names = parse_color_names(colors) if colors else [
+        c for c in table.names if c not in NOT_BLOCK_COLORS]
+    detector = ColorDetector(table, colors=names)
     source_name = default_camera(settings, camera_src)
     with ac.open() as arm, open_camera(source_name) as source:
         if (source.width_px, source.height_px) != (intr.width_px, intr.height_px):

@@ -88,7 +88,8 @@ class BusArmGroup(click.Group):
 @click.option(
     "--port", envvar="BUSARM_PORT", default="sim", show_default=True, show_envvar=True,
     help="Serial port: a device path (/dev/ttyUSB0, COM3), a pyserial URL (socket://host:port, "
-         "loop://) or the simulator: 'sim' or 'sim://?ids=1,2,3&echo=1&timing=0'.",
+         "loop://), the simulator: 'sim' or 'sim://?ids=1,2,3&echo=1&timing=0', or the "
+         "digital twin: 'twin' or 'twin://?seed=3&blocks=6'.",
 )
 @click.option(
     "--baud", "baudrate", type=click.IntRange(1200, 4_000_000), default=DEFAULT_BAUDRATE,

@@ -14,14 +14,18 @@ import click
 
 from busarm.cli.common import Settings, pass_settings
 from busarm.errors import ConfigError
+from busarm.twin.scene import MAX_BLOCKS
+
+DEFAULT_COLORS = "red,green,blue"
 
 
 def scene_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """--scene FILE or --seed/--blocks/--colors: what stands on the twin's table."""
-    func = click.option("--colors", default="red,green,blue", show_default=True,
-                        help="Block colours of a random scene, comma separated.")(func)
-    func = click.option("--blocks", type=click.IntRange(0, 12), default=5, show_default=True,
-                        help="How many blocks in a random scene.")(func)
+    func = click.option("--colors", default=None,
+                        help=f"Block colours of a random scene, comma separated "
+                             f"[default: {DEFAULT_COLORS}].")(func)
+    func = click.option("--blocks", type=click.IntRange(0, MAX_BLOCKS), default=None,
+                        help="How many blocks in a random scene [default: 5].")(func)
     func = click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=None,
                         help="Seed of a random scene (default 0).")(func)
     func = click.option("--scene", "scene_file",
@@ -30,16 +34,17 @@ def scene_options(func: Callable[..., Any]) -> Callable[..., Any]:
     return func
 
 
-def make_scene(scene_file: Path | None, seed: int | None, blocks: int, colors: str) -> Any:
+def make_scene(scene_file: Path | None, seed: int | None, blocks: int | None,
+               colors: str | None) -> Any:
     """The scene the options ask for (a file, or a seeded random scene)."""
     from busarm.twin.scene import load_scene, random_scene
 
     if scene_file is not None:
-        if seed is not None:
-            raise ConfigError("give either --scene or --seed, not both")
+        if seed is not None or blocks is not None or colors is not None:
+            raise ConfigError("give either --scene or --seed/--blocks/--colors, not both")
         return load_scene(scene_file)
-    names = [c.strip() for c in colors.split(",") if c.strip()]
-    return random_scene(seed or 0, blocks, names)
+    names = [c.strip() for c in (colors or DEFAULT_COLORS).split(",") if c.strip()]
+    return random_scene(seed or 0, 5 if blocks is None else blocks, names)
 
 
 @click.group()
@@ -59,8 +64,8 @@ def twin() -> None:
 @click.option("--camera-port", type=click.IntRange(0, 65535), default=0, show_default=True,
               help="TCP port on 127.0.0.1 for the camera (0: any free port).")
 @pass_settings
-def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks: int,
-          colors: str, config: str, echo: bool, camera_port: int) -> None:
+def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks: int | None,
+          colors: str | None, config: str, echo: bool, camera_port: int) -> None:
     """Serve the twin's servos on a pseudo-terminal and its camera on 127.0.0.1.
 
     The first line of stdout is the device path (open it with any serial program), the
@@ -104,20 +109,34 @@ def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks:
               help="Arm config name or TOML file.")
 @click.option("--lens", type=click.Choice(["wide", "vendor", "none"]), default="wide",
               show_default=True, help="The arm camera's lens distortion.")
-def snapshot(scene_file: Path | None, seed: int | None, blocks: int, colors: str, png: Path,
-             pose: str, joints: str | None, config: str, lens: str) -> None:
+@click.option("--view", type=click.Choice(["both", "arm", "overview"]), default="both",
+              show_default=True,
+              help="Both cameras side by side, or one (arm: a raw camera frame for vision).")
+@click.pass_context
+def snapshot(ctx: click.Context, scene_file: Path | None, seed: int | None, blocks: int | None,
+             colors: str | None, png: Path, pose: str, joints: str | None, config: str,
+             lens: str, view: str) -> None:
     """Render the scene from the arm camera and from an overview camera, without a viewer."""
     import cv2
     import numpy as np
 
     from busarm.arm.config import load_arm_config
+    from busarm.arm.kinematics import ArmKinematics
     from busarm.cli.common import parse_float_list
     from busarm.twin.lens import lens_by_name
     from busarm.twin.twin import Twin
     from busarm.vision.annotate import save_image
 
     cfg = load_arm_config(config)
-    start = parse_float_list(joints, "joint angle") if joints is not None else cfg.pose(pose)
+    if joints is not None and ctx.get_parameter_source("pose") is not \
+            click.core.ParameterSource.DEFAULT:
+        raise ConfigError("give either --pose or --joints, not both")
+    start = cfg.check_joints(
+        parse_float_list(joints, "joint angle") if joints is not None else cfg.pose(pose))
+    tool_z = ArmKinematics.from_config(cfg, check_table=False).fk(start).z_mm
+    if tool_z < cfg.table_z_mm:
+        raise ConfigError(f"those joints put the tool {cfg.table_z_mm - tool_z:.0f} mm into the "
+                          "table; the arm cannot stand there")
     scene = make_scene(scene_file, seed, blocks, colors)
     with Twin(cfg, scene, lens=lens_by_name(lens), start_joints_deg=start,
               realtime=False) as tw:
@@ -126,14 +145,16 @@ def snapshot(scene_file: Path | None, seed: int | None, blocks: int, colors: str
     h = arm_view.shape[0]
     scaled = np.asarray(cv2.resize(overview, (round(overview.shape[1] * h / overview.shape[0]), h)),
                         dtype=np.uint8)
-    save_image(png, np.hstack([arm_view, scaled]))
-    click.echo(f"wrote {png}: arm camera ({arm_view.shape[1]}x{h}) and overview")
+    picture = {"arm": arm_view, "overview": overview, "both": np.hstack([arm_view, scaled])}[view]
+    save_image(png, picture)
+    click.echo(f"wrote {png}: {'arm camera and overview' if view == 'both' else view} "
+               f"({picture.shape[1]}x{picture.shape[0]})")
 
 
 @twin.command()
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="Seed of the random scene.")
-@click.option("--blocks", type=click.IntRange(0, 12), default=5, show_default=True,
+@click.option("--blocks", type=click.IntRange(0, MAX_BLOCKS), default=5, show_default=True,
               help="How many blocks.")
 @click.option("--colors", default="red,green,blue", show_default=True,
               help="Block colours, comma separated.")
@@ -145,7 +166,7 @@ def scene(seed: int, blocks: int, colors: str, output: Path) -> None:
 
     s = make_scene(None, seed, blocks, colors)
     save_scene(output, s)
-    click.echo(f"wrote {output}: {len(s.blocks)} blocks, {len(s.bins)} bins")
+    click.echo(f"wrote {output}: {len(s.blocks)} block(s), {len(s.bins)} bin(s)")
 
 
 COMMANDS = [twin]

@@ -62,6 +62,12 @@ def _load_thresholds(ctx: click.Context, thresholds: str | None, vendor_yaml: st
 
 def _nothing_found(detector: ColorDetector, image: Any) -> str:
     """Why no block was reported: no pixel in the colour boxes, or only small blobs."""
+    import numpy as np
+
+    spread = np.ptp(np.asarray(image).reshape(-1, 3), axis=0)
+    if int(spread.max()) <= 8:
+        return ("no blocks found: the frame is uniform (blank, covered, or saturated): "
+                "check the lens cap, the exposure and the lighting")
     counts = detector.matched_pixels(image)
     names = ", ".join(detector.colors)
     if not any(counts.values()):

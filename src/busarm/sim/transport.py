@@ -32,22 +32,22 @@ _KNOWN = {"ids", "echo", "timing", "turnaround_ms", "drop", "corrupt", "late", "
           "state", "block"}
 
 
-def query_float(q: dict[str, str], key: str, default: float) -> float:
+def query_float(q: dict[str, str], key: str, default: float, what: str = "sim URL") -> float:
     """A number from a URL query (``default`` when absent); ConfigError naming the key."""
     if key not in q:
         return default
     try:
         return float(q[key])
     except ValueError:
-        raise ConfigError(f"sim URL: {key}={q[key]!r} is not a number") from None
+        raise ConfigError(f"{what}: {key}={q[key]!r} is not a number") from None
 
 
-def query_flag(q: dict[str, str], key: str, default: bool) -> bool:
+def query_flag(q: dict[str, str], key: str, default: bool, what: str = "sim URL") -> bool:
     """A 0/1 flag from a URL query (``default`` when absent); ConfigError naming the key."""
     if key not in q:
         return default
     if q[key] not in ("0", "1"):
-        raise ConfigError(f"sim URL: {key}={q[key]!r}; allowed: 0 or 1")
+        raise ConfigError(f"{what}: {key}={q[key]!r}; allowed: 0 or 1")
     return q[key] == "1"
 
 

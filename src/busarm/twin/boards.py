@@ -15,7 +15,8 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from busarm.twin.scene import Board, Scene
+from busarm.errors import ConfigError
+from busarm.twin.scene import BASE_CLEARANCE_MM, Board, Scene
 from busarm.vision.calibration import (
     BoardSpec,
     CharucoSpec,
@@ -93,3 +94,29 @@ def calibration_board(kind: str, centre_mm: tuple[float, float] = CALIBRATION_BO
     x_b, y_b = np.array([math.cos(yaw), math.sin(yaw)]), np.array([math.sin(yaw), -math.cos(yaw)])
     origin = np.asarray(centre_mm) - x_b * w / 2 - y_b * h / 2
     return Board(kind, float(origin[0]), float(origin[1]), yaw_deg)
+
+
+def check_boards_fit(scene: Scene, table_z_mm: float) -> None:
+    """Raise ConfigError for a board that hangs off the table or lies on the arm base."""
+    for i, board in enumerate(scene.boards):
+        w, h = board_spec(board.kind).extent_mm
+        b2b = board2base(board, table_z_mm)
+        corners = b2b @ np.array([[0, 0, 0, 1], [w, 0, 0, 1], [w, h, 0, 1], [0, h, 0, 1]],
+                                 dtype=float).T
+        for x, y in corners[:2].T:
+            if not scene.table.contains(float(x), float(y)):
+                raise ConfigError(f"scene {scene.source}: boards[{i}] ({board.kind}, "
+                                  f"{w:g}x{h:g} mm) hangs off the table at ({x:.0f}, {y:.0f}) mm")
+        # The base is a disc around (0, 0): the board's nearest point must clear it.
+        nearest = _nearest_on_rectangle(b2b, w, h)
+        if nearest < BASE_CLEARANCE_MM:
+            raise ConfigError(f"scene {scene.source}: boards[{i}] ({board.kind}) lies on the "
+                              f"arm base: keep it {BASE_CLEARANCE_MM:g} mm from (0, 0)")
+
+
+def _nearest_on_rectangle(b2b: FloatArray, w: float, h: float) -> float:
+    """Distance from the base axis to the nearest point of a board lying on the table."""
+    local = np.linalg.inv(b2b) @ np.array([0.0, 0.0, b2b[2, 3], 1.0])
+    u = min(max(float(local[0]), 0.0), w)
+    v = min(max(float(local[1]), 0.0), h)
+    return float(np.hypot(float(local[0]) - u, float(local[1]) - v))

@@ -114,9 +114,14 @@ def open_twin_camera(spec: str, **options: object) -> TwinCamera | RemoteTwinCam
         raise ConfigError(f"twin camera: unknown option(s) {sorted(options)}; known: view")
     parts = urlsplit(spec) if "://" in spec else None
     if parts is not None and parts.netloc:
-        if parts.port is None or parts.hostname is None:
-            raise ConfigError(f"twin camera {spec!r}: expected twin://127.0.0.1:PORT")
-        return RemoteTwinCamera(parts.hostname, parts.port)
+        try:
+            port = parts.port
+        except ValueError:
+            port = None
+        if port is None or parts.hostname is None or not 1 <= port <= 65535:
+            raise ConfigError(f"twin camera {spec!r}: expected twin://127.0.0.1:PORT with "
+                              "PORT 1..65535 (the address `busarm twin serve` prints)")
+        return RemoteTwinCamera(parts.hostname, port)
     twin = active_twin()
     if twin is not None and (parts is None or not parts.query):
         return TwinCamera(twin, view=view)

@@ -279,6 +279,10 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
             w(f'{indent}  <geom class="arm" type="box" size="0.02 0.012 0.012" '
               f'pos="{_fmt(cam_pos + cam[:3, :3] @ np.array([0, 0, -0.014]))}" '
               f'quat="{_fmt(quat_from_matrix(cam[:3, :3]))}" contype="0" conaffinity="0"/>')
+            # The bracket holding it: a bar from the wrist joint to the camera body.
+            bracket_end = cam_pos + cam[:3, :3] @ np.array([0, 0, -0.02])
+            w(f'{indent}  <geom class="arm" type="capsule" size="0.006" contype="0" '
+              f'conaffinity="0" fromto="0 0 0 {_fmt(bracket_end)}"/>')
         indent += "  "
     # The gripper on link 5 (tool axis z5): a palm, then two fingers sliding along y5.
     tool = g.tool_mm * m
@@ -292,6 +296,10 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
           'diaginertia="2e-6 2e-6 2e-6"/>')
         w(f'{indent}  <joint name="finger_{side}" type="slide" axis="0 {sign:g} 0" '
           f'range="0 {max_half_gap:.9g}" damping="20" armature="2" frictionloss="0"/>')
+        # The finger's blade from its pad back to the palm (seen, never touching).
+        w(f'{indent}  <geom type="box" contype="0" conaffinity="0" '
+          f'pos="0 {sign * pad_t * 0.25:.9g} {-pad_l / 2 - 0.01:.9g}" '
+          f'size="{_fmt((pad_w / 2, pad_t / 4, 0.012))}"/>')
         w(f'{indent}  <geom name="finger_{side}" type="box" condim="4" '
           f'friction="1.2 0.02 0.002" solref="0.004 1" solimp="0.95 0.99 0.001" '
           f'pos="0 {sign * pad_t / 2:.9g} 0" size="{_fmt((pad_w / 2, pad_t / 2, pad_l / 2))}"/>')

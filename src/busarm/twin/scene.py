@@ -202,6 +202,8 @@ PLACE_BEARING_DEG = (-55.0, 55.0)
 """... and within these bearings (0 = straight ahead), in front of the arm."""
 MIN_GAP_MM = 25.0
 """Free space between random blocks, so fingers fit between them."""
+MAX_BLOCKS = 9
+"""The most random blocks that always fit there that far apart."""
 
 
 def random_scene(
@@ -216,8 +218,8 @@ def random_scene(
     """
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
         raise ConfigError(f"seed = {seed!r} must be an integer 0..{2**32 - 1}")
-    if isinstance(blocks, bool) or not isinstance(blocks, int) or not 0 <= blocks <= 12:
-        raise ConfigError(f"blocks = {blocks!r} is out of range 0..12")
+    if isinstance(blocks, bool) or not isinstance(blocks, int) or not 0 <= blocks <= MAX_BLOCKS:
+        raise ConfigError(f"blocks = {blocks!r} is out of range 0..{MAX_BLOCKS}")
     colors = list(colors)
     unknown = [c for c in colors if c not in COLORS]
     if not colors or unknown:
@@ -225,22 +227,27 @@ def random_scene(
     rng = random.Random(seed)
     chosen = [colors[i % len(colors)] for i in range(blocks)]
     rng.shuffle(chosen)
-    placed: list[Block] = []
     r_lo, r_hi = PLACE_RADIUS_MM
     b_lo, b_hi = PLACE_BEARING_DEG
-    for color in chosen:
-        for _ in range(2000):
-            r = math.sqrt(rng.uniform(r_lo**2, r_hi**2))  # uniform over the area
-            bearing = math.radians(rng.uniform(b_lo, b_hi))
-            x, y = r * math.cos(bearing), r * math.sin(bearing)
-            if all(math.hypot(x - b.x_mm, y - b.y_mm) >= size_mm * math.sqrt(2) + MIN_GAP_MM
-                   for b in placed):
-                placed.append(Block(color, round(x, 2), round(y, 2),
-                                    round(rng.uniform(-45.0, 45.0), 2), size_mm))
+    for _attempt in range(200):  # an unlucky early block can leave no room: start again
+        placed: list[Block] = []
+        for color in chosen:
+            for _ in range(300):
+                r = math.sqrt(rng.uniform(r_lo**2, r_hi**2))  # uniform over the area
+                bearing = math.radians(rng.uniform(b_lo, b_hi))
+                x, y = r * math.cos(bearing), r * math.sin(bearing)
+                if all(math.hypot(x - b.x_mm, y - b.y_mm)
+                       >= size_mm * math.sqrt(2) + MIN_GAP_MM for b in placed):
+                    placed.append(Block(color, round(x, 2), round(y, 2),
+                                        round(rng.uniform(-45.0, 45.0), 2), size_mm))
+                    break
+            else:
                 break
-        else:
-            raise ConfigError(f"cannot place {blocks} blocks {MIN_GAP_MM:g} mm apart in "
-                              "the reachable area; ask for fewer")
+        if len(placed) == blocks:
+            break
+    else:
+        raise ConfigError(f"cannot place {blocks} blocks {MIN_GAP_MM:g} mm apart in "
+                          "the reachable area; ask for fewer")
     trays = tuple(b for b in DEFAULT_BINS if b.color in colors) if bins else ()
     return Scene(blocks=tuple(placed), bins=trays, seed=seed, source=f"seed {seed}")
 

@@ -30,7 +30,7 @@ from busarm.sim.bus import WireTiming
 from busarm.sim.transport import SimTransport, query_flag, query_float
 from busarm.twin.boards import BOARD_SPECS, calibration_board
 from busarm.twin.lens import lens_by_name
-from busarm.twin.scene import Scene, load_scene, random_scene
+from busarm.twin.scene import MAX_BLOCKS, Scene, load_scene, random_scene
 from busarm.twin.twin import Twin
 
 _KNOWN = {"seed", "blocks", "colors", "scene", "config", "echo", "timing", "board", "lens"}
@@ -38,7 +38,12 @@ _KNOWN = {"seed", "blocks", "colors", "scene", "config", "echo", "timing", "boar
 
 def twin_query(url: str) -> dict[str, str]:
     """The query of a ``twin``/``twin://?...`` URL, unknown keys refused."""
-    query = urlsplit(url).query if "://" in url else ""
+    parts = urlsplit(url) if "://" in url else None
+    if parts is not None and parts.netloc:
+        raise ConfigError(f"{url}: twin://HOST:PORT is a twin camera's address; for its servos "
+                          "use the /dev/pts/N path `busarm twin serve` printed, or twin://?... "
+                          "for a twin in this process")
+    query = parts.query if parts is not None else ""
     raw = parse_qs(query, keep_blank_values=True)
     unknown = set(raw) - _KNOWN
     if unknown:
@@ -56,10 +61,11 @@ def scene_from_query(q: dict[str, str]) -> Scene:
     board = q.get("board")
     if board is not None and board not in BOARD_SPECS:
         raise ConfigError(f"twin URL: board={board!r}; allowed: {', '.join(BOARD_SPECS)}")
-    seed = query_float(q, "seed", 0.0)
-    blocks = query_float(q, "blocks", 0.0 if board else 5.0)
-    if not (seed.is_integer() and blocks.is_integer()):
-        raise ConfigError(f"twin URL: seed and blocks must be whole numbers, got {seed}, {blocks}")
+    seed = query_float(q, "seed", 0.0, "twin URL")
+    blocks = query_float(q, "blocks", 0.0 if board else 5.0, "twin URL")
+    for key, value, hi in (("seed", seed, 2**32 - 1), ("blocks", blocks, MAX_BLOCKS)):
+        if not (value.is_integer() and 0 <= value <= hi):
+            raise ConfigError(f"twin URL: {key}={q[key]!r} must be a whole number 0..{hi}")
     colors = q.get("colors", "red,green,blue").split(",")
     scene = random_scene(int(seed), int(blocks), [c.strip() for c in colors if c.strip()],
                          bins=board is None)
@@ -73,9 +79,9 @@ def twin_from_url(url: str, baudrate: int = 115200) -> Twin:
     q = twin_query(url)
     scene = scene_from_query(q)
     config = load_arm_config(q.get("config") or "jetauto_pro")
-    timing = WireTiming(baudrate, enabled=query_flag(q, "timing", True))
+    timing = WireTiming(baudrate, enabled=query_flag(q, "timing", True, "twin URL"))
     return Twin(config, scene, lens=lens_by_name(q.get("lens", "wide")), timing=timing,
-                echo=query_flag(q, "echo", False))
+                echo=query_flag(q, "echo", False, "twin URL"))
 
 
 class TwinTransport(SimTransport):

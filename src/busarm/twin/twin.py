@@ -40,7 +40,7 @@ from busarm.errors import ConfigError, TwinError
 from busarm.protocol import Command, Request
 from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.servo import ServoParams, SimServo
-from busarm.twin.boards import board2base, scene_textures
+from busarm.twin.boards import board2base, check_boards_fit, scene_textures
 from busarm.twin.lens import LensSpec
 from busarm.twin.model import (
     AS_BUILT_MOUNT_ERROR,
@@ -72,6 +72,8 @@ def _choose_gl_backend() -> str:
     """MUJOCO_GL as given, else EGL or OSMesa, whichever this machine has."""
     given = os.environ.get("MUJOCO_GL")
     if given:
+        if given not in ("egl", "osmesa", "glfw"):
+            raise TwinError(f"MUJOCO_GL={given!r}; allowed: egl, osmesa (headless) or glfw")
         return given
     if ctypes.util.find_library("EGL"):
         return "egl"
@@ -89,6 +91,10 @@ def _import_mujoco() -> Any:
         import mujoco
     except ImportError as exc:
         raise TwinError(f"the twin needs MuJoCo: pip install mujoco ({exc})") from exc
+    except Exception as exc:  # MuJoCo's GL loaders raise whatever their library does
+        raise TwinError(f"MuJoCo cannot start its {os.environ['MUJOCO_GL']!r} OpenGL backend "
+                        f"({type(exc).__name__}: {exc}); install {GL_PACKAGES}, or set "
+                        "MUJOCO_GL=egl or osmesa") from exc
     return mujoco
 
 
@@ -152,12 +158,15 @@ class Twin:
             *AS_BUILT_MOUNT_ERROR)
         self.kin = ArmKinematics.from_config(self.config, check_table=False)
         cfg = self.config
-        start = cfg.check_joints(start_joints_deg if start_joints_deg is not None
-                                 else cfg.pose("home"))
+        if start_joints_deg is None:
+            # Looking down at the table, so a fresh twin's camera sees the blocks.
+            start_joints_deg = cfg.pose("look" if "look" in cfg.poses_deg else "home")
+        start = cfg.check_joints(start_joints_deg)
         g = cfg.gripper
         grip = g.open_pulses if gripper_pulses is None else gripper_pulses
         g.check_pulses(grip)
         board_textures = scene_textures(self.scene, cfg.table_z_mm)
+        check_boards_fit(self.scene, cfg.table_z_mm)
         width, height, fovy = self.lens.render_geometry()
         spec = TwinModelSpec(self.mount, fovy, (width, height), textures=tuple(board_textures))
         self.mjcf = build_mjcf(cfg, self.scene, spec)
