@@ -76,3 +76,46 @@ def test_bad_twin_urls_and_options_are_clear_errors(tmp_path: Path) -> None:
                                      "--png", str(tmp_path / "x.png")))
     assert "no pose" in one_error(run("twin", "snapshot", "--pose", "dance",
                                       "--png", str(tmp_path / "x.png")))
+
+
+def test_more_bad_input_is_one_clear_error(tmp_path: Path) -> None:
+    assert "PORT 1..65535" in one_error(run("vision", "detect", "--camera",
+                                            "twin://127.0.0.1:abc"))
+    assert "PORT 1..65535" in one_error(run("vision", "detect", "--camera",
+                                            "twin://127.0.0.1:99999"))
+    assert "/dev/pts" in one_error(run("--port", "twin://127.0.0.1:5000", "arm", "pose"))
+    assert "twin URL: seed" in one_error(run("--port", "twin://?seed=abc", "arm", "pose"))
+    assert "0..9" in one_error(run("--port", "twin://?blocks=40", "arm", "pose"))
+    assert "not both" in one_error(run("twin", "snapshot", "--joints", "0,-90,0,-90,0",
+                                       "--pose", "home", "--png", str(tmp_path / "x.png")))
+    assert "into the table" in one_error(run("twin", "snapshot", "--joints", "0,-20,100,-80,0",
+                                             "--png", str(tmp_path / "x.png")))
+    scene = tmp_path / "s.toml"
+    scene.write_text('format = "busarm.scene"\nversion = 1\n[[boards]]\nkind = "tags"\n'
+                     'x_mm = 380\ny_mm = 0\n')
+    assert "hangs off the table" in one_error(run("twin", "snapshot", "--scene", str(scene),
+                                                  "--png", str(tmp_path / "x.png")))
+
+
+def test_a_broken_gl_backend_is_one_clear_error(tmp_path: Path) -> None:
+    import os
+    import subprocess
+    import sys
+
+    result = subprocess.run(
+        [sys.executable, "-m", "busarm", "twin", "snapshot", "--png", str(tmp_path / "x.png")],
+        capture_output=True, text=True, timeout=60, env=dict(os.environ, MUJOCO_GL="foo"))
+    assert result.returncode == 1, result.stderr
+    assert result.stderr.startswith("error: MUJOCO_GL='foo'"), result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_a_blank_frame_is_named_as_such(tmp_path: Path) -> None:
+    import numpy as np
+
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    cv2.imwrite(str(folder / "black.png"), np.zeros((48, 64, 3), np.uint8))
+    result = run("vision", "detect", "--camera", str(folder))
+    assert result.exit_code == 0, result.stderr
+    assert "the frame is uniform" in result.stdout

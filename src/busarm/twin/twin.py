@@ -84,7 +84,7 @@ def _choose_gl_backend() -> str:
 
 
 def _import_mujoco() -> Any:
-    os.environ["MUJOCO_GL"] = os.environ.get("MUJOCO_GL") or _choose_gl_backend()
+    os.environ["MUJOCO_GL"] = _choose_gl_backend()
     if os.environ["MUJOCO_GL"] == "egl":
         os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     try:
