@@ -164,3 +164,18 @@ def test_vision_locate_refuses_mismatched_calibrations(calibrated: tuple[Path, P
     assert result.exit_code == 2, (result.stdout, result.stderr)
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
+
+
+def test_a_hand_eye_with_the_wrong_intrinsics_is_refused(calibrated: tuple[Path, Path],
+                                                         tmp_path: Path) -> None:
+    data = json.loads(calibrated[0].read_text())
+    data["camera_matrix"][0][0] *= 1.12  # another lens
+    data["camera_matrix"][1][1] *= 1.12
+    wrong = tmp_path / "wrong.json"
+    wrong.write_text(json.dumps(data))
+    out = tmp_path / "he.json"
+    result = run("camera", "handeye", "--intrinsics", str(wrong), "--views", "8",
+                 "-o", str(out))
+    assert result.exit_code == 1, (result.stdout, result.stderr)
+    assert "hand-eye fit is poor" in result.stderr
+    assert not out.exists()

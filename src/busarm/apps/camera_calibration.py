@@ -36,6 +36,7 @@ from busarm.vision.calibration import (
     BoardObservation,
     BoardSpec,
     CameraIntrinsics,
+    ChessboardSpec,
     HandEyeResult,
     IntrinsicsResult,
     calibrate_hand_eye,
@@ -75,22 +76,28 @@ def _board_grid(spec: BoardSpec, board2base: FloatArray, n: int = 9) -> FloatArr
     return out
 
 
-def sees_points(points_base: FloatArray, cam2base: FloatArray, intrinsics: CameraIntrinsics,
-                margin_px: float = IMAGE_MARGIN_PX,
-                hidden: tuple[float, float, float, float] = GRIPPER_IN_VIEW) -> bool:
-    """Whether every point lands in the picture, ``margin_px`` inside its border and
-    outside the part the gripper hides."""
+def visible_fraction(points_base: FloatArray, cam2base: FloatArray,
+                     intrinsics: CameraIntrinsics, margin_px: float = IMAGE_MARGIN_PX,
+                     hidden: tuple[float, float, float, float] = GRIPPER_IN_VIEW) -> float:
+    """The share of the points that land in the picture, ``margin_px`` inside its border
+    and outside the part the gripper hides."""
     base2cam = np.linalg.inv(cam2base)
     p_cam = points_base @ base2cam[:3, :3].T + base2cam[:3, 3]
     if np.any(p_cam[:, 2] < 50.0):
-        return False
+        return 0.0
     px = intrinsics.pixels_from_camera_points(p_cam)
     w, h = intrinsics.width_px, intrinsics.height_px
-    inside = np.all((px >= margin_px) & (px <= (w - 1 - margin_px, h - 1 - margin_px)))
+    inside = np.all((px >= margin_px) & (px <= (w - 1 - margin_px, h - 1 - margin_px)), axis=1)
     x0, y0, x1, y1 = hidden
     behind = ((px[:, 0] >= x0 * w - margin_px) & (px[:, 0] <= x1 * w + margin_px)
               & (px[:, 1] >= y0 * h - margin_px) & (px[:, 1] <= y1 * h + margin_px))
-    return bool(inside and not np.any(behind))
+    return float(np.mean(inside & ~behind))
+
+
+def sees_points(points_base: FloatArray, cam2base: FloatArray, intrinsics: CameraIntrinsics,
+                margin_px: float = IMAGE_MARGIN_PX) -> bool:
+    """Whether every point lands in the picture and clear of the gripper."""
+    return visible_fraction(points_base, cam2base, intrinsics, margin_px) == 1.0
 
 
 def joints_looking_at(
@@ -128,9 +135,15 @@ def calibration_views(
     intrinsics_guess: CameraIntrinsics | None = None, seed: int = 0,
     tilt_range_deg: tuple[float, float] = (-35.0, 35.0),
     distance_range_mm: tuple[float, float] = (220.0, 450.0),
-    need_whole_board: bool = True,
+    min_visible: float | None = None,
 ) -> list[tuple[float, ...]]:
-    """``count`` joint poses looking at the board from spread-out viewpoints."""
+    """``count`` joint poses looking at the board from spread-out viewpoints.
+
+    ``min_visible``: the share of the board that must be in the picture; by default all
+    of a chessboard (it is found whole or not at all), 70 % of a board with markers.
+    """
+    if min_visible is None:
+        min_visible = 1.0 if isinstance(spec, ChessboardSpec) else 0.7
     if isinstance(count, bool) or not isinstance(count, int) or not 3 <= count <= 100:
         raise ConfigError(f"views = {count!r} is out of range 3..100")
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
@@ -152,14 +165,15 @@ def calibration_views(
         except UnreachableError:
             continue
         cam2base = link2base(kin, q) @ NOMINAL_MOUNT.cam2link
-        if need_whole_board and not sees_points(grid, cam2base, guess):
+        if visible_fraction(grid, cam2base, guess) < min_visible:
             continue
         # Describe the view by where the camera is and which way it looks.
         candidates.append((q, np.concatenate([cam2base[:3, 3] / 100.0, cam2base[:3, 2] * 3])))
     if len(candidates) < count:
         raise VisionError(f"only {len(candidates)} of {count} views of the board at "
-                          f"{np.round(centre, 1).tolist()} mm are reachable with the whole "
-                          "board in the picture: move the board nearer the arm's front")
+                          f"{np.round(centre, 1).tolist()} mm are reachable with "
+                          f"{min_visible:.0%} of the board in the picture: move the board "
+                          "nearer the arm's front")
     # Farthest-point sampling: each next view is the most unlike those chosen.
     feats = np.array([f for _, f in candidates])
     chosen = [int(np.argmin(np.linalg.norm(feats - feats.mean(axis=0), axis=1)))]

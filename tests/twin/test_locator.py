@@ -1,0 +1,80 @@
+"""The block locator on twin pictures with the twin's true camera: every block, in mm,
+and nothing that is not a block; implausible calibrations are refused."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from busarm.apps.locate import BlockLocator
+from busarm.arm.config import load_arm_config
+from busarm.arm.kinematics import ArmKinematics
+from busarm.errors import ConfigError
+from busarm.twin.lens import LensSpec
+from busarm.twin.model import AS_BUILT_MOUNT_ERROR, CameraMount
+from busarm.twin.scene import random_scene
+from busarm.twin.twin import Twin
+from busarm.vision.calibration import CameraIntrinsics, HandEyeResult
+from busarm.vision.color import ColorDetector, ColorRange, ColorThresholds, default_thresholds
+
+
+def _truth_calibration(**changes: object) -> tuple[CameraIntrinsics, HandEyeResult]:
+    lens = LensSpec()
+    intr = CameraIntrinsics(model="pinhole", width_px=lens.width_px, height_px=lens.height_px,
+                            camera_matrix=lens.camera_matrix, distortion=lens.dist_coeffs)
+    fields: dict[str, object] = {
+        "cam2link": CameraMount.jetauto().offset(*AS_BUILT_MOUNT_ERROR).cam2link,
+        "board2base": np.eye(4), "rms_px": 0.1, "per_view_rms_px": (), "views_used": (),
+        "intrinsics": intr}
+    fields.update(changes)
+    return intr, HandEyeResult(**fields)  # type: ignore[arg-type]
+
+
+@pytest.fixture(scope="module")
+def picture() -> tuple[np.ndarray, tuple[float, ...], list]:
+    cfg = load_arm_config()
+    with Twin(cfg, random_scene(8, 6, ["red", "green", "blue", "yellow"], bins=False),
+              realtime=False, start_joints_deg=cfg.pose("look")) as tw:
+        return tw.render_camera(), tw.joints_deg(), tw.blocks()
+
+
+def test_every_block_is_located_to_a_millimetre(picture: tuple) -> None:
+    image, joints, truth = picture
+    intr, he = _truth_calibration()
+    kin = ArmKinematics.from_config(load_arm_config())
+    found = BlockLocator(kin, intr, he, ColorDetector(default_thresholds())).locate(image, joints)
+    assert len(found) == len(truth)
+    for block in truth:
+        best = min(found, key=lambda s: math.hypot(s.location.x_mm - block.x_mm,
+                                                   s.location.y_mm - block.y_mm))
+        assert best.color == block.color
+        assert math.hypot(best.location.x_mm - block.x_mm, best.location.y_mm - block.y_mm) < 1.0
+        assert best.reachable and best.top_down
+        # A cube's yaw is known modulo 90 degrees.
+        assert abs((best.location.yaw_deg - block.yaw_deg + 45) % 90 - 45) < 8.0
+
+
+def test_blobs_that_are_not_blocks_are_left_out(picture: tuple) -> None:
+    image, joints, _ = picture
+    intr, he = _truth_calibration()
+    kin = ArmKinematics.from_config(load_arm_config())
+    # A box that takes the light table for a colour: one huge blob, not a block.
+    table = ColorThresholds([ColorRange("tablecloth", (150, 110, 110), (255, 145, 145))])
+    assert BlockLocator(kin, intr, he, ColorDetector(table)).locate(image, joints) == []
+    # The vendor's black and white are for lines and the table, never blocks.
+    dark = ColorThresholds([ColorRange("black", (0, 0, 0), (60, 255, 255))])
+    assert BlockLocator(kin, intr, he, ColorDetector(dark)).locate(image, joints) == []
+
+
+def test_implausible_hand_eye_calibrations_are_refused() -> None:
+    kin = ArmKinematics.from_config(load_arm_config())
+    far = np.eye(4)
+    far[0, 3] = 5000.0
+    intr, he = _truth_calibration(cam2link=far)
+    with pytest.raises(ConfigError, match="5000 mm from the wrist"):
+        BlockLocator(kin, intr, he, ColorDetector(default_thresholds()))
+    intr, he = _truth_calibration(link="elbow_pitch")
+    with pytest.raises(ConfigError, match="elbow_pitch"):
+        BlockLocator(kin, intr, he, ColorDetector(default_thresholds()))
