@@ -19,7 +19,6 @@ from busarm.sim.bus import ARM_SERVO_IDS, SimBus, WireTiming
 from busarm.sim.pty import PtyServer
 from busarm.sim.transport import SimTransport
 
-
 # CI explores the same examples every run (a red CI is then a real regression, reproduced
 # by the next run); developers' runs keep drawing new ones.
 settings.register_profile("ci", derandomize=True, print_blob=True)
