@@ -79,8 +79,9 @@ def _board_grid(spec: BoardSpec, board2base: FloatArray, n: int = 9) -> FloatArr
 def visible_fraction(points_base: FloatArray, cam2base: FloatArray,
                      intrinsics: CameraIntrinsics, margin_px: float = IMAGE_MARGIN_PX,
                      hidden: tuple[float, float, float, float] = GRIPPER_IN_VIEW) -> float:
-    """The share of the points that land in the picture, ``margin_px`` inside its border
-    and outside the part the gripper hides."""
+    """The share of the points that land in the picture, ``margin_px`` inside its border;
+    0 if any lands where the gripper hides the picture (a marker cut by the gripper's edge
+    could be found with a wrong corner; one cut by the picture's edge is not found)."""
     base2cam = np.linalg.inv(cam2base)
     p_cam = points_base @ base2cam[:3, :3].T + base2cam[:3, 3]
     if np.any(p_cam[:, 2] < 50.0):
@@ -91,7 +92,7 @@ def visible_fraction(points_base: FloatArray, cam2base: FloatArray,
     x0, y0, x1, y1 = hidden
     behind = ((px[:, 0] >= x0 * w - margin_px) & (px[:, 0] <= x1 * w + margin_px)
               & (px[:, 1] >= y0 * h - margin_px) & (px[:, 1] <= y1 * h + margin_px))
-    return float(np.mean(inside & ~behind))
+    return 0.0 if np.any(behind) else float(np.mean(inside))
 
 
 def sees_points(points_base: FloatArray, cam2base: FloatArray, intrinsics: CameraIntrinsics,
