@@ -179,3 +179,28 @@ def test_a_hand_eye_with_the_wrong_intrinsics_is_refused(calibrated: tuple[Path,
     assert result.exit_code == 1, (result.stdout, result.stderr)
     assert "hand-eye fit is poor" in result.stderr
     assert not out.exists()
+
+
+def test_calibrate_from_a_folder_of_pictures(tmp_path: Path) -> None:
+    """`camera calibrate --images DIR`: pictures taken any other way, no arm."""
+    import cv2
+
+    from busarm.twin.scene import Scene
+    from busarm.twin.twin import Twin
+
+    cfg = load_arm_config()
+    kin = ArmKinematics.from_config(cfg)
+    board = calibration_board("chessboard")
+    poses = calibration_views(kin, BOARD_SPECS["chessboard"],
+                              board2base(board, cfg.table_z_mm), 10, seed=7)
+    folder = tmp_path / "pictures"
+    folder.mkdir()
+    for i, q in enumerate(poses):
+        with Twin(cfg, Scene(boards=(board,)), realtime=False, start_joints_deg=q) as tw:
+            cv2.imwrite(str(folder / f"view{i:02d}.png"), tw.render_camera())
+    out = tmp_path / "camera.json"
+    result = run("camera", "calibrate", "--images", str(folder), "-o", str(out), port="sim")
+    assert result.exit_code == 0, result.stderr
+    found = load_intrinsics(out)
+    assert found.fx == pytest.approx(LensSpec().fx_px, abs=4.0)
+    assert "over 10 views" in result.stdout

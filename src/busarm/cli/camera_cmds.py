@@ -102,6 +102,42 @@ def _progress(settings: Settings) -> Any:
     return show
 
 
+def _take_pictures(ac: ArmContext, board: str, board_at: str, views: int, seed: int,
+                   camera_src: str | None, yes: bool, *, intrinsics: Any = None,
+                   intrinsics_file: Path | None = None) -> list[Any]:
+    """Plan the views of ``board``, then move the arm through them taking pictures;
+    everything is checked before the arm moves, and it ends at home."""
+    from busarm.apps.camera_calibration import calibration_views, capture_views
+    from busarm.twin.boards import BOARD_SPECS, board2base, calibration_board
+    from busarm.vision.camera import open_camera
+
+    settings = ac.settings
+    spec = BOARD_SPECS[board]
+    centre = _board_at(board_at)
+    where = board2base(calibration_board(board, centre), ac.config.table_z_mm)
+    source_name = default_camera(settings, camera_src)
+    confirm = _confirm(settings, yes)
+    poses = calibration_views(ac.kin, spec, where, views, intrinsics_guess=intrinsics,
+                              seed=seed)
+    port = settings.port
+    if is_twin_port(port):
+        port = twin_port_with_board(port, board)
+    else:
+        settings.err.print(f"Lay the {spec.describe()} flat with its centre at "
+                           f"({centre[0]:g}, {centre[1]:g}) mm, its long side across the "
+                           "arm's front; it must not move.", highlight=False)
+    with ac.open(port=port) as arm, open_camera(source_name) as source:
+        if intrinsics is not None and (source.width_px, source.height_px) != (
+                intrinsics.width_px, intrinsics.height_px):
+            raise ConfigError(f"{intrinsics_file} is for {intrinsics.width_px}x"
+                              f"{intrinsics.height_px} pictures; {source_name} gives "
+                              f"{source.width_px}x{source.height_px}")
+        taken = capture_views(arm, source, poses, spec, confirm=confirm,
+                              progress=_progress(settings))
+        arm.move_joints(ac.config.pose("home"))
+    return taken
+
+
 @camera.command()
 @click.option("--camera", "camera_src", default=None,
               help="Camera source (/dev/video0, a folder, twin...); default: the twin's.")
@@ -129,17 +165,12 @@ def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, vi
     The arm takes the camera through views of the board from many angles, then the
     calibration is written to OUTPUT (busarm.camera_intrinsics, version 1).
     """
-    from busarm.apps.camera_calibration import (
-        calibration_views,
-        capture_views,
-        intrinsics_from_views,
-    )
-    from busarm.twin.boards import BOARD_SPECS, board2base, calibration_board
+    from busarm.apps.camera_calibration import intrinsics_from_views
+    from busarm.twin.boards import BOARD_SPECS
     from busarm.vision.calibration import calibrate_intrinsics, find_board, save_intrinsics
     from busarm.vision.camera import EndOfFrames, open_camera
 
     spec = BOARD_SPECS[board]
-    settings = ac.settings
     check_writable(output)
     if images is not None:
         with open_camera(str(images)) as source:
@@ -152,22 +183,7 @@ def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, vi
                 observations.append(find_board(frame.image, spec))
         result = calibrate_intrinsics(observations, size, model)
     else:
-        centre = _board_at(board_at)
-        where = board2base(calibration_board(board, centre), ac.config.table_z_mm)
-        source_name = default_camera(settings, camera_src)
-        confirm = _confirm(settings, yes)
-        poses = calibration_views(ac.kin, spec, where, views, seed=seed)
-        port = settings.port
-        if is_twin_port(port):
-            port = twin_port_with_board(port, board)
-        else:
-            settings.err.print(f"Lay the {spec.describe()} flat with its centre at "
-                               f"({centre[0]:g}, {centre[1]:g}) mm, its long side across "
-                               "the arm's front.", highlight=False)
-        with ac.open(port=port) as arm, open_camera(source_name) as source:
-            taken = capture_views(arm, source, poses, spec, confirm=confirm,
-                                  progress=_progress(settings))
-            arm.move_joints(ac.config.pose("home"))
+        taken = _take_pictures(ac, board, board_at, views, seed, camera_src, yes)
         result = intrinsics_from_views(taken, model)
     save_intrinsics(output, result, board=spec.describe())
     i = result.intrinsics
@@ -202,38 +218,13 @@ def handeye(ac: ArmContext, intrinsics: Path, camera_src: str | None, views: int
     wrist-pitch link is solved from the *measured* joints and written to OUTPUT
     (busarm.hand_eye, version 1).
     """
-    from busarm.apps.camera_calibration import (
-        calibration_views,
-        capture_views,
-        hand_eye_from_views,
-    )
-    from busarm.twin.boards import BOARD_SPECS, board2base, calibration_board
+    from busarm.apps.camera_calibration import hand_eye_from_views
     from busarm.vision.calibration import load_intrinsics, save_hand_eye
-    from busarm.vision.camera import open_camera
 
-    settings = ac.settings
     check_writable(output)
     intr = load_intrinsics(intrinsics)
-    spec = BOARD_SPECS["tags"]
-    centre = _board_at(board_at)
-    where = board2base(calibration_board("tags", centre), ac.config.table_z_mm)
-    source_name = default_camera(settings, camera_src)
-    confirm = _confirm(settings, yes)
-    poses = calibration_views(ac.kin, spec, where, views, intrinsics_guess=intr, seed=seed)
-    port = settings.port
-    if is_twin_port(port):
-        port = twin_port_with_board(port, "tags")
-    else:
-        settings.err.print(f"Lay the {spec.describe()} flat with its centre at "
-                           f"({centre[0]:g}, {centre[1]:g}) mm; it must not move.",
-                           highlight=False)
-    with ac.open(port=port) as arm, open_camera(source_name) as source:
-        if (source.width_px, source.height_px) != (intr.width_px, intr.height_px):
-            raise ConfigError(f"{intrinsics} is for {intr.width_px}x{intr.height_px} pictures; "
-                              f"{source_name} gives {source.width_px}x{source.height_px}")
-        taken = capture_views(arm, source, poses, spec, confirm=confirm,
-                              progress=_progress(settings))
-        arm.move_joints(ac.config.pose("home"))
+    taken = _take_pictures(ac, "tags", board_at, views, seed, camera_src, yes,
+                           intrinsics=intr, intrinsics_file=intrinsics)
     result = hand_eye_from_views(taken, intr)
     save_hand_eye(output, result)
     t = result.cam2link[:3, 3]
