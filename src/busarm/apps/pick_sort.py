@@ -1,0 +1,259 @@
+"""Pick-and-sort: look at the table, pick each coloured block, put it in its colour's bin.
+
+One cycle per block, the same code on the twin and on hardware:
+
+1. survey: the camera looks from one or more survey poses; blocks are located in mm
+   (``BlockLocator``, averaged over frames) and merged across poses;
+2. choose: reachable blocks of a colour that has a bin, nearest to the base first;
+   unknown colours and blocks out of reach are skipped with the reason;
+3. grasp: above the block at ``approach_mm``, the wrist roll squared to its faces, a
+   straight descent to the grasp height, close, and the gripper's position says whether
+   it holds something (no holding, no carrying: the block is looked for again);
+4. carry: straight up, over the bin at ``carry_mm``, down, open, up;
+5. verify: the next survey must not see the block where it was picked.
+
+Any exception or Ctrl+C leaves the arm stopped and holding (``Arm``'s guard), the
+gripper's last state known from its reading.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from busarm.apps.locate import BlockLocator, Sighting
+from busarm.arm.arm import Arm
+from busarm.errors import ConfigError, UnreachableError
+from busarm.vision.camera import CameraSource
+
+SAME_BLOCK_MM = 20.0
+"""Two sightings this close are the same block."""
+BIN_RADIUS_MM = 45.0
+"""A block seen this close to a bin's centre is in that bin."""
+
+
+@dataclass(frozen=True)
+class PickSortSettings:
+    """Heights in mm above the table, speeds, and how hard to try."""
+
+    approach_mm: float = 60.0
+    carry_mm: float = 75.0
+    release_mm: float = 45.0
+    line_speed_mm_s: float = 200.0
+    joint_speed_deg_s: float = 180.0
+    max_attempts: int = 2
+    survey_frames: int = 2
+    settle_s: float = 0.2
+
+    def __post_init__(self) -> None:
+        for name, lo, hi in (("approach_mm", 20.0, 200.0), ("carry_mm", 30.0, 250.0),
+                             ("release_mm", 20.0, 200.0), ("line_speed_mm_s", 10.0, 400.0),
+                             ("joint_speed_deg_s", 10.0, 180.0), ("settle_s", 0.0, 5.0)):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and lo <= value <= hi):
+                raise ConfigError(f"{name} = {value!r} is out of range {lo:g}..{hi:g}")
+        for name, lo, hi in (("max_attempts", 1, 10), ("survey_frames", 1, 20)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+                raise ConfigError(f"{name} = {value!r} is out of range {lo}..{hi}")
+
+
+@dataclass
+class BlockOutcome:
+    """What happened to one block."""
+
+    color: str
+    found_mm: tuple[float, float]
+    outcome: str = "pending"
+    """``sorted``, ``failed`` or ``skipped``."""
+    reason: str = ""
+    placed_mm: tuple[float, float] | None = None
+    attempts: int = 0
+    seconds: float = 0.0
+
+    def to_dict(self) -> dict[str, object]:
+        return {"color": self.color, "found_mm": [round(v, 1) for v in self.found_mm],
+                "outcome": self.outcome, "reason": self.reason,
+                "placed_mm": None if self.placed_mm is None else
+                [round(v, 1) for v in self.placed_mm],
+                "attempts": self.attempts, "seconds": round(self.seconds, 2)}
+
+
+@dataclass
+class RunReport:
+    blocks: list[BlockOutcome] = field(default_factory=list)
+    seconds: float = 0.0
+
+    def totals(self) -> dict[str, object]:
+        done = [b for b in self.blocks if b.outcome == "sorted"]
+        cycle = float(np.median([b.seconds for b in done])) if done else math.nan
+        return {"sorted": len(done),
+                "failed": sum(b.outcome == "failed" for b in self.blocks),
+                "skipped": sum(b.outcome == "skipped" for b in self.blocks),
+                "median_cycle_s": round(cycle, 2), "seconds": round(self.seconds, 1)}
+
+
+class PickSorter:
+    """Sorts the blocks the camera sees into ``bins`` (colour -> (x, y) mm)."""
+
+    def __init__(self, arm: Arm, camera: CameraSource, locator: BlockLocator,
+                 bins: dict[str, tuple[float, float]], *,
+                 survey_poses: Sequence[Sequence[float]] | None = None,
+                 settings: PickSortSettings | None = None,
+                 progress: Callable[[str], None] | None = None) -> None:
+        self.arm = arm
+        self.camera = camera
+        self.locator = locator
+        self.bins = dict(bins)
+        self.settings = settings or PickSortSettings()
+        poses = survey_poses if survey_poses is not None else [arm.config.pose("look")]
+        self.survey_poses = [arm.config.check_joints(p) for p in poses]
+        if not self.survey_poses:
+            raise ConfigError("give at least one survey pose")
+        self.progress = progress or (lambda _: None)
+        self._grasp_z = locator.table_z_mm + locator.block_size_mm / 2
+
+    # ------------------------------------------------------------------ seeing
+
+    def survey(self) -> list[Sighting]:
+        """Every block seen from the survey poses, merged (averaged per pose)."""
+        s = self.settings
+        seen: list[Sighting] = []
+        for pose in self.survey_poses:
+            self.arm.move_joints(pose, speed_deg_s=s.joint_speed_deg_s)
+            time.sleep(s.settle_s)
+            pictures = []
+            for _ in range(s.survey_frames):
+                image = self.camera.read().image
+                pictures.append((image, self.arm.read_joints_deg()))
+            for new in self.locator.locate_averaged(pictures):
+                if not any(_near(new, old) for old in seen):
+                    seen.append(new)
+        return seen
+
+    # ------------------------------------------------------------------ moving
+
+    def grasp_roll_deg(self, x_mm: float, y_mm: float, yaw_deg: float) -> float:
+        """The wrist roll that squares the fingers (closing along the tool's y) to a block
+        at ``yaw_deg`` (modulo 90), the smallest such turn."""
+        kin = self.arm.kin
+
+        def finger_axis_deg(roll: float) -> float:
+            m = kin.fk_matrix(kin.ik_best(x_mm, y_mm, self._grasp_z, -90.0, roll))
+            return math.degrees(math.atan2(m[1, 1], m[0, 1]))
+
+        a0, a1 = finger_axis_deg(0.0), finger_axis_deg(10.0)
+        sign = 1.0 if (a1 - a0 + 180.0) % 360.0 - 180.0 > 0 else -1.0
+        return ((yaw_deg - a0) * sign + 45.0) % 90.0 - 45.0
+
+    def _bin_spot(self, color: str) -> tuple[float, float]:
+        """Where in the bin the next block of ``color`` goes: the centre; later blocks are
+        released above it too and settle on the ones below (the bin is one block wide
+        at the fingers' opening)."""
+        return self.bins[color]
+
+    def pick_and_place(self, target: Sighting) -> tuple[bool, str, tuple[float, float] | None]:
+        """One grasp-carry-release cycle; (holding was seen, why not, where it was put)."""
+        arm, s = self.arm, self.settings
+        z0 = self.locator.table_z_mm
+        x, y = target.location.x_mm, target.location.y_mm
+        roll = self.grasp_roll_deg(x, y, target.location.yaw_deg)
+        arm.open_gripper(wait=False)
+        arm.move_to(x, y, z0 + s.approach_mm, -90.0, roll, speed_deg_s=s.joint_speed_deg_s)
+        arm.open_gripper()
+        arm.move_line(x, y, self._grasp_z, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
+        grip = arm.grip()
+        if not grip.is_holding:
+            arm.open_gripper(wait=False)
+            arm.move_line(x, y, z0 + s.approach_mm, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
+            return False, f"the gripper closed on nothing ({grip.position_pulses} pulses)", None
+        arm.move_line(x, y, z0 + s.carry_mm, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
+        bx, by = self._bin_spot(target.color)
+        arm.move_to(bx, by, z0 + s.carry_mm, -90.0, None, speed_deg_s=s.joint_speed_deg_s)
+        arm.move_line(bx, by, z0 + s.release_mm, -90.0, None, speed_mm_s=s.line_speed_mm_s)
+        arm.open_gripper()
+        arm.move_line(bx, by, z0 + s.carry_mm, -90.0, None, speed_mm_s=s.line_speed_mm_s)
+        return True, "", (bx, by)
+
+    # ------------------------------------------------------------------ the job
+
+    def run(self, *, max_cycles: int = 50) -> RunReport:
+        """Sort until the table shows no block that can be sorted; the whole report."""
+        start = time.monotonic()
+        report = RunReport()
+        for _ in range(max_cycles):
+            seen = self.survey()
+            candidates: list[tuple[float, Sighting, BlockOutcome]] = []
+            for sighting in seen:
+                if self._in_a_bin(sighting):
+                    continue  # sorted already
+                outcome = self._outcome_for(sighting, report)
+                if outcome.outcome != "pending":
+                    continue
+                reason = self._why_not(sighting)
+                if reason:
+                    outcome.outcome, outcome.reason = "skipped", reason
+                    self.progress(f"skip {sighting.color} at {outcome.found_mm}: {reason}")
+                    continue
+                distance = math.hypot(sighting.location.x_mm, sighting.location.y_mm)
+                candidates.append((distance, sighting, outcome))
+            if not candidates:
+                break
+            _, target, outcome = min(candidates, key=lambda c: c[0])
+            t0 = time.monotonic()
+            outcome.attempts += 1
+            held, why, placed = self.pick_and_place(target)
+            outcome.seconds += time.monotonic() - t0
+            if held:
+                outcome.outcome, outcome.placed_mm = "sorted", placed
+                self.progress(f"{target.color} from {outcome.found_mm} into its bin "
+                              f"({outcome.seconds:.1f} s)")
+            elif outcome.attempts >= self.settings.max_attempts:
+                outcome.outcome, outcome.reason = "failed", why
+                self.progress(f"{target.color} at {outcome.found_mm}: gave up: {why}")
+            else:
+                self.progress(f"{target.color} at {outcome.found_mm}: {why}; looking again")
+        for outcome in report.blocks:
+            if outcome.outcome == "pending":
+                outcome.outcome, outcome.reason = "failed", "not seen again"
+        report.seconds = time.monotonic() - start
+        return report
+
+    def _in_a_bin(self, sighting: Sighting) -> bool:
+        return any(math.hypot(sighting.location.x_mm - bx, sighting.location.y_mm - by)
+                   < BIN_RADIUS_MM for bx, by in self.bins.values())
+
+    def _outcome_for(self, sighting: Sighting, report: RunReport) -> BlockOutcome:
+        """The record of this block: one already made where it was seen, or a new one."""
+        for outcome in report.blocks:
+            if outcome.color == sighting.color and math.hypot(
+                    outcome.found_mm[0] - sighting.location.x_mm,
+                    outcome.found_mm[1] - sighting.location.y_mm) < SAME_BLOCK_MM:
+                if outcome.outcome == "sorted":
+                    # Sorted, yet seen where it was: it did not go (a slip). Try again.
+                    outcome.outcome, outcome.placed_mm = "pending", None
+                return outcome
+        outcome = BlockOutcome(sighting.color, (sighting.location.x_mm, sighting.location.y_mm))
+        report.blocks.append(outcome)
+        return outcome
+
+    def _why_not(self, sighting: Sighting) -> str:
+        if sighting.color not in self.bins:
+            return f"no bin for {sighting.color}"
+        if not sighting.top_down:
+            return sighting.reason or "out of reach of a top-down grasp"
+        try:
+            self.arm.kin.ik_best(sighting.location.x_mm, sighting.location.y_mm,
+                                 self.locator.table_z_mm + self.settings.approach_mm, -90.0)
+        except UnreachableError as exc:
+            return f"cannot approach from above: {exc}"
+        return ""
+
+
+def _near(a: Sighting, b: Sighting) -> bool:
+    return a.color == b.color and math.hypot(a.location.x_mm - b.location.x_mm,
+                                             a.location.y_mm - b.location.y_mm) < SAME_BLOCK_MM

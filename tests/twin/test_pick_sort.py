@@ -1,0 +1,58 @@
+"""Pick-and-sort on the twin through the real path (bus, camera, calibration files made by
+our own flows), scored against the twin's ground truth."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from busarm.apps.locate import BlockLocator
+from busarm.apps.pick_sort import PickSorter, PickSortSettings
+from busarm.arm import Arm
+from busarm.cli.main import cli
+from busarm.errors import ConfigError
+from busarm.twin.twin import active_twin
+from busarm.vision.calibration import load_hand_eye, load_intrinsics
+from busarm.vision.camera import open_camera
+from busarm.vision.color import ColorDetector, default_thresholds
+
+
+@pytest.fixture(scope="module")
+def calibration(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    out = tmp_path_factory.mktemp("cal")
+    intr, he = out / "camera.json", out / "hand_eye.json"
+    runner = CliRunner(mix_stderr=False)
+    assert runner.invoke(cli, ["--port", "twin", "camera", "calibrate", "--views", "12",
+                               "-o", str(intr)]).exit_code == 0
+    assert runner.invoke(cli, ["--port", "twin", "camera", "handeye", "--intrinsics", str(intr),
+                               "--views", "10", "-o", str(he)]).exit_code == 0
+    return intr, he
+
+
+def test_every_block_ends_in_its_colours_bin(calibration: tuple[Path, Path]) -> None:
+    intr = load_intrinsics(calibration[0])
+    he = load_hand_eye(calibration[1], intrinsics=intr)
+    with Arm.open("twin://?seed=5&blocks=4") as arm, open_camera("twin") as camera:
+        twin = active_twin()
+        assert twin is not None
+        bins = {b.color: (b.x_mm, b.y_mm) for b in twin.scene.bins}
+        locator = BlockLocator(arm.kin, intr, he, ColorDetector(default_thresholds()))
+        report = PickSorter(arm, camera, locator, bins).run()
+        truth = twin.blocks()
+    assert report.totals()["sorted"] == 4, [b.to_dict() for b in report.blocks]
+    for block in truth:
+        bx, by = bins[block.color]
+        assert math.hypot(block.x_mm - bx, block.y_mm - by) < 35.0, block
+    for outcome in report.blocks:
+        assert outcome.outcome == "sorted" and outcome.attempts == 1
+        assert 0 < outcome.seconds < 8.0
+
+
+def test_bad_settings_are_refused() -> None:
+    with pytest.raises(ConfigError, match="approach_mm"):
+        PickSortSettings(approach_mm=5.0)
+    with pytest.raises(ConfigError, match="max_attempts"):
+        PickSortSettings(max_attempts=0)
