@@ -31,8 +31,9 @@ ifneq ($(GL_OK),yes)
 	fi
 endif
 
+# The main job on the twin: calibrate its camera, then sort a seeded table of 5 blocks.
 demo: $(STAMP) gl
-	$(BIN)/busarm demo
+	$(BIN)/busarm pick-sort --seed 3 --blocks 5 --report demo-report
 
 test: $(STAMP) gl
 	$(BIN)/ruff check src tests bench

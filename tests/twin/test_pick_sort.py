@@ -56,3 +56,35 @@ def test_bad_settings_are_refused() -> None:
         PickSortSettings(approach_mm=5.0)
     with pytest.raises(ConfigError, match="max_attempts"):
         PickSortSettings(max_attempts=0)
+
+
+def test_the_pick_sort_command_sorts_and_reports(calibration: tuple[Path, Path],
+                                                 tmp_path: Path) -> None:
+    import json
+
+    report = tmp_path / "report"
+    result = CliRunner(mix_stderr=False).invoke(cli, [
+        "pick-sort", "--seed", "2", "--blocks", "3", "--intrinsics", str(calibration[0]),
+        "--hand-eye", str(calibration[1]), "--report", str(report), "--json"])
+    assert result.exit_code == 0, result.stderr
+    data = json.loads(result.stdout)
+    assert data["format"] == "busarm.pick_sort_report"
+    assert data["totals"]["sorted"] == 3 and data["totals"]["failed"] == 0
+    assert data["totals"]["median_cycle_s"] <= 8.0
+    for name in ("report.json", "before.png", "after.png", "camera.gif"):
+        assert (report / name).stat().st_size > 1000, name
+    assert len(list((report / "picks").glob("*.png"))) == 3
+
+
+def test_the_pick_sort_command_refuses_bad_input(tmp_path: Path) -> None:
+    runner = CliRunner(mix_stderr=False)
+    for args, expected in (
+        (["--port", "/dev/ttyUSB9", "pick-sort", "--seed", "2"], "for the twin"),
+        (["--port", "/dev/ttyUSB9", "pick-sort"], "needs --camera"),
+        (["pick-sort", "--colors", "red,mauve"], "mauve"),
+        (["pick-sort", "--bins", "red:1,2"], "COLOUR=X,Y"),
+    ):
+        result = runner.invoke(cli, args)
+        assert result.exit_code == 2, (args, result.stdout, result.stderr)
+        assert expected in result.stderr, (args, result.stderr)
+        assert len(result.stderr.strip().splitlines()) == 1, result.stderr

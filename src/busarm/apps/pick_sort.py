@@ -24,6 +24,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 
 from busarm.apps.locate import BlockLocator, Sighting
 from busarm.arm.arm import Arm
@@ -104,7 +105,9 @@ class PickSorter:
                  bins: dict[str, tuple[float, float]], *,
                  survey_poses: Sequence[Sequence[float]] | None = None,
                  settings: PickSortSettings | None = None,
-                 progress: Callable[[str], None] | None = None) -> None:
+                 progress: Callable[[str], None] | None = None,
+                 on_step: Callable[[str], None] | None = None,
+                 on_pick: Callable[[Sighting], None] | None = None) -> None:
         self.arm = arm
         self.camera = camera
         self.locator = locator
@@ -115,6 +118,12 @@ class PickSorter:
         if not self.survey_poses:
             raise ConfigError("give at least one survey pose")
         self.progress = progress or (lambda _: None)
+        # Called after each step of a cycle with its name (to take pictures, say).
+        self.on_step = on_step or (lambda _: None)
+        # Called with each block about to be picked (its survey is ``last_survey``).
+        self.on_pick = on_pick or (lambda _: None)
+        # The last survey's pictures and what was found in each (for reports).
+        self.last_survey: list[tuple[npt.NDArray[np.uint8], list[Sighting]]] = []
         self._grasp_z = locator.table_z_mm + locator.block_size_mm / 2
 
     # ------------------------------------------------------------------ seeing
@@ -123,6 +132,7 @@ class PickSorter:
         """Every block seen from the survey poses, merged (averaged per pose)."""
         s = self.settings
         seen: list[Sighting] = []
+        self.last_survey = []
         for pose in self.survey_poses:
             self.arm.move_joints(pose, speed_deg_s=s.joint_speed_deg_s)
             time.sleep(s.settle_s)
@@ -130,9 +140,12 @@ class PickSorter:
             for _ in range(s.survey_frames):
                 image = self.camera.read().image
                 pictures.append((image, self.arm.read_joints_deg()))
-            for new in self.locator.locate_averaged(pictures):
+            found = self.locator.locate_averaged(pictures)
+            self.last_survey.append((pictures[-1][0], found))
+            for new in found:
                 if not any(_near(new, old) for old in seen):
                     seen.append(new)
+        self.on_step("survey")
         return seen
 
     # ------------------------------------------------------------------ moving
@@ -165,17 +178,21 @@ class PickSorter:
         arm.open_gripper(wait=False)
         arm.move_to(x, y, z0 + s.approach_mm, -90.0, roll, speed_deg_s=s.joint_speed_deg_s)
         arm.open_gripper()
+        self.on_step("above")
         arm.move_line(x, y, self._grasp_z, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
         grip = arm.grip()
+        self.on_step("grip")
         if not grip.is_holding:
             arm.open_gripper(wait=False)
             arm.move_line(x, y, z0 + s.approach_mm, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
             return False, f"the gripper closed on nothing ({grip.position_pulses} pulses)", None
         arm.move_line(x, y, z0 + s.carry_mm, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
+        self.on_step("lift")
         bx, by = self._bin_spot(target.color)
         arm.move_to(bx, by, z0 + s.carry_mm, -90.0, None, speed_deg_s=s.joint_speed_deg_s)
         arm.move_line(bx, by, z0 + s.release_mm, -90.0, None, speed_mm_s=s.line_speed_mm_s)
         arm.open_gripper()
+        self.on_step("release")
         arm.move_line(bx, by, z0 + s.carry_mm, -90.0, None, speed_mm_s=s.line_speed_mm_s)
         return True, "", (bx, by)
 
@@ -204,6 +221,7 @@ class PickSorter:
             if not candidates:
                 break
             _, target, outcome = min(candidates, key=lambda c: c[0])
+            self.on_pick(target)
             t0 = time.monotonic()
             outcome.attempts += 1
             held, why, placed = self.pick_and_place(target)

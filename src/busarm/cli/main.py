@@ -24,6 +24,7 @@ from busarm.cli import (
     camera_cmds,
     config_cmds,
     demo,
+    pick_cmd,
     proto_cmds,
     servo_cmds,
     sim_cmds,
@@ -131,7 +132,7 @@ def cli(
 
 for _module in (
     bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, twin_cmds, camera_cmds,
-    vision_cmds, demo,
+    vision_cmds, pick_cmd, demo,
 ):
     for _command in _module.COMMANDS:
         cli.add_command(_command)

@@ -1,0 +1,168 @@
+"""``pick-sort``: the main job. Look at the table, sort every block into its colour's bin.
+
+Without ``--port`` it runs on the twin (``--scene FILE`` or ``--seed N``), calibrating
+the twin's camera first unless calibration files are given; on hardware it needs the
+calibration files and ``--bins``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+from urllib.parse import quote
+
+import click
+
+from busarm.cli.arm_cmds import ArmContext
+from busarm.cli.camera_cmds import check_writable, is_twin_port
+from busarm.cli.common import Settings, parse_float_list, pass_settings
+from busarm.cli.twin_cmds import DEFAULT_COLORS, scene_options
+from busarm.errors import ConfigError
+
+DEFAULT_REPORT = "pick-sort-report"
+
+
+def parse_bins(text: str) -> dict[str, tuple[float, float]]:
+    """``red=33,187;green=33,-187`` -> {colour: (x, y) mm}."""
+    bins: dict[str, tuple[float, float]] = {}
+    for part in text.split(";"):
+        if not part.strip():
+            continue
+        name, sep, xy = part.partition("=")
+        values = parse_float_list(xy, f"bin {name.strip()} X,Y in mm") if sep else []
+        if not sep or len(values) != 2 or not name.strip():
+            raise ConfigError(f"--bins {part!r}: expected COLOUR=X,Y (mm), e.g. red=33,187")
+        bins[name.strip()] = (values[0], values[1])
+    if not bins:
+        raise ConfigError("--bins is empty: expected COLOUR=X,Y;COLOUR=X,Y")
+    return bins
+
+
+def _twin_url(scene_file: Path | None, seed: int | None, blocks: int | None,
+              colors: str | None) -> str:
+    if scene_file is not None:
+        if seed is not None or blocks is not None:
+            raise ConfigError("give either --scene or --seed/--blocks, not both")
+        return f"twin://?scene={quote(str(scene_file))}"
+    return (f"twin://?seed={seed or 0}&blocks={5 if blocks is None else blocks}"
+            f"&colors={colors or DEFAULT_COLORS}")
+
+
+@click.command("pick-sort")
+@scene_options
+@click.option("--camera", "camera_src", default=None,
+              help="Camera source; default: the twin's (on hardware: required).")
+@click.option("--intrinsics", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              default=None, help="Camera intrinsics (default on the twin: calibrate first).")
+@click.option("--hand-eye", "hand_eye", type=click.Path(dir_okay=False, exists=True,
+                                                         path_type=Path),
+              default=None, help="Hand-eye calibration (default on the twin: calibrate first).")
+@click.option("--bins", "bins_text", default=None,
+              help="Where each colour goes, COLOUR=X,Y;... in mm (default on the twin: its "
+                   "trays).")
+@click.option("--report", "report_dir", type=click.Path(file_okay=False, path_type=Path),
+              default=DEFAULT_REPORT, show_default=True, help="Folder for the run report.")
+@click.option("--config", default="jetauto_pro", show_default=True,
+              help="Arm description: a shipped name or a TOML file.")
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
+@pass_settings
+def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
+              blocks: int | None, colors: str | None, camera_src: str | None,
+              intrinsics: Path | None, hand_eye: Path | None, bins_text: str | None,
+              report_dir: Path, config: str, as_json: bool) -> None:
+    """Find the blocks, pick each and put it in its colour's bin, until the table is clear.
+
+    Prints what happened to every block and the totals, and writes a report folder
+    (JSON, the picture each pick started from, the table before and after, a GIF).
+    """
+    from busarm.apps.locate import BlockLocator
+    from busarm.apps.pick_report import write_report
+    from busarm.apps.pick_sort import PickSorter
+    from busarm.twin.camera import TwinCamera
+    from busarm.twin.transport import TwinTransport
+    from busarm.vision.annotate import annotate
+    from busarm.vision.calibration import load_hand_eye, load_intrinsics
+    from busarm.vision.camera import open_camera
+    from busarm.vision.color import ColorDetector, default_thresholds, parse_color_names
+
+    twin_given = scene_file is not None or seed is not None or blocks is not None
+    on_twin = not settings.port_given or is_twin_port(settings.port)
+    if twin_given and not on_twin:
+        raise ConfigError("--scene/--seed/--blocks are for the twin; drop --port, or use "
+                          "--port twin")
+    port = _twin_url(scene_file, seed, blocks, colors) if on_twin and (
+        twin_given or settings.port in ("sim", "twin")) else settings.port
+    names = parse_color_names(colors or DEFAULT_COLORS)
+    if not on_twin and (intrinsics is None or hand_eye is None or bins_text is None
+                        or camera_src is None):
+        raise ConfigError("on hardware pick-sort needs --camera, --intrinsics, --hand-eye "
+                          "(busarm camera calibrate / handeye) and --bins")
+    bins_given = parse_bins(bins_text) if bins_text is not None else None
+    # Everything is checked before anything runs: colours, the scene, the report folder.
+    detector = ColorDetector(default_thresholds().select(names))
+    if is_twin_port(port):
+        from busarm.twin.transport import scene_from_query, twin_query
+
+        scene_from_query(twin_query(port))
+    check_writable(report_dir / "report.json" if report_dir.is_dir() else report_dir)
+    t_start = time.monotonic()
+    if intrinsics is None or hand_eye is None:
+        from busarm.bench_locate import calibrate_in_twin
+
+        settings.err.print("calibrating the twin's camera (intrinsics, then hand-eye)...",
+                           highlight=False)
+        intrinsics, hand_eye, _ = calibrate_in_twin(report_dir / "calibration",
+                                                    intrinsics_views=12, hand_eye_views=10)
+    intr = load_intrinsics(intrinsics)
+    he = load_hand_eye(hand_eye, intrinsics=intr)
+    ac = ArmContext(settings, config, None)
+    frames: list[Any] = []
+    picks: list[tuple[str, Any]] = []
+    with ac.open(port=port) as arm, open_camera(camera_src or "twin") as camera:
+        transport = arm.bus.transport
+        twin = transport.twin if isinstance(transport, TwinTransport) else None
+        bins = bins_given if bins_given is not None else (
+            {b.color: (b.x_mm, b.y_mm) for b in twin.scene.bins} if twin else {})
+        overview = TwinCamera(twin, view="overview") if twin is not None else None
+        locator = BlockLocator(arm.kin, intr, he, detector, table_z_mm=ac.config.table_z_mm)
+
+        def on_step(step: str) -> None:
+            image = camera.read().image
+            frames.append(image)
+
+        def on_pick(target: Any) -> None:
+            image, found = sorter.last_survey[0]
+            picks.append((target.color, annotate(
+                image, [s.detection for s in found if s.detection is not None],
+                text_lines=[f"next: {target.color} at ({target.location.x_mm:.0f}, "
+                            f"{target.location.y_mm:.0f}) mm"])))
+
+        sorter = PickSorter(arm, camera, locator,
+                            {c: xy for c, xy in bins.items() if c in names},
+                            progress=lambda text: settings.err.print(text, highlight=False),
+                            on_step=on_step, on_pick=on_pick)
+        before = overview.read().image if overview is not None else None
+        report = sorter.run()
+        arm.move_joints(ac.config.pose("home"))
+        after = overview.read().image if overview is not None else (
+            sorter.last_survey[0][0] if sorter.last_survey else None)
+    path = write_report(report_dir, report, before=before, after=after, picks=picks,
+                        camera_frames=frames,
+                        extra={"port": port, "seconds_with_calibration":
+                               round(time.monotonic() - t_start, 1)})
+    if as_json:
+        click.echo(json.dumps(json.loads(path.read_text()), indent=2))
+        return
+    for b in report.blocks:
+        where = f"({b.found_mm[0]:.0f}, {b.found_mm[1]:.0f}) mm"
+        extra = f": {b.reason}" if b.reason else f", {b.attempts} attempt(s), {b.seconds:.1f} s"
+        click.echo(f"{b.color:7s} at {where:18s} {b.outcome}{extra}")
+    t = report.totals()
+    click.echo(f"sorted {t['sorted']}, failed {t['failed']}, skipped {t['skipped']}; median "
+               f"cycle {t['median_cycle_s']} s per block; {t['seconds']} s in all. Report: "
+               f"{report_dir}/")
+
+
+COMMANDS = [pick_sort]
