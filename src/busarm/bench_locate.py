@@ -318,3 +318,78 @@ def run_vision_bench(*, pictures: int = 24, seed: int = 0, seconds_per_case: flo
         "detect_and_locate_fps": round(float(np.median(rates)), 1),
         "detect_and_locate_fps_rounds": [round(r, 1) for r in rates],
     }
+
+
+# ---------------------------------------------------------------------- pick-and-sort
+
+TARGET_SORTED = 0.98
+TARGET_CYCLE_S = 5.0
+IN_BIN_MM = 35.0
+
+
+def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] = (3, 6),
+                   colors: tuple[str, ...] = ("red", "green", "blue"),
+                   work_dir: Path | None = None, progress: Progress = _quiet) -> dict[str, Any]:
+    """Pick-and-sort over seeded twin scenes, scored against the twin's truth: how many
+    blocks end in their colour's bin, whether any run reports a block sorted that is not,
+    the cycle time per block and the first survey's localisation error."""
+    from busarm.apps.pick_sort import PickSorter
+
+    if not 1 <= scenes <= 10_000:
+        raise ConfigError(f"scenes = {scenes} is out of range 1..10000")
+    rng = np.random.default_rng(seed)
+    with tempfile.TemporaryDirectory() as tmp:
+        intr_path, he_path, calib = calibrate_in_twin(work_dir or Path(tmp), seed=seed,
+                                                      intrinsics_views=12, hand_eye_views=10,
+                                                      progress=progress)
+        intrinsics = load_intrinsics(intr_path)
+        hand_eye = load_hand_eye(he_path, intrinsics=intrinsics)
+    total = in_bin = false_sorted = reported_sorted = 0
+    cycles: list[float] = []
+    survey_errors: list[float] = []
+    failures: list[dict[str, Any]] = []
+    start = time.monotonic()
+    for i in range(scenes):
+        n = int(rng.integers(blocks[0], blocks[1] + 1))
+        scene = random_scene(seed + i, n, list(colors))
+        arm, twin = open_twin_arm(scene)
+        with arm, TwinCamera(twin) as camera:
+            bins = {b.color: (b.x_mm, b.y_mm) for b in scene.bins}
+            locator = BlockLocator(arm.kin, intrinsics, hand_eye,
+                                   ColorDetector(default_thresholds().select(list(colors))),
+                                   table_z_mm=arm.config.table_z_mm)
+            sorter = PickSorter(arm, camera, locator, bins)
+            first = sorter.survey()
+            for t in twin.blocks():
+                near = [math.hypot(s.location.x_mm - t.x_mm, s.location.y_mm - t.y_mm)
+                        for s in first if s.color == t.color]
+                if near:
+                    survey_errors.append(min(near))
+            report = sorter.run()
+            truth = twin.blocks()
+        total += len(truth)
+        placed = [math.hypot(t.x_mm - bins[t.color][0], t.y_mm - bins[t.color][1]) < IN_BIN_MM
+                  for t in truth]
+        in_bin += sum(placed)
+        sorted_here = sum(b.outcome == "sorted" for b in report.blocks)
+        reported_sorted += sorted_here
+        false_sorted += max(0, sorted_here - sum(placed))
+        cycles += [b.seconds for b in report.blocks if b.outcome == "sorted"]
+        if not all(placed):
+            failures.append({"scene_seed": seed + i, "blocks": n,
+                             "outcomes": [b.to_dict() for b in report.blocks]})
+        progress(f"scene {i + 1}/{scenes}: {sum(placed)}/{len(truth)} in their bins")
+    errors = np.asarray(survey_errors) if survey_errors else np.asarray([math.nan])
+    return {
+        "machine": {"cpu": platform.processor() or platform.machine(),
+                    "python": platform.python_version()},
+        "calibration": calib, "scenes": scenes, "blocks": total,
+        "in_their_bins": in_bin, "sorted_fraction": round(in_bin / max(total, 1), 4),
+        "reported_sorted": reported_sorted, "reported_sorted_but_not": false_sorted,
+        "median_cycle_s": round(float(np.median(cycles)), 2) if cycles else None,
+        "p95_cycle_s": round(float(np.percentile(cycles, 95)), 2) if cycles else None,
+        "survey_error_median_mm": round(float(np.median(errors)), 2),
+        "survey_error_p95_mm": round(float(np.percentile(errors, 95)), 2),
+        "seconds": round(time.monotonic() - start, 1),
+        "failures": failures[:20],
+    }

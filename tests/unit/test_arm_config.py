@@ -466,3 +466,13 @@ def test_from_toml_names_the_given_source() -> None:
     text = shipped_text().replace("servo_id = 10", "servo_id = 5")
     with pytest.raises(ConfigError, match=r"^arm config my-arm: servo_id: .*\[1, 2, 3, 4, 5, 5\]"):
         arm_config_from_toml(text, "my-arm")
+
+
+def test_gripper_gap_maps_to_pulses() -> None:
+    g = load_arm_config().gripper
+    assert g.gap_mm_per_pulse == 0.1875
+    assert g.pulses_for_gap_mm(0.0) == g.closed_pulses
+    assert g.pulses_for_gap_mm(30.0) == 540  # field notes: about 540 on a 3 cm block
+    assert g.pulses_for_gap_mm(1000.0) == g.open_pulses  # never past open
+    with pytest.raises(ConfigError, match="gap"):
+        g.pulses_for_gap_mm(-1.0)

@@ -44,6 +44,8 @@ class PickSortSettings:
     approach_mm: float = 60.0
     carry_mm: float = 75.0
     release_mm: float = 45.0
+    finger_clearance_mm: float = 10.0
+    """Opening beyond the block on each side when grasping (its yaw is known to a few deg)."""
     line_speed_mm_s: float = 200.0
     joint_speed_deg_s: float = 180.0
     max_attempts: int = 2
@@ -52,6 +54,7 @@ class PickSortSettings:
 
     def __post_init__(self) -> None:
         for name, lo, hi in (("approach_mm", 20.0, 200.0), ("carry_mm", 30.0, 250.0),
+                             ("finger_clearance_mm", 2.0, 40.0),
                              ("release_mm", 20.0, 200.0), ("line_speed_mm_s", 10.0, 400.0),
                              ("joint_speed_deg_s", 10.0, 180.0), ("settle_s", 0.0, 5.0)):
             value = getattr(self, name)
@@ -175,15 +178,17 @@ class PickSorter:
         z0 = self.locator.table_z_mm
         x, y = target.location.x_mm, target.location.y_mm
         roll = self.grasp_roll_deg(x, y, target.location.yaw_deg)
-        arm.open_gripper(wait=False)
+        # Open no wider than the block needs: wide-open fingers would hit a neighbour.
+        gap = self.locator.block_size_mm + 2 * s.finger_clearance_mm
+        arm.open_gripper(wait=False, gap_mm=gap)
         arm.move_to(x, y, z0 + s.approach_mm, -90.0, roll, speed_deg_s=s.joint_speed_deg_s)
-        arm.open_gripper()
+        arm.open_gripper(gap_mm=gap)
         self.on_step("above")
         arm.move_line(x, y, self._grasp_z, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
         grip = arm.grip()
         self.on_step("grip")
         if not grip.is_holding:
-            arm.open_gripper(wait=False)
+            arm.open_gripper(wait=False, gap_mm=gap)
             arm.move_line(x, y, z0 + s.approach_mm, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
             return False, f"the gripper closed on nothing ({grip.position_pulses} pulses)", None
         arm.move_line(x, y, z0 + s.carry_mm, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
@@ -191,7 +196,7 @@ class PickSorter:
         bx, by = self._bin_spot(target.color)
         arm.move_to(bx, by, z0 + s.carry_mm, -90.0, None, speed_deg_s=s.joint_speed_deg_s)
         arm.move_line(bx, by, z0 + s.release_mm, -90.0, None, speed_mm_s=s.line_speed_mm_s)
-        arm.open_gripper()
+        arm.open_gripper(gap_mm=gap)
         self.on_step("release")
         arm.move_line(bx, by, z0 + s.carry_mm, -90.0, None, speed_mm_s=s.line_speed_mm_s)
         return True, "", (bx, by)

@@ -563,13 +563,15 @@ class Arm:
         g.check_pulses(position_pulses)
         self.bus.move_pulses(g.servo_id, position_pulses, round(duration_s * 1000))
 
-    def open_gripper(self, *, wait: bool = True) -> int:
-        """Open the gripper fully; returns its position in pulses."""
+    def open_gripper(self, *, wait: bool = True, gap_mm: float | None = None) -> int:
+        """Open the gripper fully, or until the fingers are ``gap_mm`` apart (no wider than
+        a grasp needs, to miss a neighbour); returns its position in pulses."""
         g = self.config.gripper
-        self._guarded(lambda: self._gripper_move(g.open_pulses, g.grip_time_s))
+        target = g.open_pulses if gap_mm is None else g.pulses_for_gap_mm(gap_mm)
+        self._guarded(lambda: self._gripper_move(target, g.grip_time_s))
         if wait:
-            return self._settle_gripper(g.open_pulses, g.grip_time_s)
-        return g.open_pulses
+            return self._settle_gripper(target, g.grip_time_s)
+        return target
 
     def grip(self, position_pulses: int | None = None) -> GripResult:
         """Close (to ``position_pulses``, default fully closed) and tell whether it holds.

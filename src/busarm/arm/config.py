@@ -91,6 +91,8 @@ class GripperConfig:
     closed_pulses: int
     grip_time_s: float
     holding_margin_pulses: int
+    gap_mm_per_pulse: float = 0.1875
+    """How much the fingers' gap changes per pulse; the fingers touch at ``closed_pulses``."""
 
     @property
     def min_pulses(self) -> int:
@@ -99,6 +101,15 @@ class GripperConfig:
     @property
     def max_pulses(self) -> int:
         return max(self.open_pulses, self.closed_pulses)
+
+    def pulses_for_gap_mm(self, gap_mm: float) -> int:
+        """The position that opens the fingers ``gap_mm`` apart (rounded toward wider),
+        within open..closed."""
+        if not (isinstance(gap_mm, int | float) and math.isfinite(gap_mm) and gap_mm >= 0):
+            raise ConfigError(f"gripper gap {gap_mm!r} mm must be a number >= 0")
+        sign = 1 if self.closed_pulses >= self.open_pulses else -1
+        pulses = self.closed_pulses - sign * math.ceil(gap_mm / self.gap_mm_per_pulse)
+        return min(self.max_pulses, max(self.min_pulses, pulses))
 
     def check_pulses(self, position_pulses: int) -> None:
         """Raise LimitError if a gripper position is outside open..closed."""
@@ -375,7 +386,8 @@ class _Reader:
         return out
 
     def gripper(self, data: dict[str, Any]) -> GripperConfig:
-        keys = {"servo_id", "open_pulses", "closed_pulses", "grip_time_s", "holding_margin_pulses"}
+        keys = {"servo_id", "open_pulses", "closed_pulses", "grip_time_s", "holding_margin_pulses",
+                "gap_mm_per_pulse"}
         self.unknown(data, "gripper", keys)
         g = GripperConfig(
             servo_id=self.integer(data, "servo_id", "gripper", 0, 253),
@@ -389,6 +401,7 @@ class _Reader:
             holding_margin_pulses=self.integer(
                 data, "holding_margin_pulses", "gripper", 1, 500, 20
             ),
+            gap_mm_per_pulse=self.number(data, "gap_mm_per_pulse", "gripper", 0.01, 5.0, 0.1875),
         )
         if abs(g.open_pulses - g.closed_pulses) <= g.holding_margin_pulses:
             raise self.fail(

@@ -14,7 +14,7 @@ servo stall torque          3.43 N m     35 kg cm joints (vendor); gripper 1.96 
 servo stiffness kp          410 N m/rad  full torque at 2 pulses (0.48 deg) of error
 joint damping / armature    2.0 / 0.01   gearbox losses and reflected rotor inertia (guess)
 link masses                 0.10-0.25 kg a servo and a bracket per link (guess)
-gripper gap                 0.1875 mm/p  fingers touch at closed_pulses; 30 mm at 540 (field notes)
+gripper gap                 config       the arm config's gap_mm_per_pulse (0.1875: 30 mm at 540)
 block                       30 mm, 20 g  a wooden toy cube (density 0.74)
 friction finger/block       1.2          rubber pad on wood (guess)
 =========================== ============ =================================================
@@ -40,9 +40,6 @@ GRIPPER_TORQUE_NM = 20 * 0.0980665  # 20 kg cm
 SERVO_KP_NM_PER_RAD = 410.0
 JOINT_DAMPING = 2.0
 JOINT_ARMATURE = 0.01
-FINGER_GAP_MM_PER_PULSE = 0.1875
-"""Finger gap change per gripper pulse: the fingers touch at ``closed_pulses`` and stand
-30 mm apart at 540 (field notes), linearly in between."""
 FINGER_PAD_MM = (10.0, 16.0, 36.0)
 """One finger pad's thickness (along the closing axis), width and length."""
 ARM_RGBA = "0.13 0.13 0.14 1"
@@ -160,13 +157,13 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
     t = scene.table
     pad_t, pad_w, pad_l = (v * m for v in FINGER_PAD_MM)
     max_half_gap = (config.gripper.max_pulses - config.gripper.min_pulses) \
-        * FINGER_GAP_MM_PER_PULSE / 2 * m
+        * config.gripper.gap_mm_per_pulse / 2 * m
     cam = spec.mount.cam2link
     cam_quat = quat_from_matrix(cam[:3, :3] @ MJ_FROM_CV)
     width = max(spec.render_size_px[0], spec.overview_size_px[0])
     height = max(spec.render_size_px[1], spec.overview_size_px[1])
     # Servo angle per metre of one finger's travel (the gripper actuator's gear).
-    finger_gear = -1.0 / (FINGER_GAP_MM_PER_PULSE / 2 * m / math.radians(0.24))
+    finger_gear = -1.0 / (config.gripper.gap_mm_per_pulse / 2 * m / math.radians(0.24))
 
     out: list[str] = []
     w = out.append

@@ -44,7 +44,6 @@ from busarm.twin.boards import board2base, check_boards_fit, scene_textures
 from busarm.twin.lens import LensSpec
 from busarm.twin.model import (
     AS_BUILT_MOUNT_ERROR,
-    FINGER_GAP_MM_PER_PULSE,
     GRIPPER_TORQUE_NM,
     JOINT_TORQUE_NM,
     M_PER_MM,
@@ -269,13 +268,13 @@ class Twin:
     def _half_gap_m(self, gripper_pulses: float) -> float:
         closed = self.config.gripper.closed_pulses
         sign = 1.0 if closed >= self.config.gripper.open_pulses else -1.0
-        return max(0.0, sign * (closed - gripper_pulses) * FINGER_GAP_MM_PER_PULSE / 2
+        return max(0.0, sign * (closed - gripper_pulses) * self.config.gripper.gap_mm_per_pulse / 2
                    * M_PER_MM)
 
     def _pulses_from_half_gap(self, half_gap_m: float) -> float:
         closed = self.config.gripper.closed_pulses
         sign = 1.0 if closed >= self.config.gripper.open_pulses else -1.0
-        return closed - sign * half_gap_m / M_PER_MM * 2 / FINGER_GAP_MM_PER_PULSE
+        return closed - sign * half_gap_m / M_PER_MM * 2 / self.config.gripper.gap_mm_per_pulse
 
     def _grip_ctrl(self, half_gap_m: float) -> float:
         return float(self.model.actuator_gear[self._grip_act, 0]) * half_gap_m
