@@ -28,7 +28,7 @@ import numpy.typing as npt
 
 from busarm.apps.locate import BlockLocator, Sighting
 from busarm.arm.arm import Arm
-from busarm.errors import ConfigError, UnreachableError
+from busarm.errors import ConfigError, ServoFaultError, UnreachableError
 from busarm.vision.camera import CameraSource
 
 SAME_BLOCK_MM = 20.0
@@ -51,10 +51,22 @@ class PickSortSettings:
     max_attempts: int = 2
     survey_frames: int = 2
     settle_s: float = 0.2
+    pause_above_c: float = 70.0
+    """A servo this hot pauses the run (arm at home, gripper open) ..."""
+    resume_below_c: float = 60.0
+    """... until every servo is this cool again (LX servos cut out at 85 C by default)."""
+    min_supply_v: float = 6.8
+    """A supply this low stops the run cleanly (LX servos go silent near 6 V)."""
+    max_pause_s: float = 600.0
 
     def __post_init__(self) -> None:
+        if not self.resume_below_c < self.pause_above_c:
+            raise ConfigError(f"resume_below_c {self.resume_below_c:g} must be below "
+                              f"pause_above_c {self.pause_above_c:g}")
         for name, lo, hi in (("approach_mm", 20.0, 200.0), ("carry_mm", 30.0, 250.0),
-                             ("finger_clearance_mm", 2.0, 40.0),
+                             ("finger_clearance_mm", 2.0, 40.0), ("pause_above_c", 40.0, 84.0),
+                             ("resume_below_c", 30.0, 83.0), ("min_supply_v", 4.5, 12.0),
+                             ("max_pause_s", 0.0, 3600.0),
                              ("release_mm", 20.0, 200.0), ("line_speed_mm_s", 10.0, 400.0),
                              ("joint_speed_deg_s", 10.0, 180.0), ("settle_s", 0.0, 5.0)):
             value = getattr(self, name)
@@ -73,7 +85,8 @@ class BlockOutcome:
     color: str
     found_mm: tuple[float, float]
     outcome: str = "pending"
-    """``sorted``, ``failed`` or ``skipped``."""
+    """``sorted``, ``failed``, ``skipped`` or ``moved`` (gone from where it was seen after
+    a missed grasp; if it is seen elsewhere, it has a record of its own there)."""
     reason: str = ""
     placed_mm: tuple[float, float] | None = None
     attempts: int = 0
@@ -98,6 +111,7 @@ class RunReport:
         return {"sorted": len(done),
                 "failed": sum(b.outcome == "failed" for b in self.blocks),
                 "skipped": sum(b.outcome == "skipped" for b in self.blocks),
+                "moved": sum(b.outcome == "moved" for b in self.blocks),
                 "median_cycle_s": round(cycle, 2), "seconds": round(self.seconds, 1)}
 
 
@@ -166,6 +180,41 @@ class PickSorter:
         sign = 1.0 if (a1 - a0 + 180.0) % 360.0 - 180.0 > 0 else -1.0
         return ((yaw_deg - a0) * sign + 45.0) % 90.0 - 45.0
 
+    def _still_holding(self) -> bool:
+        """Whether the gripper still stands short of closed (a dropped block lets it close)."""
+        g = self.arm.config.gripper
+        return abs(self.arm.read_gripper_pulses() - g.closed_pulses) > g.holding_margin_pulses
+
+    def check_servos(self) -> None:
+        """Pause while a servo is too hot (arm at home, gripper open); a supply too low for
+        the servos stops the run with ServoFaultError."""
+        s, arm = self.settings, self.arm
+        deadline = time.monotonic() + s.max_pause_s
+        paused = False
+        while True:
+            states = arm.bus.read_states(arm.config.servo_ids)
+            low = [st for st in states if st.vin_v < s.min_supply_v]
+            if low:
+                raise ServoFaultError(
+                    f"servo {low[0].servo_id} reads {low[0].vin_v:.2f} V, below "
+                    f"{s.min_supply_v:g} V: charge or change the battery", low[0].servo_id)
+            hot = max(states, key=lambda st: st.temp_c)
+            limit = s.resume_below_c if paused else s.pause_above_c
+            if hot.temp_c < limit:
+                if paused:
+                    self.progress(f"servos cool again ({hot.temp_c} C): going on")
+                return
+            if not paused:
+                self.progress(f"servo {hot.servo_id} at {hot.temp_c} C: pausing until every "
+                              f"servo is below {s.resume_below_c:g} C")
+                arm.open_gripper()
+                arm.move_joints(arm.config.pose("home"), speed_deg_s=s.joint_speed_deg_s)
+                paused = True
+            if time.monotonic() > deadline:
+                raise ServoFaultError(f"servo {hot.servo_id} still at {hot.temp_c} C after "
+                                      f"{s.max_pause_s:g} s of rest", hot.servo_id)
+            time.sleep(2.0)
+
     def _bin_spot(self, color: str) -> tuple[float, float]:
         """Where in the bin the next block of ``color`` goes: the centre; later blocks are
         released above it too and settle on the ones below (the bin is one block wide
@@ -195,6 +244,10 @@ class PickSorter:
         self.on_step("lift")
         bx, by = self._bin_spot(target.color)
         arm.move_to(bx, by, z0 + s.carry_mm, -90.0, None, speed_deg_s=s.joint_speed_deg_s)
+        self.on_step("carry")
+        if not self._still_holding():
+            arm.open_gripper(wait=False, gap_mm=gap)
+            return False, "the block slipped out during the carry", None
         arm.move_line(bx, by, z0 + s.release_mm, -90.0, None, speed_mm_s=s.line_speed_mm_s)
         arm.open_gripper(gap_mm=gap)
         self.on_step("release")
@@ -209,6 +262,16 @@ class PickSorter:
         report = RunReport()
         for _ in range(max_cycles):
             seen = self.survey()
+            for outcome in report.blocks:
+                # Missed, and no longer where it was: someone moved it. It is looked for
+                # afresh (a new record if it is seen elsewhere).
+                if outcome.outcome == "pending" and outcome.attempts and not any(
+                        s.color == outcome.color and math.hypot(
+                            s.location.x_mm - outcome.found_mm[0],
+                            s.location.y_mm - outcome.found_mm[1]) < SAME_BLOCK_MM
+                        for s in seen):
+                    outcome.outcome = "moved"
+                    outcome.reason = "not where it was after a missed grasp: it was moved"
             candidates: list[tuple[float, Sighting, BlockOutcome]] = []
             for sighting in seen:
                 if self._in_a_bin(sighting):
@@ -226,6 +289,7 @@ class PickSorter:
             if not candidates:
                 break
             _, target, outcome = min(candidates, key=lambda c: c[0])
+            self.check_servos()
             self.on_pick(target)
             t0 = time.monotonic()
             outcome.attempts += 1
