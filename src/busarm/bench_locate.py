@@ -16,7 +16,6 @@ import math
 import platform
 import tempfile
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,30 +24,21 @@ import numpy as np
 import numpy.typing as npt
 
 from busarm.apps.camera_calibration import (
-    calibration_views,
-    capture_views,
-    hand_eye_from_views,
-    intrinsics_from_views,
     sees_points,
 )
 from busarm.apps.locate import BlockLocator
-from busarm.arm.arm import Arm
+from busarm.apps.twin_setup import Progress, calibrate_in_twin, open_twin_arm, quiet
 from busarm.arm.config import load_arm_config
-from busarm.bus.driver import ServoBus
 from busarm.errors import ConfigError, UnreachableError
-from busarm.twin.boards import BOARD_SPECS
 from busarm.twin.camera import TwinCamera
 from busarm.twin.lens import LensSpec
-from busarm.twin.scene import COLORS, Scene, random_scene
-from busarm.twin.transport import TwinTransport
+from busarm.twin.scene import COLORS, random_scene
 from busarm.twin.twin import Twin
 from busarm.vision.calibration import (
     CameraIntrinsics,
     HandEyeResult,
     load_hand_eye,
     load_intrinsics,
-    save_hand_eye,
-    save_intrinsics,
 )
 from busarm.vision.color import ColorDetector, default_thresholds
 
@@ -58,65 +48,6 @@ SURVEY_BEARINGS_DEG = (-90.0, -45.0, 0.0, 45.0, 90.0)
 REACH_RADIUS_MM = (125.0, 265.0)
 BLOCK_GAP_MM = 50.0
 
-Progress = Callable[[str], None]
-
-
-def _quiet(_: str) -> None:
-    pass
-
-
-def open_twin_arm(url_or_scene: str | Scene) -> tuple[Arm, Twin]:
-    """An Arm on a new real-time twin (its transport owns the twin)."""
-    if isinstance(url_or_scene, Scene):
-        twin = Twin(scene=url_or_scene)
-        try:
-            return Arm(ServoBus(TwinTransport(twin)), twin.config), twin
-        except BaseException:
-            twin.close()
-            raise
-    arm = Arm.open(url_or_scene)
-    transport = arm.bus.transport
-    assert isinstance(transport, TwinTransport)
-    return arm, transport.twin
-
-
-def calibrate_in_twin(out_dir: Path, *, intrinsics_views: int = 20, hand_eye_views: int = 16,
-                      seed: int = 0, progress: Progress = _quiet
-                      ) -> tuple[Path, Path, dict[str, Any]]:
-    """Run both calibration flows in the twin; write and return the two files."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    intr_path, he_path = out_dir / "camera.json", out_dir / "hand_eye.json"
-    summary: dict[str, Any] = {}
-    arm, twin = open_twin_arm("twin://?board=chessboard")
-    with arm, TwinCamera(twin) as camera:
-        spec = BOARD_SPECS["chessboard"]
-        poses = calibration_views(arm.kin, spec, twin.board2base(0), intrinsics_views, seed=seed)
-        views = capture_views(arm, camera, poses, spec,
-                              progress=lambda i, n, v: progress(f"intrinsics view {i + 1}/{n}"))
-        result = intrinsics_from_views(views)
-        save_intrinsics(intr_path, result)
-        summary["intrinsics"] = {"rms_px": result.rms_px, "views": len(views),
-                                 "fx_px": result.intrinsics.fx, "fy_px": result.intrinsics.fy,
-                                 "cx_px": result.intrinsics.cx, "cy_px": result.intrinsics.cy}
-    intrinsics = load_intrinsics(intr_path)
-    arm, twin = open_twin_arm("twin://?board=tags")
-    with arm, TwinCamera(twin) as camera:
-        spec = BOARD_SPECS["tags"]
-        poses = calibration_views(arm.kin, spec, twin.board2base(0), hand_eye_views,
-                                  seed=seed + 1)
-        views = capture_views(arm, camera, poses, spec,
-                              progress=lambda i, n, v: progress(f"hand-eye view {i + 1}/{n}"))
-        he = hand_eye_from_views(views, intrinsics)
-        save_hand_eye(he_path, he)
-        truth = twin.mount.cam2link
-        delta = np.linalg.inv(truth) @ he.cam2link
-        summary["hand_eye"] = {
-            "rms_px": he.rms_px, "views": len(he.views_used),
-            "error_vs_truth_mm": float(np.linalg.norm(delta[:3, 3])),
-            "error_vs_truth_deg": math.degrees(math.acos(
-                max(-1.0, min(1.0, (np.trace(delta[:3, :3]) - 1) / 2)))),
-        }
-    return intr_path, he_path, summary
 
 
 @dataclass
@@ -151,7 +82,7 @@ def _block_corners(x: float, y: float, yaw_deg: float, size: float, table_z: flo
 
 def localisation_accuracy(
     intrinsics: CameraIntrinsics, hand_eye: HandEyeResult, *, placements: int = 200,
-    per_picture: int = 5, seed: int = 0, progress: Progress = _quiet,
+    per_picture: int = 5, seed: int = 0, progress: Progress = quiet,
 ) -> AccuracyReport:
     """Place blocks over the reachable table and score where the camera puts them."""
     if not 1 <= per_picture <= 8:
@@ -227,7 +158,7 @@ def localisation_accuracy(
 
 def run_locate_bench(*, placements: int = 200, seed: int = 0, work_dir: Path | None = None,
                      intrinsics_views: int = 20, hand_eye_views: int = 16,
-                     progress: Progress = _quiet) -> dict[str, Any]:
+                     progress: Progress = quiet) -> dict[str, Any]:
     """Calibrate in the twin with our flows, then measure localisation accuracy."""
     with tempfile.TemporaryDirectory() as tmp:
         out = work_dir or Path(tmp)
@@ -329,7 +260,7 @@ IN_BIN_MM = 35.0
 
 def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] = (3, 6),
                    colors: tuple[str, ...] = ("red", "green", "blue"),
-                   work_dir: Path | None = None, progress: Progress = _quiet) -> dict[str, Any]:
+                   work_dir: Path | None = None, progress: Progress = quiet) -> dict[str, Any]:
     """Pick-and-sort over seeded twin scenes, scored against the twin's truth: how many
     blocks end in their colour's bin, whether any run reports a block sorted that is not,
     the cycle time per block and the first survey's localisation error."""

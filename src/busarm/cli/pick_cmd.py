@@ -109,7 +109,7 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
     check_writable(report_dir / "report.json" if report_dir.is_dir() else report_dir)
     t_start = time.monotonic()
     if intrinsics is None or hand_eye is None:
-        from busarm.bench_locate import calibrate_in_twin
+        from busarm.apps.twin_setup import calibrate_in_twin
 
         settings.err.print("calibrating the twin's camera (intrinsics, then hand-eye)...",
                            highlight=False)
