@@ -85,7 +85,7 @@ def test_more_bad_input_is_one_clear_error(tmp_path: Path) -> None:
                                             "twin://127.0.0.1:99999"))
     assert "/dev/pts" in one_error(run("--port", "twin://127.0.0.1:5000", "arm", "pose"))
     assert "twin URL: seed" in one_error(run("--port", "twin://?seed=abc", "arm", "pose"))
-    assert "0..9" in one_error(run("--port", "twin://?blocks=40", "arm", "pose"))
+    assert "0..8" in one_error(run("--port", "twin://?blocks=40", "arm", "pose"))
     assert "not both" in one_error(run("twin", "snapshot", "--joints", "0,-90,0,-90,0",
                                        "--pose", "home", "--png", str(tmp_path / "x.png")))
     assert "into the table" in one_error(run("twin", "snapshot", "--joints", "0,-20,100,-80,0",

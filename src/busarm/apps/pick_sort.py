@@ -35,6 +35,9 @@ SAME_BLOCK_MM = 20.0
 """Two sightings this close are the same block."""
 BIN_RADIUS_MM = 45.0
 """A block seen this close to a bin's centre is in that bin."""
+BIN_SLOTS_MM = ((-20.0, -20.0), (20.0, -20.0), (-20.0, 20.0), (20.0, 20.0))
+"""Where blocks go in a bin (from its centre): 2 x 2, 10 mm apart (the camera sees them
+apart when it checks the bin)."""
 
 
 @dataclass(frozen=True)
@@ -142,6 +145,7 @@ class PickSorter:
         # The last survey's pictures and what was found in each (for reports).
         self.last_survey: list[tuple[npt.NDArray[np.uint8], list[Sighting]]] = []
         self._grasp_z = locator.table_z_mm + locator.block_size_mm / 2
+        self._placed: dict[str, int] = {}
 
     # ------------------------------------------------------------------ seeing
 
@@ -216,10 +220,13 @@ class PickSorter:
             time.sleep(2.0)
 
     def _bin_spot(self, color: str) -> tuple[float, float]:
-        """Where in the bin the next block of ``color`` goes: the centre; later blocks are
-        released above it too and settle on the ones below (the bin is one block wide
-        at the fingers' opening)."""
-        return self.bins[color]
+        """Where in the bin the next block of ``color`` goes: four places side by side
+        (squared to the bin, so they fit), then on top of the first ones again."""
+        bx, by = self.bins[color]
+        k = self._placed.get(color, 0)
+        self._placed[color] = k + 1
+        dx, dy = BIN_SLOTS_MM[k % len(BIN_SLOTS_MM)]
+        return bx + dx, by + dy
 
     def pick_and_place(self, target: Sighting) -> tuple[bool, str, tuple[float, float] | None]:
         """One grasp-carry-release cycle; (holding was seen, why not, where it was put)."""
@@ -243,16 +250,44 @@ class PickSorter:
         arm.move_line(x, y, z0 + s.carry_mm, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
         self.on_step("lift")
         bx, by = self._bin_spot(target.color)
-        arm.move_to(bx, by, z0 + s.carry_mm, -90.0, None, speed_deg_s=s.joint_speed_deg_s)
+        square = self.grasp_roll_deg(bx, by, 0.0)  # the block's faces along the bin's walls
+        arm.move_to(bx, by, z0 + s.carry_mm, -90.0, square, speed_deg_s=s.joint_speed_deg_s)
         self.on_step("carry")
         if not self._still_holding():
             arm.open_gripper(wait=False, gap_mm=gap)
+            self._placed[target.color] -= 1
             return False, "the block slipped out during the carry", None
-        arm.move_line(bx, by, z0 + s.release_mm, -90.0, None, speed_mm_s=s.line_speed_mm_s)
+        arm.move_line(bx, by, z0 + s.release_mm, -90.0, square, speed_mm_s=s.line_speed_mm_s)
         arm.open_gripper(gap_mm=gap)
         self.on_step("release")
-        arm.move_line(bx, by, z0 + s.carry_mm, -90.0, None, speed_mm_s=s.line_speed_mm_s)
+        arm.move_line(bx, by, z0 + s.carry_mm, -90.0, square, speed_mm_s=s.line_speed_mm_s)
         return True, "", (bx, by)
+
+    def verify_bins(self, report: RunReport) -> None:
+        """Look into each bin a block was put in: a block reported sorted but not found
+        there (it bounced out, say) is reported failed instead."""
+        s, arm = self.settings, self.arm
+        look = arm.config.pose("look")
+        for color, (bx, by) in self.bins.items():
+            sorted_here = [b for b in report.blocks if b.color == color and b.outcome == "sorted"]
+            if not sorted_here:
+                continue
+            bearing = math.degrees(math.atan2(by, bx))
+            pose = (bearing, *look[1:])
+            try:
+                arm.config.check_joints(pose)
+            except ConfigError:
+                continue  # no look at it from here: the release is trusted
+            arm.move_joints(pose, speed_deg_s=s.joint_speed_deg_s)
+            time.sleep(s.settle_s)
+            pictures = [(self.camera.read().image, arm.read_joints_deg())
+                        for _ in range(s.survey_frames)]
+            inside = [v for v in self.locator.locate_averaged(pictures) if v.color == color
+                      and math.hypot(v.location.x_mm - bx, v.location.y_mm - by) < BIN_RADIUS_MM]
+            for missing in sorted_here[len(inside):]:
+                missing.outcome = "failed"
+                missing.reason = "not in its bin when the bins were checked (it fell out?)"
+                self.progress(f"{color} block from {missing.found_mm}: not in its bin")
 
     # ------------------------------------------------------------------ the job
 
@@ -307,6 +342,7 @@ class PickSorter:
         for outcome in report.blocks:
             if outcome.outcome == "pending":
                 outcome.outcome, outcome.reason = "failed", "not seen again"
+        self.verify_bins(report)
         report.seconds = time.monotonic() - start
         return report
 

@@ -78,7 +78,7 @@ class Bin:
     color: str
     x_mm: float
     y_mm: float
-    size_mm: float = 70.0
+    size_mm: float = 90.0
     wall_mm: float = 12.0
 
 
@@ -114,12 +114,13 @@ class Scene:
         return replace(self, blocks=tuple(blocks))
 
 
-DEFAULT_BINS = (
-    Bin("red", *(190.0 * math.cos(math.radians(80)), 190.0 * math.sin(math.radians(80)))),
-    Bin("green", *(190.0 * math.cos(math.radians(-80)), 190.0 * math.sin(math.radians(-80)))),
-    Bin("blue", *(190.0 * math.cos(math.radians(112)), 190.0 * math.sin(math.radians(112)))),
-    Bin("yellow", *(190.0 * math.cos(math.radians(-112)), 190.0 * math.sin(math.radians(-112)))),
-)
+def _bin_at(color: str, bearing_deg: float, radius_mm: float = 195.0) -> Bin:
+    b = math.radians(bearing_deg)
+    return Bin(color, round(radius_mm * math.cos(b), 2), round(radius_mm * math.sin(b), 2))
+
+
+DEFAULT_BINS = (_bin_at("red", 70.0), _bin_at("green", -70.0), _bin_at("blue", 110.0),
+                _bin_at("yellow", -110.0))
 """One tray per colour beside the arm, where the arm reaches them but the blocks are not."""
 
 BASE_CLEARANCE_MM = 90.0
@@ -202,7 +203,7 @@ PLACE_BEARING_DEG = (-55.0, 55.0)
 """... and within these bearings (0 = straight ahead), in front of the arm."""
 MIN_GAP_MM = 25.0
 """Free space between random blocks, so fingers fit between them."""
-MAX_BLOCKS = 9
+MAX_BLOCKS = 8
 """The most random blocks that always fit there that far apart."""
 
 
@@ -227,6 +228,7 @@ def random_scene(
     rng = random.Random(seed)
     chosen = [colors[i % len(colors)] for i in range(blocks)]
     rng.shuffle(chosen)
+    trays = tuple(b for b in DEFAULT_BINS if b.color in colors) if bins else ()
     r_lo, r_hi = PLACE_RADIUS_MM
     b_lo, b_hi = PLACE_BEARING_DEG
     for _attempt in range(200):  # an unlucky early block can leave no room: start again
@@ -237,7 +239,9 @@ def random_scene(
                 bearing = math.radians(rng.uniform(b_lo, b_hi))
                 x, y = r * math.cos(bearing), r * math.sin(bearing)
                 if all(math.hypot(x - b.x_mm, y - b.y_mm)
-                       >= size_mm * math.sqrt(2) + MIN_GAP_MM for b in placed):
+                       >= size_mm * math.sqrt(2) + MIN_GAP_MM for b in placed) and all(
+                        math.hypot(x - t.x_mm, y - t.y_mm)
+                        >= (t.size_mm + size_mm) * math.sqrt(0.5) + MIN_GAP_MM for t in trays):
                     placed.append(Block(color, round(x, 2), round(y, 2),
                                         round(rng.uniform(-45.0, 45.0), 2), size_mm))
                     break
@@ -248,7 +252,6 @@ def random_scene(
     else:
         raise ConfigError(f"cannot place {blocks} blocks {MIN_GAP_MM:g} mm apart in "
                           "the reachable area; ask for fewer")
-    trays = tuple(b for b in DEFAULT_BINS if b.color in colors) if bins else ()
     return Scene(blocks=tuple(placed), bins=trays, seed=seed, source=f"seed {seed}")
 
 
