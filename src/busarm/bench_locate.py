@@ -29,7 +29,7 @@ from busarm.apps.camera_calibration import (
 from busarm.apps.locate import BlockLocator
 from busarm.apps.twin_setup import Progress, calibrate_in_twin, open_twin_arm, quiet
 from busarm.arm.config import load_arm_config
-from busarm.errors import ConfigError, UnreachableError
+from busarm.errors import BusArmError, ConfigError, UnreachableError
 from busarm.twin.camera import TwinCamera
 from busarm.twin.lens import LensSpec
 from busarm.twin.scene import COLORS, random_scene
@@ -264,7 +264,7 @@ def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] =
     """Pick-and-sort over seeded twin scenes, scored against the twin's truth: how many
     blocks end in their colour's bin, whether any run reports a block sorted that is not,
     the cycle time per block and the first survey's localisation error."""
-    from busarm.apps.pick_sort import PickSorter
+    from busarm.apps.pick_sort import PickSorter, RunReport
 
     if not 1 <= scenes <= 10_000:
         raise ConfigError(f"scenes = {scenes} is out of range 1..10000")
@@ -296,7 +296,12 @@ def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] =
                         for s in first if s.color == t.color]
                 if near:
                     survey_errors.append(min(near))
-            report = sorter.run()
+            try:
+                report = sorter.run()
+                error = ""
+            except BusArmError as exc:  # a failed run is a result too: score what is there
+                report, error = RunReport(), f"{type(exc).__name__}: {exc}"
+                progress(f"scene {i + 1}: the run stopped: {error}")
             truth = twin.blocks()
         total += len(truth)
         placed = [math.hypot(t.x_mm - bins[t.color][0], t.y_mm - bins[t.color][1]) < IN_BIN_MM
@@ -306,8 +311,8 @@ def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] =
         reported_sorted += sorted_here
         false_sorted += max(0, sorted_here - sum(placed))
         cycles += [b.seconds for b in report.blocks if b.outcome == "sorted"]
-        if not all(placed):
-            failures.append({"scene_seed": seed + i, "blocks": n,
+        if not all(placed) or error:
+            failures.append({"scene_seed": seed + i, "blocks": n, "error": error,
                              "outcomes": [b.to_dict() for b in report.blocks]})
         progress(f"scene {i + 1}/{scenes}: {sum(placed)}/{len(truth)} in their bins")
     errors = np.asarray(survey_errors) if survey_errors else np.asarray([math.nan])
