@@ -15,6 +15,7 @@ import click
 from busarm.cli.arm_cmds import ArmContext
 from busarm.cli.camera_cmds import DEFAULT_HAND_EYE_OUT, DEFAULT_INTRINSICS_OUT, default_camera
 from busarm.cli.common import RangeType, Settings, pass_settings
+from busarm.errors import ConfigError
 
 BLOCK = RangeType("block size", 10.0, 60.0, "mm")
 
@@ -75,8 +76,6 @@ def locate(settings: Settings, camera_src: str | None, intrinsics: Path, hand_ey
     source_name = default_camera(settings, camera_src)
     with ac.open() as arm, open_camera(source_name) as source:
         if (source.width_px, source.height_px) != (intr.width_px, intr.height_px):
-            from busarm.errors import ConfigError
-
             raise ConfigError(f"{intrinsics} is for {intr.width_px}x{intr.height_px} pictures; "
                               f"{source_name} gives {source.width_px}x{source.height_px}")
         if not here:

@@ -485,7 +485,7 @@ class Twin:
         return np.asarray(cv2.cvtColor(self.render_ideal("overview"), cv2.COLOR_RGB2BGR),
                           dtype=np.uint8)
 
-    def cam_mj_check(self) -> FloatArray:
+    def cam2base_from_mujoco(self) -> FloatArray:
         """The arm camera's pose as MuJoCo has it, in OpenCV axes and mm (for tests)."""
         with self._lock:
             cam = self.model.camera("arm_camera").id
