@@ -32,7 +32,7 @@ from busarm.arm.config import load_arm_config
 from busarm.errors import BusArmError, ConfigError, UnreachableError
 from busarm.twin.camera import TwinCamera
 from busarm.twin.lens import LensSpec
-from busarm.twin.scene import COLORS, random_scene
+from busarm.twin.scene import COLORS, REACH_RADIUS_MM, random_scene
 from busarm.twin.twin import Twin
 from busarm.vision.calibration import (
     CameraIntrinsics,
@@ -45,7 +45,7 @@ from busarm.vision.color import ColorDetector, default_thresholds
 TARGET_MEDIAN_MM = 2.0
 TARGET_P95_MM = 5.0
 SURVEY_BEARINGS_DEG = (-90.0, -45.0, 0.0, 45.0, 90.0)
-REACH_RADIUS_MM = (125.0, 265.0)
+LOCATE_RADIUS_MM = (125.0, 265.0)
 BLOCK_GAP_MM = 50.0
 
 
@@ -114,7 +114,7 @@ def localisation_accuracy(
                 for _try in range(4000):
                     if len(spots) == per_picture:
                         break
-                    r = math.sqrt(rng.uniform(REACH_RADIUS_MM[0] ** 2, REACH_RADIUS_MM[1] ** 2))
+                    r = math.sqrt(rng.uniform(LOCATE_RADIUS_MM[0] ** 2, LOCATE_RADIUS_MM[1] ** 2))
                     b = math.radians(bearing + rng.uniform(-60.0, 60.0))
                     x, y, yaw = r * math.cos(b), r * math.sin(b), rng.uniform(-45.0, 45.0)
                     if abs(math.degrees(b)) > 120.0 or any(
@@ -264,7 +264,7 @@ def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] =
     """Pick-and-sort over seeded twin scenes, scored against the twin's truth: how many
     blocks end in their colour's bin, whether any run reports a block sorted that is not,
     the cycle time per block and the first survey's localisation error."""
-    from busarm.apps.pick_sort import PickSorter, RunReport
+    from busarm.apps.pick_sort import PickSorter
 
     if not 1 <= scenes <= 10_000:
         raise ConfigError(f"scenes = {scenes} is out of range 1..10000")
@@ -276,20 +276,25 @@ def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] =
         intrinsics = load_intrinsics(intr_path)
         hand_eye = load_hand_eye(he_path, intrinsics=intrinsics)
     total = in_bin = false_sorted = reported_sorted = 0
+    slipped = 0.0
     cycles: list[float] = []
     survey_errors: list[float] = []
     failures: list[dict[str, Any]] = []
     start = time.monotonic()
     for i in range(scenes):
         n = int(rng.integers(blocks[0], blocks[1] + 1))
-        scene = random_scene(seed + i, n, list(colors))
+        scene = random_scene(seed + i, n, list(colors), radius_mm=REACH_RADIUS_MM)
         arm, twin = open_twin_arm(scene)
         with arm, TwinCamera(twin) as camera:
             bins = {b.color: (b.x_mm, b.y_mm) for b in scene.bins}
             locator = BlockLocator(arm.kin, intrinsics, hand_eye,
                                    ColorDetector(default_thresholds().select(list(colors))),
                                    table_z_mm=arm.config.table_z_mm)
-            sorter = PickSorter(arm, camera, locator, bins)
+
+            def sim_clock(t: Twin = twin) -> float:
+                return t.sim_time_s
+
+            sorter = PickSorter(arm, camera, locator, bins, clock=sim_clock)
             first = sorter.survey()
             for t in twin.blocks():
                 near = [math.hypot(s.location.x_mm - t.x_mm, s.location.y_mm - t.y_mm)
@@ -300,9 +305,10 @@ def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] =
                 report = sorter.run()
                 error = ""
             except BusArmError as exc:  # a failed run is a result too: score what is there
-                report, error = RunReport(), f"{type(exc).__name__}: {exc}"
+                report, error = sorter.report, f"{type(exc).__name__}: {exc}"
                 progress(f"scene {i + 1}: the run stopped: {error}")
             truth = twin.blocks()
+            slipped += twin.slipped_s
         total += len(truth)
         placed = [math.hypot(t.x_mm - bins[t.color][0], t.y_mm - bins[t.color][1]) < IN_BIN_MM
                   for t in truth]
@@ -311,7 +317,7 @@ def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] =
         reported_sorted += sorted_here
         false_sorted += max(0, sorted_here - sum(placed))
         cycles += [b.seconds for b in report.blocks if b.outcome == "sorted"]
-        if not all(placed) or error:
+        if not all(placed) or error or sorted_here != sum(placed):
             failures.append({"scene_seed": seed + i, "blocks": n, "error": error,
                              "outcomes": [b.to_dict() for b in report.blocks]})
         progress(f"scene {i + 1}/{scenes}: {sum(placed)}/{len(truth)} in their bins")
@@ -327,5 +333,6 @@ def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] =
         "survey_error_median_mm": round(float(np.median(errors)), 2),
         "survey_error_p95_mm": round(float(np.percentile(errors, 95)), 2),
         "seconds": round(time.monotonic() - start, 1),
+        "twin_slipped_s": round(slipped, 2),
         "failures": failures[:20],
     }

@@ -1,4 +1,5 @@
-"""Atomic file writes: a file is either the old one or the new one, never half of each.
+"""Atomic file writes (a file is either the old one or the new one, never half of each)
+and reading busarm's versioned JSON files.
 
 Every file busarm writes (simulator state, calibration, action groups, pictures) goes
 through :func:`atomic_path`: the content is made in a temporary file in the same
@@ -9,11 +10,13 @@ old file or the new one.
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 from busarm.errors import ConfigError
 
@@ -85,4 +88,25 @@ def _fsync_directory(directory: Path) -> None:
         os.close(fd)
 
 
-__all__ = ["atomic_path", "write_bytes_atomic", "write_text_atomic"]
+__all__ = ["atomic_path", "read_versioned_json", "write_bytes_atomic", "write_text_atomic"]
+
+
+def read_versioned_json(path: Path | str, what: str, fmt: str, version: int,
+                        error: type[Exception] = ConfigError) -> tuple[dict[str, Any], str]:
+    """A JSON object whose ``format`` is ``fmt`` and ``version`` is ``version``, and the
+    text naming it for messages (``"{what} {path}"``); ``error`` saying what is wrong."""
+    path = Path(path)
+    where = f"{what} {path}"
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise error(f"{where}: no such file") from None
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise error(f"{where}: unreadable: {exc}") from None
+    if not isinstance(data, dict) or data.get("format") != fmt:
+        got = data.get("format") if isinstance(data, dict) else type(data).__name__
+        raise error(f"{where}: key 'format' is {got!r}, not {fmt!r}")
+    if data.get("version") != version:
+        raise error(f"{where}: key 'version' is {data.get('version')!r}; this busarm reads "
+                    f"version {version}")
+    return data, where

@@ -68,6 +68,32 @@ def test_blobs_that_are_not_blocks_are_left_out(picture: tuple) -> None:
     assert BlockLocator(kin, intr, he, ColorDetector(dark)).locate(image, joints) == []
 
 
+def test_a_blob_cut_by_the_pictures_edge_is_not_taken_as_whole(picture: tuple) -> None:
+    """Half a block at the corner (where the lens bends most, its ray can even miss the
+    table): not a whole silhouette, so its location is flagged rough, or it is left out;
+    the others are still located as before."""
+    image, joints, truth = picture
+    intr, he = _truth_calibration()
+    kin = ArmKinematics.from_config(load_arm_config())
+    locator = BlockLocator(kin, intr, he, ColorDetector(default_thresholds()))
+    before = locator.locate(image, joints)
+    assert all(s.whole for s in before)
+    red = next(s for s in before if s.color == "red")
+    assert red.detection is not None
+    u, v = (round(c) for c in red.detection.centroid_px)
+    cut = image.copy()
+    cut[440:, :30] = image[v, u]  # a red patch in the bottom-left corner
+    assert any(d.color == "red" and d.centroid_px[0] < 30
+               for d in locator.detector.detect(cut))  # it is seen as red ...
+    found = locator.locate(cut, joints)
+    whole = [s for s in found if s.whole]
+    assert [s.location for s in whole] == [s.location for s in before]
+    assert len(whole) == len(truth)
+    for s in found:  # ... but never taken for a whole block
+        assert s.detection is not None
+        assert s.whole == (s.detection.centroid_px[0] > 30)
+
+
 def test_implausible_hand_eye_calibrations_are_refused() -> None:
     kin = ArmKinematics.from_config(load_arm_config())
     far = np.eye(4)

@@ -15,7 +15,7 @@ from busarm.apps.locate import BlockLocator
 from busarm.apps.pick_sort import PickSorter, PickSortSettings
 from busarm.arm import Arm
 from busarm.cli.main import cli
-from busarm.errors import ConfigError
+from busarm.errors import ConfigError, UnreachableError
 from busarm.twin.twin import active_twin
 from busarm.vision.calibration import load_hand_eye, load_intrinsics
 from busarm.vision.camera import open_camera
@@ -58,6 +58,10 @@ def test_bad_settings_are_refused() -> None:
         PickSortSettings(approach_mm=5.0)
     with pytest.raises(ConfigError, match="max_attempts"):
         PickSortSettings(max_attempts=0)
+    with pytest.raises(ConfigError, match="order = 'tallest'; allowed: nearest, colors"):
+        PickSortSettings(order="tallest")
+    with pytest.raises(ConfigError, match="look_closer_beyond_deg"):
+        PickSortSettings(look_closer_beyond_deg=-1.0)
 
 
 def test_the_pick_sort_command_sorts_and_reports(calibration: tuple[Path, Path],
@@ -67,7 +71,8 @@ def test_the_pick_sort_command_sorts_and_reports(calibration: tuple[Path, Path],
     report = tmp_path / "report"
     result = CliRunner(mix_stderr=False).invoke(cli, [
         "pick-sort", "--seed", "2", "--blocks", "3", "--intrinsics", str(calibration[0]),
-        "--hand-eye", str(calibration[1]), "--report", str(report), "--json"])
+        "--hand-eye", str(calibration[1]), "--report", str(report), "--json",
+        "--survey", "look@-25,look@25", "--order", "colors"])
     assert result.exit_code == 0, result.stderr
     data = json.loads(result.stdout)
     assert data["format"] == "busarm.pick_sort_report"
@@ -75,7 +80,9 @@ def test_the_pick_sort_command_sorts_and_reports(calibration: tuple[Path, Path],
     assert data["totals"]["median_cycle_s"] <= 8.0
     for name in ("report.json", "before.png", "after.png", "camera.gif"):
         assert (report / name).stat().st_size > 1000, name
-    assert len(list((report / "picks").glob("*.png"))) == 3
+    # One block of each colour, taken in --colors order (red, green, blue).
+    assert sorted(p.name for p in (report / "picks").glob("*.png")) == [
+        "01-red.png", "02-green.png", "03-blue.png"]
 
 
 def test_the_pick_sort_command_refuses_bad_input(tmp_path: Path) -> None:
@@ -85,6 +92,10 @@ def test_the_pick_sort_command_refuses_bad_input(tmp_path: Path) -> None:
         (["--port", "/dev/ttyUSB9", "pick-sort"], "needs --camera"),
         (["pick-sort", "--colors", "red,mauve"], "mauve"),
         (["pick-sort", "--bins", "red:1,2"], "COLOUR=X,Y"),
+        (["pick-sort", "--survey", "nowhere"], "no pose named 'nowhere'"),
+        (["pick-sort", "--survey", "look,look@200"], "base_yaw = 200.000 deg"),
+        (["pick-sort", "--survey", "look@left"], "'left' is not a number"),
+        (["pick-sort", "--order", "tallest"], "'tallest' is not one of"),
     ):
         result = runner.invoke(cli, args)
         assert result.exit_code == 2, (args, result.stdout, result.stderr)
@@ -167,8 +178,12 @@ def test_a_servo_that_stops_answering_stops_the_run_cleanly(
             if step == "lift":
                 twin.servos[2].supply_mv = 5000  # the elbow goes silent (under 6 V)
 
+        sorter = _sorter(calibration, arm, camera, brown_out)
         with pytest.raises(BusTimeoutError, match="servo 3"):
-            _sorter(calibration, arm, camera, brown_out).run()
+            sorter.run()
+        assert sorter.report.stopped.startswith("BusTimeoutError: ")
+        # Lifting, so holding the block: the gripper (still answering) says so.
+        assert sorter.report.gripper.startswith("holding a "), sorter.report.gripper
         # The others were stopped and hold where they are (the silent elbow has no torque
         # and sags, as a browned-out servo does).
         held = twin.joints_deg()
@@ -177,3 +192,108 @@ def test_a_servo_that_stops_answering_stops_the_run_cleanly(
         for k in (0, 1, 3, 4):
             assert twin.servos[k].is_loaded
             assert abs(held[k] - now[k]) < 1.0, (k, held, now)
+
+
+def test_far_and_near_blocks_are_taken_tilted_and_edge_ones_looked_at_again(
+        calibration: tuple[Path, Path]) -> None:
+    from dataclasses import replace
+
+    from busarm.apps.twin_setup import open_twin_arm
+    from busarm.twin.camera import TwinCamera
+    from busarm.twin.scene import Block, random_scene
+
+    far, near = Block("red", 250.0, -150.0, 20.0), Block("green", 106.0, 25.0, -10.0)
+    edge = Block("blue", 193.0, -215.0, 15.0)  # cut by the survey picture's edge
+    scene = replace(random_scene(0, 0), blocks=(far, near, edge))
+    arm, twin = open_twin_arm(scene)
+    with arm, TwinCamera(twin) as camera:
+        for block in (far, near):  # neither can be taken straight down
+            with pytest.raises(UnreachableError):
+                arm.kin.ik_best(block.x_mm, block.y_mm, 15.0, -90.0)
+        intr = load_intrinsics(calibration[0])
+        he = load_hand_eye(calibration[1], intrinsics=intr)
+        bins = {b.color: (b.x_mm, b.y_mm) for b in scene.bins}
+        steps: list[str] = []
+        sorter = PickSorter(arm, camera, BlockLocator(arm.kin, intr, he,
+                                                      ColorDetector(default_thresholds())),
+                            bins, on_step=steps.append)
+        seen = {s.color: s for s in sorter.survey()}
+        assert not seen["blue"].whole and seen["red"].whole and seen["green"].whole
+        picked: list[tuple[str, bool]] = []
+        sorter.on_pick = lambda target: picked.append((target.color, target.whole))
+        report = sorter.run()
+        truth = twin.blocks()
+    by_color = {b.color: b for b in report.blocks}
+    assert report.totals()["sorted"] == 3, [b.to_dict() for b in report.blocks]
+    pitch_far, pitch_near = by_color["red"].grasp_pitch_deg, by_color["green"].grasp_pitch_deg
+    assert pitch_far is not None and -90.0 < pitch_far < 0.0  # leaning out
+    assert pitch_near is not None and pitch_near < -90.0  # leaning back
+    for block in truth:
+        assert math.hypot(block.x_mm - bins[block.color][0],
+                          block.y_mm - bins[block.color][1]) < 35.0, block
+    # The blue one (cut by the edge) and the red one (50 deg off to the side) were looked
+    # at again, facing them, and picked from that whole sighting.
+    assert steps.count("closer") == 2, steps
+    assert sorted(picked) == [("blue", True), ("green", True), ("red", True)]
+
+
+@pytest.mark.timeout(180)
+def test_ctrl_c_leaves_the_arm_stopped_holding_and_the_gripper_known(
+        calibration: tuple[Path, Path], tmp_path: Path, twin_server: tuple[str, str]) -> None:
+    """Two programs, as on a desk: the twin serving its servos on a pty and its camera on
+    127.0.0.1, and pick-sort driving them; Ctrl+C (SIGINT) in the middle of a run."""
+    import json
+    import os
+    import re
+    import signal
+    import subprocess
+    import sys
+
+    from busarm.bus.driver import ServoBus
+    from busarm.twin.scene import DEFAULT_BINS
+
+    path, camera_url = twin_server
+    bins = ";".join(f"{b.color}={b.x_mm},{b.y_mm}" for b in DEFAULT_BINS)
+    report = tmp_path / "report"
+    run = subprocess.Popen(
+        [sys.executable, "-m", "busarm", "--port", path, "pick-sort", "--camera", camera_url,
+         "--intrinsics", str(calibration[0]), "--hand-eye", str(calibration[1]),
+         "--bins", bins, "--report", str(report)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env=dict(os.environ, PYTHONUNBUFFERED="1"))
+    assert run.stderr is not None
+    lines = []
+    for line in run.stderr:
+        lines.append(line)
+        if "into its bin" in line:
+            break
+    assert any("into its bin" in line for line in lines), lines
+    time.sleep(2.5)  # into the next block's cycle
+    run.send_signal(signal.SIGINT)
+    _, err = run.communicate(timeout=60)
+    assert run.returncode == 130, err
+    message = next(line for line in err.splitlines() if "pick-sort stopped" in line)
+    assert "interrupted (Ctrl+C)" in message and "The arm holds where it is" in message
+    said = re.search(r"the gripper: (.*?)\((\d+) mm apart, (\d+) pulses\)", message)
+    assert said is not None, message
+    data = json.loads((report / "report.json").read_text())
+    assert data["stopped"] == "interrupted (Ctrl+C)"
+    assert data["totals"]["sorted"] >= 1
+    with ServoBus.open(path) as bus:
+        ids = [1, 2, 3, 4, 5, 10]
+        first = bus.read_positions_deg(ids)
+        time.sleep(0.5)
+        second = bus.read_positions_deg(ids)
+        for sid in ids:
+            assert bus.read_torque(sid), f"servo {sid} was left limp"
+            assert abs(first[sid] - second[sid]) < 1.0, (sid, first, second)
+        gripper = bus.read_position_pulses(10)
+    # What it said of the gripper is what the gripper reads, in words too.
+    assert abs(gripper - int(said.group(3))) <= 3, (message, gripper)
+    state, gap_mm = said.group(1), int(said.group(2))
+    if state.startswith("holding"):
+        assert 26 <= gap_mm <= 34, message
+    elif state.startswith("closed"):
+        assert gap_mm <= 2, message
+    else:
+        assert state.startswith("open") and gap_mm > 2, message

@@ -5,9 +5,6 @@ on a block stalls short of closed, a held block stays held, effort heats the ser
 from __future__ import annotations
 
 import math
-import os
-import subprocess
-import sys
 import time
 from collections.abc import Iterator
 
@@ -83,31 +80,20 @@ def test_pos_read_is_the_physics_not_the_command(twin_arm: tuple[Arm, Twin]) -> 
 
 
 @pytest.mark.timeout(60)
-def test_twin_serve_on_a_pty_with_its_camera() -> None:
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "busarm", "twin", "serve", "--seed", "2", "--blocks", "3"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-    try:
-        assert proc.stdout is not None
-        path = proc.stdout.readline().strip()
-        camera_url = proc.stdout.readline().strip()
-        assert path.startswith("/dev/pts/"), path
-        assert camera_url.startswith("twin://127.0.0.1:"), camera_url
-        with ServoBus.open(path) as bus:
-            assert bus.scan().found == [1, 2, 3, 4, 5, 10]
-            home_shoulder = bus.read_position_deg(2)
-            bus.sync_move_deg({2: home_shoulder + 10.0}, speed_deg_s=60.0)
-            time.sleep(0.6)
-            assert bus.read_position_deg(2) == pytest.approx(home_shoulder + 10.0, abs=1.0)
-        from busarm.vision.camera import open_camera
+def test_twin_serve_on_a_pty_with_its_camera(twin_server: tuple[str, str]) -> None:
+    path, camera_url = twin_server
+    assert path.startswith("/dev/pts/"), path
+    assert camera_url.startswith("twin://127.0.0.1:"), camera_url
+    with ServoBus.open(path) as bus:
+        assert bus.scan().found == [1, 2, 3, 4, 5, 10]
+        home_shoulder = bus.read_position_deg(2)
+        bus.sync_move_deg({2: home_shoulder + 10.0}, speed_deg_s=60.0)
+        time.sleep(0.6)
+        assert bus.read_position_deg(2) == pytest.approx(home_shoulder + 10.0, abs=1.0)
+    from busarm.vision.camera import open_camera
 
-        with open_camera(camera_url) as camera:
-            first, second = camera.read(), camera.read()
-        assert first.image.shape == (480, 640, 3)
-        assert second.timestamp_s > first.timestamp_s
-        assert second.sequence == first.sequence + 1
-    finally:
-        proc.terminate()
-        proc.wait(timeout=10)
-    assert proc.returncode == 0
+    with open_camera(camera_url) as camera:
+        first, second = camera.read(), camera.read()
+    assert first.image.shape == (480, 640, 3)
+    assert second.timestamp_s > first.timestamp_s
+    assert second.sequence == first.sequence + 1

@@ -476,3 +476,9 @@ def test_gripper_gap_maps_to_pulses() -> None:
     assert g.pulses_for_gap_mm(1000.0) == g.open_pulses  # never past open
     with pytest.raises(ConfigError, match="gap"):
         g.pulses_for_gap_mm(-1.0)
+    # ... and back: what a reading means.
+    assert g.gap_mm_at(540) == pytest.approx(30.0)
+    assert g.gap_mm_at(g.closed_pulses) == 0.0
+    assert g.gap_mm_at(g.closed_pulses + 20) == 0.0  # squeezed past touching: still 0
+    for gap in (0.0, 12.5, 30.0, 50.0):
+        assert gap <= g.gap_mm_at(g.pulses_for_gap_mm(gap)) < gap + g.gap_mm_per_pulse

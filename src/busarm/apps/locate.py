@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -40,6 +40,9 @@ NOT_BLOCK_COLORS = ("black", "white")
 AREA_RANGE = (0.35, 3.5)
 """A blob counts as a block when its area is this many times the block's top face seen
 from where it is: less is a glimpse or a speck, more is not a block (a table, an arm)."""
+CUT_AREA_FRACTION = 0.25
+"""A blob cut by the picture's edge needs only this fraction of the lower bound (part of a
+block is out of the picture), so that a speck at the edge is still no block."""
 MATCH_RADIUS_MM = 20.0
 """Sightings of one block in several pictures are closer than this."""
 
@@ -50,6 +53,8 @@ class Sighting:
 
     ``reachable``: a grasp at the block's centre height is within the arm's reach and
     limits (any pitch); ``top_down``: straight down works too; ``reason`` says why not.
+    ``whole``: False if the blob is cut by the picture's edge, so that its location is
+    only rough (look again, facing it).
     """
 
     color: str
@@ -59,6 +64,7 @@ class Sighting:
     top_down: bool
     reason: str = ""
     detections: tuple[Detection, ...] = field(default=(), repr=False)
+    whole: bool = True
 
     def to_dict(self) -> dict[str, object]:
         loc = self.location
@@ -67,7 +73,7 @@ class Sighting:
             "z_mm": round(loc.z_mm, 2), "yaw_deg": round(loc.yaw_deg, 2),
             "frames": loc.frames, "spread_max_mm": round(loc.spread_max_mm, 2),
             "reachable": self.reachable, "top_down": self.top_down, "reason": self.reason,
-            "centroid_px": [round(v, 2) for v in loc.centroid_px],
+            "centroid_px": [round(v, 2) for v in loc.centroid_px], "whole": self.whole,
         }
 
 
@@ -127,6 +133,7 @@ class BlockLocator:
     def locate(self, image: npt.NDArray[np.uint8], joints_deg: Sequence[float]
                ) -> list[Sighting]:
         """Every block in ``image``, taken with the arm at the measured ``joints_deg``."""
+        h, w = image.shape[:2]
         detections = [d for d in self.detector.detect(image) if d.color not in NOT_BLOCK_COLORS]
         cam2base = self.cam2base(joints_deg)
         if not detections:
@@ -135,16 +142,35 @@ class BlockLocator:
             yaws = self._table_yaws(detections, cam2base)
         except VisionError:
             yaws = [0.0] * len(detections)
-        locations = locate_blocks(
-            np.array([d.centroid_px for d in detections]), self.intrinsics, cam2base,
-            table_z_mm=self.table_z_mm, block_size_mm=self.block_size_mm, yaw_deg=yaws)
-        return [self._sighting(d.color, loc, d) for d, loc in
-                zip(detections, locations, strict=True) if self._block_sized(d, loc, cam2base)]
+        def solve(ds: list[Detection], ys: list[float]) -> list[BlockLocation]:
+            return locate_blocks(np.array([d.centroid_px for d in ds]), self.intrinsics,
+                                 cam2base, table_z_mm=self.table_z_mm,
+                                 block_size_mm=self.block_size_mm, yaw_deg=ys)
 
-    def _block_sized(self, d: Detection, loc: BlockLocation, cam2base: FloatArray) -> bool:
+        try:  # all at once (vectorised) ...
+            pairs = list(zip(detections, solve(detections, yaws), strict=True))
+        except VisionError:  # ... else one by one, leaving out a ray that misses the table
+            pairs = []
+            for d, yaw in zip(detections, yaws, strict=True):
+                try:
+                    pairs.append((d, solve([d], [yaw])[0]))
+                except VisionError:
+                    continue
+        # A blob cut by the picture's edge is not a whole silhouette: its location is
+        # rough (and it may look small); the sorter looks again before trusting it.
+        out = []
+        for d, loc in pairs:
+            whole = not _touches_edge(d, w, h)
+            if self._block_sized(d, loc, cam2base, whole):
+                out.append(replace(self._sighting(d.color, loc, d), whole=whole))
+        return out
+
+    def _block_sized(self, d: Detection, loc: BlockLocation, cam2base: FloatArray,
+                     whole: bool = True) -> bool:
         depth = float(np.linalg.norm(np.array([loc.x_mm, loc.y_mm, loc.z_mm]) - cam2base[:3, 3]))
         top_px = (self.intrinsics.fx * self.block_size_mm / max(depth, 1.0)) ** 2
-        return AREA_RANGE[0] * top_px <= d.area_px <= AREA_RANGE[1] * top_px
+        low = AREA_RANGE[0] * (1.0 if whole else CUT_AREA_FRACTION)
+        return low * top_px <= d.area_px <= AREA_RANGE[1] * top_px
 
     def _sighting(self, color: str, loc: BlockLocation, detection: Detection | None,
                   detections: tuple[Detection, ...] = ()) -> Sighting:
@@ -184,5 +210,12 @@ class BlockLocator:
                 continue
             loc = average_locations([s.location for s in group])
             dets = tuple(s.detection for s in group if s.detection is not None)
-            out.append(self._sighting(group[0].color, loc, dets[-1] if dets else None, dets))
+            out.append(replace(self._sighting(group[0].color, loc, dets[-1] if dets else None,
+                                              dets), whole=all(s.whole for s in group)))
         return out
+
+
+def _touches_edge(d: Detection, width_px: int, height_px: int) -> bool:
+    c = d.contour_px.reshape(-1, 2)
+    return bool(c[:, 0].min() <= 0 or c[:, 1].min() <= 0 or c[:, 0].max() >= width_px - 1
+                or c[:, 1].max() >= height_px - 1)

@@ -39,6 +39,7 @@ def write_report(folder: Path, report: RunReport, *, before: Image | None = None
         raise ConfigError(f"cannot make the report folder {folder}: {exc.strerror}") from exc
     data = {"format": "busarm.pick_sort_report", "version": 1,
             "totals": report.totals(), "blocks": [b.to_dict() for b in report.blocks],
+            **({"stopped": report.stopped, "gripper": report.gripper} if report.stopped else {}),
             **(extra or {})}
     path = folder / "report.json"
     write_text_atomic(path, json.dumps(data, indent=2) + "\n", "report")

@@ -4,16 +4,21 @@ One cycle per block, the same code on the twin and on hardware:
 
 1. survey: the camera looks from one or more survey poses; blocks are located in mm
    (``BlockLocator``, averaged over frames) and merged across poses;
-2. choose: reachable blocks of a colour that has a bin, nearest to the base first;
-   unknown colours and blocks out of reach are skipped with the reason;
-3. grasp: above the block at ``approach_mm``, the wrist roll squared to its faces, a
-   straight descent to the grasp height, close, and the gripper's position says whether
-   it holds something (no holding, no carrying: the block is looked for again);
-4. carry: straight up, over the bin at ``carry_mm``, down, open, up;
-5. verify: the next survey must not see the block where it was picked.
+2. choose: reachable blocks of a colour that has a bin, nearest to the base first (or by
+   colour); unknown colours and blocks out of reach are skipped with the reason; a block
+   seen far off to the side or cut by the picture's edge is looked at again, facing it;
+3. grasp (``GraspPlanner``): above the block at ``approach_mm``, the wrist roll squared
+   to its faces, a straight descent to the grasp height, close, and the gripper's
+   position says whether it holds something (no holding, no carrying: the block is
+   looked for again). Where straight down does not reach (far out, or close to the
+   base), the tool leans out or back and closes near level, along its own axis;
+4. carry: straight up, over the bin at ``carry_mm``, check the block is still held,
+   down, open, up;
+5. verify: the next survey must not see the block where it was picked; at the end each
+   bin is looked into.
 
-Any exception or Ctrl+C leaves the arm stopped and holding (``Arm``'s guard), the
-gripper's last state known from its reading.
+Any exception or Ctrl+C stops the arm where it is, holding; ``PickSorter.report`` keeps
+what was done, why it stopped and what the gripper holds, as read back.
 """
 
 from __future__ import annotations
@@ -28,8 +33,12 @@ import numpy.typing as npt
 
 from busarm.apps.locate import BlockLocator, Sighting
 from busarm.arm.arm import Arm
-from busarm.errors import ConfigError, ServoFaultError, UnreachableError
+from busarm.arm.kinematics import ArmKinematics
+from busarm.errors import BusArmError, ConfigError, ServoFaultError, UnreachableError
+from busarm.units import check_range
 from busarm.vision.camera import CameraSource
+
+FloatArray = npt.NDArray[np.float64]
 
 SAME_BLOCK_MM = 20.0
 """Two sightings this close are the same block."""
@@ -38,6 +47,38 @@ BIN_RADIUS_MM = 45.0
 BIN_SLOTS_MM = ((-20.0, -20.0), (20.0, -20.0), (-20.0, 20.0), (20.0, 20.0))
 """Where blocks go in a bin (from its centre): 2 x 2, 10 mm apart (the camera sees them
 apart when it checks the bin)."""
+TILTED_PITCHES_DEG = (-75.0, -60.0, -45.0, -30.0, -105.0, -120.0)
+"""Tool pitches tried, in order, where straight down does not reach: leaning out for far
+blocks, leaning back towards the base for near ones."""
+MAX_CLOSING_TILT_DEG = 20.0
+"""A tilted grasp's fingers close along a line at most this far from level, so the pads
+lie flat enough on the block's upright sides. (Leaning far, that leaves little room to
+turn the wrist: the fingers close nearly across the arm's bearing.)"""
+MAX_TILTED_TURN_DEG = 30.0
+"""A block left more than this off square to the fingers is not taken tilted (they would
+meet its edges)."""
+ROLL_STEP_DEG = 2.0
+"""The wrist rolls tried for a tilted grasp are this far apart."""
+ORDERS = ("nearest", "colors")
+HOLD_SLACK_MM = 4.0
+"""A gripper this little wider than a block, squeezing one, holds it (pads give a little)."""
+LINE_CHECK_MM = 2.0
+"""Points this far apart are checked for reach along each straight move of a grasp plan
+(more densely than ``Arm.move_line`` solves them, so a plan that passes does not fail on
+the way)."""
+
+
+@dataclass(frozen=True)
+class GraspPlan:
+    """How to take one block: the tool's pitch and roll and three tool points (mm, base
+    frame): the straight approach starts ``above`` it, closes at ``grasp``, lifts to
+    ``lift``."""
+
+    pitch_deg: float
+    roll_deg: float
+    above: tuple[float, float, float]
+    grasp: tuple[float, float, float]
+    lift: tuple[float, float, float]
 
 
 @dataclass(frozen=True)
@@ -53,6 +94,13 @@ class PickSortSettings:
     joint_speed_deg_s: float = 180.0
     max_attempts: int = 2
     survey_frames: int = 2
+    order: str = "nearest"
+    """Which block next: ``nearest`` to the base, or ``colors``: by colour in the bins'
+    order, nearest first within a colour."""
+    look_closer_beyond_deg: float = 20.0
+    """A block seen further than this (bearing) from where the camera looked is looked at
+    again, the camera turned to face it, before the grasp (the picture's edges are where
+    the lens distorts most and a block is seen most from the side)."""
     settle_s: float = 0.2
     pause_above_c: float = 70.0
     """A servo this hot pauses the run (arm at home, gripper open) ..."""
@@ -63,6 +111,8 @@ class PickSortSettings:
     max_pause_s: float = 600.0
 
     def __post_init__(self) -> None:
+        if self.order not in ORDERS:
+            raise ConfigError(f"order = {self.order!r}; allowed: {', '.join(ORDERS)}")
         if not self.resume_below_c < self.pause_above_c:
             raise ConfigError(f"resume_below_c {self.resume_below_c:g} must be below "
                               f"pause_above_c {self.pause_above_c:g}")
@@ -71,6 +121,7 @@ class PickSortSettings:
                              ("resume_below_c", 30.0, 83.0), ("min_supply_v", 4.5, 12.0),
                              ("max_pause_s", 0.0, 3600.0),
                              ("release_mm", 20.0, 200.0), ("line_speed_mm_s", 10.0, 400.0),
+                             ("look_closer_beyond_deg", 0.0, 180.0),
                              ("joint_speed_deg_s", 10.0, 180.0), ("settle_s", 0.0, 5.0)):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and lo <= value <= hi):
@@ -94,19 +145,26 @@ class BlockOutcome:
     placed_mm: tuple[float, float] | None = None
     attempts: int = 0
     seconds: float = 0.0
+    grasp_pitch_deg: float | None = None
+    """The tool's pitch at the last grasp: -90 straight down, else tilted."""
 
     def to_dict(self) -> dict[str, object]:
         return {"color": self.color, "found_mm": [round(v, 1) for v in self.found_mm],
                 "outcome": self.outcome, "reason": self.reason,
                 "placed_mm": None if self.placed_mm is None else
                 [round(v, 1) for v in self.placed_mm],
-                "attempts": self.attempts, "seconds": round(self.seconds, 2)}
+                "attempts": self.attempts, "seconds": round(self.seconds, 2),
+                "grasp_pitch_deg": self.grasp_pitch_deg}
 
 
 @dataclass
 class RunReport:
     blocks: list[BlockOutcome] = field(default_factory=list)
     seconds: float = 0.0
+    stopped: str = ""
+    """Why the run stopped before the table was clear (empty if it did not)."""
+    gripper: str = ""
+    """The gripper's state when it stopped that way, as read back."""
 
     def totals(self) -> dict[str, object]:
         done = [b for b in self.blocks if b.outcome == "sorted"]
@@ -118,6 +176,106 @@ class RunReport:
                 "median_cycle_s": round(cycle, 2), "seconds": round(self.seconds, 1)}
 
 
+@dataclass(frozen=True)
+class GraspPlanner:
+    """Grasps of cubes ``block_mm`` wide on a table at ``table_z_mm``, for an arm: pure
+    geometry (no bus), the fingertips at the cube's half height."""
+
+    kin: ArmKinematics
+    table_z_mm: float
+    block_mm: float
+    approach_mm: float
+    """How far before the grasp the straight approach starts (along the tool's axis)."""
+    carry_mm: float
+    """The height above the table the block is lifted to."""
+
+    def __post_init__(self) -> None:
+        check_range("table_z_mm", self.table_z_mm, -500.0, 500.0, "mm")
+        check_range("block_mm", self.block_mm, 5.0, 100.0, "mm")
+        check_range("approach_mm", self.approach_mm, 5.0, 300.0, "mm")
+        check_range("carry_mm", self.carry_mm, self.block_mm, 300.0, "mm")
+
+    @property
+    def grasp_z_mm(self) -> float:
+        return self.table_z_mm + self.block_mm / 2
+
+    def roll_squared_deg(self, x_mm: float, y_mm: float, yaw_deg: float) -> float:
+        """The wrist roll that squares the fingers (closing along the tool's y) to a block
+        at ``yaw_deg`` (modulo 90), the smallest such turn."""
+        kin = self.kin
+
+        def finger_axis_deg(roll: float) -> float:
+            return _finger_axis_deg(
+                kin.fk_matrix(kin.ik_best(x_mm, y_mm, self.grasp_z_mm, -90.0, roll)))
+
+        a0, a1 = finger_axis_deg(0.0), finger_axis_deg(10.0)
+        sign = 1.0 if (a1 - a0 + 180.0) % 360.0 - 180.0 > 0 else -1.0
+        return ((yaw_deg - a0) * sign + 45.0) % 90.0 - 45.0
+
+    def plan(self, x_mm: float, y_mm: float, yaw_deg: float) -> GraspPlan:
+        """Straight down with the fingers squared to the block where that reaches; else
+        tilted (``TILTED_PITCHES_DEG``), closing level, the approach along the tool's axis.
+        Raises UnreachableError saying why neither works."""
+        z0, zg = self.table_z_mm, self.grasp_z_mm
+        grasp = (x_mm, y_mm, zg)
+        lift = (x_mm, y_mm, z0 + self.carry_mm)
+        try:
+            roll = self.roll_squared_deg(x_mm, y_mm, yaw_deg)
+            plan = GraspPlan(-90.0, roll, (x_mm, y_mm, z0 + self.approach_mm), grasp, lift)
+            self._check_plan(plan)
+            return plan
+        except UnreachableError as exc:
+            top_down_failure = str(exc)
+        turned = ""
+        for pitch in TILTED_PITCHES_DEG:
+            level = self._best_level_roll(x_mm, y_mm, yaw_deg, pitch)
+            if level is None:
+                continue
+            roll, turn, m = level
+            if turn > MAX_TILTED_TURN_DEG:
+                turned = (f"; tilted, the fingers would meet it {turn:.0f} deg off square "
+                          f"(at most {MAX_TILTED_TURN_DEG:g})")
+                continue
+            back = m[:3, 2] * self.approach_mm  # back along the tool's axis
+            above = (x_mm - back[0], y_mm - back[1], zg - back[2])
+            plan = GraspPlan(pitch, roll, above, grasp, lift)
+            try:
+                self._check_plan(plan)
+            except UnreachableError:
+                continue
+            return plan
+        raise UnreachableError(f"no grasp reaches it: straight down {top_down_failure}"
+                               f"{turned or '; nor tilted'}")
+
+    def _best_level_roll(self, x_mm: float, y_mm: float, yaw_deg: float, pitch_deg: float
+                    ) -> tuple[float, float, FloatArray] | None:
+        """At a tilted pitch: the roll that best squares the fingers to the block while
+        they close within ``MAX_CLOSING_TILT_DEG`` of level; (roll, degrees still off
+        square, the tool's pose), or None if the pitch does not reach."""
+        kin = self.kin
+        best: tuple[float, float, FloatArray] | None = None
+        for roll in np.arange(-90.0, 90.5, ROLL_STEP_DEG).tolist():
+            try:
+                m = kin.fk_matrix(kin.ik_best(x_mm, y_mm, self.grasp_z_mm, pitch_deg, roll))
+            except UnreachableError:
+                continue
+            if math.degrees(math.asin(min(1.0, abs(m[2, 1])))) > MAX_CLOSING_TILT_DEG:
+                continue
+            turn = abs((yaw_deg - _finger_axis_deg(m) + 45.0) % 90.0 - 45.0)
+            if best is None or turn < best[1] - 1e-9:
+                best = (float(roll), turn, m)
+        return best
+
+    def _check_plan(self, plan: GraspPlan) -> None:
+        """Every point of the plan's straight moves within reach (UnreachableError)."""
+        kin = self.kin
+        for a, b in ((plan.above, plan.grasp), (plan.grasp, plan.lift)):
+            steps = math.ceil(math.dist(a, b) / LINE_CHECK_MM)
+            for t in np.linspace(0.0, 1.0, steps + 1):
+                x, y, z = (p + (q - p) * t for p, q in zip(a, b, strict=True))
+                kin.ik_best(x, y, z, plan.pitch_deg, plan.roll_deg)
+
+
 class PickSorter:
     """Sorts the blocks the camera sees into ``bins`` (colour -> (x, y) mm)."""
 
@@ -127,7 +285,8 @@ class PickSorter:
                  settings: PickSortSettings | None = None,
                  progress: Callable[[str], None] | None = None,
                  on_step: Callable[[str], None] | None = None,
-                 on_pick: Callable[[Sighting], None] | None = None) -> None:
+                 on_pick: Callable[[Sighting], None] | None = None,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.arm = arm
         self.camera = camera
         self.locator = locator
@@ -142,47 +301,77 @@ class PickSorter:
         self.on_step = on_step or (lambda _: None)
         # Called with each block about to be picked (its survey is ``last_survey``).
         self.on_pick = on_pick or (lambda _: None)
+        # What cycle times are measured with (a twin's simulated seconds, say).
+        self.clock = clock
         # The last survey's pictures and what was found in each (for reports).
         self.last_survey: list[tuple[npt.NDArray[np.uint8], list[Sighting]]] = []
-        self._grasp_z = locator.table_z_mm + locator.block_size_mm / 2
+        self.planner = GraspPlanner(arm.kin, locator.table_z_mm, locator.block_size_mm,
+                                    self.settings.approach_mm, self.settings.carry_mm)
         self._placed: dict[str, int] = {}
+        # The colour of the block in the fingers, from a good grip to its release.
+        self._holding: str | None = None
+        self.report = RunReport()
+        """The run's report as it goes (what was done so far, if it stops early)."""
 
     # ------------------------------------------------------------------ seeing
 
     def survey(self) -> list[Sighting]:
-        """Every block seen from the survey poses, merged (averaged per pose)."""
-        s = self.settings
-        seen: list[Sighting] = []
+        """Every block seen from the survey poses, merged (averaged per pose). A block seen
+        from several poses keeps its best sighting: whole rather than cut by the picture's
+        edge, then the one nearest the middle of its picture (in bearing)."""
+        seen: list[tuple[tuple[bool, float], Sighting]] = []
         self.last_survey = []
         for pose in self.survey_poses:
-            self.arm.move_joints(pose, speed_deg_s=s.joint_speed_deg_s)
-            time.sleep(s.settle_s)
-            pictures = []
-            for _ in range(s.survey_frames):
-                image = self.camera.read().image
-                pictures.append((image, self.arm.read_joints_deg()))
-            found = self.locator.locate_averaged(pictures)
-            self.last_survey.append((pictures[-1][0], found))
+            image, found = self._look(pose)
+            self.last_survey.append((image, found))
             for new in found:
-                if not any(_near(new, old) for old in seen):
-                    seen.append(new)
+                rank = (not new.whole, abs(_bearing_deg(new) - pose[0]))
+                # A cut blob's location is rough: it may lie further from the whole one.
+                radius = SAME_BLOCK_MM if new.whole else 2 * SAME_BLOCK_MM
+                for i, (old_rank, old) in enumerate(seen):
+                    if _same_block(old.color, old.location.x_mm, old.location.y_mm, new,
+                                   radius if old.whole else 2 * SAME_BLOCK_MM):
+                        if rank < old_rank:
+                            seen[i] = (rank, new)
+                        break
+                else:
+                    seen.append((rank, new))
         self.on_step("survey")
-        return seen
+        return [sighting for _, sighting in seen]
+
+    def _look(self, pose: Sequence[float]) -> tuple[npt.NDArray[np.uint8], list[Sighting]]:
+        """The blocks seen from ``pose`` (frames averaged), and the last picture."""
+        s, arm = self.settings, self.arm
+        arm.move_joints(pose, speed_deg_s=s.joint_speed_deg_s)
+        time.sleep(s.settle_s)
+        pictures = [(self.camera.read().image, arm.read_joints_deg())
+                    for _ in range(s.survey_frames)]
+        return pictures[-1][0], self.locator.locate_averaged(pictures)
+
+    def look_closer(self, target: Sighting) -> Sighting | None:
+        """The block as seen with the camera turned to face it, if the survey saw it more
+        than ``look_closer_beyond_deg`` off to the side or cut by the picture's edge; else
+        ``target`` itself. None if it is not seen whole there when looked at again."""
+        s, arm = self.settings, self.arm
+        x, y = target.location.x_mm, target.location.y_mm
+        bearing = _bearing_deg(target)
+        pose = min(self.survey_poses, key=lambda p: abs(bearing - p[0]))
+        if target.whole and abs(bearing - pose[0]) <= s.look_closer_beyond_deg:
+            return target
+        try:
+            facing = arm.config.check_joints((bearing, *pose[1:]))
+        except ConfigError:  # the base cannot turn that far: the survey's sighting it is
+            return target if target.whole else None
+        image, found = self._look(facing)
+        self.last_survey = [(image, found)]
+        self.on_step("closer")
+
+        same = sorted((v for v in found if v.whole
+                       and _same_block(target.color, x, y, v, 2 * SAME_BLOCK_MM)),
+                      key=lambda v: _off_mm(v, x, y))
+        return same[0] if same else None
 
     # ------------------------------------------------------------------ moving
-
-    def grasp_roll_deg(self, x_mm: float, y_mm: float, yaw_deg: float) -> float:
-        """The wrist roll that squares the fingers (closing along the tool's y) to a block
-        at ``yaw_deg`` (modulo 90), the smallest such turn."""
-        kin = self.arm.kin
-
-        def finger_axis_deg(roll: float) -> float:
-            m = kin.fk_matrix(kin.ik_best(x_mm, y_mm, self._grasp_z, -90.0, roll))
-            return math.degrees(math.atan2(m[1, 1], m[0, 1]))
-
-        a0, a1 = finger_axis_deg(0.0), finger_axis_deg(10.0)
-        sign = 1.0 if (a1 - a0 + 180.0) % 360.0 - 180.0 > 0 else -1.0
-        return ((yaw_deg - a0) * sign + 45.0) % 90.0 - 45.0
 
     def _still_holding(self) -> bool:
         """Whether the gripper still stands short of closed (a dropped block lets it close)."""
@@ -228,45 +417,54 @@ class PickSorter:
         dx, dy = BIN_SLOTS_MM[k % len(BIN_SLOTS_MM)]
         return bx + dx, by + dy
 
-    def pick_and_place(self, target: Sighting) -> tuple[bool, str, tuple[float, float] | None]:
-        """One grasp-carry-release cycle; (holding was seen, why not, where it was put)."""
+    def pick_and_place(self, target: Sighting
+                       ) -> tuple[bool, str, tuple[float, float] | None, GraspPlan]:
+        """One grasp-carry-release cycle; (holding was seen, why not, where it was put, the
+        grasp plan)."""
         arm, s = self.arm, self.settings
         z0 = self.locator.table_z_mm
-        x, y = target.location.x_mm, target.location.y_mm
-        roll = self.grasp_roll_deg(x, y, target.location.yaw_deg)
+        plan = self.planner.plan(target.location.x_mm, target.location.y_mm,
+                               target.location.yaw_deg)
+        pitch, roll = plan.pitch_deg, plan.roll_deg
         # Open no wider than the block needs: wide-open fingers would hit a neighbour.
         gap = self.locator.block_size_mm + 2 * s.finger_clearance_mm
         arm.open_gripper(wait=False, gap_mm=gap)
-        arm.move_to(x, y, z0 + s.approach_mm, -90.0, roll, speed_deg_s=s.joint_speed_deg_s)
+        arm.move_to(*plan.above, pitch, roll, speed_deg_s=s.joint_speed_deg_s)
         arm.open_gripper(gap_mm=gap)
         self.on_step("above")
-        arm.move_line(x, y, self._grasp_z, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
+        arm.move_line(*plan.grasp, pitch, roll, speed_mm_s=s.line_speed_mm_s)
+        self._holding = target.color  # from the squeeze on: the reading says if it holds
         grip = arm.grip()
         self.on_step("grip")
         if not grip.is_holding:
+            self._holding = None
             arm.open_gripper(wait=False, gap_mm=gap)
-            arm.move_line(x, y, z0 + s.approach_mm, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
-            return False, f"the gripper closed on nothing ({grip.position_pulses} pulses)", None
-        arm.move_line(x, y, z0 + s.carry_mm, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
+            arm.move_line(*plan.above, pitch, roll, speed_mm_s=s.line_speed_mm_s)
+            return (False, f"the gripper closed on nothing ({grip.position_pulses} pulses)",
+                    None, plan)
+        arm.move_line(*plan.lift, pitch, roll, speed_mm_s=s.line_speed_mm_s)
         self.on_step("lift")
         bx, by = self._bin_spot(target.color)
-        square = self.grasp_roll_deg(bx, by, 0.0)  # the block's faces along the bin's walls
+        # The block's faces along the bin's walls.
+        square = self.planner.roll_squared_deg(bx, by, 0.0)
         arm.move_to(bx, by, z0 + s.carry_mm, -90.0, square, speed_deg_s=s.joint_speed_deg_s)
         self.on_step("carry")
         if not self._still_holding():
+            self._holding = None
             arm.open_gripper(wait=False, gap_mm=gap)
             self._placed[target.color] -= 1
-            return False, "the block slipped out during the carry", None
+            return False, "the block slipped out during the carry", None, plan
         arm.move_line(bx, by, z0 + s.release_mm, -90.0, square, speed_mm_s=s.line_speed_mm_s)
+        self._holding = None  # from the release on (an open gripper reads as open)
         arm.open_gripper(gap_mm=gap)
         self.on_step("release")
         arm.move_line(bx, by, z0 + s.carry_mm, -90.0, square, speed_mm_s=s.line_speed_mm_s)
-        return True, "", (bx, by)
+        return True, "", (bx, by), plan
 
     def verify_bins(self, report: RunReport) -> None:
         """Look into each bin a block was put in: a block reported sorted but not found
         there (it bounced out, say) is reported failed instead."""
-        s, arm = self.settings, self.arm
+        arm = self.arm
         look = arm.config.pose("look")
         for color, (bx, by) in self.bins.items():
             sorted_here = [b for b in report.blocks if b.color == color and b.outcome == "sorted"]
@@ -278,11 +476,8 @@ class PickSorter:
                 arm.config.check_joints(pose)
             except ConfigError:
                 continue  # no look at it from here: the release is trusted
-            arm.move_joints(pose, speed_deg_s=s.joint_speed_deg_s)
-            time.sleep(s.settle_s)
-            pictures = [(self.camera.read().image, arm.read_joints_deg())
-                        for _ in range(s.survey_frames)]
-            inside = [v for v in self.locator.locate_averaged(pictures) if v.color == color
+            _, found = self._look(pose)
+            inside = [v for v in found if v.color == color
                       and math.hypot(v.location.x_mm - bx, v.location.y_mm - by) < BIN_RADIUS_MM]
             for missing in sorted_here[len(inside):]:
                 missing.outcome = "failed"
@@ -292,59 +487,103 @@ class PickSorter:
     # ------------------------------------------------------------------ the job
 
     def run(self, *, max_cycles: int = 50) -> RunReport:
-        """Sort until the table shows no block that can be sorted; the whole report."""
-        start = time.monotonic()
-        report = RunReport()
-        for _ in range(max_cycles):
-            seen = self.survey()
+        """Sort until the table shows no block that can be sorted; the whole report.
+
+        On an error or Ctrl+C the arm is stopped where it is, holding, ``self.report``
+        says why and what the gripper reads, and the exception goes on up.
+        """
+        start = self.clock()
+        self.report = report = RunReport()
+        self._holding = None
+        try:
+            for _ in range(max_cycles):
+                if not self._cycle(report):
+                    break
             for outcome in report.blocks:
-                # Missed, and no longer where it was: someone moved it. It is looked for
-                # afresh (a new record if it is seen elsewhere).
-                if outcome.outcome == "pending" and outcome.attempts and not any(
-                        s.color == outcome.color and math.hypot(
-                            s.location.x_mm - outcome.found_mm[0],
-                            s.location.y_mm - outcome.found_mm[1]) < SAME_BLOCK_MM
-                        for s in seen):
-                    outcome.outcome = "moved"
-                    outcome.reason = "not where it was after a missed grasp: it was moved"
-            candidates: list[tuple[float, Sighting, BlockOutcome]] = []
-            for sighting in seen:
-                if self._in_a_bin(sighting):
-                    continue  # sorted already
-                outcome = self._outcome_for(sighting, report)
-                if outcome.outcome != "pending":
-                    continue
-                reason = self._why_not(sighting)
-                if reason:
-                    outcome.outcome, outcome.reason = "skipped", reason
-                    self.progress(f"skip {sighting.color} at {outcome.found_mm}: {reason}")
-                    continue
-                distance = math.hypot(sighting.location.x_mm, sighting.location.y_mm)
-                candidates.append((distance, sighting, outcome))
-            if not candidates:
-                break
-            _, target, outcome = min(candidates, key=lambda c: c[0])
-            self.check_servos()
-            self.on_pick(target)
-            t0 = time.monotonic()
-            outcome.attempts += 1
-            held, why, placed = self.pick_and_place(target)
-            outcome.seconds += time.monotonic() - t0
-            if held:
-                outcome.outcome, outcome.placed_mm = "sorted", placed
-                self.progress(f"{target.color} from {outcome.found_mm} into its bin "
-                              f"({outcome.seconds:.1f} s)")
-            elif outcome.attempts >= self.settings.max_attempts:
-                outcome.outcome, outcome.reason = "failed", why
-                self.progress(f"{target.color} at {outcome.found_mm}: gave up: {why}")
-            else:
-                self.progress(f"{target.color} at {outcome.found_mm}: {why}; looking again")
-        for outcome in report.blocks:
-            if outcome.outcome == "pending":
-                outcome.outcome, outcome.reason = "failed", "not seen again"
-        self.verify_bins(report)
-        report.seconds = time.monotonic() - start
+                if outcome.outcome == "pending":
+                    outcome.outcome, outcome.reason = "failed", "not seen again"
+            self.verify_bins(report)
+        except BaseException as exc:
+            report.stopped = ("interrupted (Ctrl+C)" if isinstance(exc, KeyboardInterrupt)
+                              else f"{type(exc).__name__}: {exc}")
+            report.gripper = self._stop_and_read_gripper()
+            raise
+        finally:
+            report.seconds = self.clock() - start
         return report
+
+    def _cycle(self, report: RunReport) -> bool:
+        """Survey, then pick and place the next block; False if there is none to pick."""
+        seen = self.survey()
+        for outcome in report.blocks:
+            # Missed, and no longer where it was: someone moved it. It is looked for
+            # afresh (a new record if it is seen elsewhere).
+            if outcome.outcome == "pending" and outcome.attempts and not any(
+                    _same_block(outcome.color, *outcome.found_mm, s) for s in seen):
+                outcome.outcome = "moved"
+                outcome.reason = "not where it was after a missed grasp: it was moved"
+        candidates: list[tuple[tuple[int, float], Sighting, BlockOutcome]] = []
+        for sighting in seen:
+            if self._in_a_bin(sighting):
+                continue  # sorted already
+            outcome = self._outcome_for(sighting, report)
+            if outcome.outcome != "pending":
+                continue
+            reason = self._why_not(sighting)
+            if reason:
+                outcome.outcome, outcome.reason = "skipped", reason
+                self.progress(f"skip {sighting.color} at {outcome.found_mm}: {reason}")
+                continue
+            distance = math.hypot(sighting.location.x_mm, sighting.location.y_mm)
+            rank = list(self.bins).index(sighting.color) if self.settings.order == "colors" else 0
+            candidates.append(((rank, distance), sighting, outcome))
+        if not candidates:
+            return False
+        _, target, outcome = min(candidates, key=lambda c: c[0])
+        self.check_servos()
+        t0 = self.clock()
+        closer = self.look_closer(target)
+        reason = self._why_not(closer) if closer is not None else ""
+        if reason:  # seen better, it is out of reach after all
+            outcome.outcome, outcome.reason = "skipped", reason
+            self.progress(f"skip {target.color} at {outcome.found_mm}: {reason}")
+            return True
+        outcome.attempts += 1
+        if closer is None:
+            held, why, placed = False, "not seen whole when looked at closer", None
+        else:
+            self.on_pick(closer)
+            held, why, placed, plan = self.pick_and_place(closer)
+            outcome.grasp_pitch_deg = plan.pitch_deg
+        outcome.seconds += self.clock() - t0
+        if held:
+            outcome.outcome, outcome.placed_mm = "sorted", placed
+            self.progress(f"{target.color} from {outcome.found_mm} into its bin "
+                          f"({outcome.seconds:.1f} s)")
+        elif outcome.attempts >= self.settings.max_attempts:
+            outcome.outcome, outcome.reason = "failed", why
+            self.progress(f"{target.color} at {outcome.found_mm}: gave up: {why}")
+        else:
+            self.progress(f"{target.color} at {outcome.found_mm}: {why}; looking again")
+        return True
+
+    def _stop_and_read_gripper(self) -> str:
+        """Stop and hold the arm (a Ctrl+C between moves has stopped nothing yet); what the
+        gripper holds, as read back."""
+        g = self.arm.config.gripper
+        try:
+            self.arm.stop()
+            pulses = self.arm.read_gripper_pulses()
+        except BusArmError as exc:
+            return f"unknown: the bus did not answer ({exc})"
+        gap_mm = g.gap_mm_at(pulses)
+        said = f"{gap_mm:.0f} mm apart, {pulses} pulses"
+        if abs(pulses - g.closed_pulses) <= g.holding_margin_pulses:
+            lost = f", the {self._holding} block lost" if self._holding else ""
+            return f"closed, empty{lost} ({said})"
+        if self._holding and gap_mm <= self.locator.block_size_mm + HOLD_SLACK_MM:
+            return f"holding a {self._holding} block ({said})"
+        return f"open ({said})"
 
     def _in_a_bin(self, sighting: Sighting) -> bool:
         return any(math.hypot(sighting.location.x_mm - bx, sighting.location.y_mm - by)
@@ -353,9 +592,7 @@ class PickSorter:
     def _outcome_for(self, sighting: Sighting, report: RunReport) -> BlockOutcome:
         """The record of this block: one already made where it was seen, or a new one."""
         for outcome in report.blocks:
-            if outcome.color == sighting.color and math.hypot(
-                    outcome.found_mm[0] - sighting.location.x_mm,
-                    outcome.found_mm[1] - sighting.location.y_mm) < SAME_BLOCK_MM:
+            if _same_block(outcome.color, *outcome.found_mm, sighting):
                 if outcome.outcome == "sorted":
                     # Sorted, yet seen where it was: it did not go (a slip). Try again.
                     outcome.outcome, outcome.placed_mm = "pending", None
@@ -365,18 +602,35 @@ class PickSorter:
         return outcome
 
     def _why_not(self, sighting: Sighting) -> str:
+        """Why this block is not to be picked ("" if it is)."""
         if sighting.color not in self.bins:
             return f"no bin for {sighting.color}"
-        if not sighting.top_down:
-            return sighting.reason or "out of reach of a top-down grasp"
+        if not sighting.whole:
+            return ""  # where it is, and so whether it is reached, is known after a closer look
+        if not sighting.reachable:
+            return sighting.reason or "out of reach"
+        loc = sighting.location
         try:
-            self.arm.kin.ik_best(sighting.location.x_mm, sighting.location.y_mm,
-                                 self.locator.table_z_mm + self.settings.approach_mm, -90.0)
+            self.planner.plan(loc.x_mm, loc.y_mm, loc.yaw_deg)
         except UnreachableError as exc:
-            return f"cannot approach from above: {exc}"
+            return str(exc)
         return ""
 
 
-def _near(a: Sighting, b: Sighting) -> bool:
-    return a.color == b.color and math.hypot(a.location.x_mm - b.location.x_mm,
-                                             a.location.y_mm - b.location.y_mm) < SAME_BLOCK_MM
+def _same_block(color: str, x_mm: float, y_mm: float, seen: Sighting,
+                radius_mm: float = SAME_BLOCK_MM) -> bool:
+    """Whether ``seen`` is the block of ``color`` seen at (x, y) before."""
+    return seen.color == color and _off_mm(seen, x_mm, y_mm) < radius_mm
+
+
+def _off_mm(seen: Sighting, x_mm: float, y_mm: float) -> float:
+    return math.hypot(seen.location.x_mm - x_mm, seen.location.y_mm - y_mm)
+
+
+def _bearing_deg(seen: Sighting) -> float:
+    return math.degrees(math.atan2(seen.location.y_mm, seen.location.x_mm))
+
+
+def _finger_axis_deg(tool: FloatArray) -> float:
+    """The direction (deg, base frame) the fingers close along: the tool's y seen from above."""
+    return math.degrees(math.atan2(tool[1, 1], tool[0, 1]))

@@ -31,7 +31,7 @@ from typing import TypeGuard
 
 from busarm.arm.config import ArmConfig
 from busarm.errors import CalibrationError
-from busarm.fileio import write_text_atomic
+from busarm.fileio import read_versioned_json, write_text_atomic
 from busarm.units import DEG_PER_PULSE, OFFSET_MAX_PULSES, OFFSET_MIN_PULSES
 
 FORMAT_NAME = "busarm.calibration"
@@ -101,20 +101,8 @@ def save_calibration(path: Path | str, calibration: Calibration) -> None:
 
 def load_calibration(path: Path | str) -> Calibration:
     """Read a calibration file; CalibrationError naming the file and the problem."""
-    path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise CalibrationError(f"calibration {path}: no such file") from None
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise CalibrationError(f"calibration {path}: unreadable: {exc}") from None
-    where = f"calibration {path}"
-    if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
-        raise CalibrationError(f"{where}: not a {FORMAT_NAME} file")
-    if data.get("version") != FORMAT_VERSION:
-        raise CalibrationError(
-            f"{where}: version {data.get('version')!r}; this busarm reads version {FORMAT_VERSION}"
-        )
+    data, where = read_versioned_json(path, "calibration", FORMAT_NAME, FORMAT_VERSION,
+                                      CalibrationError)
     arm = data.get("arm")
     raw_joints = data.get("joints")
     if not isinstance(arm, str) or not isinstance(raw_joints, list):

@@ -111,6 +111,11 @@ class GripperConfig:
         pulses = self.closed_pulses - sign * math.ceil(gap_mm / self.gap_mm_per_pulse)
         return min(self.max_pulses, max(self.min_pulses, pulses))
 
+    def gap_mm_at(self, position_pulses: float) -> float:
+        """How far apart the fingers are at ``position_pulses`` (0 at closed or beyond)."""
+        sign = 1.0 if self.closed_pulses >= self.open_pulses else -1.0
+        return max(0.0, sign * (self.closed_pulses - position_pulses) * self.gap_mm_per_pulse)
+
     def check_pulses(self, position_pulses: int) -> None:
         """Raise LimitError if a gripper position is outside open..closed."""
         if isinstance(position_pulses, bool) or not isinstance(position_pulses, int):

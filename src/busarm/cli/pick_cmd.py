@@ -15,11 +15,12 @@ from urllib.parse import quote
 
 import click
 
+from busarm.arm.config import ArmConfig
 from busarm.cli.arm_cmds import ArmContext
 from busarm.cli.camera_cmds import check_writable, is_twin_port
 from busarm.cli.common import Settings, parse_float_list, pass_settings
 from busarm.cli.twin_cmds import DEFAULT_COLORS, scene_options
-from busarm.errors import ConfigError
+from busarm.errors import BusArmError, ConfigError
 
 DEFAULT_REPORT = "pick-sort-report"
 
@@ -38,6 +39,19 @@ def parse_bins(text: str) -> dict[str, tuple[float, float]]:
     if not bins:
         raise ConfigError("--bins is empty: expected COLOUR=X,Y;COLOUR=X,Y")
     return bins
+
+
+def parse_survey(text: str, config: ArmConfig) -> list[tuple[float, ...]]:
+    """``look,look@-45`` -> joint poses: poses named in the arm config, the base turned to
+    the bearing (deg) after ``@`` if one is given."""
+    poses = []
+    for part in text.split(","):
+        name, sep, bearing = part.strip().partition("@")
+        pose = list(config.pose(name.strip()))
+        if sep:
+            (pose[0],) = parse_float_list(bearing, f"--survey {part.strip()!r}: the bearing")
+        poses.append(config.check_joints(pose))
+    return poses
 
 
 def _twin_url(scene_file: Path | None, seed: int | None, blocks: int | None,
@@ -62,6 +76,13 @@ def _twin_url(scene_file: Path | None, seed: int | None, blocks: int | None,
 @click.option("--bins", "bins_text", default=None,
               help="Where each colour goes, COLOUR=X,Y;... in mm (default on the twin: its "
                    "trays).")
+@click.option("--survey", "survey_text", default="look", show_default=True,
+              help="Where the camera looks from: poses of the arm config, comma separated; "
+                   "NAME@BEARING turns the base to BEARING deg (e.g. look@-40,look,look@40).")
+@click.option("--order", type=click.Choice(["nearest", "colors"]), default="nearest",
+              show_default=True,
+              help="Which block next: the nearest, or by colour in --colors order (nearest "
+                   "first within a colour).")
 @click.option("--report", "report_dir", type=click.Path(file_okay=False, path_type=Path),
               default=DEFAULT_REPORT, show_default=True, help="Folder for the run report.")
 @click.option("--config", default="jetauto_pro", show_default=True,
@@ -71,7 +92,8 @@ def _twin_url(scene_file: Path | None, seed: int | None, blocks: int | None,
 def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
               blocks: int | None, colors: str | None, camera_src: str | None,
               intrinsics: Path | None, hand_eye: Path | None, bins_text: str | None,
-              report_dir: Path, config: str, as_json: bool) -> None:
+              survey_text: str, order: str, report_dir: Path, config: str,
+              as_json: bool) -> None:
     """Find the blocks, pick each and put it in its colour's bin, until the table is clear.
 
     Prints what happened to every block and the totals, and writes a report folder
@@ -79,7 +101,7 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
     """
     from busarm.apps.locate import BlockLocator
     from busarm.apps.pick_report import write_report
-    from busarm.apps.pick_sort import PickSorter
+    from busarm.apps.pick_sort import PickSorter, PickSortSettings
     from busarm.twin.camera import TwinCamera
     from busarm.twin.transport import TwinTransport
     from busarm.vision.annotate import annotate
@@ -100,6 +122,8 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
         raise ConfigError("on hardware pick-sort needs --camera, --intrinsics, --hand-eye "
                           "(busarm camera calibrate / handeye) and --bins")
     bins_given = parse_bins(bins_text) if bins_text is not None else None
+    ac = ArmContext(settings, config, None)
+    survey_poses = parse_survey(survey_text, ac.config)
     # Everything is checked before anything runs: colours, the scene, the report folder.
     detector = ColorDetector(default_thresholds().select(names))
     if is_twin_port(port):
@@ -117,7 +141,6 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
                                                     intrinsics_views=12, hand_eye_views=10)
     intr = load_intrinsics(intrinsics)
     he = load_hand_eye(hand_eye, intrinsics=intr)
-    ac = ArmContext(settings, config, None)
     frames: list[Any] = []
     picks: list[tuple[str, Any]] = []
     with ac.open(port=port) as arm, open_camera(camera_src or "twin") as camera:
@@ -140,11 +163,28 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
                             f"{target.location.y_mm:.0f}) mm"])))
 
         sorter = PickSorter(arm, camera, locator,
-                            {c: xy for c, xy in bins.items() if c in names},
+                            {c: bins[c] for c in names if c in bins},
+                            survey_poses=survey_poses, settings=PickSortSettings(order=order),
                             progress=lambda text: settings.err.print(text, highlight=False),
                             on_step=on_step, on_pick=on_pick)
         before = overview.read().image if overview is not None else None
-        report = sorter.run()
+        try:
+            report = sorter.run()
+        except BaseException:
+            # Stopped and holding (the sorter saw to it): say so, keep what was done.
+            stopped = sorter.report
+            held = ("The bus did not answer: look at the arm" if
+                    stopped.gripper.startswith("unknown") else "The arm holds where it is")
+            settings.err.print(f"pick-sort stopped: {stopped.stopped}. {held}; the gripper: "
+                               f"{stopped.gripper}. The report so far: {report_dir}/",
+                               highlight=False, soft_wrap=True)
+            try:
+                write_report(report_dir, stopped, picks=picks, camera_frames=frames,
+                             extra={"port": port})
+            except (BusArmError, OSError) as exc:  # the stop's own error is the one to see
+                settings.err.print(f"(the report could not be written: {exc})",
+                                   highlight=False, soft_wrap=True)
+            raise
         arm.move_joints(ac.config.pose("home"))
         after = overview.read().image if overview is not None else (
             sorter.last_survey[0][0] if sorter.last_survey else None)

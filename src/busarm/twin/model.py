@@ -12,7 +12,10 @@ config, all "C: plausible, not identified on hardware":
 =========================== ============ =================================================
 servo stall torque          3.43 N m     35 kg cm joints (vendor); gripper 1.96 N m (20 kg cm)
 servo stiffness kp          410 N m/rad  full torque at 2 pulses (0.48 deg) of error
-joint damping / armature    2.0 / 0.01   gearbox losses and reflected rotor inertia (guess)
+servo damping kv            2.0 N m s/rad on the error's rate (PD), within the stall torque
+no-load speed               300 deg/s    0.2 s/60 deg, typical of 35 kg bus servos
+joint damping / armature    0.66 / 0.01  stall torque / no-load speed (the motor's torque
+                                         falls linearly with speed); reflected rotor inertia
 link masses                 0.10-0.25 kg a servo and a bracket per link (guess)
 gripper gap                 config       the arm config's gap_mm_per_pulse (0.1875: 30 mm at 540)
 block                       30 mm, 20 g  a wooden toy cube (density 0.74)
@@ -38,7 +41,11 @@ TIMESTEP_S = 0.002
 JOINT_TORQUE_NM = 35 * 0.0980665   # 35 kg cm
 GRIPPER_TORQUE_NM = 20 * 0.0980665  # 20 kg cm
 SERVO_KP_NM_PER_RAD = 410.0
-JOINT_DAMPING = 2.0
+SERVO_KV_NM_S_PER_RAD = 2.0
+NO_LOAD_SPEED_DEG_S = 300.0
+# A saturated servo's torque falls linearly from stall at rest to nothing at the no-load
+# speed: joint damping of stall torque / no-load speed on top of a capped actuator.
+JOINT_DAMPING = JOINT_TORQUE_NM / math.radians(NO_LOAD_SPEED_DEG_S)
 JOINT_ARMATURE = 0.01
 FINGER_PAD_MM = (10.0, 16.0, 36.0)
 """One finger pad's thickness (along the closing axis), width and length."""
@@ -187,7 +194,7 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
         w(f'    <material name="board{i}" texture="board{i}" specular="0" shininess="0"/>')
     w('  </asset>')
     w('  <default>')
-    w(f'    <default class="arm"><joint damping="{JOINT_DAMPING}" armature="{JOINT_ARMATURE}" '
+    w(f'    <default class="arm"><joint damping="{JOINT_DAMPING:.6g}" armature="{JOINT_ARMATURE}" '
       'frictionloss="0.05"/>')
     w(f'      <geom contype="2" conaffinity="1" rgba="{ARM_RGBA}" density="0"/></default>')
     w('    <default class="object"><geom contype="1" conaffinity="1" condim="4" '
@@ -310,7 +317,7 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
     w('  <actuator>')
     for name, (lo, hi) in zip(names, lim, strict=True):
         w(f'    <position name="{name}" joint="{name}" kp="{SERVO_KP_NM_PER_RAD}" '
-          f'ctrlrange="{lo - 0.2:.9g} {hi + 0.2:.9g}" '
+          f'kv="{SERVO_KV_NM_S_PER_RAD}" ctrlrange="{lo - 0.2:.9g} {hi + 0.2:.9g}" '
           f'forcerange="{-JOINT_TORQUE_NM:.6g} {JOINT_TORQUE_NM:.6g}"/>')
     w(f'    <position name="gripper" joint="finger_left" gear="{finger_gear:.9g}" '
       f'kp="{SERVO_KP_NM_PER_RAD}" ctrllimited="false" '

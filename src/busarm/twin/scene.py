@@ -198,7 +198,10 @@ def check_scene(scene: Scene) -> None:
 # ---------------------------------------------------------------------- seeded scenes
 
 PLACE_RADIUS_MM = (140.0, 250.0)
-"""Where random blocks go: this far from the base axis ..."""
+"""Where random blocks go: this far from the base axis (straight down reaches them) ..."""
+REACH_RADIUS_MM = (110.0, 290.0)
+"""... or, for scenes over all the table the arm can pick from (some blocks only with a
+tilted grasp), this far."""
 PLACE_BEARING_DEG = (-55.0, 55.0)
 """... and within these bearings (0 = straight ahead), in front of the arm."""
 MIN_GAP_MM = 25.0
@@ -210,12 +213,13 @@ MAX_BLOCKS = 8
 def random_scene(
     seed: int, blocks: int = 5, colors: Sequence[str] = ("red", "green", "blue"),
     *, size_mm: float = DEFAULT_BLOCK_MM, bins: bool = True,
+    radius_mm: tuple[float, float] = PLACE_RADIUS_MM,
 ) -> Scene:
     """A seeded scene of ``blocks`` cubes with random positions, yaws and colours.
 
-    Blocks stand in front of the arm where a top-down grasp reaches them
-    (``PLACE_RADIUS_MM``, ``PLACE_BEARING_DEG``), ``MIN_GAP_MM`` apart; every colour
-    appears at least once when there are enough blocks; one bin per colour.
+    Blocks stand in front of the arm, ``radius_mm`` from the base axis (by default where
+    a top-down grasp reaches them) within ``PLACE_BEARING_DEG``, ``MIN_GAP_MM`` apart;
+    every colour appears at least once when there are enough blocks; one bin per colour.
     """
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
         raise ConfigError(f"seed = {seed!r} must be an integer 0..{2**32 - 1}")
@@ -225,11 +229,14 @@ def random_scene(
     unknown = [c for c in colors if c not in COLORS]
     if not colors or unknown:
         raise ConfigError(f"colors {unknown or colors!r}: allowed {', '.join(COLORS)}")
+    r_lo, r_hi = radius_mm
+    if not (math.isfinite(r_lo) and math.isfinite(r_hi) and 0 <= r_lo < r_hi <= 1000):
+        raise ConfigError(f"radius_mm = {radius_mm!r}: give (near, far) with "
+                          "0 <= near < far <= 1000 mm")
     rng = random.Random(seed)
     chosen = [colors[i % len(colors)] for i in range(blocks)]
     rng.shuffle(chosen)
     trays = tuple(b for b in DEFAULT_BINS if b.color in colors) if bins else ()
-    r_lo, r_hi = PLACE_RADIUS_MM
     b_lo, b_hi = PLACE_BEARING_DEG
     for _attempt in range(200):  # an unlucky early block can leave no room: start again
         placed: list[Block] = []

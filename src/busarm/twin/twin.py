@@ -49,6 +49,7 @@ from busarm.twin.model import (
     M_PER_MM,
     MJ_FROM_CV,
     SERVO_KP_NM_PER_RAD,
+    SERVO_KV_NM_S_PER_RAD,
     CameraMount,
     TwinModelSpec,
     build_mjcf,
@@ -196,6 +197,9 @@ class Twin:
         self._torque = [JOINT_TORQUE_NM] * len(cfg.joints) + [GRIPPER_TORQUE_NM]
         self._acts = [*self._joint_act, self._grip_act]
         self._loaded = [True] * len(self._acts)
+        # Each joint's last commanded angle (rad) and when (None while limp), for the ramp
+        # and the servo's rate term.
+        self._last_cmd: list[tuple[float, float] | None] = [None] * len(cfg.joints)
 
         # Start: arm at rest in the start pose, servos holding it, blocks settled.
         d = self.data
@@ -266,10 +270,7 @@ class Twin:
     # ------------------------------------------------------------------ coupling
 
     def _half_gap_m(self, gripper_pulses: float) -> float:
-        closed = self.config.gripper.closed_pulses
-        sign = 1.0 if closed >= self.config.gripper.open_pulses else -1.0
-        return max(0.0, sign * (closed - gripper_pulses) * self.config.gripper.gap_mm_per_pulse / 2
-                   * M_PER_MM)
+        return self.config.gripper.gap_mm_at(gripper_pulses) / 2 * M_PER_MM
 
     def _pulses_from_half_gap(self, half_gap_m: float) -> float:
         closed = self.config.gripper.closed_pulses
@@ -296,6 +297,8 @@ class Twin:
         kp = SERVO_KP_NM_PER_RAD if loaded else 0.0
         self.model.actuator_gainprm[act, 0] = kp
         self.model.actuator_biasprm[act, 1] = -kp
+        if act in self._joint_act:
+            self.model.actuator_biasprm[act, 2] = -SERVO_KV_NM_S_PER_RAD if loaded else 0.0
 
     def _tick(self) -> None:
         """Bring physics up to the clock, following the servos' commands."""
@@ -310,16 +313,38 @@ class Twin:
                 self._t0 += behind - MAX_CATCH_UP_S
                 behind = MAX_CATCH_UP_S
             cfg = self.config
+            steps = int(behind / m.opt.timestep + 1e-9)
+            ramps = []
             for k, (servo, j) in enumerate(zip(self.servos, cfg.joints, strict=False)):
                 servo.advance(now)
-                d.ctrl[self._joint_act[k]] = math.radians(
-                    j.angle_deg_from_pulses(servo.physical_pulses))
+                target = math.radians(j.angle_deg_from_pulses(servo.physical_pulses))
+                # A limp servo re-seeds its target from the horn when it takes the load again
+                # (the firmware model does): no ramp from where it was before.
+                last = self._last_cmd[k]
+                self._last_cmd[k] = (now, target) if servo.is_loaded else None
+                start, rate = target, 0.0
+                if last is not None and steps > 0:
+                    start = last[1]
+                    rate = (target - start) / (steps * m.opt.timestep)
+                # Firmware moves are uniform in time, so the command is ramped across the
+                # physics steps (a long tick, after a stall, is not one jump). The
+                # actuator damps the joint's speed (kv); a servo's D term acts on the
+                # error's rate instead, so the commanded speed is fed forward.
+                ramps.append((self._joint_act[k], start, target,
+                              rate * SERVO_KV_NM_S_PER_RAD / SERVO_KP_NM_PER_RAD))
                 self._set_loaded(k, servo.is_loaded)
             grip = self.servos[-1]
             grip.advance(now)
             d.ctrl[self._grip_act] = self._grip_ctrl(self._half_gap_m(grip.physical_pulses))
             self._set_loaded(len(self.servos) - 1, grip.is_loaded)
-            mj.mj_step(m, d, nstep=int(behind / m.opt.timestep))
+            chunk = max(1, round(CONTROL_PERIOD_S / m.opt.timestep))
+            done = 0
+            while done < steps:
+                n = min(chunk, steps - done)
+                done += n
+                for act, start, end, lead in ramps:
+                    d.ctrl[act] = start + (end - start) * done / steps + lead
+                mj.mj_step(m, d, nstep=n)
             self._read_sensors()
             for k, servo in enumerate(self.servos):
                 if not self._loaded[k]:
@@ -348,6 +373,11 @@ class Twin:
     def sync(self) -> None:
         """Catch physics up with the clock now (before reading or rendering)."""
         self._tick()
+
+    @property
+    def sim_time_s(self) -> float:
+        """Simulated seconds since the twin started: the clock's, less any slip."""
+        return float(self.data.time)
 
     # ------------------------------------------------------------------ ground truth
 

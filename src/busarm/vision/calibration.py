@@ -47,7 +47,7 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from busarm.errors import CalibrationError, ConfigError, VisionError
-from busarm.fileio import write_text_atomic
+from busarm.fileio import read_versioned_json, write_text_atomic
 from busarm.units import check_int_range
 
 FloatArray = npt.NDArray[np.float64]
@@ -1705,23 +1705,7 @@ def save_intrinsics(
 
 
 def _read(path: Path | str, what: str, fmt: str) -> tuple[dict[str, Any], str]:
-    path = Path(path)
-    where = f"{what} {path}"
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise CalibrationError(f"{where}: no such file") from None
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise CalibrationError(f"{where}: unreadable: {exc}") from None
-    if not isinstance(data, dict) or data.get("format") != fmt:
-        got = data.get("format") if isinstance(data, dict) else type(data).__name__
-        raise CalibrationError(f"{where}: key 'format' is {got!r}, not {fmt!r}")
-    if data.get("version") != FORMAT_VERSION:
-        raise CalibrationError(
-            f"{where}: key 'version' is {data.get('version')!r}; this busarm reads version "
-            f"{FORMAT_VERSION}"
-        )
-    return data, where
+    return read_versioned_json(path, what, fmt, FORMAT_VERSION, CalibrationError)
 
 
 def _key(data: dict[str, Any], key: str, where: str) -> Any:

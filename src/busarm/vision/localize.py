@@ -290,14 +290,17 @@ def _solve_silhouettes(
     index = np.arange(count)[:, None] if outlines.shape[0] > 1 else np.zeros((count, 1), np.intp)
     faces = _facing(n, r, height, local_xy)
     residual: FloatArray = np.full(count, np.inf)
-    for _ in range(3):
-        residual = _gauss_newton(
-            n, measured, intr, outlines[index, faces], row, height, down, 0.87 * size, mid
-        )
-        again = _facing(n, r, height, local_xy)
-        if np.array_equal(again, faces):
-            break
-        faces = again
+    # A blob no cube explains (half a block at a corner, say) goes non-finite on the way;
+    # that is caught below and named, so numpy need not warn about it.
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        for _ in range(3):
+            residual = _gauss_newton(
+                n, measured, intr, outlines[index, faces], row, height, down, 0.87 * size, mid
+            )
+            again = _facing(n, r, height, local_xy)
+            if np.array_equal(again, faces):
+                break
+            faces = again
     bad = np.flatnonzero(~(residual < SILHOUETTE_TOL_PX) | ~np.isfinite(n).all(axis=1))
     if bad.size:
         i = int(bad[0])

@@ -1,0 +1,115 @@
+"""Properties of pick-and-sort's grasp plans (pure geometry, no bus).
+
+Every plan can be carried out (every point of its straight moves solves at its pitch and
+roll), a top-down plan squares the fingers to the block, a tilted plan closes near level
+and near square, its approach runs back along the tool's axis; where straight down
+reaches, the plan is straight down; everywhere the benchmark places blocks, a plan exists.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from busarm.apps.pick_sort import (
+    MAX_CLOSING_TILT_DEG,
+    MAX_TILTED_TURN_DEG,
+    GraspPlan,
+    GraspPlanner,
+)
+from busarm.arm.config import load_arm_config
+from busarm.arm.kinematics import ArmKinematics
+from busarm.errors import ConfigError, UnreachableError
+from busarm.twin.scene import PLACE_BEARING_DEG, PLACE_RADIUS_MM, REACH_RADIUS_MM
+
+CONFIG = load_arm_config()
+KIN = ArmKinematics.from_config(CONFIG)
+PLANNER = GraspPlanner(KIN, CONFIG.table_z_mm, 30.0, approach_mm=60.0, carry_mm=75.0)
+PROPS = settings(max_examples=120, deadline=None, derandomize=True)
+
+
+def _off_square_deg(plan: GraspPlan, yaw_deg: float) -> tuple[float, float]:
+    """(how far the closing axis is from level, from square to the block), degrees."""
+    m = KIN.fk_matrix(KIN.ik_best(*plan.grasp, plan.pitch_deg, plan.roll_deg))
+    tilt = math.degrees(math.asin(min(1.0, abs(m[2, 1]))))
+    across = math.degrees(math.atan2(m[1, 1], m[0, 1]))
+    return tilt, abs((yaw_deg - across + 45.0) % 90.0 - 45.0)
+
+
+def _check(plan: GraspPlan, x: float, y: float, yaw: float) -> None:
+    assert plan.grasp == pytest.approx((x, y, PLANNER.grasp_z_mm))
+    assert plan.lift == pytest.approx((x, y, CONFIG.table_z_mm + 75.0))
+    for a, b in ((plan.above, plan.grasp), (plan.grasp, plan.lift)):
+        for t in np.linspace(0.0, 1.0, 11):
+            point = [p + (q - p) * t for p, q in zip(a, b, strict=True)]
+            KIN.ik_best(point[0], point[1], point[2], plan.pitch_deg, plan.roll_deg)
+    tilt, turn = _off_square_deg(plan, yaw)
+    if plan.pitch_deg == -90.0:
+        assert plan.above == pytest.approx((x, y, CONFIG.table_z_mm + 60.0))
+        assert turn < 1e-6
+    else:
+        assert tilt <= MAX_CLOSING_TILT_DEG + 1e-9
+        assert turn <= MAX_TILTED_TURN_DEG + 1e-9
+        back = np.subtract(plan.grasp, plan.above)
+        assert float(np.linalg.norm(back)) == pytest.approx(60.0)
+        m = KIN.fk_matrix(KIN.ik_best(*plan.grasp, plan.pitch_deg, plan.roll_deg))
+        np.testing.assert_allclose(back / 60.0, m[:3, 2], atol=1e-9)
+
+
+@PROPS
+@given(r=st.floats(60.0, 340.0), bearing=st.floats(-120.0, 120.0), yaw=st.floats(-90.0, 90.0))
+def test_every_plan_can_be_carried_out(r: float, bearing: float, yaw: float) -> None:
+    x, y = r * math.cos(math.radians(bearing)), r * math.sin(math.radians(bearing))
+    try:
+        plan = PLANNER.plan(x, y, yaw)
+    except UnreachableError as exc:
+        assert "no grasp reaches it" in str(exc)
+        return
+    _check(plan, x, y, yaw)
+
+
+@PROPS
+@given(r=st.floats(*PLACE_RADIUS_MM), bearing=st.floats(*PLACE_BEARING_DEG),
+       yaw=st.floats(-45.0, 45.0))
+def test_where_straight_down_reaches_the_plan_is_straight_down(
+        r: float, bearing: float, yaw: float) -> None:
+    x, y = r * math.cos(math.radians(bearing)), r * math.sin(math.radians(bearing))
+    plan = PLANNER.plan(x, y, yaw)
+    assert plan.pitch_deg == -90.0
+    _check(plan, x, y, yaw)
+
+
+@PROPS
+@given(r=st.floats(*REACH_RADIUS_MM), bearing=st.floats(*PLACE_BEARING_DEG),
+       yaw=st.floats(-45.0, 45.0))
+def test_every_block_the_benchmark_places_has_a_grasp(r: float, bearing: float,
+                                                      yaw: float) -> None:
+    x, y = r * math.cos(math.radians(bearing)), r * math.sin(math.radians(bearing))
+    _check(PLANNER.plan(x, y, yaw), x, y, yaw)
+
+
+def test_tilted_grasps_lean_out_far_and_back_near() -> None:
+    far = PLANNER.plan(285.0, 0.0, 10.0)
+    near = PLANNER.plan(105.0, 0.0, 10.0)
+    assert -90.0 < far.pitch_deg < 0.0
+    assert near.pitch_deg < -90.0
+    assert math.hypot(*far.above[:2]) < 285.0  # it comes in from the base's side
+    assert math.hypot(*near.above[:2]) > 105.0  # ... and here from beyond the block
+
+
+def test_out_of_reach_says_why() -> None:
+    with pytest.raises(UnreachableError, match="no grasp reaches it: straight down"):
+        PLANNER.plan(400.0, 0.0, 0.0)
+
+
+def test_bad_planner_arguments_are_refused() -> None:
+    with pytest.raises(ConfigError, match="block_mm"):
+        GraspPlanner(KIN, 0.0, 0.0, approach_mm=60.0, carry_mm=75.0)
+    with pytest.raises(ConfigError, match="carry_mm"):
+        GraspPlanner(KIN, 0.0, 30.0, approach_mm=60.0, carry_mm=10.0)
+    with pytest.raises(ConfigError, match="approach_mm"):
+        GraspPlanner(KIN, 0.0, 30.0, approach_mm=math.nan, carry_mm=75.0)
