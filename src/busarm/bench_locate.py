@@ -16,7 +16,7 @@ import math
 import platform
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -255,7 +255,6 @@ def run_vision_bench(*, pictures: int = 24, seed: int = 0, seconds_per_case: flo
 
 TARGET_SORTED = 0.98
 TARGET_CYCLE_S = 5.0
-IN_BIN_MM = 35.0
 
 
 def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] = (3, 6),
@@ -264,7 +263,7 @@ def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] =
     """Pick-and-sort over seeded twin scenes, scored against the twin's truth: how many
     blocks end in their colour's bin, whether any run reports a block sorted that is not,
     the cycle time per block and the first survey's localisation error."""
-    from busarm.apps.pick_sort import PickSorter
+    from busarm.apps.pick_sort import IN_BIN_MM, PickSorter
 
     if not 1 <= scenes <= 10_000:
         raise ConfigError(f"scenes = {scenes} is out of range 1..10000")
@@ -277,6 +276,7 @@ def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] =
         hand_eye = load_hand_eye(he_path, intrinsics=intrinsics)
     total = in_bin = false_sorted = reported_sorted = 0
     slipped = 0.0
+    tilted = 0
     cycles: list[float] = []
     survey_errors: list[float] = []
     failures: list[dict[str, Any]] = []
@@ -317,9 +317,13 @@ def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] =
         reported_sorted += sorted_here
         false_sorted += max(0, sorted_here - sum(placed))
         cycles += [b.seconds for b in report.blocks if b.outcome == "sorted"]
+        tilted += sum(b.outcome == "sorted" and b.grasp_pitch_deg not in (None, -90.0)
+                      for b in report.blocks)
         if not all(placed) or error or sorted_here != sum(placed):
             failures.append({"scene_seed": seed + i, "blocks": n, "error": error,
-                             "outcomes": [b.to_dict() for b in report.blocks]})
+                             "outcomes": [b.to_dict() for b in report.blocks],
+                             "not_in_bins": [asdict(t) for t, ok in zip(truth, placed,
+                                                                        strict=True) if not ok]})
         progress(f"scene {i + 1}/{scenes}: {sum(placed)}/{len(truth)} in their bins")
     errors = np.asarray(survey_errors) if survey_errors else np.asarray([math.nan])
     return {
@@ -328,6 +332,7 @@ def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] =
         "calibration": calib, "scenes": scenes, "blocks": total,
         "in_their_bins": in_bin, "sorted_fraction": round(in_bin / max(total, 1), 4),
         "reported_sorted": reported_sorted, "reported_sorted_but_not": false_sorted,
+        "sorted_with_a_tilted_grasp": tilted,
         "median_cycle_s": round(float(np.median(cycles)), 2) if cycles else None,
         "p95_cycle_s": round(float(np.percentile(cycles, 95)), 2) if cycles else None,
         "survey_error_median_mm": round(float(np.median(errors)), 2),

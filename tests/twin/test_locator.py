@@ -11,7 +11,7 @@ import pytest
 from busarm.apps.locate import BlockLocator
 from busarm.arm.config import load_arm_config
 from busarm.arm.kinematics import ArmKinematics
-from busarm.errors import ConfigError
+from busarm.errors import ConfigError, VisionError
 from busarm.twin.lens import LensSpec
 from busarm.twin.model import AS_BUILT_MOUNT_ERROR, CameraMount
 from busarm.twin.scene import random_scene
@@ -92,6 +92,31 @@ def test_a_blob_cut_by_the_pictures_edge_is_not_taken_as_whole(picture: tuple) -
     for s in found:  # ... but never taken for a whole block
         assert s.detection is not None
         assert s.whole == (s.detection.centroid_px[0] > 30)
+
+
+def test_a_blob_the_lens_model_cannot_undo_spoils_no_other(picture: tuple) -> None:
+    """With a lens model that cannot be inverted at the picture's very corner (a fitted
+    k3 does that), a blob there is left out, and every other block keeps its position
+    and its yaw (once, all yaws fell back to 0 and a block was grasped on its edges)."""
+    image, joints, truth = picture
+    lens = LensSpec()
+    distortion = np.array(lens.dist_coeffs, dtype=float)
+    distortion[4] = -0.3
+    intr = CameraIntrinsics(model="pinhole", width_px=lens.width_px, height_px=lens.height_px,
+                            camera_matrix=lens.camera_matrix, distortion=distortion)
+    _, he = _truth_calibration(intrinsics=intr)
+    kin = ArmKinematics.from_config(load_arm_config())
+    locator = BlockLocator(kin, intr, he, ColorDetector(default_thresholds()))
+    before = locator.locate(image, joints)
+    assert len(before) == len(truth)
+    red = next(s for s in before if s.color == "red")
+    assert red.detection is not None
+    u, v = (round(c) for c in red.detection.centroid_px)
+    cut = image.copy()
+    cut[455:, :22] = image[v, u]
+    with pytest.raises(VisionError, match="cannot be undistorted"):  # all at once fails
+        locator._table_yaws(locator.detector.detect(cut), locator.cam2base(joints))
+    assert [s.location for s in locator.locate(cut, joints)] == [s.location for s in before]
 
 
 def test_implausible_hand_eye_calibrations_are_refused() -> None:

@@ -11,8 +11,9 @@ reaches it. ``locate_averaged`` merges several pictures taken from the same pose
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -29,6 +30,8 @@ from busarm.vision.localize import (
     table_points_from_pixels,
 )
 
+T = TypeVar("T")
+R = TypeVar("R")
 FloatArray = npt.NDArray[np.float64]
 
 CAMERA_LINK = 3
@@ -110,11 +113,10 @@ class BlockLocator:
     def cam2base(self, joints_deg: Sequence[float]) -> FloatArray:
         return camera_to_base(link2base(self.kin, joints_deg), self.cam2link)
 
-    def _table_yaws(self, detections: Sequence[Detection], cam2base: FloatArray) -> list[float]:
+    def _table_yaws(self, detections: Sequence[Detection], cam2base: FloatArray
+                    ) -> list[float]:
         """Each blob's yaw on the table: its rectangle's edge direction cast onto the
         top-face plane (a square's yaw is known modulo 90 deg)."""
-        if not detections:
-            return []
         pts = []
         for d in detections:
             a = math.radians(d.yaw_deg)
@@ -138,24 +140,17 @@ class BlockLocator:
         cam2base = self.cam2base(joints_deg)
         if not detections:
             return []
-        try:
-            yaws = self._table_yaws(detections, cam2base)
-        except VisionError:
-            yaws = [0.0] * len(detections)
-        def solve(ds: list[Detection], ys: list[float]) -> list[BlockLocation]:
-            return locate_blocks(np.array([d.centroid_px for d in ds]), self.intrinsics,
-                                 cam2base, table_z_mm=self.table_z_mm,
-                                 block_size_mm=self.block_size_mm, yaw_deg=ys)
-
-        try:  # all at once (vectorised) ...
-            pairs = list(zip(detections, solve(detections, yaws), strict=True))
-        except VisionError:  # ... else one by one, leaving out a ray that misses the table
-            pairs = []
-            for d, yaw in zip(detections, yaws, strict=True):
-                try:
-                    pairs.append((d, solve([d], [yaw])[0]))
-                except VisionError:
-                    continue
+        # Yaw, then position, for all blobs at once (vectorised); a blob whose rays miss
+        # the table is no block on it, and is left out.
+        yaws = _all_or_each(lambda ds: self._table_yaws(ds, cam2base), detections)
+        kept = [(d, y) for d, y in zip(detections, yaws, strict=True) if y is not None]
+        locations = _all_or_each(
+            lambda pairs: locate_blocks(
+                np.array([d.centroid_px for d, _ in pairs]), self.intrinsics, cam2base,
+                table_z_mm=self.table_z_mm, block_size_mm=self.block_size_mm,
+                yaw_deg=[y for _, y in pairs]), kept)
+        pairs = [(d, loc) for (d, _), loc in zip(kept, locations, strict=True)
+                 if loc is not None]
         # A blob cut by the picture's edge is not a whole silhouette: its location is
         # rough (and it may look small); the sorter looks again before trusting it.
         out = []
@@ -219,3 +214,21 @@ def _touches_edge(d: Detection, width_px: int, height_px: int) -> bool:
     c = d.contour_px.reshape(-1, 2)
     return bool(c[:, 0].min() <= 0 or c[:, 1].min() <= 0 or c[:, 0].max() >= width_px - 1
                 or c[:, 1].max() >= height_px - 1)
+
+
+def _all_or_each(solve: Callable[[list[T]], list[R]], items: Sequence[T]) -> list[R | None]:
+    """``solve`` for all items at once, or, if that raises VisionError, for each alone
+    (None for an item that still fails), so that one bad blob does not spoil the rest."""
+    if not items:
+        return []
+    try:
+        return list(solve(list(items)))
+    except VisionError:
+        pass
+    out: list[R | None] = []
+    for item in items:
+        try:
+            out.append(solve([item])[0])
+        except VisionError:
+            out.append(None)
+    return out

@@ -43,7 +43,11 @@ FloatArray = npt.NDArray[np.float64]
 SAME_BLOCK_MM = 20.0
 """Two sightings this close are the same block."""
 BIN_RADIUS_MM = 45.0
-"""A block seen this close to a bin's centre is in that bin."""
+"""A block seen this close to a bin's centre is in or at that bin: not to be picked."""
+IN_BIN_MM = 35.0
+"""A block whose centre is this close to its bin's centre is sorted: inside a 90 mm tray
+(a cube squared to the walls fits with its centre up to 28 mm off along each axis; the
+slots are 28 mm from the centre)."""
 BIN_SLOTS_MM = ((-20.0, -20.0), (20.0, -20.0), (-20.0, 20.0), (20.0, 20.0))
 """Where blocks go in a bin (from its centre): 2 x 2, 10 mm apart (the camera sees them
 apart when it checks the bin)."""
@@ -478,7 +482,7 @@ class PickSorter:
                 continue  # no look at it from here: the release is trusted
             _, found = self._look(pose)
             inside = [v for v in found if v.color == color
-                      and math.hypot(v.location.x_mm - bx, v.location.y_mm - by) < BIN_RADIUS_MM]
+                      and math.hypot(v.location.x_mm - bx, v.location.y_mm - by) < IN_BIN_MM]
             for missing in sorted_here[len(inside):]:
                 missing.outcome = "failed"
                 missing.reason = "not in its bin when the bins were checked (it fell out?)"
