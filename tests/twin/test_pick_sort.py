@@ -12,7 +12,7 @@ import pytest
 from click.testing import CliRunner
 
 from busarm.apps.locate import BlockLocator
-from busarm.apps.pick_sort import PickSorter, PickSortSettings
+from busarm.apps.pick_sort import IN_BIN_MM, PickSorter, PickSortSettings
 from busarm.arm import Arm
 from busarm.cli.main import cli
 from busarm.errors import ConfigError, UnreachableError
@@ -45,9 +45,7 @@ def test_every_block_ends_in_its_colours_bin(calibration: tuple[Path, Path]) -> 
         report = PickSorter(arm, camera, locator, bins).run()
         truth = twin.blocks()
     assert report.totals()["sorted"] == 4, [b.to_dict() for b in report.blocks]
-    for block in truth:
-        bx, by = bins[block.color]
-        assert math.hypot(block.x_mm - bx, block.y_mm - by) < 35.0, block
+    _assert_in_their_bins(truth, bins)
     for outcome in report.blocks:
         assert outcome.outcome == "sorted" and outcome.attempts == 1
         assert 0 < outcome.seconds < 8.0
@@ -103,6 +101,12 @@ def test_the_pick_sort_command_refuses_bad_input(tmp_path: Path) -> None:
         assert len(result.stderr.strip().splitlines()) == 1, result.stderr
 
 
+def _assert_in_their_bins(truth: Any, bins: dict[str, tuple[float, float]]) -> None:
+    for block in truth:
+        bx, by = bins[block.color]
+        assert math.hypot(block.x_mm - bx, block.y_mm - by) < IN_BIN_MM, block
+
+
 def _sorter(calibration: tuple[Path, Path], arm: Arm, camera: Any,
             on_step: Any) -> PickSorter:
     intr = load_intrinsics(calibration[0])
@@ -133,9 +137,7 @@ def test_a_block_that_slips_out_during_the_carry_is_picked_again(
         bins = {b.color: (b.x_mm, b.y_mm) for b in twin.scene.bins}
     assert slipped
     assert report.totals()["sorted"] == 2, [b.to_dict() for b in report.blocks]
-    for block in truth:
-        assert math.hypot(block.x_mm - bins[block.color][0],
-                          block.y_mm - bins[block.color][1]) < 35.0
+    _assert_in_their_bins(truth, bins)
     assert any(b.attempts == 2 and b.outcome == "sorted" for b in report.blocks) or any(
         b.outcome == "moved" for b in report.blocks)
 
@@ -161,9 +163,7 @@ def test_a_block_moved_while_the_arm_approaches_is_found_again(
     assert moved
     outcomes = [b.outcome for b in report.blocks]
     assert outcomes.count("moved") == 1 and outcomes.count("sorted") == 2, outcomes
-    for block in truth:
-        assert math.hypot(block.x_mm - bins[block.color][0],
-                          block.y_mm - bins[block.color][1]) < 35.0
+    _assert_in_their_bins(truth, bins)
 
 
 def test_a_servo_that_stops_answering_stops_the_run_cleanly(
@@ -228,9 +228,7 @@ def test_far_and_near_blocks_are_taken_tilted_and_edge_ones_looked_at_again(
     pitch_far, pitch_near = by_color["red"].grasp_pitch_deg, by_color["green"].grasp_pitch_deg
     assert pitch_far is not None and -90.0 < pitch_far < 0.0  # leaning out
     assert pitch_near is not None and pitch_near < -90.0  # leaning back
-    for block in truth:
-        assert math.hypot(block.x_mm - bins[block.color][0],
-                          block.y_mm - bins[block.color][1]) < 35.0, block
+    _assert_in_their_bins(truth, bins)
     # The blue one (cut by the edge) and the red one (50 deg off to the side) were looked
     # at again, facing them, and picked from that whole sighting.
     assert steps.count("closer") == 2, steps
