@@ -35,14 +35,18 @@ endif
 demo: $(STAMP) gl
 	$(BIN)/busarm pick-sort --seed 3 --blocks 5 --report demo-report
 
+# lint-imports checks the layer contract in pyproject.toml ([tool.importlinter]); --no-cache:
+# the graph takes well under a second, and no .import_linter_cache/ is left in the tree.
 test: $(STAMP) gl
-	$(BIN)/ruff check src tests bench
+	$(BIN)/ruff check src tests
 	$(BIN)/mypy
+	$(BIN)/lint-imports --no-cache
 	$(BIN)/python -m pytest -q
 
 lint: $(STAMP)
-	$(BIN)/ruff check src tests bench
+	$(BIN)/ruff check src tests
 	$(BIN)/mypy
+	$(BIN)/lint-imports --no-cache
 
 bench: $(STAMP)
 	$(BIN)/busarm bench
@@ -50,7 +54,7 @@ bench: $(STAMP)
 # Peers (pylx16a, lewansoul-lx16a) are installed only here, for the side-by-side run.
 bench-peers: $(STAMP)
 	$(BIN)/python -m pip install -q -e '.[peers]'
-	$(BIN)/python bench/peers.py
+	$(BIN)/python -m busarm.bench.peers
 
 # IK peers (roboticstoolbox-python, ikpy) are installed only here, for `busarm bench ik --peers`.
 bench-ik: $(STAMP)

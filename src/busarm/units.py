@@ -8,6 +8,7 @@ User: degrees from the mid-point, seconds, volts, deg C.
 from __future__ import annotations
 
 import math
+import numbers
 
 from busarm.errors import ConfigError
 
@@ -26,22 +27,49 @@ MOTOR_SPEED_MAX = 1000
 """Motor-mode speed is a unitless duty value, -1000..1000, as on the wire."""
 
 
-def check_range(name: str, value: float, lo: float, hi: float, unit: str = "") -> None:
-    """Raise ConfigError naming ``name``, the bad value and the allowed range."""
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ConfigError(f"{name} must be a number, got {value!r}")
-    if not math.isfinite(value) or value < lo or value > hi:
+def check_range(
+    name: str, value: object, lo: float, hi: float, unit: str = "", *,
+    error: type[ConfigError] = ConfigError,
+) -> float:
+    """``value`` as a float if it is a finite number (not a bool) within lo..hi.
+
+    The one numeric range check of busarm (``check_int_range`` for integers): else
+    ``error`` naming ``name``, the bad value and the range, in ``unit`` if given:
+    ``"speed = 2000 deg/s is out of range 0.1..1000 deg/s"``, or ``"speed must be a
+    number, got 'fast'"`` for a value that is not a finite number.
+    """
+    if (isinstance(value, bool) or not isinstance(value, numbers.Real)
+            or not math.isfinite(value)):
+        raise error(f"{name} must be a number, got {value!r}")
+    number = float(value)
+    if not lo <= number <= hi:
         u = f" {unit}" if unit else ""
-        raise ConfigError(f"{name} = {value!r}{u} is out of range {lo}..{hi}{u}")
+        raise error(f"{name} = {value!r}{u} is out of range {_range(lo, hi, unit)}")
+    return number
 
 
-def check_int_range(name: str, value: object, lo: int, hi: int) -> int:
-    """Return ``value`` as int if it is an integer within lo..hi, else raise ConfigError."""
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise ConfigError(f"{name} must be an integer {lo}..{hi}, got {value!r}")
-    if value < lo or value > hi:
-        raise ConfigError(f"{name} = {value} is out of range {lo}..{hi}")
-    return value
+def check_int_range(
+    name: str, value: object, lo: int, hi: int, unit: str = "", *,
+    error: type[ConfigError] = ConfigError,
+) -> int:
+    """``value`` as an int if it is an integer (not a bool) within lo..hi, else ``error``
+    as ``check_range`` words it (``"ids must be an integer 0..253, got 1.5"``)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise error(f"{name} must be an integer {_range(lo, hi, unit)}, got {value!r}")
+    number = int(value)
+    if not lo <= number <= hi:
+        u = f" {unit}" if unit else ""
+        raise error(f"{name} = {number}{u} is out of range {_range(lo, hi, unit)}")
+    return number
+
+
+def _range(lo: float, hi: float, unit: str) -> str:
+    """``"lo..hi unit"`` as the messages show it: ``0..30 s``, not ``0.0..30.0 s``."""
+    return f"{_bound(lo)}..{_bound(hi)}{f' {unit}' if unit else ''}"
+
+
+def _bound(x: float) -> str:
+    return str(x) if isinstance(x, int) else f"{x:g}"
 
 
 def deg_from_pulses(position_pulses: float) -> float:

@@ -15,7 +15,6 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import SimpleNamespace
 from unittest import mock
 
 import pytest
@@ -28,6 +27,7 @@ from busarm.arm.calibration import Calibration, JointCalibration, solve_calibrat
 from busarm.arm.config import ArmConfig, load_arm_config
 from busarm.arm.motion import LinePath
 from busarm.bus.driver import ServoBus
+from busarm.clock import WALL_CLOCK, Clock, SimClock
 from busarm.errors import (
     CalibrationError,
     ConfigError,
@@ -75,7 +75,7 @@ class Rig:
 
 
 def make_rig(
-    *, timing: bool = False, clock: Callable[[], float] = time.monotonic,
+    *, timing: bool = False, clock: Clock = WALL_CLOCK,
     calibration: Calibration | None = None, sim: SimBus | None = None,
 ) -> Rig:
     if sim is None:
@@ -147,17 +147,6 @@ def test_too_short_duration_raises_and_sends_nothing(rig: Rig) -> None:
 # ---------------------------------------------------------------------------- property
 
 
-class VirtualClock:
-    def __init__(self) -> None:
-        self.t = 1000.0
-
-    def monotonic(self) -> float:
-        return self.t
-
-    def sleep(self, dt: float) -> None:
-        self.t += max(dt, 0.0)
-
-
 def _pulse_limits(config: ArmConfig) -> dict[int, tuple[int, int]]:
     out = {}
     for j in config.joints:
@@ -206,51 +195,49 @@ op_joints = st.tuples(
 @given(ops=st.lists(st.one_of(op_to, op_line_near, op_line_near, op_line, op_joints),
                     min_size=1, max_size=4))
 def test_every_move_frame_is_within_limits_and_speeds(ops: list[tuple]) -> None:  # type: ignore[type-arg]
-    clock = VirtualClock()
-    fake_time = SimpleNamespace(monotonic=clock.monotonic, sleep=clock.sleep)
-    with mock.patch("busarm.arm.arm.time", fake_time):
-        rig = make_rig(clock=clock.monotonic)
-        try:
-            # Start away from the upright singularity (see test_plan_line_from_upright...).
-            rig.arm.move_joints(rig.config.pose("home"), wait=False)
-            clock.sleep(31.0)
-            limits = _pulse_limits(rig.config)
-            speed = {j.servo_id: j.max_speed_deg_s for j in rig.config.joints}
-            previous = {sid: round(p) for sid, p in rig.positions().items()}
-            for op in ops:
-                start = len(rig.writes)
-                try:
-                    if op[0] == "to":
-                        _, x, y, z, p, kw = op
-                        rig.arm.move_to(x, y, z, p, wait=False, **kw)
-                    elif op[0] == "line":
-                        _, x, y, z, p, kw = op
-                        rig.arm.move_line(x, y, z, p, wait=False, **kw)
-                    else:
-                        _, q, kw = op
-                        rig.arm.move_joints(q, wait=False, **kw)
-                except (UnreachableError, LimitError, ConfigError, KinematicsError):
-                    assert rig.moves(start) == [], op
-                    event(f"{op[0]} refused")
-                    continue
-                moves = rig.moves(start)
-                event(f"{op[0]} moved")
-                for r in moves:
-                    pos, ms = r.args
-                    lo, hi = limits[r.servo_id]
-                    assert lo <= pos <= hi, (op, r)
-                    delta = abs(pos - previous[r.servo_id])
-                    if delta > 1:
-                        assert ms > 0, (op, r)
-                        implied = (delta - 1) * DEG_PER_PULSE / (ms / 1000.0)
-                        assert implied <= speed[r.servo_id] * (1 + 1e-9), (op, r, implied)
-                    previous[r.servo_id] = pos
-                clock.sleep(31.0)  # every servo arrives before the next operation
-                got = {sid: round(p) for sid, p in rig.positions().items()}
-                for sid, pos in previous.items():
-                    assert abs(got[sid] - pos) <= 1, (op, sid, got[sid], pos)
-        finally:
-            rig.close()
+    clock = SimClock(1000.0, step_s=1.0)  # the arm and the simulator share it
+    rig = make_rig(clock=clock)
+    try:
+        # Start away from the upright singularity (see test_plan_line_from_upright...).
+        rig.arm.move_joints(rig.config.pose("home"), wait=False)
+        clock.sleep(31.0)
+        limits = _pulse_limits(rig.config)
+        speed = {j.servo_id: j.max_speed_deg_s for j in rig.config.joints}
+        previous = {sid: round(p) for sid, p in rig.positions().items()}
+        for op in ops:
+            start = len(rig.writes)
+            try:
+                if op[0] == "to":
+                    _, x, y, z, p, kw = op
+                    rig.arm.move_to(x, y, z, p, wait=False, **kw)
+                elif op[0] == "line":
+                    _, x, y, z, p, kw = op
+                    rig.arm.move_line(x, y, z, p, wait=False, **kw)
+                else:
+                    _, q, kw = op
+                    rig.arm.move_joints(q, wait=False, **kw)
+            except (UnreachableError, LimitError, ConfigError, KinematicsError):
+                assert rig.moves(start) == [], op
+                event(f"{op[0]} refused")
+                continue
+            moves = rig.moves(start)
+            event(f"{op[0]} moved")
+            for r in moves:
+                pos, ms = r.args
+                lo, hi = limits[r.servo_id]
+                assert lo <= pos <= hi, (op, r)
+                delta = abs(pos - previous[r.servo_id])
+                if delta > 1:
+                    assert ms > 0, (op, r)
+                    implied = (delta - 1) * DEG_PER_PULSE / (ms / 1000.0)
+                    assert implied <= speed[r.servo_id] * (1 + 1e-9), (op, r, implied)
+                previous[r.servo_id] = pos
+            clock.sleep(31.0)  # every servo arrives before the next operation
+            got = {sid: round(p) for sid, p in rig.positions().items()}
+            for sid, pos in previous.items():
+                assert abs(got[sid] - pos) <= 1, (op, sid, got[sid], pos)
+    finally:
+        rig.close()
 
 
 # ---------------------------------------------------------------------------- Cartesian line

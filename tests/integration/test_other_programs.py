@@ -15,7 +15,7 @@ from collections.abc import Iterator
 import pytest
 import serial
 
-from busarm.bench import SimServerProcess
+from busarm.bench.bus import SimServerProcess
 from busarm.bus.driver import ServoBus
 
 

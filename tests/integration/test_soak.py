@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from busarm.bench import SimServerProcess
+from busarm.bench.bus import SimServerProcess
 from busarm.bus.driver import ServoBus
 from busarm.errors import BusTimeoutError, ProtocolError
 from busarm.protocol import Command

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner, Result
 
-from busarm.bench_vision import Block, render_blocks, synthetic_frames
+from busarm.bench.synthetic import Block, render_blocks, synthetic_frames
 from busarm.cli import vision_cmds
 from busarm.cli.main import cli
 from busarm.vision import camera as camera_mod

@@ -20,7 +20,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from busarm.errors import VisionError
-from busarm.vision.calibration import CameraIntrinsics
+from busarm.vision.calibration.camera_model import CameraIntrinsics
 from busarm.vision.localize import locate_block, table_points_from_pixels
 
 Array = npt.NDArray[np.float64]

@@ -11,7 +11,7 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from busarm.bench_vision import Block, render_blocks
+from busarm.bench.synthetic import Block, render_blocks
 from busarm.vision.color import (
     ColorDetector,
     ColorRange,

@@ -16,15 +16,16 @@ import numpy as np
 import pytest
 from click.testing import CliRunner, Result
 
-from busarm.apps.camera_calibration import GRIPPER_IN_VIEW, calibration_views, sees_points
+from busarm.arm.camera_mount import CameraMount
 from busarm.arm.config import load_arm_config
 from busarm.arm.kinematics import ArmKinematics
-from busarm.bench_locate import localisation_accuracy
+from busarm.bench.locate import localisation_accuracy
 from busarm.cli.main import cli
 from busarm.errors import ConfigError, VisionError
+from busarm.robot.camera_calibration import GRIPPER_IN_VIEW, calibration_views, sees_points
 from busarm.twin.boards import BOARD_SPECS, board2base, calibration_board
 from busarm.twin.lens import LensSpec
-from busarm.twin.model import AS_BUILT_MOUNT_ERROR, CameraMount
+from busarm.twin.model import AS_BUILT_MOUNT_ERROR
 from busarm.vision.calibration import CameraIntrinsics, load_hand_eye, load_intrinsics
 
 
@@ -78,12 +79,10 @@ def test_hand_eye_flow_finds_where_the_camera_really_sits(
 
 
 def test_blocks_are_located_to_millimetres(calibrated: tuple[Path, Path]) -> None:
-    intr = load_intrinsics(calibrated[0])
-    he = load_hand_eye(calibrated[1], intrinsics=intr)
-    report = localisation_accuracy(intr, he, placements=40, seed=3).summary()
-    assert report["missed"] == 0 and report["wrong_color"] == 0, report
-    assert report["median_mm"] <= 2.0, report
-    assert report["p95_mm"] <= 5.0, report
+    report = localisation_accuracy(*calibrated, placements=40, seed=3).summary()
+    assert report.missed == 0 and report.wrong_color == 0, report
+    assert report.median_mm <= 2.0, report
+    assert report.p95_mm <= 5.0, report
 
 
 def test_views_keep_the_board_whole_and_clear_of_the_gripper() -> None:
@@ -129,7 +128,7 @@ def test_camera_commands_refuse_bad_input(tmp_path: Path) -> None:
     result = run("camera", "calibrate", "--board-at", "1,2,3", port="sim")
     assert result.exit_code == 2 and "--board-at" in result.stderr
     result = run("camera", "calibrate", port="sim")
-    assert result.exit_code == 2 and "--camera is required" in result.stderr
+    assert result.exit_code == 2 and "needs the wrist camera (--camera)" in result.stderr
 
 
 def test_vision_locate_prints_where_the_blocks_are(calibrated: tuple[Path, Path],

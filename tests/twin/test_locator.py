@@ -8,12 +8,13 @@ import math
 import numpy as np
 import pytest
 
-from busarm.apps.locate import BlockLocator
+from busarm.arm.camera_mount import CameraMount
 from busarm.arm.config import load_arm_config
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import ConfigError, VisionError
+from busarm.robot.locate import BlockLocator
 from busarm.twin.lens import LensSpec
-from busarm.twin.model import AS_BUILT_MOUNT_ERROR, CameraMount
+from busarm.twin.model import AS_BUILT_MOUNT_ERROR
 from busarm.twin.scene import random_scene
 from busarm.twin.twin import Twin
 from busarm.vision.calibration import CameraIntrinsics, HandEyeResult

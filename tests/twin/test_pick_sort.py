@@ -11,15 +11,11 @@ from typing import Any
 import pytest
 from click.testing import CliRunner
 
-from busarm.apps.locate import BlockLocator
 from busarm.apps.pick_sort import IN_BIN_MM, PickSorter, PickSortSettings
-from busarm.arm import Arm
 from busarm.cli.main import cli
 from busarm.errors import ConfigError, UnreachableError
-from busarm.twin.twin import active_twin
-from busarm.vision.calibration import load_hand_eye, load_intrinsics
-from busarm.vision.camera import open_camera
-from busarm.vision.color import ColorDetector, default_thresholds
+from busarm.robot import Robot
+from busarm.twin.twin import Twin
 
 
 @pytest.fixture(scope="module")
@@ -34,16 +30,20 @@ def calibration(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     return intr, he
 
 
+def _robot(calibration: tuple[Path, Path], port: str) -> Robot:
+    return Robot.open(port, intrinsics=calibration[0], hand_eye=calibration[1])
+
+
+def _twin(robot: Robot) -> Twin:
+    assert robot.twin is not None
+    return robot.twin
+
+
 def test_every_block_ends_in_its_colours_bin(calibration: tuple[Path, Path]) -> None:
-    intr = load_intrinsics(calibration[0])
-    he = load_hand_eye(calibration[1], intrinsics=intr)
-    with Arm.open("twin://?seed=5&blocks=4") as arm, open_camera("twin") as camera:
-        twin = active_twin()
-        assert twin is not None
-        bins = {b.color: (b.x_mm, b.y_mm) for b in twin.scene.bins}
-        locator = BlockLocator(arm.kin, intr, he, ColorDetector(default_thresholds()))
-        report = PickSorter(arm, camera, locator, bins).run()
-        truth = twin.blocks()
+    with _robot(calibration, "twin://?seed=5&blocks=4") as robot:
+        bins = robot.bins
+        report = PickSorter(robot).run()
+        truth = _twin(robot).blocks()
     assert report.totals()["sorted"] == 4, [b.to_dict() for b in report.blocks]
     _assert_in_their_bins(truth, bins)
     for outcome in report.blocks:
@@ -87,7 +87,7 @@ def test_the_pick_sort_command_refuses_bad_input(tmp_path: Path) -> None:
     runner = CliRunner(mix_stderr=False)
     for args, expected in (
         (["--port", "/dev/ttyUSB9", "pick-sort", "--seed", "2"], "for the twin"),
-        (["--port", "/dev/ttyUSB9", "pick-sort"], "needs --camera"),
+        (["--port", "/dev/ttyUSB9", "pick-sort"], "needs the wrist camera (--camera)"),
         (["pick-sort", "--colors", "red,mauve"], "mauve"),
         (["pick-sort", "--bins", "red:1,2"], "COLOUR=X,Y"),
         (["pick-sort", "--survey", "nowhere"], "no pose named 'nowhere'"),
@@ -107,23 +107,10 @@ def _assert_in_their_bins(truth: Any, bins: dict[str, tuple[float, float]]) -> N
         assert math.hypot(block.x_mm - bx, block.y_mm - by) < IN_BIN_MM, block
 
 
-def _sorter(calibration: tuple[Path, Path], arm: Arm, camera: Any,
-            on_step: Any) -> PickSorter:
-    intr = load_intrinsics(calibration[0])
-    he = load_hand_eye(calibration[1], intrinsics=intr)
-    twin = active_twin()
-    assert twin is not None
-    bins = {b.color: (b.x_mm, b.y_mm) for b in twin.scene.bins}
-    return PickSorter(arm, camera, BlockLocator(arm.kin, intr, he,
-                                                ColorDetector(default_thresholds())),
-                      bins, on_step=on_step)
-
-
 def test_a_block_that_slips_out_during_the_carry_is_picked_again(
         calibration: tuple[Path, Path]) -> None:
-    with Arm.open("twin://?seed=5&blocks=2") as arm, open_camera("twin") as camera:
-        twin = active_twin()
-        assert twin is not None
+    with _robot(calibration, "twin://?seed=5&blocks=2") as robot:
+        twin = _twin(robot)
         slipped: list[int] = []
 
         def drop_it(step: str) -> None:
@@ -132,7 +119,7 @@ def test_a_block_that_slips_out_during_the_carry_is_picked_again(
                 twin.place_block(held.index, held.x_mm, held.y_mm + 60.0)  # it falls away
                 slipped.append(held.index)
 
-        report = _sorter(calibration, arm, camera, drop_it).run()
+        report = PickSorter(robot, on_step=drop_it).run()
         truth = twin.blocks()
         bins = {b.color: (b.x_mm, b.y_mm) for b in twin.scene.bins}
     assert slipped
@@ -144,9 +131,8 @@ def test_a_block_that_slips_out_during_the_carry_is_picked_again(
 
 def test_a_block_moved_while_the_arm_approaches_is_found_again(
         calibration: tuple[Path, Path]) -> None:
-    with Arm.open("twin://?seed=5&blocks=2") as arm, open_camera("twin") as camera:
-        twin = active_twin()
-        assert twin is not None
+    with _robot(calibration, "twin://?seed=5&blocks=2") as robot:
+        twin, arm = _twin(robot), robot.arm
         moved: list[int] = []
 
         def move_it(step: str) -> None:
@@ -157,7 +143,7 @@ def test_a_block_moved_while_the_arm_approaches_is_found_again(
                 twin.place_block(target.index, 200.0, -40.0, 10.0)
                 moved.append(target.index)
 
-        report = _sorter(calibration, arm, camera, move_it).run()
+        report = PickSorter(robot, on_step=move_it).run()
         truth = twin.blocks()
         bins = {b.color: (b.x_mm, b.y_mm) for b in twin.scene.bins}
     assert moved
@@ -170,15 +156,14 @@ def test_a_servo_that_stops_answering_stops_the_run_cleanly(
         calibration: tuple[Path, Path]) -> None:
     from busarm.errors import BusTimeoutError
 
-    with Arm.open("twin://?seed=5&blocks=2") as arm, open_camera("twin") as camera:
-        twin = active_twin()
-        assert twin is not None
+    with _robot(calibration, "twin://?seed=5&blocks=2") as robot:
+        twin = _twin(robot)
 
         def brown_out(step: str) -> None:
             if step == "lift":
                 twin.servos[2].supply_mv = 5000  # the elbow goes silent (under 6 V)
 
-        sorter = _sorter(calibration, arm, camera, brown_out)
+        sorter = PickSorter(robot, on_step=brown_out)
         with pytest.raises(BusTimeoutError, match="servo 3"):
             sorter.run()
         assert sorter.report.stopped.startswith("BusTimeoutError: ")
@@ -187,7 +172,7 @@ def test_a_servo_that_stops_answering_stops_the_run_cleanly(
         # The others were stopped and hold where they are (the silent elbow has no torque
         # and sags, as a browned-out servo does).
         held = twin.joints_deg()
-        time.sleep(0.5)
+        robot.clock.sleep(0.5)
         now = twin.joints_deg()
         for k in (0, 1, 3, 4):
             assert twin.servos[k].is_loaded
@@ -198,25 +183,20 @@ def test_far_and_near_blocks_are_taken_tilted_and_edge_ones_looked_at_again(
         calibration: tuple[Path, Path]) -> None:
     from dataclasses import replace
 
-    from busarm.apps.twin_setup import open_twin_arm
-    from busarm.twin.camera import TwinCamera
     from busarm.twin.scene import Block, random_scene
 
     far, near = Block("red", 250.0, -150.0, 20.0), Block("green", 106.0, 25.0, -10.0)
     edge = Block("blue", 193.0, -215.0, 15.0)  # cut by the survey picture's edge
     scene = replace(random_scene(0, 0), blocks=(far, near, edge))
-    arm, twin = open_twin_arm(scene)
-    with arm, TwinCamera(twin) as camera:
+    with Robot.open("twin", scene=scene, intrinsics=calibration[0],
+                    hand_eye=calibration[1]) as robot:
+        arm, twin = robot.arm, _twin(robot)
         for block in (far, near):  # neither can be taken straight down
             with pytest.raises(UnreachableError):
                 arm.kin.ik_best(block.x_mm, block.y_mm, 15.0, -90.0)
-        intr = load_intrinsics(calibration[0])
-        he = load_hand_eye(calibration[1], intrinsics=intr)
-        bins = {b.color: (b.x_mm, b.y_mm) for b in scene.bins}
+        bins = robot.bins
         steps: list[str] = []
-        sorter = PickSorter(arm, camera, BlockLocator(arm.kin, intr, he,
-                                                      ColorDetector(default_thresholds())),
-                            bins, on_step=steps.append)
+        sorter = PickSorter(robot, on_step=steps.append)
         seen = {s.color: s for s in sorter.survey()}
         assert not seen["blue"].whole and seen["red"].whole and seen["green"].whole
         picked: list[tuple[str, bool]] = []

@@ -13,7 +13,8 @@ import pytest
 
 from busarm.arm import Arm
 from busarm.bus.driver import ServoBus
-from busarm.twin.twin import Twin, active_twin
+from busarm.robot import Robot
+from busarm.twin.twin import Twin
 
 
 def _roll_for_block(arm: Arm, x_mm: float, y_mm: float, z_mm: float, yaw_deg: float) -> float:
@@ -30,11 +31,12 @@ def _roll_for_block(arm: Arm, x_mm: float, y_mm: float, z_mm: float, yaw_deg: fl
 
 @pytest.fixture
 def twin_arm() -> Iterator[tuple[Arm, Twin]]:
-    with Arm.open("twin://?seed=3&blocks=1&colors=red") as arm:
-        tw = active_twin()
+    with Robot.open("twin://?seed=3&blocks=1&colors=red", calibrate=False) as robot:
+        tw = robot.twin
         assert tw is not None
-        yield arm, tw
-    assert tw.is_closed, "closing the arm's transport closes the twin"
+        assert robot.clock is tw.clock and robot.clock.is_simulated
+        yield robot.arm, tw
+    assert tw.is_closed, "closing the robot closes its twin"
 
 
 def test_gripper_tells_nothing_from_a_block_and_holds_it_lifted(
@@ -60,7 +62,7 @@ def test_gripper_tells_nothing_from_a_block_and_holds_it_lifted(
     lifted = tw.blocks()[0].z_mm
     assert lifted > block.z_mm + 95.0
     grip_temp = tw.servos[-1].temperature_c
-    time.sleep(10.0)
+    arm.clock.sleep(10.0)
     after = tw.blocks()[0]
     assert after.z_mm > block.z_mm + 95.0, "the block slipped out during the 10 s hold"
     assert abs(after.z_mm - lifted) < 2.0
@@ -73,7 +75,7 @@ def test_pos_read_is_the_physics_not_the_command(twin_arm: tuple[Arm, Twin]) -> 
     arm, tw = twin_arm
     q0 = arm.read_joints_deg()
     arm.set_torque(False)
-    time.sleep(1.0)
+    arm.clock.sleep(1.0)
     q1 = arm.read_joints_deg()
     assert max(abs(a - b) for a, b in zip(q0, q1, strict=True)) > 2.0
     np.testing.assert_allclose(q1, tw.joints_deg(), atol=0.5)  # quantised to 0.24 deg pulses

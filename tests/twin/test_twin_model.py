@@ -62,7 +62,7 @@ def test_runs_across_the_control_range_without_warnings(twin: Twin) -> None:
         from busarm.protocol import Command, Request
 
         servo.handle(Request(servo.servo_id, Command.MOVE_TIME_WRITE, (round(target), 800)),
-                     twin.clock())
+                     twin.clock.now())
     twin.step(1.5)
     after = [int(w.number) for w in twin.data.warning]
     assert after == before, "MuJoCo warned while the arm moved"

@@ -12,6 +12,7 @@ import copy
 import importlib.resources
 import json
 import math
+import re
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -482,3 +483,33 @@ def test_gripper_gap_maps_to_pulses() -> None:
     assert g.gap_mm_at(g.closed_pulses + 20) == 0.0  # squeezed past touching: still 0
     for gap in (0.0, 12.5, 30.0, 50.0):
         assert gap <= g.gap_mm_at(g.pulses_for_gap_mm(gap)) < gap + g.gap_mm_per_pulse
+
+
+def test_the_camera_mount_is_part_of_the_arm_config() -> None:
+    import numpy as np
+
+    from busarm.arm.camera_mount import CameraMount
+    from busarm.arm.config import arm_config_from_toml, load_arm_config
+
+    cfg = load_arm_config()
+    assert cfg.camera is not None
+    assert (cfg.camera.link, cfg.camera.behind_mm, cfg.camera.above_mm) == (
+        "wrist_pitch", 51.0, 64.0)
+    mount = CameraMount.from_config(cfg.camera)
+    # Frame 4: "above" is +x, the tool axis +y; the camera looks along the tool.
+    np.testing.assert_allclose(mount.cam2link[:3, 3], [64.0, -51.0, 0.0])
+    np.testing.assert_allclose(mount.cam2link[:3, 2], [0.0, 1.0, 0.0], atol=1e-12)
+    text = (importlib.resources.files("busarm.arm") / "configs" / "jetauto_pro.toml"
+            ).read_text(encoding="utf-8")
+    for old, new, message in (
+        ('link = "wrist_pitch"', 'link = "elbow_pitch"',
+         "camera.link: 'elbow_pitch'; the wrist camera rides the wrist pitch joint's link"),
+        ("behind_mm = 51.0", "behind_mm = 510.0", "camera.behind_mm = 510.0 is out of range"),
+        ("tilt_deg = 0.0", "tilt_deg = 0.0\nzoom = 2", "camera: unknown key(s) ['zoom']"),
+    ):
+        with pytest.raises(ConfigError, match=re.escape(message)):
+            arm_config_from_toml(text.replace(old, new))
+    without = text[: text.index("[camera]")] + text[text.index("[action_groups]"):]
+    assert arm_config_from_toml(without).camera is None
+    with pytest.raises(ConfigError, match=r"has no \[camera\]"):
+        CameraMount.from_config(None)

@@ -6,7 +6,7 @@ import json
 
 from click.testing import CliRunner
 
-from busarm.bench_ik import run_ik_bench
+from busarm.bench.ik import run_ik_bench
 from busarm.cli.main import cli
 
 

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from busarm.errors import ConfigError, VisionError
-from busarm.vision.calibration import CameraIntrinsics
+from busarm.vision.calibration.camera_model import CameraIntrinsics
 from busarm.vision.localize import (
     BlockLocation,
     average_locations,

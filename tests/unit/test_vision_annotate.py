@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from busarm.bench_vision import Block, render_blocks
+from busarm.bench.synthetic import Block, render_blocks
 from busarm.errors import ConfigError
 from busarm.vision.annotate import annotate, save_image
 from busarm.vision.color import ColorDetector, default_thresholds

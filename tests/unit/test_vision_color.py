@@ -12,17 +12,16 @@ import cv2
 import numpy as np
 import pytest
 
-from busarm.bench_vision import (
+from busarm.bench.synthetic import (
     ARM_RGB,
     BLOCK_RGB,
     TABLE_RGB,
     Block,
-    bench_detection,
     bgr_from_rgb,
-    match_detections,
     render_blocks,
     synthetic_frames,
 )
+from busarm.bench.vision import bench_detection, match_detections
 from busarm.errors import ConfigError
 from busarm.vision.color import (
     ColorDetector,
@@ -410,13 +409,14 @@ def test_detection_to_dict_is_json() -> None:
 def test_bench_detection_report_shape() -> None:
     frames = [f for f, _ in synthetic_frames(2, seed=11)]
     report = bench_detection(frames, DEFAULT, RGB3, seconds_per_case=0.02, rounds=2)
-    json.dumps(report)
-    assert report["frames"] == 2 and report["colors"] == list(RGB3)
-    assert report["agreement"]["all_same_counts"] is True
-    assert report["agreement"]["unmatched"] == 0
-    assert report["agreement"]["matched"] == report["agreement"]["vendor_blocks"] > 0
-    assert report["agreement"]["centroid_distance_px"]["max"] < 0.6
-    assert len(report["vendor_fps_rounds"]) == len(report["ours_fps_rounds"]) == 2
-    assert cv2.getNumThreads() != 1 or report["threads"] == 1  # the thread count is restored
+    json.dumps(report.to_dict())
+    assert report.frames == 2 and report.colors == list(RGB3)
+    agreement = report.agreement
+    assert agreement.all_same_counts is True
+    assert agreement.unmatched == 0
+    assert agreement.matched == agreement.vendor_blocks > 0
+    assert agreement.centroid_distance_px.max < 0.6
+    assert len(report.vendor_fps_rounds) == len(report.ours_fps_rounds) == 2
+    assert cv2.getNumThreads() != 1 or report.threads == 1  # the thread count is restored
     with pytest.raises(ValueError, match="at least one frame"):
         bench_detection([], DEFAULT)

@@ -24,19 +24,17 @@ what was done, why it stopped and what the gripper holds, as read back.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
 
-from busarm.apps.locate import BlockLocator, Sighting
-from busarm.arm.arm import Arm
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import BusArmError, ConfigError, ServoFaultError, UnreachableError
-from busarm.units import check_range
-from busarm.vision.camera import CameraSource
+from busarm.robot import Robot
+from busarm.robot.locate import Sighting
+from busarm.units import check_int_range, check_range
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -127,13 +125,9 @@ class PickSortSettings:
                              ("release_mm", 20.0, 200.0), ("line_speed_mm_s", 10.0, 400.0),
                              ("look_closer_beyond_deg", 0.0, 180.0),
                              ("joint_speed_deg_s", 10.0, 180.0), ("settle_s", 0.0, 5.0)):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and lo <= value <= hi):
-                raise ConfigError(f"{name} = {value!r} is out of range {lo:g}..{hi:g}")
-        for name, lo, hi in (("max_attempts", 1, 10), ("survey_frames", 1, 20)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-                raise ConfigError(f"{name} = {value!r} is out of range {lo}..{hi}")
+            check_range(name, getattr(self, name), lo, hi)
+        for name, ilo, ihi in (("max_attempts", 1, 10), ("survey_frames", 1, 20)):
+            check_int_range(name, getattr(self, name), ilo, ihi)
 
 
 @dataclass
@@ -281,20 +275,24 @@ class GraspPlanner:
 
 
 class PickSorter:
-    """Sorts the blocks the camera sees into ``bins`` (colour -> (x, y) mm)."""
+    """Sorts the blocks of ``colors`` the robot's wrist camera sees into their bins (the
+    robot's, or ``bins``: colour -> (x, y) mm); a colour with no bin is left alone."""
 
-    def __init__(self, arm: Arm, camera: CameraSource, locator: BlockLocator,
-                 bins: dict[str, tuple[float, float]], *,
+    def __init__(self, robot: Robot, *, colors: Sequence[str] | None = None,
+                 bins: dict[str, tuple[float, float]] | None = None,
                  survey_poses: Sequence[Sequence[float]] | None = None,
                  settings: PickSortSettings | None = None,
                  progress: Callable[[str], None] | None = None,
                  on_step: Callable[[str], None] | None = None,
-                 on_pick: Callable[[Sighting], None] | None = None,
-                 clock: Callable[[], float] = time.monotonic) -> None:
-        self.arm = arm
-        self.camera = camera
-        self.locator = locator
-        self.bins = dict(bins)
+                 on_pick: Callable[[Sighting], None] | None = None) -> None:
+        arm = self.arm = robot.arm
+        self.camera = robot.camera
+        locator = self.locator = robot.locator(colors)
+        where = robot.bins if bins is None else bins
+        self.bins = {c: where[c] for c in locator.detector.colors if c in where}
+        if not self.bins:
+            raise ConfigError(f"no bin for any colour to sort ({', '.join(where) or 'none'} "
+                              f"given): give --bins COLOUR=X,Y;...")
         self.settings = settings or PickSortSettings()
         poses = survey_poses if survey_poses is not None else [arm.config.pose("look")]
         self.survey_poses = [arm.config.check_joints(p) for p in poses]
@@ -305,8 +303,8 @@ class PickSorter:
         self.on_step = on_step or (lambda _: None)
         # Called with each block about to be picked (its survey is ``last_survey``).
         self.on_pick = on_pick or (lambda _: None)
-        # What cycle times are measured with (a twin's simulated seconds, say).
-        self.clock = clock
+        # Every wait and cycle time is on the arm's clock (a twin's simulated seconds).
+        self.clock = arm.clock
         # The last survey's pictures and what was found in each (for reports).
         self.last_survey: list[tuple[npt.NDArray[np.uint8], list[Sighting]]] = []
         self.planner = GraspPlanner(arm.kin, locator.table_z_mm, locator.block_size_mm,
@@ -347,7 +345,7 @@ class PickSorter:
         """The blocks seen from ``pose`` (frames averaged), and the last picture."""
         s, arm = self.settings, self.arm
         arm.move_joints(pose, speed_deg_s=s.joint_speed_deg_s)
-        time.sleep(s.settle_s)
+        self.clock.sleep(s.settle_s)
         pictures = [(self.camera.read().image, arm.read_joints_deg())
                     for _ in range(s.survey_frames)]
         return pictures[-1][0], self.locator.locate_averaged(pictures)
@@ -386,7 +384,7 @@ class PickSorter:
         """Pause while a servo is too hot (arm at home, gripper open); a supply too low for
         the servos stops the run with ServoFaultError."""
         s, arm = self.settings, self.arm
-        deadline = time.monotonic() + s.max_pause_s
+        deadline = self.clock.now() + s.max_pause_s
         paused = False
         while True:
             states = arm.bus.read_states(arm.config.servo_ids)
@@ -407,10 +405,10 @@ class PickSorter:
                 arm.open_gripper()
                 arm.move_joints(arm.config.pose("home"), speed_deg_s=s.joint_speed_deg_s)
                 paused = True
-            if time.monotonic() > deadline:
+            if self.clock.now() > deadline:
                 raise ServoFaultError(f"servo {hot.servo_id} still at {hot.temp_c} C after "
                                       f"{s.max_pause_s:g} s of rest", hot.servo_id)
-            time.sleep(2.0)
+            self.clock.sleep(2.0)
 
     def _bin_spot(self, color: str) -> tuple[float, float]:
         """Where in the bin the next block of ``color`` goes: four places side by side
@@ -496,7 +494,7 @@ class PickSorter:
         On an error or Ctrl+C the arm is stopped where it is, holding, ``self.report``
         says why and what the gripper reads, and the exception goes on up.
         """
-        start = self.clock()
+        start = self.clock.now()
         self.report = report = RunReport()
         self._holding = None
         try:
@@ -513,7 +511,7 @@ class PickSorter:
             report.gripper = self._stop_and_read_gripper()
             raise
         finally:
-            report.seconds = self.clock() - start
+            report.seconds = self.clock.now() - start
         return report
 
     def _cycle(self, report: RunReport) -> bool:
@@ -545,7 +543,7 @@ class PickSorter:
             return False
         _, target, outcome = min(candidates, key=lambda c: c[0])
         self.check_servos()
-        t0 = self.clock()
+        t0 = self.clock.now()
         closer = self.look_closer(target)
         reason = self._why_not(closer) if closer is not None else ""
         if reason:  # seen better, it is out of reach after all
@@ -559,10 +557,11 @@ class PickSorter:
             self.on_pick(closer)
             held, why, placed, plan = self.pick_and_place(closer)
             outcome.grasp_pitch_deg = plan.pitch_deg
-        outcome.seconds += self.clock() - t0
+        outcome.seconds += self.clock.now() - t0
         if held:
             outcome.outcome, outcome.placed_mm = "sorted", placed
-            self.progress(f"{target.color} from {outcome.found_mm} into its bin "
+            x, y = outcome.found_mm
+            self.progress(f"{target.color} from ({x:.0f}, {y:.0f}) mm into its bin "
                           f"({outcome.seconds:.1f} s)")
         elif outcome.attempts >= self.settings.max_attempts:
             outcome.outcome, outcome.reason = "failed", why

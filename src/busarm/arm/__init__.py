@@ -2,13 +2,23 @@
 
 ``Arm.open("sim")`` gives the simulated JetAuto Pro arm; ``ArmKinematics`` is the pure
 model (no bus); ``load_arm_config`` reads an arm description.
+
+The names below are loaded on first use, so ``import busarm.arm.kinematics`` (or
+``busarm.arm.config``) loads neither the bus driver nor the rest of the arm:
+``from busarm.arm import Arm`` still works, and imports the driver then.
 """
 
-from busarm.arm.actions import ActionFrame, ActionGroup, read_d6a, write_d6a
-from busarm.arm.arm import Arm, GripResult, MotionRecord
-from busarm.arm.calibration import Calibration, load_calibration, save_calibration
-from busarm.arm.config import ArmConfig, load_arm_config
-from busarm.arm.kinematics import ArmKinematics, Pose
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # the same names, eagerly, for mypy and the layer contract
+    from busarm.arm.actions import ActionFrame, ActionGroup, read_d6a, write_d6a
+    from busarm.arm.arm import Arm, GripResult, MotionRecord
+    from busarm.arm.calibration import Calibration, load_calibration, save_calibration
+    from busarm.arm.config import ArmConfig, load_arm_config
+    from busarm.arm.kinematics import ArmKinematics, Pose
 
 __all__ = [
     "ActionFrame",
@@ -26,3 +36,35 @@ __all__ = [
     "save_calibration",
     "write_d6a",
 ]
+
+_SOURCES: dict[str, str] = {
+    "ActionFrame": "actions",
+    "ActionGroup": "actions",
+    "read_d6a": "actions",
+    "write_d6a": "actions",
+    "Arm": "arm",
+    "GripResult": "arm",
+    "MotionRecord": "arm",
+    "Calibration": "calibration",
+    "load_calibration": "calibration",
+    "save_calibration": "calibration",
+    "ArmConfig": "config",
+    "load_arm_config": "config",
+    "ArmKinematics": "kinematics",
+    "Pose": "kinematics",
+}
+"""Each exported name and the submodule that defines it."""
+
+
+def __getattr__(name: str) -> Any:
+    """Load an exported name from its submodule on first use (PEP 562)."""
+    submodule = _SOURCES.get(name)
+    if submodule is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{submodule}"), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})

@@ -24,18 +24,21 @@ never a mix).
 from __future__ import annotations
 
 import contextlib
-import operator
 import re
 import sqlite3
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import SupportsIndex
 
 from busarm.errors import ConfigError
 from busarm.fileio import atomic_path
 from busarm.protocol import check_servo_id
-from busarm.units import MOVE_TIME_MAX_MS, POSITION_MAX_PULSES, POSITION_MIN_PULSES
+from busarm.units import (
+    MOVE_TIME_MAX_MS,
+    POSITION_MAX_PULSES,
+    POSITION_MIN_PULSES,
+    check_int_range,
+)
 
 TABLE_NAME = "ActionGroup"
 """The vendor's table of frames."""
@@ -47,22 +50,6 @@ DURATION_MAX_MS = MOVE_TIME_MAX_MS
 
 _SERVO_COLUMN = re.compile(r"servo([1-9][0-9]*)", re.IGNORECASE)
 _INDENT = " " * 20  # the vendor's continuation-line indent, kept so sqlite_master matches
-
-
-def _as_int(value: object) -> int | None:
-    """``value`` as a plain int if it is an integer (not bool), else None."""
-    if isinstance(value, bool) or not isinstance(value, SupportsIndex):
-        return None
-    return operator.index(value)
-
-
-def _checked(name: str, value: object, lo: int, hi: int, unit: str) -> int:
-    number = _as_int(value)
-    if number is None:
-        raise ConfigError(f"{name} must be an integer {lo}..{hi} {unit}, got {value!r}")
-    if not lo <= number <= hi:
-        raise ConfigError(f"{name} = {number} {unit} is out of range {lo}..{hi} {unit}")
-    return number
 
 
 @dataclass(frozen=True)
@@ -78,7 +65,7 @@ class ActionFrame:
     positions_pulses: tuple[int, ...]
 
     def __post_init__(self) -> None:
-        duration = _checked(
+        duration = check_int_range(
             "Time (duration_ms)", self.duration_ms, DURATION_MIN_MS, DURATION_MAX_MS, "ms"
         )
         raw: object = self.positions_pulses  # callers may pass a list; checked here
@@ -90,7 +77,7 @@ class ActionFrame:
                 f"a frame has {len(values)} servo positions; allowed 1..{MAX_SERVOS}"
             )
         positions = tuple(
-            _checked(f"Servo{k}", v, POSITION_MIN_PULSES, POSITION_MAX_PULSES, "pulses")
+            check_int_range(f"Servo{k}", v, POSITION_MIN_PULSES, POSITION_MAX_PULSES, "pulses")
             for k, v in enumerate(values, start=1)
         )
         object.__setattr__(self, "duration_ms", duration)
@@ -206,7 +193,7 @@ def frame_from_targets(
 
 def create_table_sql(servo_count: int) -> str:
     """The vendor's exact CREATE TABLE text for ``servo_count`` servo columns."""
-    _checked("servo_count", servo_count, 1, MAX_SERVOS, "columns")
+    check_int_range("servo_count", servo_count, 1, MAX_SERVOS, "columns")
     columns = [f"{_INDENT}Time INT"] + [f"{_INDENT}Servo{k} INT" for k in range(1, servo_count + 1)]
     return (
         f"CREATE TABLE {TABLE_NAME}([Index] INTEGER PRIMARY KEY AUTOINCREMENT\n"

@@ -12,7 +12,6 @@ from __future__ import annotations
 import logging
 import math
 import threading
-import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,6 +23,7 @@ from busarm.arm.config import ArmConfig, JointConfig, load_arm_config
 from busarm.arm.kinematics import ArmKinematics, Joints, Pose
 from busarm.arm.motion import LinePath, check_profile, duration_for_speed, sample_times
 from busarm.bus.driver import ServoBus
+from busarm.clock import Clock
 from busarm.errors import (
     BusTimeoutError,
     CalibrationError,
@@ -94,6 +94,8 @@ class Arm:
         check: bool = True,
     ) -> None:
         self.bus = bus
+        self.clock: Clock = bus.clock
+        """Every wait of the arm's is on its bus's clock (simulated time on a twin)."""
         self.config = config
         self.kin = ArmKinematics.from_config(config)
         self.calibration = calibration or Calibration.identity(config)
@@ -528,21 +530,21 @@ class Arm:
         result = MotionRecord(duration_s=times[-1])
 
         def run() -> None:
-            t0 = time.monotonic()
+            t0 = self.clock.now()
             for k, (step, p) in enumerate(zip(steps, pulses, strict=True)):
                 send_at = t0 + times[k] - step
-                delay = send_at - time.monotonic()
+                delay = send_at - self.clock.now()
                 if delay > 0:
-                    time.sleep(delay)
+                    self.clock.sleep(delay)
                 # Late (a slow bus): the servo still arrives one step after this send.
                 self._send_pulses(p, step)
                 result.commanded_deg.append(tuple(joints[k]))
                 if record:
-                    result.measured.append((time.monotonic() - t0, self.read_joints_deg()))
+                    result.measured.append((self.clock.now() - t0, self.read_joints_deg()))
             if record:
                 end = t0 + times[-1] + 0.05
-                while time.monotonic() < end:
-                    result.measured.append((time.monotonic() - t0, self.read_joints_deg()))
+                while self.clock.now() < end:
+                    result.measured.append((self.clock.now() - t0, self.read_joints_deg()))
 
         with self._lock:
             self._guarded(run)
@@ -595,19 +597,19 @@ class Arm:
         """Wait for the gripper to arrive or stop moving (blocked); its final position."""
         sid = self.config.gripper.servo_id
         margin = self.config.gripper.holding_margin_pulses
-        move_end = time.monotonic() + duration_s + 0.1
+        move_end = self.clock.now() + duration_s + 0.1
         deadline = move_end + 2.0
-        time.sleep(min(duration_s, 0.05))
+        self.clock.sleep(min(duration_s, 0.05))
         last = self.bus.read_position_pulses(sid)
         still = 0
-        while time.monotonic() < deadline:
-            time.sleep(0.03)
+        while self.clock.now() < deadline:
+            self.clock.sleep(0.03)
             now = self.bus.read_position_pulses(sid)
             if abs(now - target) <= margin // 4 + 1:
                 return now
             still = still + 1 if abs(now - last) <= 1 else 0
             # Stopped short for three polls after the move should have ended: blocked.
-            if still >= 3 and time.monotonic() > move_end:
+            if still >= 3 and self.clock.now() > move_end:
                 return now
             last = now
         return last

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,7 +31,13 @@ from typing import TypeGuard
 from busarm.arm.config import ArmConfig
 from busarm.errors import CalibrationError
 from busarm.fileio import read_versioned_json, write_text_atomic
-from busarm.units import DEG_PER_PULSE, OFFSET_MAX_PULSES, OFFSET_MIN_PULSES
+from busarm.units import (
+    DEG_PER_PULSE,
+    OFFSET_MAX_PULSES,
+    OFFSET_MIN_PULSES,
+    check_int_range,
+    check_range,
+)
 
 FORMAT_NAME = "busarm.calibration"
 FORMAT_VERSION = 1
@@ -115,20 +120,16 @@ def load_calibration(path: Path | str) -> Calibration:
         hw, sw = raw.get("hardware_offset_pulses", 0), raw.get("software_offset_deg", 0.0)
         if not isinstance(name, str) or not _is_int(sid) or not 0 <= sid <= 253:
             raise CalibrationError(f"{where}: joints[{i}] needs a name and a servo_id 0..253")
-        if not _is_int(hw) or not OFFSET_MIN_PULSES <= hw <= OFFSET_MAX_PULSES:
-            raise CalibrationError(
-                f"{where}: joints[{i}] ({name}) hardware_offset_pulses = {hw!r} is out of range "
-                f"{OFFSET_MIN_PULSES}..{OFFSET_MAX_PULSES}"
-            )
-        if (
-            isinstance(sw, bool) or not isinstance(sw, int | float) or not math.isfinite(sw)
-            or abs(sw) > SOFTWARE_OFFSET_MAX_DEG
-        ):
-            raise CalibrationError(
-                f"{where}: joints[{i}] ({name}) software_offset_deg = {sw!r} is out of range "
-                f"-{SOFTWARE_OFFSET_MAX_DEG:g}..{SOFTWARE_OFFSET_MAX_DEG:g}"
-            )
-        joints.append(JointCalibration(name, sid, hw, float(sw)))
+        joint = f"{where}: joints[{i}] ({name})"
+        hw = check_int_range(
+            f"{joint} hardware_offset_pulses", hw, OFFSET_MIN_PULSES, OFFSET_MAX_PULSES,
+            error=CalibrationError,
+        )
+        sw = check_range(
+            f"{joint} software_offset_deg", sw, -SOFTWARE_OFFSET_MAX_DEG, SOFTWARE_OFFSET_MAX_DEG,
+            error=CalibrationError,
+        )
+        joints.append(JointCalibration(name, sid, hw, sw))
     ref = data.get("reference_pose_deg", [])
     if not isinstance(ref, list) or not all(
         isinstance(v, int | float) and not isinstance(v, bool) for v in ref

@@ -26,6 +26,8 @@ from busarm.units import (
     MOVE_TIME_MAX_MS,
     POSITION_MAX_PULSES,
     POSITION_MIN_PULSES,
+    check_int_range,
+    check_range,
 )
 
 if sys.version_info >= (3, 11):
@@ -40,6 +42,9 @@ JOINT_ROLES = ("base yaw", "shoulder pitch", "elbow pitch", "wrist pitch", "wris
 SHIPPED = ("jetauto_pro",)
 DEFAULT_ARM = "jetauto_pro"
 
+
+CAMERA_JOINT_INDEX = 3
+"""The wrist camera rides the link of the fourth joint, the wrist pitch (DH frame 4)."""
 
 @dataclass(frozen=True)
 class JointConfig:
@@ -145,6 +150,19 @@ class Geometry:
 
 
 @dataclass(frozen=True)
+class CameraConfig:
+    """Where the wrist camera sits as drawn (``[camera]``): fixed to ``link``'s frame (the
+    wrist pitch joint's), ``behind_mm`` behind and ``above_mm`` above its axis, looking
+    along the tool and tilted ``tilt_deg`` toward it. For planning views and building the
+    twin; where a real camera sits comes from hand-eye calibration."""
+
+    link: str
+    behind_mm: float
+    above_mm: float
+    tilt_deg: float = 0.0
+
+
+@dataclass(frozen=True)
 class ArmConfig:
     """A whole arm, as read from its TOML file."""
 
@@ -157,6 +175,8 @@ class ArmConfig:
     poses_deg: dict[str, tuple[float, ...]] = field(default_factory=dict)
     action_columns: tuple[int, ...] = ()
     source: str = "<memory>"
+    camera: CameraConfig | None = None
+    """The wrist camera's mount, if the arm has one."""
 
     @property
     def joint_ids(self) -> tuple[int, ...]:
@@ -264,13 +284,7 @@ class _Reader:
         name = f"{where}.{key}"
         if value is None:
             raise self.fail(name, "missing")
-        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(
-            value
-        ):
-            raise self.fail(name, f"must be a number, got {value!r}")
-        if not lo <= value <= hi:
-            raise self.fail(name, f"{value!r} is out of range {lo:g}..{hi:g}")
-        return float(value)
+        return check_range(f"arm config {self.source}: {name}", value, lo, hi)
 
     def integer(
         self, data: dict[str, Any], key: str, where: str, lo: int, hi: int,
@@ -280,11 +294,9 @@ class _Reader:
         name = f"{where}.{key}"
         if value is None:
             raise self.fail(name, "missing")
-        if isinstance(value, bool) or not isinstance(value, int):
+        if isinstance(value, bool) or not isinstance(value, int):  # named without the range
             raise self.fail(name, f"must be an integer, got {value!r}")
-        if not lo <= value <= hi:
-            raise self.fail(name, f"{value} is out of range {lo}..{hi}")
-        return int(value)
+        return check_int_range(f"arm config {self.source}: {name}", value, lo, hi)
 
     def unknown(self, data: dict[str, Any], where: str, known: set[str]) -> None:
         extra = sorted(set(data) - known)
@@ -295,7 +307,7 @@ class _Reader:
         self.unknown(
             data, "top level",
             {"format", "version", "name", "geometry", "workspace", "joints", "gripper", "poses",
-             "action_groups"},
+             "action_groups", "camera"},
         )
         if data.get("format") != FORMAT_NAME:
             raise self.fail("format", f"must be {FORMAT_NAME!r}, got {data.get('format')!r}")
@@ -320,6 +332,7 @@ class _Reader:
             raise self.fail("servo_id", f"servo IDs must be distinct, got {ids}")
         poses = self.poses(data.get("poses", {}), joints)
         columns = self.columns(data.get("action_groups", {}), ids)
+        camera = self.camera(data["camera"], joints) if "camera" in data else None
         if geometry.base_height_mm <= geometry.upper_arm_mm:
             # Then the elbow could reach the table plane, which the IK does not check.
             raise self.fail(
@@ -330,8 +343,23 @@ class _Reader:
         return ArmConfig(
             name=name.strip(), geometry=geometry, joints=tuple(joints), gripper=gripper,
             table_z_mm=table_z, preferred_pitch_deg=preferred, poses_deg=poses,
-            action_columns=columns, source=self.source,
+            action_columns=columns, source=self.source, camera=camera,
         )
+
+    def camera(self, data: object, joints: list[JointConfig]) -> CameraConfig:
+        if not isinstance(data, dict):
+            raise self.fail("camera", "must be a table")
+        self.unknown(data, "camera", {"link", "behind_mm", "above_mm", "tilt_deg"})
+        # The camera's frame is the wrist pitch joint's (DH frame 4): the tool axis and
+        # "above" are defined there (busarm.arm.camera_mount).
+        wrist = joints[CAMERA_JOINT_INDEX].name
+        if data.get("link") != wrist:
+            raise self.fail("camera.link", f"{data.get('link')!r}; the wrist camera rides the "
+                                           f"wrist pitch joint's link: {wrist!r}")
+        return CameraConfig(
+            link=wrist, behind_mm=self.number(data, "behind_mm", "camera", -300.0, 300.0),
+            above_mm=self.number(data, "above_mm", "camera", -300.0, 300.0),
+            tilt_deg=self.number(data, "tilt_deg", "camera", -90.0, 90.0, 0.0))
 
     def geometry(self, data: dict[str, Any]) -> Geometry:
         keys = ("base_height_mm", "upper_arm_mm", "forearm_mm", "wrist_mm", "tool_mm")

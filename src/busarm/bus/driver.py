@@ -14,13 +14,13 @@ from __future__ import annotations
 import enum
 import logging
 import threading
-import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from types import TracebackType
 from typing import TypeVar
 
 from busarm.bus.transport import DEFAULT_BAUDRATE, Transport, open_transport
+from busarm.clock import Clock
 from busarm.errors import (
     BusConflictError,
     BusTimeoutError,
@@ -149,6 +149,8 @@ class ServoBus:
         check_range("timeout_margin_s", timeout_margin_s, 0.0, 1.0, "s")
         check_int_range("retries", retries, 0, 10)
         self.transport = transport
+        self.clock: Clock = transport.clock
+        self._now = self.clock.now  # the hot path's one clock read, bound once
         self.turnaround_s = float(turnaround_s)
         self.timeout_margin_s = float(timeout_margin_s)
         self.retries = retries
@@ -295,16 +297,16 @@ class ServoBus:
             t.write(request)
             # The OS returns before the bytes are on the wire; a reply to the next
             # request cannot start until they are, so its deadline must wait for them.
-            now = time.monotonic()
+            now = self._now()
             self._line_free_at = max(now, self._line_free_at) + len(request) * self.byte_s
             if self.echo:
                 self._await_echo(request, self.timeout_s(len(request), 0))
 
     def _await_echo(self, request: bytes, timeout_s: float) -> None:
-        deadline = time.monotonic() + timeout_s
+        deadline = self._now() + timeout_s
         buf = bytearray()
         while request not in buf:
-            remaining = deadline - time.monotonic()
+            remaining = deadline - self._now()
             chunk = self.transport.read(64, remaining) if remaining > 0 else b""
             if not chunk:
                 raise BusTimeoutError(
@@ -328,7 +330,7 @@ class ServoBus:
         with self._lock:
             if self._late:
                 return self._finish(plan, servo_id, command)
-            now = time.monotonic()
+            now = self._now()
             timeout_s = plan.timeout_s
             if self._line_free_at > now:
                 timeout_s += self._line_free_at - now
@@ -352,7 +354,7 @@ class ServoBus:
             if attempt:
                 self.stats["retries"] += 1
             if first is None:
-                now = time.monotonic()
+                now = self._now()
                 deadline = now + plan.timeout_s + max(self._line_free_at - now, 0.0)
                 first = self.transport.exchange(plan.request, deadline - now)
             try:
@@ -363,7 +365,7 @@ class ServoBus:
             except BusTimeoutError as exc:
                 self.stats["timeouts"] += 1
                 if servo_id != BROADCAST_ID:
-                    self._late[key] = time.monotonic()
+                    self._late[key] = self._now()
                 error = exc
             except ProtocolError as exc:
                 self.stats["bad_replies"] += 1
@@ -377,7 +379,7 @@ class ServoBus:
     def _expect_late(self, key: tuple[int, int]) -> bool:
         """Whether a late reply to an earlier, timed-out request of ``key`` may still come."""
         since = self._late.get(key)
-        if since is not None and time.monotonic() - since > STALE_REPLY_S:
+        if since is not None and self._now() - since > STALE_REPLY_S:
             del self._late[key]
             return False
         return since is not None
@@ -419,8 +421,8 @@ class ServoBus:
                         return frame.params
                     found = frame.params
                     unexplained -= want_length + 3
-                    deadline = max(deadline, min(time.monotonic() + follow_s, latest))
-            remaining = deadline - time.monotonic()
+                    deadline = max(deadline, min(self._now() + follow_s, latest))
+            remaining = deadline - self._now()
             chunk = self.transport.read(256, remaining) if remaining > 0 else b""
             if not chunk:
                 break
@@ -447,10 +449,10 @@ class ServoBus:
         with self._lock:
             self.transport.reset_input()
             self.transport.write(probe)
-            deadline = time.monotonic() + self.timeout_s(len(probe), 0) + 0.01
+            deadline = self._now() + self.timeout_s(len(probe), 0) + 0.01
             buf = bytearray()
             while probe not in buf:
-                remaining = deadline - time.monotonic()
+                remaining = deadline - self._now()
                 chunk = self.transport.read(64, remaining) if remaining > 0 else b""
                 if not chunk:
                     break
@@ -572,20 +574,20 @@ class ServoBus:
         check_range("tolerance_deg", tolerance_deg, 0.0, 240.0, "deg")
         if timeout_s is None:
             ends = [self._move_ends.get(sid, 0.0) for sid in targets_deg]
-            timeout_s = max([0.0, *ends]) - time.monotonic()
+            timeout_s = max([0.0, *ends]) - self._now()
             timeout_s = max(timeout_s, 0.0) + WAIT_SLACK_S
         check_range("timeout_s", timeout_s, 0.0, 3600.0, "s")
         check_range("poll_s", poll_s, 0.0, 10.0, "s")
         for sid in targets_deg:
             check_servo_id(sid)
-        deadline = time.monotonic() + timeout_s
+        deadline = self._now() + timeout_s
         while True:
             positions = self.read_positions_deg(targets_deg)
             off = {s: positions[s] - t for s, t in targets_deg.items()
                    if abs(positions[s] - t) > tolerance_deg}
             if not off:
                 return positions
-            if time.monotonic() >= deadline:
+            if self._now() >= deadline:
                 detail = ", ".join(
                     f"servo {s} at {positions[s]:.1f} deg, target {targets_deg[s]:.1f}"
                     + ("" if self._is_loaded(s) else
@@ -595,7 +597,7 @@ class ServoBus:
                 raise MotionTimeoutError(
                     f"not within {tolerance_deg:g} deg after {timeout_s:.1f} s: {detail}"
                 )
-            time.sleep(poll_s)
+            self.clock.sleep(poll_s)
 
     def _is_loaded(self, servo_id: int) -> bool:
         try:
@@ -604,7 +606,7 @@ class ServoBus:
             return True  # unknown: say nothing
 
     def _moving_until(self, servo_ids: Iterable[int], duration_s: float) -> None:
-        end = time.monotonic() + duration_s
+        end = self._now() + duration_s
         for sid in servo_ids:
             self._move_ends[sid] = end
 
@@ -750,9 +752,7 @@ class ServoBus:
     def write_alarm_mask(self, servo_id: int, alarms: AlarmFlag) -> None:
         """Which faults make the LED flash."""
         check_servo_id(servo_id, allow_broadcast=True)
-        if not isinstance(alarms, int) or not 0 <= int(alarms) <= 7:
-            raise ConfigError(f"alarms = {alarms!r} is out of range 0..7")
-        self.send(servo_id, Command.LED_ERROR_WRITE, int(alarms))
+        self.send(servo_id, Command.LED_ERROR_WRITE, check_int_range("alarms", alarms, 0, 7))
 
     def read_alarm_mask(self, servo_id: int) -> AlarmFlag:
         return self._read(servo_id, Command.LED_ERROR_READ, LedErrorReply).alarm_mask
@@ -795,7 +795,7 @@ class ServoBus:
         parser = FrameParser()
         found: set[int] = set()
         garbled: set[int] = set()
-        started = time.monotonic()
+        started = self._now()
 
         def collect(chunk: bytes, asked: int) -> None:
             # Bytes that make no valid frame, in the window of one ID: two servos
@@ -812,9 +812,9 @@ class ServoBus:
             for sid in ids:
                 request = encode_request(sid, Command.ID_READ)
                 self.transport.write(request)
-                deadline = time.monotonic() + timeout
+                deadline = self._now() + timeout
                 while sid not in found:
-                    remaining = deadline - time.monotonic()
+                    remaining = deadline - self._now()
                     chunk = self.transport.read(256, remaining) if remaining > 0 else b""
                     if not chunk:
                         break
@@ -822,8 +822,8 @@ class ServoBus:
                 if progress is not None:
                     progress(sid)
             # Stragglers: anything still on its way.
-            tail_deadline = time.monotonic() + 4 * timeout
-            while (remaining := tail_deadline - time.monotonic()) > 0:
+            tail_deadline = self._now() + 4 * timeout
+            while (remaining := tail_deadline - self._now()) > 0:
                 chunk = self.transport.read(256, remaining)
                 if not chunk:
                     break
@@ -842,7 +842,7 @@ class ServoBus:
             elif probes.count("garbled") >= 2:
                 conflicts.add(sid)
         return ScanResult(sorted(found - conflicts), sorted(conflicts),
-                          time.monotonic() - started)
+                          self._now() - started)
 
     def _probe(self, servo_id: int) -> str:
         """One POS_READ attempt, no retry: "ok", "garbled" (bytes, no valid reply) or "silent"."""
@@ -850,7 +850,7 @@ class ServoBus:
             servo_id, Command.POS_READ
         )
         with self._lock:
-            deadline = time.monotonic() + plan.timeout_s
+            deadline = self._now() + plan.timeout_s
             first = self.transport.exchange(plan.request, plan.timeout_s)
             try:
                 self._scan_reply(plan, servo_id, Command.POS_READ, first, deadline, False)

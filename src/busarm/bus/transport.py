@@ -21,6 +21,7 @@ import warnings
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
+from busarm.clock import WALL_CLOCK, Clock
 from busarm.errors import ConfigError, TransportError
 
 DEFAULT_BAUDRATE = 115200
@@ -40,6 +41,9 @@ class Transport(Protocol):
     baudrate: int
     latency_s: float
     """Extra delay the adapter adds before received bytes reach us (USB latency timer)."""
+    clock: Clock
+    """The time the other end lives in: the wall clock for hardware, a simulation's own
+    clock for a simulator in this process. Everyone above waits on it."""
 
     def write(self, data: bytes) -> None: ...
 
@@ -102,6 +106,7 @@ class SerialTransport:
         self.name = name
         self.baudrate = int(port.baudrate)
         self.latency_s = 0.0
+        self.clock: Clock = WALL_CLOCK
         self._fd: int | None = port.fileno() if use_fd else None
         if self._fd is not None:
             self.latency_s = adapter_latency_s(name)

@@ -9,9 +9,7 @@ from __future__ import annotations
 
 import json
 import sys
-import time
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -21,15 +19,21 @@ from rich.table import Table
 from busarm.arm.actions import ActionFrame, ActionGroup, read_d6a, write_d6a
 from busarm.arm.arm import DEFAULT_SPEED_DEG_S, Arm
 from busarm.arm.calibration import (
-    Calibration,
-    load_calibration,
     save_calibration,
     solve_calibration,
 )
-from busarm.arm.config import ArmConfig, load_arm_config
+from busarm.arm.config import ArmConfig
 from busarm.arm.kinematics import ArmKinematics, Pose
 from busarm.arm.motion import PROFILES
-from busarm.cli.common import RangeType, Settings, pass_settings
+from busarm.cli.common import (
+    NUMBER_ARGS,
+    ArmContext,
+    RangeType,
+    Settings,
+    arm_options,
+    pass_arm,
+    pass_settings,
+)
 from busarm.errors import ConfigError
 from busarm.units import DEG_PER_PULSE
 
@@ -39,54 +43,7 @@ JOINT_SPEED = RangeType("speed", 0.1, 1000.0, "deg/s")
 LINE_SPEED = RangeType("speed", 0.1, 1000.0, "mm/s")
 DURATION = RangeType("duration", 0.0, 30.0, "s")
 DEFAULT_CALIBRATION_OUT = "arm-calibration.json"
-NUMBERS = {"ignore_unknown_options": True}
 """Let negative numbers through as arguments (``arm fk 0 -90 0 -90 0``)."""
-
-
-class ArmContext:
-    """The arm options of the ``arm`` and ``actions`` groups, loaded on first use."""
-
-    def __init__(self, settings: Settings, config: str, calibration: str | None) -> None:
-        self.settings = settings
-        self._config_name = config
-        self._calibration_path = calibration
-        self._config: ArmConfig | None = None
-
-    @property
-    def config(self) -> ArmConfig:
-        if self._config is None:
-            self._config = load_arm_config(self._config_name)
-        return self._config
-
-    @property
-    def kin(self) -> ArmKinematics:
-        return ArmKinematics.from_config(self.config)
-
-    def calibration(self) -> Calibration | None:
-        if self._calibration_path is None:
-            return None
-        return load_calibration(self._calibration_path)
-
-    @contextmanager
-    def open(self, *, check: bool = True, port: str | None = None) -> Iterator[Arm]:
-        """The arm on ``port`` (default ``--port``): every servo must answer first (nothing
-        is written if one does not); an exception in the body stops and holds the arm."""
-        calibration = self.calibration()
-        with self.settings.open_bus(port, check_ids=self.config.servo_ids) as bus:
-            yield Arm(bus, self.config, calibration, check=check)
-
-
-pass_arm = click.make_pass_decorator(ArmContext)
-
-_CONFIG_HELP = "Arm description: a shipped name (jetauto_pro) or a TOML file."
-_CAL_HELP = "Calibration file from `busarm arm calibrate` (default: none, nominal zeros)."
-
-
-def arm_options(f: Callable[..., Any]) -> Callable[..., Any]:
-    f = click.option("--calibration", envvar="BUSARM_CALIBRATION", show_envvar=True,
-                     type=click.Path(dir_okay=False), help=_CAL_HELP)(f)
-    return click.option("--config", "config", envvar="BUSARM_ARM", default="jetauto_pro",
-                        show_default=True, show_envvar=True, help=_CONFIG_HELP)(f)
 
 
 @click.group()
@@ -145,7 +102,7 @@ def _emit(settings: Settings, as_json: bool, data: object, text: str) -> None:
 # ---------------------------------------------------------------------- model-only
 
 
-@arm.command(context_settings=NUMBERS)
+@arm.command(context_settings=NUMBER_ARGS)
 @click.argument("joints", nargs=-1, type=DEG)
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
 @click.option("--batch", is_flag=True,
@@ -179,7 +136,7 @@ def _fk_item(config: ArmConfig, kin: ArmKinematics, item: object) -> dict[str, A
     return {"joints_deg": list(q), "pose": _pose_dict(kin.fk(q))}
 
 
-@arm.command(context_settings=NUMBERS)
+@arm.command(context_settings=NUMBER_ARGS)
 @click.argument("x", type=MM)
 @click.argument("y", type=MM)
 @click.argument("z", type=MM)
@@ -325,7 +282,7 @@ def _move_options(f: Callable[..., Any]) -> Callable[..., Any]:
     )(f)
 
 
-@arm.command("move-to", context_settings=NUMBERS)
+@arm.command("move-to", context_settings=NUMBER_ARGS)
 @click.argument("x", type=MM)
 @click.argument("y", type=MM)
 @click.argument("z", type=MM)
@@ -355,7 +312,7 @@ def move_to(ac: ArmContext, x: float, y: float, z: float, pitch: float | None,
     ac.settings.out.print(f"at {_pose_text(a.kin.fk(q))}", highlight=False)
 
 
-@arm.command("move-joints", context_settings=NUMBERS)
+@arm.command("move-joints", context_settings=NUMBER_ARGS)
 @click.argument("joints", nargs=5, type=DEG)
 @_move_options
 @pass_arm
@@ -550,7 +507,7 @@ def record(ac: ArmContext, file: Path, interval: float | None, max_frames: int |
         try:
             while max_frames is None or len(frames) < max_frames:
                 if interval:
-                    time.sleep(interval if frames else 0.0)
+                    a.clock.sleep(interval if frames else 0.0)
                 else:
                     line = sys.stdin.readline()
                     if not line or line.strip().lower() == "q":

@@ -9,11 +9,14 @@ from typing import TYPE_CHECKING
 import click
 from rich.table import Table
 
-from busarm.bench import BenchReport, run_bench, sim_pty_server
+from busarm.bench.bus import BusBenchReport, run_bench, sim_pty_server
 from busarm.cli.common import IdListType, RangeType, Settings, pass_settings
 
 if TYPE_CHECKING:
-    from busarm.bench_ik import IkBenchReport
+    from busarm.bench.ik import IkBenchReport
+    from busarm.bench.locate import LocateBenchReport
+    from busarm.bench.pick import PickBenchReport
+    from busarm.bench.vision import VisionBenchReport
 
 TARGET_RATIO = 0.90
 TARGET_SCAN_S = 1.0
@@ -65,7 +68,7 @@ def bench(
         _print(settings, report)
 
 
-def _print(settings: Settings, report: BenchReport) -> None:
+def _print(settings: Settings, report: BusBenchReport) -> None:
     m = report.machine
     settings.out.print(
         f"[bold]busarm bench[/] on {report.port}: {report.baudrate} baud, turnaround "
@@ -89,10 +92,11 @@ def _print(settings: Settings, report: BenchReport) -> None:
             str(r.errors),
         )
     settings.out.print(table)
-    scan = report.results[-1]  # bench_scan is always last
+    scan = report.results[-1].scan  # bench_scan is always last
+    assert scan is not None
     settings.out.print(
-        f"scan: best {scan.extra['best_s']} s, median {scan.extra['median_s']} s "
-        f"(target <= {TARGET_SCAN_S} s), found {scan.extra['found']}"
+        f"scan: best {scan.best_s} s, median {scan.median_s} s "
+        f"(target <= {TARGET_SCAN_S} s), found {scan.found}"
     )
 
 
@@ -111,7 +115,7 @@ def bench_ik(
     settings: Settings, n: int, batch_n: int, seed: int, peers: bool, as_json: bool,
 ) -> None:
     """Accuracy and speed of the arm's closed-form IK (no bus), optionally beside peers."""
-    from busarm.bench_ik import run_ik_bench  # numpy only when asked for
+    from busarm.bench.ik import run_ik_bench  # numpy only when asked for
 
     report = run_ik_bench(n=n, batch_n=batch_n, seed=seed, peers=peers)
     if as_json:
@@ -120,13 +124,36 @@ def bench_ik(
         _print_ik(settings, report)
 
 
+def _verdict(good: bool) -> str:
+    return "[green]ok[/]" if good else "[red]FAIL[/]"
+
+
+def _ik_table(report: IkBenchReport) -> Table:
+    """busarm's single-call and batch rates, and the peers', against the targets."""
+    from busarm.bench.ik import TARGET_BATCH_PER_S, TARGET_SINGLE_US
+
+    table = Table()
+    for col in ("solver", "n", "median us", "p90 us", "rate", "target / ratio"):
+        table.add_column(col, justify="left" if col == "solver" else "right")
+    for t in report.single:
+        target = ""
+        if t.name.startswith("ik_best"):
+            target = f"<= {TARGET_SINGLE_US:g} us {_verdict(t.median_us <= TARGET_SINGLE_US)}"
+        table.add_row(f"busarm {t.name}", str(t.n), f"{t.median_us:.2f}", f"{t.p90_us:.2f}",
+                      f"{1e6 / t.median_us:,.0f}/s", target)
+    b = report.batch
+    batch_ok = _verdict(b.solves_per_s >= TARGET_BATCH_PER_S)
+    table.add_row(f"busarm ik_batch{'' if b.all_ok else ' (NOT all ok)'}", f"{b.n:,}",
+                  "", "", f"{b.solves_per_s:,.0f}/s", f">= {TARGET_BATCH_PER_S:,.0f}/s {batch_ok}")
+    for p in report.peers:
+        table.add_row(p.name,
+                      str(p.n), f"{p.median_us:.2f}", f"{p.p90_us:.2f}",
+                      f"{1e6 / p.median_us:,.0f}/s", f"{p.ratio:g}x busarm")
+    return table
+
+
 def _print_ik(settings: Settings, report: IkBenchReport) -> None:
-    from busarm.bench_ik import (
-        POS_TOL_MM,
-        ROT_TOL_DEG,
-        TARGET_BATCH_PER_S,
-        TARGET_SINGLE_US,
-    )
+    from busarm.bench.ik import POS_TOL_MM, ROT_TOL_DEG
 
     m, a, o = report.machine, report.accuracy, report.outside
     out = settings.out
@@ -134,19 +161,15 @@ def _print_ik(settings: Settings, report: IkBenchReport) -> None:
         f"[bold]busarm bench ik[/]: {report.arm}\n"
         f"machine: {m['cpu']}, {m['cores']} cores, Python {m['python']}, {m['os']}"
     )
-
-    def verdict(good: bool) -> str:
-        return "[green]ok[/]" if good else "[red]FAIL[/]"
-
     out.print(
         f"accuracy: {a.n} random joint vectors in the limits (seed {a.seed}), target = FK "
         f"pose; table check OFF (pure geometry: some put the tool under the table)\n"
         f"  ik: {a.solutions} solutions, failures {a.failures} (no solution {a.no_solution}, "
         f"pose > {POS_TOL_MM} mm / {ROT_TOL_DEG} deg {a.wrong_pose}, out of limits "
-        f"{a.out_of_limits}) {verdict(a.failures == 0)}; worst {a.worst_pos_mm:.2e} mm, "
+        f"{a.out_of_limits}) {_verdict(a.failures == 0)}; worst {a.worst_pos_mm:.2e} mm, "
         f"{a.worst_rot_deg:.2e} deg\n"
-        f"  ik_best failures {a.best_failures} {verdict(a.best_failures == 0)}; ik_batch "
-        f"failures {a.batch_failures} {verdict(a.batch_failures == 0)}, worst "
+        f"  ik_best failures {a.best_failures} {_verdict(a.best_failures == 0)}; ik_batch "
+        f"failures {a.batch_failures} {_verdict(a.batch_failures == 0)}, worst "
         f"{a.batch_worst_pos_mm:.2e} mm, {a.batch_worst_rot_deg:.2e} deg"
     )
     refused = o.accepted_ik + o.accepted_batch + o.accepted_ik_no_limits \
@@ -155,28 +178,11 @@ def _print_ik(settings: Settings, report: IkBenchReport) -> None:
         f"just outside: {o.n} targets with the wrist {o.margin_mm} mm beyond full stretch: "
         f"accepted by ik {o.accepted_ik}, ik_batch {o.accepted_batch}; with no joint limits "
         f"and free roll {o.accepted_ik_no_limits} / {o.accepted_batch_no_limits} "
-        f"{verdict(refused)}\n"
+        f"{_verdict(refused)}\n"
         f"  control, {o.margin_mm} mm inside, no limits: accepted {o.inside_accepted_no_limits}"
-        f"/{o.n} {verdict(o.inside_accepted_no_limits == o.n)}"
+        f"/{o.n} {_verdict(o.inside_accepted_no_limits == o.n)}"
     )
-    table = Table()
-    for col in ("solver", "n", "median us", "p90 us", "rate", "target / ratio"):
-        table.add_column(col, justify="left" if col == "solver" else "right")
-    for t in report.single:
-        target = ""
-        if t.name.startswith("ik_best"):
-            target = f"<= {TARGET_SINGLE_US:g} us {verdict(t.median_us <= TARGET_SINGLE_US)}"
-        table.add_row(f"busarm {t.name}", str(t.n), f"{t.median_us:.2f}", f"{t.p90_us:.2f}",
-                      f"{1e6 / t.median_us:,.0f}/s", target)
-    b = report.batch
-    table.add_row(f"busarm ik_batch{'' if b.all_ok else ' (NOT all ok)'}", f"{b.n:,}",
-                  "", "", f"{b.solves_per_s:,.0f}/s",
-                  f">= {TARGET_BATCH_PER_S:,.0f}/s {verdict(b.solves_per_s >= TARGET_BATCH_PER_S)}")
-    for p in report.peers:
-        table.add_row(p.name,
-                      str(p.n), f"{p.median_us:.2f}", f"{p.p90_us:.2f}",
-                      f"{1e6 / p.median_us:,.0f}/s", f"{p.ratio:g}x busarm")
-    out.print(table)
+    out.print(_ik_table(report))
     out.print(f"timing: {report.timing_method}; timer overhead {report.timer_overhead_ns:g} ns")
     for p in report.peers:
         out.print(f"{p.name}: {p.version}; ok {p.success}/{p.n} (claims {p.claimed}), median "
@@ -205,29 +211,34 @@ def bench_locate(settings: Settings, placements: int, seed: int, keep: Path | No
     board, lens distortion on), then places blocks over the table the arm reaches and
     compares where the camera puts them with where they are. Takes about a minute.
     """
-    from busarm.bench_locate import TARGET_MEDIAN_MM, TARGET_P95_MM, run_locate_bench
+    from busarm.bench.locate import run_locate_bench
 
     report = run_locate_bench(
         placements=placements, seed=seed, work_dir=keep,
         progress=lambda text: settings.err.print(text, highlight=False))
     if as_json:
-        click.echo(json.dumps(report, indent=2))
-        return
-    c, a = report["calibration"], report["accuracy"]
-    ok_median = a["median_mm"] <= TARGET_MEDIAN_MM
-    ok_p95 = a["p95_mm"] <= TARGET_P95_MM
+        click.echo(json.dumps(report.to_dict(), indent=2))
+    else:
+        _print_locate(settings, report)
+
+
+def _print_locate(settings: Settings, report: LocateBenchReport) -> None:
+    from busarm.bench.locate import TARGET_MEDIAN_MM, TARGET_P95_MM
+
+    intr, he, a = report.calibration.intrinsics, report.calibration.hand_eye, report.accuracy
+    ok_median = a.median_mm <= TARGET_MEDIAN_MM
+    ok_p95 = a.p95_mm <= TARGET_P95_MM
     settings.out.print(
-        f"[bold]busarm bench locate[/] (twin, lens distortion {report['twin_lens_distortion']})\n"
-        f"intrinsics: rms {c['intrinsics']['rms_px']:.3f} px over {c['intrinsics']['views']} "
-        f"views; hand-eye: rms {c['hand_eye']['rms_px']:.3f} px over {c['hand_eye']['views']} "
-        f"views, {c['hand_eye']['error_vs_truth_mm']:.2f} mm / "
-        f"{c['hand_eye']['error_vs_truth_deg']:.3f} deg from the truth\n"
-        f"placements {a['placements']}: located {a['located']}, missed {a['missed']}, wrong "
-        f"colour {a['wrong_color']}, in {a['pictures']} pictures\n"
-        f"error: median {a['median_mm']:.2f} mm "
+        f"[bold]busarm bench locate[/] (twin, lens distortion {report.twin_lens_distortion})\n"
+        f"intrinsics: rms {intr.rms_px:.3f} px over {intr.views} views; hand-eye: rms "
+        f"{he.rms_px:.3f} px over {he.views} views, {he.error_vs_truth_mm:.2f} mm / "
+        f"{he.error_vs_truth_deg:.3f} deg from the truth\n"
+        f"placements {a.placements}: located {a.located}, missed {a.missed}, wrong "
+        f"colour {a.wrong_color}, in {a.pictures} pictures\n"
+        f"error: median {a.median_mm:.2f} mm "
         f"({'[green]ok[/]' if ok_median else '[red]FAIL[/]'} <= {TARGET_MEDIAN_MM:g}), "
-        f"p95 {a['p95_mm']:.2f} mm ({'[green]ok[/]' if ok_p95 else '[red]FAIL[/]'} "
-        f"<= {TARGET_P95_MM:g}), max {a['max_mm']:.2f} mm")
+        f"p95 {a.p95_mm:.2f} mm ({'[green]ok[/]' if ok_p95 else '[red]FAIL[/]'} "
+        f"<= {TARGET_P95_MM:g}), max {a.max_mm:.2f} mm")
 
 
 @bench.command("vision")
@@ -243,26 +254,31 @@ def bench_vision(settings: Settings, pictures: int, seconds: float, seed: int,
                  as_json: bool) -> None:
     """Colour detection beside the vendor-style pipeline, and full detect + localise, on
     one core at 640x480 (twin pictures)."""
-    from busarm.bench_locate import TARGET_LOCATE_FPS, TARGET_SPEEDUP, run_vision_bench
+    from busarm.bench.vision import run_vision_bench
 
     report = run_vision_bench(pictures=pictures, seed=seed, seconds_per_case=seconds)
     if as_json:
-        click.echo(json.dumps(report, indent=2))
-        return
-    d = report["detection"]
-    agree = d["agreement"]
-    ok_speed = d["speedup"] >= TARGET_SPEEDUP
-    ok_loc = report["detect_and_locate_fps"] >= TARGET_LOCATE_FPS
+        click.echo(json.dumps(report.to_dict(), indent=2))
+    else:
+        _print_vision(settings, report)
+
+
+def _print_vision(settings: Settings, report: VisionBenchReport) -> None:
+    from busarm.bench.vision import TARGET_LOCATE_FPS, TARGET_SPEEDUP
+
+    d = report.detection
+    ok_speed = d.speedup >= TARGET_SPEEDUP
+    ok_loc = report.detect_and_locate_fps >= TARGET_LOCATE_FPS
     settings.out.print(
-        f"[bold]busarm bench vision[/]: {report['pictures']} twin pictures "
-        f"{d['width_px']}x{d['height_px']}, one core\n"
-        f"vendor-style pipeline {d['vendor_fps']:.0f} frames/s, ours {d['ours_fps']:.0f} "
-        f"frames/s: {d['speedup']:.2f}x ({'[green]ok[/]' if ok_speed else '[red]FAIL[/]'} "
-        f">= {TARGET_SPEEDUP:g}x); same blocks in {agree['same_counts_frames']}/{d['frames']} "
+        f"[bold]busarm bench vision[/]: {report.pictures} twin pictures "
+        f"{d.width_px}x{d.height_px}, one core\n"
+        f"vendor-style pipeline {d.vendor_fps:.0f} frames/s, ours {d.ours_fps:.0f} "
+        f"frames/s: {d.speedup:.2f}x ({'[green]ok[/]' if ok_speed else '[red]FAIL[/]'} "
+        f">= {TARGET_SPEEDUP:g}x); same blocks in {d.agreement.same_counts_frames}/{d.frames} "
         f"pictures\n"
-        f"detect + localise: {report['detect_and_locate_fps']:.0f} frames/s "
+        f"detect + localise: {report.detect_and_locate_fps:.0f} frames/s "
         f"({'[green]ok[/]' if ok_loc else '[red]FAIL[/]'} >= {TARGET_LOCATE_FPS:g}), "
-        f"{report['blocks_located']} blocks located")
+        f"{report.blocks_located} blocks located")
 
 
 @bench.command("pick")
@@ -270,33 +286,52 @@ def bench_vision(settings: Settings, pictures: int, seconds: float, seed: int,
               help="Seeded twin scenes of 3-6 blocks to sort.")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="Seed of the first scene (scene i uses seed + i).")
+@click.option("--workers", type=click.IntRange(1, 64), default=1, show_default=True,
+              help="Scenes sorted side by side, each in its own process.")
+@click.option("--realtime", is_flag=True,
+              help="Run each twin on the wall clock (as `twin serve` does) instead of as "
+                   "fast as the CPU allows: to compare the two.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @pass_settings
-def bench_pick(settings: Settings, scenes: int, seed: int, as_json: bool) -> None:
+def bench_pick(settings: Settings, scenes: int, seed: int, workers: int, realtime: bool,
+               as_json: bool) -> None:
     """Pick-and-sort success rate, cycle time and localisation error over twin scenes.
 
     Calibrates the twin's camera with our flows first, then sorts each scene and checks
     the twin's truth: which blocks are in their bins, and whether a run ever reported a
-    block sorted that is not. About 30 s per scene.
+    block sorted that is not. Twins run on a simulated clock, a few seconds per scene
+    (with --realtime about 30 s); times in the report are twin seconds.
     """
-    from busarm.bench_locate import TARGET_CYCLE_S, TARGET_SORTED, run_pick_bench
+    from busarm.bench.pick import run_pick_bench
 
-    report = run_pick_bench(scenes=scenes, seed=seed,
+    report = run_pick_bench(scenes=scenes, seed=seed, workers=workers, realtime=realtime,
                             progress=lambda text: settings.err.print(text, highlight=False))
     if as_json:
-        click.echo(json.dumps(report, indent=2))
-        return
-    ok_sorted = report["sorted_fraction"] >= TARGET_SORTED
-    cycle = report["median_cycle_s"]
+        click.echo(json.dumps(report.to_dict(), indent=2))
+    else:
+        _print_pick(settings, report)
+
+
+def _print_pick(settings: Settings, report: PickBenchReport) -> None:
+    from busarm.bench.pick import TARGET_CYCLE_S, TARGET_SORTED, TARGET_SPEEDUP
+
+    ok_sorted = report.sorted_fraction >= TARGET_SORTED
+    cycle = report.median_cycle_s
     ok_cycle = cycle is not None and cycle <= TARGET_CYCLE_S
     settings.out.print(
-        f"[bold]busarm bench pick[/]: {report['scenes']} scenes, {report['blocks']} blocks\n"
-        f"in their bins: {report['in_their_bins']} ({report['sorted_fraction']:.1%}, "
+        f"[bold]busarm bench pick[/]: {report.scenes} scenes, {report.blocks} blocks\n"
+        f"in their bins: {report.in_their_bins} ({report.sorted_fraction:.1%}, "
         f"{'[green]ok[/]' if ok_sorted else '[red]FAIL[/]'} >= {TARGET_SORTED:.0%}); "
-        f"reported sorted but not: {report['reported_sorted_but_not']}\n"
+        f"reported sorted but not: {report.reported_sorted_but_not}\n"
         f"cycle per block (twin time): median {cycle} s "
         f"({'[green]ok[/]' if ok_cycle else '[red]FAIL[/]'} <= {TARGET_CYCLE_S:g}; the vendor's "
         f"fixed grasp sequence alone takes about 5 s), "
-        f"p95 {report['p95_cycle_s']} s; the twin fell behind the clock by "
-        f"{report['twin_slipped_s']} s in all\nsurvey error median "
-        f"{report['survey_error_median_mm']} mm, p95 {report['survey_error_p95_mm']} mm")
+        f"p95 {report.p95_cycle_s} s; the twin fell behind the clock by "
+        f"{report.twin_slipped_s} s in all\nsurvey error median "
+        f"{report.survey_error_median_mm} mm, p95 {report.survey_error_p95_mm} mm\n"
+        f"time: {report.sim_seconds} s of twin time in {report.seconds} s on this computer "
+        f"({report.calibration_seconds} s of it calibrating), {report.workers} worker(s), "
+        f"{report.clock} clock: {report.speedup:.1f}x real time"
+        + ("" if report.clock == "wall" else
+           f" ({'[green]ok[/]' if report.speedup >= TARGET_SPEEDUP else '[red]FAIL[/]'} "
+           f">= {TARGET_SPEEDUP:g}x)"))

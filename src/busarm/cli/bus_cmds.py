@@ -2,16 +2,22 @@
 
 from __future__ import annotations
 
-import time
-
 import click
 from rich.live import Live
 from rich.table import Table
 
 from busarm.bus.driver import ServoBus
 from busarm.bus.transport import usb_latency_timer_ms
-from busarm.cli.common import ID_LIST, STOPPED, RangeType, Settings, pass_settings
-from busarm.cli.render import scan_report, scan_with_progress, state_table
+from busarm.cli.common import (
+    ID_LIST,
+    STOPPED,
+    RangeType,
+    Settings,
+    pass_settings,
+    scan_report,
+    scan_with_progress,
+    state_table,
+)
 from busarm.protocol import MAX_SERVO_ID
 
 # USB-serial chips found on LX servo adapters (BusLinker boards, one-wire adapters, HATs).
@@ -116,10 +122,10 @@ def _monitor_loop(
             if count is not None and n >= count:
                 return
             n += 1
-            time.sleep(interval)
+            bus.clock.sleep(interval)
     with Live(table(n), console=out, auto_refresh=False) as live:
         while count is None or n < count:
-            time.sleep(interval)
+            bus.clock.sleep(interval)
             n += 1
             live.update(table(n), refresh=True)
 

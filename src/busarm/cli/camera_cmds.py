@@ -8,54 +8,29 @@ taken any other way, without an arm.
 
 from __future__ import annotations
 
-import os
 import sys
 from pathlib import Path
 from typing import Any
-from urllib.parse import parse_qs, urlsplit
 
 import click
 
-from busarm.cli.arm_cmds import ArmContext, arm_options
-from busarm.cli.common import Settings, pass_settings
+from busarm.cli.common import (
+    DEFAULT_HAND_EYE_OUT,
+    DEFAULT_INTRINSICS_OUT,
+    ArmContext,
+    Settings,
+    arm_options,
+    check_writable,
+    pass_arm,
+    pass_settings,
+)
 from busarm.errors import ConfigError
 
-DEFAULT_INTRINSICS_OUT = "camera.json"
-DEFAULT_HAND_EYE_OUT = "hand_eye.json"
 INTRINSIC_BOARDS = ("chessboard", "charuco")
 
-pass_arm = click.make_pass_decorator(ArmContext)
-
-
-def is_twin_port(port: str) -> bool:
-    return port == "twin" or port.startswith("twin://")
-
-
-def twin_port_with_board(port: str, board: str) -> str:
-    """The twin URL with ``board`` on its table, unless the URL already sets the scene."""
-    given = parse_qs(urlsplit(port).query).get("board") if "://" in port else None
-    if given and given[-1] != board:
-        raise ConfigError(f"{port}: this step looks for a {board} board, but the twin's "
-                          f"table has a {given[-1]} board (board={board})")
-    if given or "scene=" in port:
-        return port
-    if port == "twin":
-        return f"twin://?board={board}"
-    return port + ("&" if "?" in port else "?") + f"board={board}"
-
-
-def default_camera(settings: Settings, camera: str | None) -> str:
-    if camera is not None:
-        return camera
-    if is_twin_port(settings.port):
-        return "twin"
-    raise ConfigError("--camera is required with a real arm (e.g. --camera /dev/video0); "
-                      "the twin's camera is the default only with --port twin")
-
-
-def _confirm(settings: Settings, yes: bool) -> Any:
+def _confirm(yes: bool, on_twin: bool) -> Any:
     """Asks before each picture on hardware (None: take them all)."""
-    if yes or is_twin_port(settings.port):
+    if yes or on_twin:
         return None
     if not sys.stdin.isatty():
         raise ConfigError("no terminal to ask on before each picture: add --yes to take "
@@ -67,14 +42,6 @@ def _confirm(settings: Settings, yes: bool) -> Any:
         return str(answer).strip().lower() != "s"
 
     return ask
-
-
-def check_writable(path: Path) -> None:
-    """Refuse an output file that cannot be written, before any arm motion."""
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir() or not os.access(folder, os.W_OK):
-        raise ConfigError(f"cannot write {path}: folder {folder} does not exist or is not "
-                          "writable")
 
 
 def _board_at(text: str) -> tuple[float, float]:
@@ -107,34 +74,33 @@ def _take_pictures(ac: ArmContext, board: str, board_at: str, views: int, seed: 
                    intrinsics_file: Path | None = None) -> list[Any]:
     """Plan the views of ``board``, then move the arm through them taking pictures;
     everything is checked before the arm moves, and it ends at home."""
-    from busarm.apps.camera_calibration import calibration_views, capture_views
+    from busarm.arm.camera_mount import CameraMount
+    from busarm.robot.camera_calibration import calibration_views, capture_views
     from busarm.twin.boards import BOARD_SPECS, board2base, calibration_board
-    from busarm.vision.camera import open_camera
 
     settings = ac.settings
     spec = BOARD_SPECS[board]
     centre = _board_at(board_at)
     where = board2base(calibration_board(board, centre), ac.config.table_z_mm)
-    source_name = default_camera(settings, camera_src)
-    confirm = _confirm(settings, yes)
     poses = calibration_views(ac.kin, spec, where, views, intrinsics_guess=intrinsics,
-                              seed=seed)
-    port = settings.port
-    if is_twin_port(port):
-        port = twin_port_with_board(port, board)
-    else:
-        settings.err.print(f"Lay the {spec.describe()} flat with its centre at "
-                           f"({centre[0]:g}, {centre[1]:g}) mm, its long side across the "
-                           "arm's front; it must not move.", highlight=False)
-    with ac.open(port=port) as arm, open_camera(source_name) as source:
+                              seed=seed, mount=CameraMount.from_config(ac.config.camera))
+    with settings.open_robot(camera=camera_src, config=ac.config,
+                             arm_calibration=ac.calibration(), calibrate=False, board=board,
+                             needs=("camera",)) as robot:
+        source = robot.camera
+        confirm = _confirm(yes, robot.is_twin)
+        if not robot.is_twin:
+            settings.err.print(f"Lay the {spec.describe()} flat with its centre at "
+                               f"({centre[0]:g}, {centre[1]:g}) mm, its long side across the "
+                               "arm's front; it must not move.", highlight=False)
         if intrinsics is not None and (source.width_px, source.height_px) != (
                 intrinsics.width_px, intrinsics.height_px):
             raise ConfigError(f"{intrinsics_file} is for {intrinsics.width_px}x"
-                              f"{intrinsics.height_px} pictures; {source_name} gives "
+                              f"{intrinsics.height_px} pictures; {source.name} gives "
                               f"{source.width_px}x{source.height_px}")
-        taken = capture_views(arm, source, poses, spec, confirm=confirm,
+        taken = capture_views(robot.arm, source, poses, spec, confirm=confirm,
                               progress=_progress(settings))
-        arm.move_joints(ac.config.pose("home"))
+        robot.arm.move_joints(ac.config.pose("home"))
     return taken
 
 
@@ -165,7 +131,7 @@ def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, vi
     The arm takes the camera through views of the board from many angles, then the
     calibration is written to OUTPUT (busarm.camera_intrinsics, version 1).
     """
-    from busarm.apps.camera_calibration import intrinsics_from_views
+    from busarm.robot.camera_calibration import intrinsics_from_views
     from busarm.twin.boards import BOARD_SPECS
     from busarm.vision.calibration import calibrate_intrinsics, find_board, save_intrinsics
     from busarm.vision.camera import EndOfFrames, open_camera
@@ -218,7 +184,7 @@ def handeye(ac: ArmContext, intrinsics: Path, camera_src: str | None, views: int
     wrist-pitch link is solved from the *measured* joints and written to OUTPUT
     (busarm.hand_eye, version 1).
     """
-    from busarm.apps.camera_calibration import hand_eye_from_views
+    from busarm.robot.camera_calibration import hand_eye_from_views
     from busarm.vision.calibration import load_intrinsics, save_hand_eye
 
     check_writable(output)

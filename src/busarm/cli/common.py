@@ -1,4 +1,6 @@
-"""What every command shares: the global settings, parameter types, consoles.
+"""What every command shares: the global settings, parameter types, consoles, the arm
+and robot options, rich tables and progress bars. Command modules import shared helpers
+from here only.
 
 Parameter types check values (IDs, angles, times) while argv is parsed, so bad
 input fails before any port is opened and nothing reaches the bus.
@@ -7,18 +9,37 @@ input fails before any port is opened and nothing reaches the bus.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Iterator
+import os
+import signal
+import threading
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Any, TypeVar
+from pathlib import Path
+from types import FrameType
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TaskID,
+    TextColumn,
+    TimeElapsedColumn,
+)
+from rich.table import Table
 
-from busarm.bus.driver import DEFAULT_RETRIES, DEFAULT_TIMEOUT_MARGIN_S, ServoBus
+from busarm.arm.arm import Arm
+from busarm.arm.calibration import Calibration, load_calibration
+from busarm.arm.config import ArmConfig, load_arm_config
+from busarm.arm.kinematics import ArmKinematics
+from busarm.bus.driver import DEFAULT_RETRIES, DEFAULT_TIMEOUT_MARGIN_S, ScanResult, ServoBus
 from busarm.bus.transport import DEFAULT_BAUDRATE
 from busarm.errors import BusTimeoutError, ConfigError, ProtocolError
-from busarm.protocol import MAX_SERVO_ID, check_servo_id
+from busarm.protocol import MAX_SERVO_ID, AlarmFlag, check_servo_id
+from busarm.twin.scene import MAX_BLOCKS, Scene
 from busarm.units import (
     MOVE_TIME_MAX_MS,
     POSITION_MAX_DEG,
@@ -26,6 +47,10 @@ from busarm.units import (
     check_range,
     parse_ids,
 )
+
+if TYPE_CHECKING:
+    from busarm.robot import Robot
+    from busarm.sim.pty import PtyServer
 
 T = TypeVar("T")
 
@@ -90,12 +115,33 @@ class Settings:
         except BaseException:
             bus.close()  # nothing was written: no emergency stop
             raise
-        with bus:
-            try:
-                yield bus
-            except BaseException as exc:
-                exc.busarm_servos_stopped = True  # type: ignore[attr-defined]
-                raise
+        with _marking_the_stop(bus):
+            yield bus
+
+    @contextmanager
+    def open_robot(self, *, default: str = "sim", **options: Any) -> Iterator[Robot]:
+        """The robot on ``--port`` (``default`` when none was given): ``Robot.open`` with
+        the bus settings and ``options``. An exception leaving the body stops and holds
+        the arm (the error message says so)."""
+        from busarm.robot import Robot  # MuJoCo and OpenCV load only for commands that use it
+
+        robot = Robot.open(self.port if self.port_given else default, baudrate=self.baudrate,
+                           echo=self.echo, timeout_margin_s=self.timeout_margin_ms / 1000.0,
+                           retries=self.retries, **options)
+        with _marking_the_stop(robot):
+            yield robot
+
+
+@contextmanager
+def _marking_the_stop(bus_or_robot: ServoBus | Robot) -> Iterator[None]:
+    """``with bus_or_robot`` (which stops every servo on an exception); an exception that
+    leaves is marked so, for the error message to say that the servos were stopped."""
+    with bus_or_robot:
+        try:
+            yield
+        except BaseException as exc:
+            exc.busarm_servos_stopped = True  # type: ignore[attr-defined]
+            raise
 
 
 def _ping(bus: ServoBus, sid: int) -> None:
@@ -171,8 +217,7 @@ class AngleType(CheckedType):
 
     def parse(self, text: str) -> float:
         value = _number(text, f"an angle in deg, {self.lo:g}..{self.hi:g}")
-        check_range("angle", value, self.lo, self.hi, "deg")
-        return value
+        return check_range("angle", value, self.lo, self.hi, "deg")
 
 
 class RangeType(CheckedType):
@@ -183,8 +228,7 @@ class RangeType(CheckedType):
 
     def parse(self, text: str) -> float:
         value = _number(text, f"{self.name} in {self.unit}, {self.lo:g}..{self.hi:g}")
-        check_range(self.name, value, self.lo, self.hi, self.unit)
-        return value
+        return check_range(self.name, value, self.lo, self.hi, self.unit)
 
 
 class IdListType(CheckedType):
@@ -234,3 +278,215 @@ def try_read(read: Callable[[], T]) -> T | str:
         return NO_REPLY
     except ProtocolError:
         return "bad reply"
+
+
+def fmt(value: object, spec: str = "", unit: str = "") -> str:
+    """``value`` formatted with ``spec`` and ``unit``; strings ("no reply") as they are."""
+    if isinstance(value, str):
+        return value
+    text = format(value, spec)
+    return f"{text} {unit}" if unit else text
+
+
+def state_row(bus: ServoBus, sid: int, *, torque: bool = False) -> list[str]:
+    """ID, position, temperature and voltage of one servo (and torque); "no reply" per field."""
+    row = [
+        str(sid),
+        fmt(try_read(lambda: bus.read_position_deg(sid)), "+.1f"),
+        fmt(try_read(lambda: bus.read_temp_c(sid)), "d"),
+        fmt(try_read(lambda: bus.read_vin_v(sid)), ".2f"),
+    ]
+    if torque:
+        loaded = try_read(lambda: bus.read_torque(sid))
+        row.append(loaded if isinstance(loaded, str) else ("on" if loaded else "off"))
+    return row
+
+
+def state_table(
+    bus: ServoBus, ids: Iterable[int], *, title: str | None = None, torque: bool = False,
+    targets: dict[int, float] | None = None,
+) -> Table:
+    """A table of live readings, one row per servo (optionally with each target)."""
+    table = Table(title=title, title_justify="left")
+    table.add_column("ID", justify="right")
+    if targets is not None:
+        table.add_column("target (deg)", justify="right")
+    table.add_column("position (deg)", justify="right")
+    table.add_column("temp (C)", justify="right")
+    table.add_column("voltage (V)", justify="right")
+    if torque:
+        table.add_column("torque", justify="center")
+    for sid in ids:
+        row = state_row(bus, sid, torque=torque)
+        if targets is not None:
+            row.insert(1, f"{targets[sid]:+.1f}" if sid in targets else "")
+        style = "red" if NO_REPLY in row else None
+        table.add_row(*row, style=style)
+    return table
+
+
+def scan_with_progress(bus: ServoBus, ids: Sequence[int], console: Console) -> ScanResult:
+    """``bus.scan(ids)`` behind a progress bar (shown on ``console``, then removed)."""
+    with scan_progress(console, len(ids)) as advance:
+        return bus.scan(ids, progress=lambda _sid: advance())
+
+
+@contextmanager
+def scan_progress(console: Console, total: int) -> Iterator[Callable[[], None]]:
+    """A transient progress bar for a scan of ``total`` IDs; yields its advance()."""
+    progress = Progress(
+        TextColumn("scanning IDs"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        transient=True,
+    )
+    with progress:
+        task: TaskID = progress.add_task("scan", total=total)
+        yield lambda: progress.advance(task, 1)
+
+
+def scan_report(bus: ServoBus, result: ScanResult, console: Console, asked: int) -> None:
+    """Print the servos a scan found (with readings) and any conflicts, in red."""
+    console.print(
+        f"scanned {asked} ID(s) in {result.duration_s:.2f} s: "
+        f"found {len(result.found)} servo(s)"
+        + (f": {', '.join(map(str, result.found))}" if result.found else "")
+    )
+    healthy = [sid for sid in result.found if sid not in result.conflicts]
+    if healthy:
+        console.print(state_table(bus, healthy))
+    for sid in result.conflicts:
+        console.print(
+            f"[red]conflict: more than one servo answers at ID {sid} (duplicate IDs); "
+            "disconnect all but one and renumber with set-id[/red]"
+        )
+
+
+class ArmContext:
+    """The arm options of the ``arm`` and ``actions`` groups, loaded on first use."""
+
+    def __init__(self, settings: Settings, config: str, calibration: str | None) -> None:
+        self.settings = settings
+        self._config_name = config
+        self._calibration_path = calibration
+        self._config: ArmConfig | None = None
+
+    @property
+    def config(self) -> ArmConfig:
+        if self._config is None:
+            self._config = load_arm_config(self._config_name)
+        return self._config
+
+    @property
+    def kin(self) -> ArmKinematics:
+        return ArmKinematics.from_config(self.config)
+
+    def calibration(self) -> Calibration | None:
+        if self._calibration_path is None:
+            return None
+        return load_calibration(self._calibration_path)
+
+    @contextmanager
+    def open(self, *, check: bool = True, port: str | None = None) -> Iterator[Arm]:
+        """The arm on ``port`` (default ``--port``): every servo must answer first (nothing
+        is written if one does not); an exception in the body stops and holds the arm."""
+        calibration = self.calibration()
+        with self.settings.open_bus(port, check_ids=self.config.servo_ids) as bus:
+            yield Arm(bus, self.config, calibration, check=check)
+
+
+pass_arm = click.make_pass_decorator(ArmContext)
+
+_CONFIG_HELP = "Arm description: a shipped name (jetauto_pro) or a TOML file."
+_CAL_HELP = "Calibration file from `busarm arm calibrate` (default: none, nominal zeros)."
+
+
+def arm_options(f: Callable[..., Any]) -> Callable[..., Any]:
+    f = click.option("--calibration", envvar="BUSARM_CALIBRATION", show_envvar=True,
+                     type=click.Path(dir_okay=False), help=_CAL_HELP)(f)
+    return click.option("--config", "config", envvar="BUSARM_ARM", default="jetauto_pro",
+                        show_default=True, show_envvar=True, help=_CONFIG_HELP)(f)
+
+
+DEFAULT_INTRINSICS_OUT = "camera.json"
+DEFAULT_HAND_EYE_OUT = "hand_eye.json"
+
+
+def check_writable(path: Path) -> None:
+    """Refuse an output file that cannot be written, before any arm motion."""
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir() or not os.access(folder, os.W_OK):
+        raise ConfigError(f"cannot write {path}: folder {folder} does not exist or is not "
+                          "writable")
+
+
+DEFAULT_COLORS = "red,green,blue"
+
+
+def scene_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """--scene FILE or --seed/--blocks/--colors: what stands on the twin's table."""
+    func = click.option("--colors", default=None,
+                        help=f"Block colours of a random scene, comma separated "
+                             f"[default: {DEFAULT_COLORS}].")(func)
+    func = click.option("--blocks", type=click.IntRange(0, MAX_BLOCKS), default=None,
+                        help="How many blocks in a random scene [default: 5].")(func)
+    func = click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=None,
+                        help="Seed of a random scene (default 0).")(func)
+    func = click.option("--scene", "scene_file",
+                        type=click.Path(dir_okay=False, path_type=Path),
+                        help="A scene file (busarm twin scene writes one to edit).")(func)
+    return func
+
+
+def make_scene(scene_file: Path | None, seed: int | None, blocks: int | None,
+               colors: str | None) -> Scene:
+    """The scene the options ask for (a file, or a seeded random scene)."""
+    from busarm.twin.scene import load_scene, random_scene
+
+    if scene_file is not None:
+        if seed is not None or blocks is not None or colors is not None:
+            raise ConfigError("give either --scene or --seed/--blocks/--colors, not both")
+        return load_scene(scene_file)
+    names = [c.strip() for c in (colors or DEFAULT_COLORS).split(",") if c.strip()]
+    return random_scene(seed or 0, 5 if blocks is None else blocks, names)
+
+
+NUMBER_ARGS = {"ignore_unknown_options": True}
+
+
+def alarm_names(mask: AlarmFlag) -> str:
+    """``over-temperature,stalled`` style names of an alarm mask (``none`` if empty)."""
+    names = [f.name.lower().replace("_", "-") for f in AlarmFlag if f and f in mask and f.name]
+    return ",".join(names) or "none"
+
+
+def serve_until_stopped(server: PtyServer) -> None:
+    """Serve until SIGINT or SIGTERM, then stop the server (which powers the servos off)."""
+    restore = interrupt_on_signals()
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        restore()
+        server.stop()
+
+
+def interrupt_on_signals() -> Callable[[], None]:
+    """Make SIGINT and SIGTERM raise KeyboardInterrupt (even if SIGINT was inherited as
+    ignored, as in background jobs); return a function restoring the old handlers."""
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        raise KeyboardInterrupt
+
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+    def restore() -> None:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+    return restore

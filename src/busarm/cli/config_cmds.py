@@ -10,16 +10,17 @@ from rich.table import Table
 from busarm.bus.driver import ServoBus
 from busarm.cli.common import (
     ANGLE,
+    NUMBER_ARGS,
     SERVO_ID,
     AngleType,
     CheckedType,
     RangeType,
     Settings,
+    alarm_names,
+    fmt,
     pass_settings,
     try_read,
 )
-from busarm.cli.render import fmt
-from busarm.cli.servo_cmds import NUMBER_ARGS, alarm_names
 from busarm.errors import ConfigError
 from busarm.protocol import AlarmFlag
 from busarm.units import (

@@ -7,16 +7,13 @@ same driver and arm code as a real arm.
 
 from __future__ import annotations
 
-import time
-
 import click
 from rich.table import Table
 
 from busarm.arm.arm import Arm
 from busarm.arm.config import load_arm_config
 from busarm.arm.motion import LinePath
-from busarm.cli.common import Settings, pass_settings
-from busarm.cli.render import scan_report, scan_with_progress
+from busarm.cli.common import Settings, pass_settings, scan_report, scan_with_progress
 from busarm.protocol import MAX_SERVO_ID
 
 PICK = (200.0, -110.0)
@@ -58,16 +55,16 @@ def demo(settings: Settings, no_timing: bool, line_speed: float) -> None:
                          title_justify="left")
             for col in ("step", "t (s)", "x (mm)", "y (mm)", "z (mm)", "pitch", "off line (mm)"):
                 path.add_column(col, justify="right")
-            t0 = time.monotonic()
+            t0 = arm.clock.now()
 
             def row(step: str, off: float | None = None) -> None:
                 p = arm.read_pose()
-                path.add_row(step, f"{time.monotonic() - t0:.1f}", f"{p.x_mm:.1f}",
+                path.add_row(step, f"{arm.clock.now() - t0:.1f}", f"{p.x_mm:.1f}",
                              f"{p.y_mm:.1f}", f"{p.z_mm:.1f}", f"{p.pitch_deg:.1f}",
                              "" if off is None else f"{off:.2f}")
 
             def line(step: str, x: float, y: float, z: float) -> None:
-                start = time.monotonic() - t0
+                start = arm.clock.now() - t0
                 rec = arm.move_line(x, y, z, -90.0, 0.0, speed_mm_s=line_speed, record=True)
                 segment = LinePath(arm.kin.fk(rec.commanded_deg[0]), arm.kin.fk(
                     rec.commanded_deg[-1]))
@@ -98,7 +95,7 @@ def demo(settings: Settings, no_timing: bool, line_speed: float) -> None:
             row("home")
             out.print(path)
             counters = ", ".join(f"{k.replace('_', ' ')}: {v}" for k, v in bus.stats.items())
-        out.print(f"done in {time.monotonic() - t0:.1f} s ({counters})")
+        out.print(f"done in {arm.clock.now() - t0:.1f} s ({counters})")
 
 
 COMMANDS = [demo]

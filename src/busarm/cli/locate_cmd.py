@@ -7,22 +7,25 @@ both camera calibrations (``busarm camera calibrate``, ``busarm camera handeye``
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 import click
 
-from busarm.cli.arm_cmds import ArmContext
-from busarm.cli.camera_cmds import DEFAULT_HAND_EYE_OUT, DEFAULT_INTRINSICS_OUT, default_camera
-from busarm.cli.common import RangeType, Settings, pass_settings
-from busarm.errors import ConfigError
+from busarm.cli.common import (
+    DEFAULT_HAND_EYE_OUT,
+    DEFAULT_INTRINSICS_OUT,
+    ArmContext,
+    RangeType,
+    Settings,
+    pass_settings,
+)
 
 BLOCK = RangeType("block size", 10.0, 60.0, "mm")
 
 
 @click.command()
 @click.option("--camera", "camera_src", default=None,
-              help="Camera source (/dev/video0, twin...); default: the twin's with --port twin.")
+              help="Camera source (/dev/video0...); default: the twin's with --port twin.")
 @click.option("--intrinsics", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               default=DEFAULT_INTRINSICS_OUT, show_default=True,
               help="Camera intrinsics from `busarm camera calibrate`.")
@@ -55,38 +58,23 @@ def locate(settings: Settings, camera_src: str | None, intrinsics: Path, hand_ey
     block reaches (top-down, tilted, or why not). Blobs that are not block-sized are
     left out, and so are the vendor's black and white (lines, the table) unless asked.
     """
-    from busarm.apps.locate import NOT_BLOCK_COLORS, BlockLocator
     from busarm.vision.annotate import annotate, save_image
-    from busarm.vision.calibration import load_hand_eye, load_intrinsics
-    from busarm.vision.camera import open_camera
-    from busarm.vision.color import (
-        ColorDetector,
-        default_thresholds,
-        load_thresholds,
-        parse_color_names,
-    )
+    from busarm.vision.color import default_thresholds, load_thresholds, parse_color_names
 
     ac = ArmContext(settings, config, None)
-    intr = load_intrinsics(intrinsics)
-    he = load_hand_eye(hand_eye, intrinsics=intr)
     table = load_thresholds(thresholds) if thresholds else default_thresholds()
-    names = parse_color_names(colors) if colors else [
-        c for c in table.names if c not in NOT_BLOCK_COLORS]
-    detector = ColorDetector(table, colors=names)
-    source_name = default_camera(settings, camera_src)
-    with ac.open() as arm, open_camera(source_name) as source:
-        if (source.width_px, source.height_px) != (intr.width_px, intr.height_px):
-            raise ConfigError(f"{intrinsics} is for {intr.width_px}x{intr.height_px} pictures; "
-                              f"{source_name} gives {source.width_px}x{source.height_px}")
+    names = parse_color_names(colors) if colors else None
+    with settings.open_robot(camera=camera_src, config=ac.config, intrinsics=intrinsics,
+                             hand_eye=hand_eye, calibrate=False,
+                             needs=("camera", "camera_calibration")) as robot:
+        locator = robot.locator(names, table, block_mm)
         if not here:
-            arm.move_joints(ac.config.pose(pose))
-            time.sleep(0.3)  # let the arm settle and the camera deliver a fresh frame
-        locator = BlockLocator(arm.kin, intr, he, detector, table_z_mm=ac.config.table_z_mm,
-                               block_size_mm=block_mm)
+            robot.arm.move_joints(ac.config.pose(pose))
+            robot.clock.sleep(0.3)  # let the arm settle and the camera deliver a new frame
         pictures = []
         for _ in range(frames):
-            image = source.read().image
-            pictures.append((image, arm.read_joints_deg()))
+            image = robot.camera.read().image
+            pictures.append((image, robot.arm.read_joints_deg()))
     sightings = locator.locate_averaged(pictures)
     if save is not None:
         save.mkdir(parents=True, exist_ok=True)

@@ -24,6 +24,7 @@ from busarm.cli import (
     camera_cmds,
     config_cmds,
     demo,
+    locate_cmd,
     pick_cmd,
     proto_cmds,
     servo_cmds,
@@ -138,6 +139,8 @@ for _module in (
         cli.add_command(_command)
 
 cli.add_command(bench)
+# `vision locate` needs the arm; the rest of `vision` does not.
+vision_cmds.vision.add_command(locate_cmd.locate)
 
 
 def main() -> None:

@@ -11,15 +11,20 @@ import json
 import time
 from pathlib import Path
 from typing import Any
-from urllib.parse import quote
 
 import click
 
 from busarm.arm.config import ArmConfig
-from busarm.cli.arm_cmds import ArmContext
-from busarm.cli.camera_cmds import check_writable, is_twin_port
-from busarm.cli.common import Settings, parse_float_list, pass_settings
-from busarm.cli.twin_cmds import DEFAULT_COLORS, scene_options
+from busarm.cli.common import (
+    DEFAULT_COLORS,
+    ArmContext,
+    Settings,
+    check_writable,
+    make_scene,
+    parse_float_list,
+    pass_settings,
+    scene_options,
+)
 from busarm.errors import BusArmError, ConfigError
 
 DEFAULT_REPORT = "pick-sort-report"
@@ -52,16 +57,6 @@ def parse_survey(text: str, config: ArmConfig) -> list[tuple[float, ...]]:
             (pose[0],) = parse_float_list(bearing, f"--survey {part.strip()!r}: the bearing")
         poses.append(config.check_joints(pose))
     return poses
-
-
-def _twin_url(scene_file: Path | None, seed: int | None, blocks: int | None,
-              colors: str | None) -> str:
-    if scene_file is not None:
-        if seed is not None or blocks is not None:
-            raise ConfigError("give either --scene or --seed/--blocks, not both")
-        return f"twin://?scene={quote(str(scene_file))}"
-    return (f"twin://?seed={seed or 0}&blocks={5 if blocks is None else blocks}"
-            f"&colors={colors or DEFAULT_COLORS}")
 
 
 @click.command("pick-sort")
@@ -99,61 +94,32 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
     Prints what happened to every block and the totals, and writes a report folder
     (JSON, the picture each pick started from, the table before and after, a GIF).
     """
-    from busarm.apps.locate import BlockLocator
     from busarm.apps.pick_report import write_report
     from busarm.apps.pick_sort import PickSorter, PickSortSettings
-    from busarm.twin.camera import TwinCamera
-    from busarm.twin.transport import TwinTransport
     from busarm.vision.annotate import annotate
-    from busarm.vision.calibration import load_hand_eye, load_intrinsics
-    from busarm.vision.camera import open_camera
-    from busarm.vision.color import ColorDetector, default_thresholds, parse_color_names
+    from busarm.vision.color import parse_color_names
 
-    twin_given = scene_file is not None or seed is not None or blocks is not None
-    on_twin = not settings.port_given or is_twin_port(settings.port)
-    if twin_given and not on_twin:
-        raise ConfigError("--scene/--seed/--blocks are for the twin; drop --port, or use "
-                          "--port twin")
-    port = _twin_url(scene_file, seed, blocks, colors) if on_twin and (
-        twin_given or settings.port in ("sim", "twin")) else settings.port
     names = parse_color_names(colors or DEFAULT_COLORS)
-    if not on_twin and (intrinsics is None or hand_eye is None or bins_text is None
-                        or camera_src is None):
-        raise ConfigError("on hardware pick-sort needs --camera, --intrinsics, --hand-eye "
-                          "(busarm camera calibrate / handeye) and --bins")
+    scene = None
+    if scene_file is not None or seed is not None or blocks is not None or (
+            not settings.port_given):
+        scene = make_scene(scene_file, seed, blocks, None if scene_file else colors)
     bins_given = parse_bins(bins_text) if bins_text is not None else None
     ac = ArmContext(settings, config, None)
     survey_poses = parse_survey(survey_text, ac.config)
-    # Everything is checked before anything runs: colours, the scene, the report folder.
-    detector = ColorDetector(default_thresholds().select(names))
-    if is_twin_port(port):
-        from busarm.twin.transport import scene_from_query, twin_query
-
-        scene_from_query(twin_query(port))
     check_writable(report_dir / "report.json" if report_dir.is_dir() else report_dir)
-    t_start = time.monotonic()
-    if intrinsics is None or hand_eye is None:
-        from busarm.apps.twin_setup import calibrate_in_twin
-
-        settings.err.print("calibrating the twin's camera (intrinsics, then hand-eye)...",
-                           highlight=False)
-        intrinsics, hand_eye, _ = calibrate_in_twin(report_dir / "calibration",
-                                                    intrinsics_views=12, hand_eye_views=10)
-    intr = load_intrinsics(intrinsics)
-    he = load_hand_eye(hand_eye, intrinsics=intr)
+    wall_start = time.monotonic()
     frames: list[Any] = []
     picks: list[tuple[str, Any]] = []
-    with ac.open(port=port) as arm, open_camera(camera_src or "twin") as camera:
-        transport = arm.bus.transport
-        twin = transport.twin if isinstance(transport, TwinTransport) else None
-        bins = bins_given if bins_given is not None else (
-            {b.color: (b.x_mm, b.y_mm) for b in twin.scene.bins} if twin else {})
-        overview = TwinCamera(twin, view="overview") if twin is not None else None
-        locator = BlockLocator(arm.kin, intr, he, detector, table_z_mm=ac.config.table_z_mm)
+    with settings.open_robot(default="twin", camera=camera_src, config=ac.config,
+                             intrinsics=intrinsics, hand_eye=hand_eye, bins=bins_given,
+                             scene=scene, calibration_dir=report_dir / "calibration",
+                             needs=("camera", "camera_calibration", "bins"),
+                             progress=lambda text: None if " view " in text else
+                             settings.err.print(text, highlight=False)) as robot:
 
         def on_step(step: str) -> None:
-            image = camera.read().image
-            frames.append(image)
+            frames.append(robot.camera.read().image)
 
         def on_pick(target: Any) -> None:
             image, found = sorter.last_survey[0]
@@ -162,12 +128,14 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
                 text_lines=[f"next: {target.color} at ({target.location.x_mm:.0f}, "
                             f"{target.location.y_mm:.0f}) mm"])))
 
-        sorter = PickSorter(arm, camera, locator,
-                            {c: bins[c] for c in names if c in bins},
-                            survey_poses=survey_poses, settings=PickSortSettings(order=order),
+        sorter = PickSorter(robot, colors=names, survey_poses=survey_poses,
+                            settings=PickSortSettings(order=order),
                             progress=lambda text: settings.err.print(text, highlight=False),
                             on_step=on_step, on_pick=on_pick)
+        overview = robot.cameras.get("overview")
         before = overview.read().image if overview is not None else None
+        simulated = robot.clock.is_simulated
+        about = {"port": robot.port, "clock": "simulated" if simulated else "wall"}
         try:
             report = sorter.run()
         except BaseException:
@@ -180,18 +148,18 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
                                highlight=False, soft_wrap=True)
             try:
                 write_report(report_dir, stopped, picks=picks, camera_frames=frames,
-                             extra={"port": port})
+                             extra=about)
             except (BusArmError, OSError) as exc:  # the stop's own error is the one to see
                 settings.err.print(f"(the report could not be written: {exc})",
                                    highlight=False, soft_wrap=True)
             raise
-        arm.move_joints(ac.config.pose("home"))
+        robot.arm.move_joints(ac.config.pose("home"))
         after = overview.read().image if overview is not None else (
             sorter.last_survey[0][0] if sorter.last_survey else None)
     path = write_report(report_dir, report, before=before, after=after, picks=picks,
                         camera_frames=frames,
-                        extra={"port": port, "seconds_with_calibration":
-                               round(time.monotonic() - t_start, 1)})
+                        extra={**about, "wall_seconds_with_calibration":
+                               round(time.monotonic() - wall_start, 1)})
     if as_json:
         click.echo(json.dumps(json.loads(path.read_text()), indent=2))
         return
@@ -200,8 +168,10 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
         extra = f": {b.reason}" if b.reason else f", {b.attempts} attempt(s), {b.seconds:.1f} s"
         click.echo(f"{b.color:7s} at {where:18s} {b.outcome}{extra}")
     t = report.totals()
+    unit = "s of twin time" if simulated else "s"
     click.echo(f"sorted {t['sorted']}, failed {t['failed']}, skipped {t['skipped']}; median "
-               f"cycle {t['median_cycle_s']} s per block; {t['seconds']} s in all. Report: "
+               f"cycle {t['median_cycle_s']} {unit} per block; {t['seconds']} {unit} in all "
+               f"({time.monotonic() - wall_start:.0f} s on this computer). Report: "
                f"{report_dir}/")
 
 

@@ -14,19 +14,20 @@ from busarm.cli.common import (
     ANGLE,
     MOVE_TIME,
     NO_REPLY,
+    NUMBER_ARGS,
     POSE,
     SERVO_ID,
     SPEED,
     Settings,
+    alarm_names,
     pass_settings,
+    scan_with_progress,
     try_read,
 )
-from busarm.cli.render import scan_with_progress
 from busarm.errors import BusConflictError, BusTimeoutError, ConfigError
 from busarm.protocol import (
     BROADCAST_ID,
     MAX_SERVO_ID,
-    AlarmFlag,
     Command,
     ServoMode,
 )
@@ -37,15 +38,6 @@ WAIT_SLACK_S = 2.0
 """--wait allows the move's duration plus this before giving up."""
 
 # Negative numbers (angles, offsets) must reach the arguments, not the option parser.
-NUMBER_ARGS = {"ignore_unknown_options": True}
-
-
-def alarm_names(mask: AlarmFlag) -> str:
-    """``over-temperature,stalled`` style names of an alarm mask (``none`` if empty)."""
-    names = [f.name.lower().replace("_", "-") for f in AlarmFlag if f and f in mask and f.name]
-    return ",".join(names) or "none"
-
-
 def _move(r: Any) -> str:
     return f"{r.position_deg:+.1f} deg ({r.position_pulses} pulses), {r.time_s:g} s"
 

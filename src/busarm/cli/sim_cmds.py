@@ -6,21 +6,17 @@ depends on it.
 
 from __future__ import annotations
 
-import signal
 import sys
-import threading
-from collections.abc import Callable
 from pathlib import Path
-from types import FrameType
 from typing import TYPE_CHECKING
 
 import click
 
-from busarm.cli.common import CheckedType, Settings, pass_settings
+from busarm.cli.common import CheckedType, Settings, pass_settings, serve_until_stopped
 from busarm.units import parse_ids
 
 if TYPE_CHECKING:
-    from busarm.sim.pty import PtyServer
+    pass
 
 
 class SimIdsType(CheckedType):
@@ -96,36 +92,6 @@ def serve(
     )
     serve_until_stopped(server)
     click.echo("simulator stopped", err=True)
-
-
-def serve_until_stopped(server: PtyServer) -> None:
-    """Serve until SIGINT or SIGTERM, then stop the server (which powers the servos off)."""
-    restore = interrupt_on_signals()
-    try:
-        server.serve_forever()
-    except KeyboardInterrupt:
-        pass
-    finally:
-        restore()
-        server.stop()
-
-
-def interrupt_on_signals() -> Callable[[], None]:
-    """Make SIGINT and SIGTERM raise KeyboardInterrupt (even if SIGINT was inherited as
-    ignored, as in background jobs); return a function restoring the old handlers."""
-    if threading.current_thread() is not threading.main_thread():
-        return lambda: None
-
-    def handler(signum: int, frame: FrameType | None) -> None:
-        raise KeyboardInterrupt
-
-    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
-
-    def restore() -> None:
-        for sig, old in previous.items():
-            signal.signal(sig, old)
-
-    return restore
 
 
 COMMANDS = [sim]

@@ -6,45 +6,13 @@ MuJoCo is imported when a command runs, so the rest of the CLI never depends on 
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import click
 
-from busarm.cli.common import Settings, pass_settings
+from busarm.cli.common import Settings, make_scene, pass_settings, scene_options
 from busarm.errors import ConfigError
 from busarm.twin.scene import MAX_BLOCKS
-
-DEFAULT_COLORS = "red,green,blue"
-
-
-def scene_options(func: Callable[..., Any]) -> Callable[..., Any]:
-    """--scene FILE or --seed/--blocks/--colors: what stands on the twin's table."""
-    func = click.option("--colors", default=None,
-                        help=f"Block colours of a random scene, comma separated "
-                             f"[default: {DEFAULT_COLORS}].")(func)
-    func = click.option("--blocks", type=click.IntRange(0, MAX_BLOCKS), default=None,
-                        help="How many blocks in a random scene [default: 5].")(func)
-    func = click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=None,
-                        help="Seed of a random scene (default 0).")(func)
-    func = click.option("--scene", "scene_file",
-                        type=click.Path(dir_okay=False, path_type=Path),
-                        help="A scene file (busarm twin scene writes one to edit).")(func)
-    return func
-
-
-def make_scene(scene_file: Path | None, seed: int | None, blocks: int | None,
-               colors: str | None) -> Any:
-    """The scene the options ask for (a file, or a seeded random scene)."""
-    from busarm.twin.scene import load_scene, random_scene
-
-    if scene_file is not None:
-        if seed is not None or blocks is not None or colors is not None:
-            raise ConfigError("give either --scene or --seed/--blocks/--colors, not both")
-        return load_scene(scene_file)
-    names = [c.strip() for c in (colors or DEFAULT_COLORS).split(",") if c.strip()]
-    return random_scene(seed or 0, 5 if blocks is None else blocks, names)
 
 
 @click.group()
@@ -73,7 +41,7 @@ def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks:
     or SIGTERM.
     """
     from busarm.arm.config import load_arm_config
-    from busarm.cli.sim_cmds import serve_until_stopped
+    from busarm.cli.common import serve_until_stopped
     from busarm.sim.bus import WireTiming
     from busarm.sim.pty import PtyServer
     from busarm.twin.camera import CameraServer

@@ -15,7 +15,6 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from busarm.cli.common import RangeType
-from busarm.cli.locate_cmd import locate
 from busarm.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -174,7 +173,5 @@ def detect(
                            annotate(frame.image, detections, tags or (), lines))
             index += 1
 
-
-vision.add_command(locate)
 
 COMMANDS = [vision]

@@ -16,11 +16,11 @@ from __future__ import annotations
 
 import random
 import threading
-import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from busarm.clock import WALL_CLOCK, Clock
 from busarm.errors import ConfigError, ProtocolError
 from busarm.protocol import (
     BROADCAST_ID,
@@ -34,6 +34,7 @@ from busarm.protocol import (
 )
 from busarm.sim.servo import ServoParams, SimServo
 from busarm.sim.storage import load_state, record_from_servo, save_state, servo_from_record
+from busarm.units import check_range
 
 ARM_SERVO_IDS = (1, 2, 3, 4, 5, 10)
 """The JetAuto Pro arm: five 35 kg joints and the 20 kg gripper on ID 10."""
@@ -73,9 +74,7 @@ class FaultInjection:
 
     def __post_init__(self) -> None:
         for name in ("drop_rate", "corrupt_rate", "late_rate"):
-            v = getattr(self, name)
-            if not 0.0 <= v <= 1.0:
-                raise ConfigError(f"{name} = {v!r} is out of range 0..1")
+            check_range(name, getattr(self, name), 0.0, 1.0)
         if self.late_s < 0:
             raise ConfigError(f"late_s = {self.late_s!r} must be >= 0")
         if self.directions not in ("rx", "tx", "both"):
@@ -124,7 +123,7 @@ class SimBus:
         timing: WireTiming | None = None,
         echo: bool = False,
         faults: FaultInjection | None = None,
-        clock: Callable[[], float] = time.monotonic,
+        clock: Clock = WALL_CLOCK,
         state_file: Path | None = None,
     ) -> None:
         self.servos = list(servos)
@@ -151,13 +150,13 @@ class SimBus:
         *,
         gripper_id: int | None = GRIPPER_ID,
         state_file: Path | None = None,
-        clock: Callable[[], float] = time.monotonic,
+        clock: Clock = WALL_CLOCK,
         **kwargs: object,
     ) -> SimBus:
         """Servos with these IDs (the arm's by default). With ``state_file``, their stored
         settings are loaded from it if it exists and saved to it on every saved write."""
         ids = list(ids)
-        now = clock()
+        now = clock.now()
         if state_file is not None and not state_file.parent.is_dir():
             raise ConfigError(
                 f"state file {state_file}: directory {state_file.parent} does not exist"
@@ -181,7 +180,7 @@ class SimBus:
     def receive(self, data: bytes) -> None:
         """Bytes the host has put on the line."""
         with self._lock:
-            now = self.clock()
+            now = self.clock.now()
             t = self.timing
             done = max(now, self._line_in_free) + (len(data) * t.byte_s if t.enabled else 0.0)
             self._line_in_free = done
@@ -195,7 +194,7 @@ class SimBus:
     def pop_output(self, max_bytes: int | None = None) -> bytes:
         """The bytes due on the host's side by now (at most ``max_bytes``; the rest stay)."""
         with self._lock:
-            now = self.clock()
+            now = self.clock.now()
             out = bytearray()
             while self._out and self._out[0][0] <= now:
                 when, data = self._out.pop(0)
@@ -235,7 +234,7 @@ class SimBus:
         stops the gripper servo at BLOCK_GRIP_PULSES, as a real block would."""
         with self._lock:
             gripper = self.servo(GRIPPER_ID)
-            gripper.advance(self.clock())
+            gripper.advance(self.clock.now())
             gripper.set_obstacle(None, BLOCK_GRIP_PULSES if present else None)
 
     def servo(self, servo_id: int) -> SimServo:
@@ -248,7 +247,7 @@ class SimBus:
     def advance(self) -> None:
         """Bring every servo's motion and temperature up to the present."""
         with self._lock:
-            now = self.clock()
+            now = self.clock.now()
             for s in self.servos:
                 s.advance(now)
 

@@ -15,7 +15,7 @@ import time
 import tty
 from types import TracebackType
 
-from busarm.errors import TransportError
+from busarm.errors import ConfigError, TransportError
 from busarm.sim.bus import SimBus
 
 _SPIN_S = 0.00015  # below this, spin instead of sleeping: select() overshoots by ~50-100 us
@@ -25,6 +25,9 @@ class PtyServer:
     """Serves ``bus`` on a new pseudo-terminal from a background thread."""
 
     def __init__(self, bus: SimBus) -> None:
+        if bus.clock.is_simulated:
+            # Programs at the other end wait in wall seconds; nothing would move the time.
+            raise ConfigError("a pty serves a bus on the wall clock, not a simulated one")
         self.bus = bus
         self._master = -1
         self._slave = -1

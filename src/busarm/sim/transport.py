@@ -19,14 +19,13 @@ URL query parameters (all optional):
 from __future__ import annotations
 
 import threading
-import time
 from pathlib import Path
 from urllib.parse import parse_qs, urlsplit
 
 from busarm.errors import ConfigError, TransportError
 from busarm.protocol import SERVO_TURNAROUND_S
 from busarm.sim.bus import ARM_SERVO_IDS, FaultInjection, SimBus, WireTiming
-from busarm.units import parse_ids
+from busarm.units import check_range, parse_ids
 
 _KNOWN = {"ids", "echo", "timing", "turnaround_ms", "drop", "corrupt", "late", "late_ms", "seed",
           "state", "block"}
@@ -62,9 +61,9 @@ def sim_bus_from_url(url: str, baudrate: int = 115200) -> SimBus:
         )
     q = {k: v[-1] for k, v in raw.items()}
     ids = parse_ids(q["ids"]) if "ids" in q else list(ARM_SERVO_IDS)
-    turnaround_ms = query_float(q, "turnaround_ms", SERVO_TURNAROUND_S * 1000)
-    if not 0 <= turnaround_ms <= 100:
-        raise ConfigError(f"sim URL: turnaround_ms={turnaround_ms} is out of range 0..100")
+    turnaround_ms = check_range("sim URL: turnaround_ms",
+                                query_float(q, "turnaround_ms", SERVO_TURNAROUND_S * 1000),
+                                0.0, 100.0, "ms")
     timing = WireTiming(baudrate, turnaround_ms / 1000.0, query_flag(q, "timing", True))
     faults = FaultInjection(
         drop_rate=query_float(q, "drop", 0.0),
@@ -90,6 +89,7 @@ class SimTransport:
         self.name = name
         self.baudrate = bus.timing.baudrate
         self.latency_s = 0.0
+        self.clock = bus.clock
         self._closed = False
         self._lock = threading.Lock()
 
@@ -99,18 +99,19 @@ class SimTransport:
 
     def read(self, max_bytes: int, timeout_s: float) -> bytes:
         self._check_open()
-        deadline = time.monotonic() + max(timeout_s, 0.0)
+        clock = self.clock
+        deadline = clock.now() + max(timeout_s, 0.0)
         with self._lock:
             while True:
                 data = self.bus.pop_output(max_bytes)
                 if data:
                     return data
-                now = time.monotonic()
+                now = clock.now()
                 due = self.bus.next_output_at()
                 if now >= deadline:
                     return b""
                 wake = deadline if due is None else min(max(due, now), deadline)
-                time.sleep(max(wake - now, 0.0))
+                clock.sleep(max(wake - now, 0.0))
 
     def reset_input(self) -> None:
         self._check_open()

@@ -17,7 +17,7 @@ import numpy.typing as npt
 
 from busarm.errors import ConfigError
 from busarm.twin.scene import BASE_CLEARANCE_MM, Board, Scene
-from busarm.vision.calibration import (
+from busarm.vision.calibration.boards import (
     BoardSpec,
     CharucoSpec,
     ChessboardSpec,

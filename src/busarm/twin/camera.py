@@ -1,7 +1,8 @@
 """The twin's arm camera as a vision camera source, in this process or over loopback.
 
-- ``twin``: the active twin of this process (the one ``--port twin`` opened), or, when
-  there is none, a new one (``twin://?seed=3&blocks=5`` picks its scene, as for the port);
+- ``twin``: a new twin of its own (``twin://?seed=3&blocks=5`` picks its scene, as for the
+  port); the camera of a twin the program already has is ``TwinCamera(twin)`` (a
+  ``busarm.robot.Robot`` on a twin hands out its own as ``robot.camera``);
 - ``twin://127.0.0.1:PORT``: the camera of a ``busarm twin serve`` in another process.
 
 The wire format of the loopback camera is one request byte ``F`` per frame, answered by
@@ -23,7 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from busarm.errors import CameraError, ConfigError
-from busarm.twin.twin import Twin, active_twin
+from busarm.twin.twin import Twin
 from busarm.vision.camera import CameraBase
 
 _HEADER = struct.Struct("<4sIId")
@@ -49,6 +50,9 @@ class TwinCamera(CameraBase):
         if self.twin.is_closed:
             raise CameraError(f"{self.name}: the twin was closed")
         return self.twin.render_camera() if self.view == "arm" else self.twin.render_overview()
+
+    def _timestamp(self) -> float:
+        return self.twin.clock.now()
 
     def _release(self) -> None:
         if self._owns:
@@ -122,9 +126,6 @@ def open_twin_camera(spec: str, **options: object) -> TwinCamera | RemoteTwinCam
             raise ConfigError(f"twin camera {spec!r}: expected twin://127.0.0.1:PORT with "
                               "PORT 1..65535 (the address `busarm twin serve` prints)")
         return RemoteTwinCamera(parts.hostname, port)
-    twin = active_twin()
-    if twin is not None and (parts is None or not parts.query):
-        return TwinCamera(twin, view=view)
     from busarm.twin.transport import twin_from_url
 
     return TwinCamera(twin_from_url(spec), view=view, owns_twin=True)

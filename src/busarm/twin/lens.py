@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from busarm.errors import ConfigError
+from busarm.units import check_int_range
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -47,10 +48,8 @@ class LensSpec:
         default_factory=list, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        for name, lo, hi in (("width_px", 16, 4096), ("height_px", 16, 4096)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-                raise ConfigError(f"lens {name} = {v!r} is out of range {lo}..{hi}")
+        check_int_range("lens width_px", self.width_px, 16, 4096)
+        check_int_range("lens height_px", self.height_px, 16, 4096)
         for name in ("fx_px", "fy_px", "cx_px", "cy_px", "oversample"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):

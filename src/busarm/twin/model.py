@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from busarm.arm.camera_mount import CameraMount
 from busarm.arm.config import ArmConfig
 from busarm.twin.scene import COLORS, Scene
 
@@ -53,49 +54,6 @@ ARM_RGBA = "0.13 0.13 0.14 1"
 TABLE_RGB = (0.78, 0.76, 0.72)
 TABLE_THICKNESS_MM = 20.0
 LINK_MASS_KG = (0.25, 0.15, 0.12, 0.10, 0.15)
-
-
-@dataclass(frozen=True)
-class CameraMount:
-    """Where the arm camera sits: a pose in the wrist-pitch link's DH frame (frame 4).
-
-    ``cam2link`` follows OpenCV's camera axes (x right, y down, z forward), in mm.
-    """
-
-    cam2link: FloatArray
-
-    @classmethod
-    def jetauto(cls, behind_mm: float = 51.0, above_mm: float = 64.0,
-                tilt_deg: float = 0.0) -> CameraMount:
-        """The vendor's mount: ``behind_mm`` behind and ``above_mm`` above the wrist pitch
-        axis (field notes), looking along the tool, tilted ``tilt_deg`` toward it.
-
-        In frame 4 the tool axis is +y and "above" (seen with the tool horizontal) is +x.
-        """
-        t = math.radians(tilt_deg)
-        z_cam = np.array([-math.sin(t), math.cos(t), 0.0])   # forward, tilted down
-        y_cam = np.array([-math.cos(t), -math.sin(t), 0.0])  # image down
-        x_cam = np.cross(y_cam, z_cam)
-        m = np.eye(4)
-        m[:3, 0], m[:3, 1], m[:3, 2] = x_cam, y_cam, z_cam
-        m[:3, 3] = (above_mm, -behind_mm, 0.0)
-        return cls(m)
-
-    def offset(self, translation_mm: tuple[float, float, float],
-               rotation_deg: tuple[float, float, float]) -> CameraMount:
-        """This mount moved by ``translation_mm`` and turned by ``rotation_deg`` (a rotation
-        vector) in its own camera axes: how a real camera sits on its bracket."""
-        rotvec = np.radians(np.asarray(rotation_deg, dtype=float))
-        angle = float(np.linalg.norm(rotvec))
-        rot = np.eye(3)
-        if angle > 0:
-            k = rotvec / angle
-            kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-            rot = np.eye(3) + math.sin(angle) * kx + (1 - math.cos(angle)) * kx @ kx
-        delta = np.eye(4)
-        delta[:3, :3] = rot
-        delta[:3, 3] = translation_mm
-        return CameraMount(self.cam2link @ delta)
 
 
 AS_BUILT_MOUNT_ERROR = ((1.8, -2.4, 1.1), (1.3, -0.9, 0.6))

@@ -19,6 +19,7 @@ from typing import Any
 
 from busarm.errors import ConfigError
 from busarm.fileio import write_text_atomic
+from busarm.units import check_int_range, check_range
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -132,11 +133,8 @@ def _where(scene: Scene, what: str) -> str:
 
 
 def _finite(scene: Scene, what: str, value: object, lo: float, hi: float) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise ConfigError(_where(scene, f"{what} = {value!r} must be a number"))
-    if not lo <= value <= hi:
-        raise ConfigError(_where(scene, f"{what} = {value:g} is out of range {lo:g}..{hi:g}"))
-    return float(value)
+    """``value`` as a float within lo..hi, else ConfigError naming the scene and ``what``."""
+    return check_range(_where(scene, what), value, lo, hi)
 
 
 def check_scene(scene: Scene) -> None:
@@ -221,10 +219,8 @@ def random_scene(
     a top-down grasp reaches them) within ``PLACE_BEARING_DEG``, ``MIN_GAP_MM`` apart;
     every colour appears at least once when there are enough blocks; one bin per colour.
     """
-    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
-        raise ConfigError(f"seed = {seed!r} must be an integer 0..{2**32 - 1}")
-    if isinstance(blocks, bool) or not isinstance(blocks, int) or not 0 <= blocks <= MAX_BLOCKS:
-        raise ConfigError(f"blocks = {blocks!r} is out of range 0..{MAX_BLOCKS}")
+    check_int_range("seed", seed, 0, 2**32 - 1)
+    check_int_range("blocks", blocks, 0, MAX_BLOCKS)
     colors = list(colors)
     unknown = [c for c in colors if c not in COLORS]
     if not colors or unknown:

@@ -13,10 +13,16 @@ URL query parameters (all optional):
 ``lens``    the camera's lens: wide (strong barrel), vendor, none          wide
 ``echo``    1 = the adapter echoes every byte sent                      0
 ``timing``  0 = no wire timing (replies at once)                        1
+``pace``    how many times real time the twin may run; 1 = real time      as fast as
+            (for a person watching), absent = as fast as the CPU allows   the CPU allows
+``realtime`` 1 = the wall clock and a physics thread, as ``twin serve``    0
+            (to compare a run with the simulated clock's)
 =========== =========================================================== ==============
 
-The twin opened this way is the process's active twin (``active_twin()``): the
-``twin`` camera source shows its arm camera. Closing the transport closes the twin.
+The twin runs on a simulated clock (``busarm.clock.SimClock``): time passes as the
+programs on its bus wait, so a move takes as long as the CPU needs to simulate it and
+every time reported is in simulated seconds. Closing the transport closes the twin;
+``transport.twin`` is the twin, for whoever opened it (``busarm.robot`` hands it out).
 """
 
 from __future__ import annotations
@@ -24,16 +30,18 @@ from __future__ import annotations
 from dataclasses import replace
 from urllib.parse import parse_qs, urlsplit
 
-from busarm.arm.config import load_arm_config
+from busarm.arm.config import ArmConfig, load_arm_config
+from busarm.clock import SimClock
 from busarm.errors import ConfigError
 from busarm.sim.bus import WireTiming
 from busarm.sim.transport import SimTransport, query_flag, query_float
 from busarm.twin.boards import BOARD_SPECS, calibration_board
 from busarm.twin.lens import lens_by_name
 from busarm.twin.scene import MAX_BLOCKS, Scene, load_scene, random_scene
-from busarm.twin.twin import Twin
+from busarm.twin.twin import CONTROL_PERIOD_S, Twin
 
-_KNOWN = {"seed", "blocks", "colors", "scene", "config", "echo", "timing", "board", "lens"}
+_KNOWN = {"seed", "blocks", "colors", "scene", "config", "echo", "timing", "board", "lens",
+          "pace", "realtime"}
 
 
 def twin_query(url: str) -> dict[str, str]:
@@ -74,14 +82,34 @@ def scene_from_query(q: dict[str, str]) -> Scene:
     return replace(scene, boards=(calibration_board(board),), source=f"{scene.source}, {board}")
 
 
-def twin_from_url(url: str, baudrate: int = 115200) -> Twin:
-    """A real-time twin configured by a ``twin://?...`` URL."""
+def is_twin_url(port: str) -> bool:
+    """Whether ``port`` names a twin in this process (``twin`` or ``twin://?...``)."""
+    return port == "twin" or (port.startswith("twin://") and not urlsplit(port).netloc)
+
+
+def twin_from_url(url: str, baudrate: int = 115200, *, realtime: bool = False,
+                  config: ArmConfig | None = None, scene: Scene | None = None) -> Twin:
+    """A twin configured by a ``twin://?...`` URL: on a simulated clock (paced by
+    ``pace=``), or on the wall clock with ``realtime`` (``twin serve``). ``config``, if
+    given, is the arm it builds (else the URL's ``config=``, else the JetAuto Pro);
+    ``scene``, if given, what stands on its table (else the URL's)."""
     q = twin_query(url)
-    scene = scene_from_query(q)
-    config = load_arm_config(q.get("config") or "jetauto_pro")
+    if scene is not None and {"scene", "seed", "blocks", "colors", "board"} & set(q):
+        raise ConfigError(f"{url}: the table is given twice (in the URL and as a scene)")
+    scene = scene if scene is not None else scene_from_query(q)
+    if config is not None and q.get("config"):
+        raise ConfigError("twin URL: config= given twice (in the URL and by the program)")
+    config = config or load_arm_config(q.get("config") or "jetauto_pro")
     timing = WireTiming(baudrate, enabled=query_flag(q, "timing", True, "twin URL"))
+    realtime = realtime or query_flag(q, "realtime", False, "twin URL")
+    pace = query_float(q, "pace", 0.0, "twin URL") if "pace" in q else None
+    if pace is not None and realtime:
+        raise ConfigError("twin URL: pace= is for a twin in this process; this one follows "
+                          "the wall clock")
+    clock = None if realtime else SimClock(step_s=CONTROL_PERIOD_S, pace=pace)
     return Twin(config, scene, lens=lens_by_name(q.get("lens", "wide")), timing=timing,
-                echo=query_flag(q, "echo", False, "twin URL"))
+                echo=query_flag(q, "echo", False, "twin URL"), realtime=realtime,
+                clock=clock)
 
 
 class TwinTransport(SimTransport):

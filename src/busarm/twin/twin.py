@@ -13,8 +13,12 @@ The coupling, every control tick (``CONTROL_PERIOD_S``), under the simulated bus
 - each actuator's torque, as a fraction of stall torque, heats its servo model
   (``SimServo.external_effort``).
 
-Time is the wall clock (``time.monotonic``), so programs on the bus see real timing; a
-background thread keeps physics up to date, and every render first catches up. Blocks
+Time is the twin's ``clock``. A real-time twin (``realtime=True``: ``twin serve``, programs
+in other processes) follows the wall clock: a background thread keeps physics up to date,
+and every render first catches up. Otherwise (``--port twin`` in this process, benchmarks,
+tests) it is a ``SimClock``: physics steps whenever anyone waits on that clock (the bus
+driver for a reply, the arm for a move), as fast as the CPU allows, and every time the
+programs above report is in simulated seconds. Blocks
 settle for ``SETTLE_S`` of simulated time before the clock starts, so a seeded scene
 looks the same every time.
 """
@@ -25,7 +29,6 @@ import ctypes.util
 import math
 import os
 import threading
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from types import TracebackType
@@ -34,8 +37,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from busarm.arm.camera_mount import CameraMount
 from busarm.arm.config import ArmConfig, load_arm_config
 from busarm.arm.kinematics import ArmKinematics
+from busarm.clock import WALL_CLOCK, Clock, SimClock
 from busarm.errors import ConfigError, TwinError
 from busarm.protocol import Command, Request
 from busarm.sim.bus import SimBus, WireTiming
@@ -50,7 +55,6 @@ from busarm.twin.model import (
     MJ_FROM_CV,
     SERVO_KP_NM_PER_RAD,
     SERVO_KV_NM_S_PER_RAD,
-    CameraMount,
     TwinModelSpec,
     build_mjcf,
 )
@@ -98,16 +102,6 @@ def _import_mujoco() -> Any:
     return mujoco
 
 
-class _ManualClock:
-    """A clock that moves only when told (``Twin(realtime=False)``: tests, benchmarks)."""
-
-    def __init__(self) -> None:
-        self.now = 0.0
-
-    def __call__(self) -> float:
-        return self.now
-
-
 @dataclass(frozen=True)
 class BlockState:
     """Where a block really is (ground truth, mm and degrees, base frame)."""
@@ -120,14 +114,6 @@ class BlockState:
     yaw_deg: float
     size_mm: float
     is_upright: bool
-
-
-_ACTIVE: list[Twin] = []
-
-
-def active_twin() -> Twin | None:
-    """The twin most recently opened in this process and not closed, if any."""
-    return _ACTIVE[-1] if _ACTIVE else None
 
 
 class Twin:
@@ -147,6 +133,7 @@ class Twin:
         start_joints_deg: Sequence[float] | None = None,
         gripper_pulses: int | None = None,
         realtime: bool = True,
+        clock: SimClock | None = None,
         timing: WireTiming | None = None,
         echo: bool = False,
     ) -> None:
@@ -154,8 +141,8 @@ class Twin:
         self.config = config if config is not None else load_arm_config()
         self.scene = scene if scene is not None else random_scene(0)
         self.lens = lens if lens is not None else LensSpec()
-        self.mount = mount if mount is not None else CameraMount.jetauto().offset(
-            *AS_BUILT_MOUNT_ERROR)
+        self.mount = mount if mount is not None else CameraMount.from_config(
+            self.config.camera).offset(*AS_BUILT_MOUNT_ERROR)
         self.kin = ArmKinematics.from_config(self.config, check_table=False)
         cfg = self.config
         if start_joints_deg is None:
@@ -214,9 +201,12 @@ class Twin:
         d.time = 0.0
 
         self.realtime = realtime
-        self._manual = None if realtime else _ManualClock()
-        self.clock: Callable[[], float] = time.monotonic if realtime else self._manual  # type: ignore[assignment]
-        self._t0 = self.clock()
+        if realtime and clock is not None:
+            raise ConfigError("a real-time twin follows the wall clock: give a SimClock "
+                              "only with realtime=False")
+        self.clock: Clock = WALL_CLOCK if realtime else (clock or SimClock(
+            step_s=CONTROL_PERIOD_S))
+        self._t0 = self.clock.now()
         servos: list[SimServo] = []
         for j, angle in zip(cfg.joints, start, strict=True):
             servos.append(SimServo(j.servo_id, params=ServoParams.arm_35kg(),
@@ -234,10 +224,11 @@ class Twin:
         self._read_sensors()
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
-        if realtime:
+        if isinstance(self.clock, SimClock):
+            self.clock.attach(self._tick)
+        else:
             self._thread = threading.Thread(target=self._run, name="busarm-twin", daemon=True)
             self._thread.start()
-        _ACTIVE.append(self)
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -249,12 +240,12 @@ class Twin:
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=2)
+        if isinstance(self.clock, SimClock):
+            self.clock.detach(self._tick)
         self.release_renderers()
         # Renderers of threads that did not release theirs: their GL context cannot be
         # made current here, so they are left to the process's exit.
         self._renderers.clear()
-        if self in _ACTIVE:
-            _ACTIVE.remove(self)
 
     @property
     def is_closed(self) -> bool:
@@ -304,7 +295,7 @@ class Twin:
         """Bring physics up to the clock, following the servos' commands."""
         mj, m, d = self.mujoco, self.model, self.data
         with self.bus.lock, self._lock:
-            now = self.clock()
+            now = self.clock.now()
             behind = now - self._t0 - d.time
             if behind < m.opt.timestep:
                 return
@@ -359,16 +350,14 @@ class Twin:
             self._tick()
 
     def step(self, duration_s: float) -> None:
-        """Advance a twin made with ``realtime=False`` by ``duration_s`` of simulated time."""
-        if self._manual is None:
+        """Advance a twin made with ``realtime=False`` by ``duration_s`` of simulated time
+        (as any wait on ``twin.clock`` does)."""
+        if not self.clock.is_simulated:
             raise ConfigError("step() is for a twin made with realtime=False; "
                               "a real-time twin follows the wall clock")
         if not (math.isfinite(duration_s) and 0 <= duration_s <= 3600):
             raise ConfigError(f"duration_s = {duration_s!r} is out of range 0..3600")
-        end = self._manual.now + duration_s
-        while self._manual.now < end - 1e-12:
-            self._manual.now = min(end, self._manual.now + CONTROL_PERIOD_S)
-            self._tick()
+        self.clock.sleep(duration_s)
 
     def sync(self) -> None:
         """Catch physics up with the clock now (before reading or rendering)."""

@@ -37,6 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from busarm.errors import CameraError, ConfigError
+from busarm.units import check_int_range, check_range
 
 UInt8Image = npt.NDArray[np.uint8]
 
@@ -179,7 +180,7 @@ class CameraBase:
         if self._closed:
             raise CameraError(f"camera {self._name} is closed")
         image = self._grab()
-        timestamp_s = time.monotonic()
+        timestamp_s = self._timestamp()
         if image.shape[1] != self._width_px or image.shape[0] != self._height_px:
             raise CameraError(
                 f"camera {self._name}: frame {self._sequence} is {image.shape[1]}x"
@@ -189,6 +190,11 @@ class CameraBase:
         frame = CameraFrame(image, timestamp_s, self._sequence, self._name)
         self._sequence += 1
         return frame
+
+    def _timestamp(self) -> float:
+        """When a frame is taken: the machine's monotonic clock (a simulated camera: its
+        simulation's)."""
+        return time.monotonic()
 
     def frames(self, count: int | None = None) -> Iterator[CameraFrame]:
         """Up to ``count`` frames (all, for None); a finite source's end stops it quietly."""
@@ -250,10 +256,10 @@ class UsbCamera(CameraBase):
         height_px: int = DEFAULT_HEIGHT_PX, fps: float = DEFAULT_FPS, fourcc: str = "YUYV",
         *, read_timeout_s: float = DEFAULT_READ_TIMEOUT_S,
     ) -> None:
-        _check_int("width_px", width_px, 16, 8192)
-        _check_int("height_px", height_px, 16, 8192)
-        _check_number("fps", fps, 1.0, 1000.0)
-        _check_number("read_timeout_s", read_timeout_s, 0.05, 60.0)
+        check_int_range("width_px", width_px, 16, 8192)
+        check_int_range("height_px", height_px, 16, 8192)
+        check_range("fps", fps, 1.0, 1000.0)
+        check_range("read_timeout_s", read_timeout_s, 0.05, 60.0)
         if fourcc not in FOURCCS:
             raise ConfigError(f"fourcc {fourcc!r} is not one of {', '.join(FOURCCS)}")
         if isinstance(device, bool) or not isinstance(device, int | str):
@@ -498,16 +504,6 @@ def _construct(
                           "not a camera source")
     return source
 
-
-def _check_int(name: str, value: object, lo: int, hi: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-        raise ConfigError(f"{name} = {value!r} is out of range {lo}..{hi}")
-
-
-def _check_number(name: str, value: object, lo: float, hi: float) -> None:
-    if (isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value)
-            or not lo <= value <= hi):
-        raise ConfigError(f"{name} = {value!r} is out of range {lo:g}..{hi:g}")
 
 
 __all__ = [

@@ -47,6 +47,7 @@ import numpy.typing as npt
 
 from busarm.errors import ConfigError
 from busarm.fileio import write_text_atomic
+from busarm.units import check_int_range, check_range
 from busarm.vision.camera import UInt8Image, check_bgr_image
 
 if sys.version_info >= (3, 11):
@@ -79,13 +80,7 @@ _MARGIN_SMALL_PX = 2
 def _check_lab(value: object, where: str) -> Lab:
     if isinstance(value, str | bytes) or not isinstance(value, Sequence) or len(value) != 3:
         raise ConfigError(f"{where} must be 3 integers [L, a, b] each 0..255, got {value!r}")
-    out = []
-    for channel, v in zip(CHANNELS, value, strict=True):
-        if isinstance(v, bool) or not isinstance(v, int | np.integer):
-            raise ConfigError(f"{where} {channel} must be an integer 0..255, got {v!r}")
-        if not 0 <= v <= 255:
-            raise ConfigError(f"{where} {channel} = {v} is out of range 0..255")
-        out.append(int(v))
+    out = [check_int_range(f"{where} {c}", v, 0, 255) for c, v in zip(CHANNELS, value, strict=True)]
     return out[0], out[1], out[2]
 
 
@@ -518,10 +513,7 @@ class ColorDetector:
                 raise ConfigError(
                     f"max_area_px {max_area_px:g} is below min_area_px {min_area_px:g}"
                 )
-        if isinstance(downscale, bool) or not isinstance(downscale, int) or not (
-            1 <= downscale <= 8
-        ):
-            raise ConfigError(f"downscale = {downscale!r} is out of range 1..8")
+        check_int_range("downscale", downscale, 1, 8)
         self.min_area_px = float(min_area_px)
         self.max_area_px = None if max_area_px is None else float(max_area_px)
         self.downscale = downscale
@@ -652,9 +644,8 @@ class ColorDetector:
 
 
 def _check_area(name: str, value: object) -> None:
-    if (isinstance(value, bool) or not isinstance(value, int | float)
-            or not math.isfinite(value) or not 0 <= value <= 1e9):
-        raise ConfigError(f"{name} = {value!r} is out of range 0..1e9 px")
+    """An area in pixels, 0..1e9."""
+    check_range(name, value, 0.0, 1e9, "px")
 
 
 def _channel_luts() -> tuple[npt.NDArray[np.uint16], ...]:

@@ -39,7 +39,9 @@ import numpy as np
 import numpy.typing as npt
 
 from busarm.errors import ConfigError, VisionError
-from busarm.vision.calibration import CameraIntrinsics, as_transform
+from busarm.units import check_range
+from busarm.vision.calibration.camera_model import CameraIntrinsics
+from busarm.vision.calibration.core import as_transform
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -92,11 +94,8 @@ def camera_to_base(link2base: npt.ArrayLike, cam2link: npt.ArrayLike) -> FloatAr
 
 
 def _finite(name: str, value: object, lo: float = -1e6, hi: float = 1e6) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise ConfigError(f"{name} must be a finite number, got {value!r}")
-    if not lo <= value <= hi:
-        raise ConfigError(f"{name} = {value!r} is out of range {lo:g}..{hi:g}")
-    return float(value)
+    """``value`` as a float within lo..hi (a millimetre or degree: +-1e6 unless told)."""
+    return check_range(name, value, lo, hi)
 
 
 def _pixels(name: str, value: npt.ArrayLike) -> FloatArray:

@@ -32,6 +32,7 @@ import numpy as np
 import numpy.typing as npt
 
 from busarm.errors import ConfigError, VisionError
+from busarm.units import check_int_range
 from busarm.vision.camera import UInt8Image
 
 FloatArray = npt.NDArray[np.float64]
@@ -278,11 +279,8 @@ def tag_image(tag_id: int, size_px: int = 240, border_px: int = 30) -> UInt8Imag
     measures the tag size used in :func:`tag_pose`.
     """
     tid = _check_tag_id(tag_id)
-    if isinstance(size_px, bool) or not isinstance(size_px, int) or not 8 <= size_px <= 20_000:
-        raise ConfigError(f"size_px = {size_px!r} is out of range 8..20000")
-    if (isinstance(border_px, bool) or not isinstance(border_px, int)
-            or not 0 <= border_px <= 20_000):
-        raise ConfigError(f"border_px = {border_px!r} is out of range 0..20000")
+    check_int_range("size_px", size_px, 8, 20_000)
+    check_int_range("border_px", border_px, 0, 20_000)
     marker = cv2.aruco.generateImageMarker(_dictionary(), tid, size_px, borderBits=1)
     out = cv2.copyMakeBorder(marker, border_px, border_px, border_px, border_px,
                              cv2.BORDER_CONSTANT, value=255)

@@ -10,7 +10,6 @@ limit points at adapter latency or a noisy bus.
 from __future__ import annotations
 
 import os
-import platform
 import select
 import signal
 import statistics
@@ -21,6 +20,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 
+from busarm.bench.common import latency_percentiles_ms, machine_info
 from busarm.bus.driver import ServoBus
 from busarm.errors import BusArmError, ConfigError, TransportError
 from busarm.protocol import SPECS, Command, encode_request
@@ -29,7 +29,16 @@ WARM_UP_READS = 200
 
 
 @dataclass
-class BenchResult:
+class ScanTimes:
+    """What the ID scans found, and the best and median time of one scan."""
+
+    found: list[int]
+    best_s: float
+    median_s: float
+
+
+@dataclass
+class BusBenchResult:
     """One measurement: rate against the wire limit, latency percentiles, client CPU."""
 
     name: str
@@ -38,58 +47,37 @@ class BenchResult:
     rate: float
     wire_limit: float
     latency_ms: dict[str, float] = field(default_factory=dict)
+    """p50, p90, p99 and max (``latency_percentiles_ms``)."""
     cpu_us_median: float | None = None
     errors: int = 0
-    extra: dict[str, object] = field(default_factory=dict)
+    scan: ScanTimes | None = None
+    """The ID scan's times; None for the other measurements."""
 
     @property
     def ratio(self) -> float:
         return self.rate / self.wire_limit if self.wire_limit else 0.0
 
+    def to_dict(self) -> dict[str, object]:
+        d = asdict(self)
+        del d["scan"]
+        d["extra"] = asdict(self.scan) if self.scan is not None else {}
+        d["ratio"] = round(self.ratio, 4)
+        return d
+
 
 @dataclass
-class BenchReport:
+class BusBenchReport:
     port: str
     baudrate: int
     turnaround_ms: float
     echo: bool
     machine: dict[str, str]
-    results: list[BenchResult]
+    results: list[BusBenchResult]
 
     def to_dict(self) -> dict[str, object]:
         d = asdict(self)
-        d["results"] = [{**asdict(r), "ratio": round(r.ratio, 4)} for r in self.results]
+        d["results"] = [r.to_dict() for r in self.results]
         return d
-
-
-def machine_info() -> dict[str, str]:
-    """What ran the benchmark, for docs/benchmarks.md."""
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    return {
-        "cpu": cpu,
-        "cores": str(os.cpu_count()),
-        "python": platform.python_version(),
-        "os": f"{platform.system()} {platform.release()}",
-    }
-
-
-def latency_percentiles_ms(samples_s: Sequence[float]) -> dict[str, float]:
-    """p50, p90, p99 and max of durations in seconds, in milliseconds."""
-    ordered = sorted(samples_s)
-
-    def pct(p: float) -> float:
-        return ordered[min(len(ordered) - 1, int(p * len(ordered)))] * 1e3
-
-    return {"p50": round(pct(0.50), 4), "p90": round(pct(0.90), 4),
-            "p99": round(pct(0.99), 4), "max": round(ordered[-1] * 1e3, 4)}
 
 
 def _reply_bytes(command: Command) -> int:
@@ -117,7 +105,7 @@ def _cpu_per_call_s(call: Callable[[], object], count: int) -> list[float]:
 
 def _timed_reads(
     name: str, bus: ServoBus, call: Callable[[], object], count: int
-) -> BenchResult:
+) -> BusBenchResult:
     """Rate and latency over ``count`` calls, then client CPU over as many again."""
     latencies: list[float] = []
     errors = 0
@@ -133,19 +121,19 @@ def _timed_reads(
     elapsed = clock() - start
     cpu = _cpu_per_call_s(call, count)
     wire = bus.wire_time_s(6, _reply_bytes(Command.POS_READ))
-    return BenchResult(
+    return BusBenchResult(
         name, "reads/s", count, count / elapsed, 1.0 / wire, latency_percentiles_ms(latencies),
         round(statistics.median(cpu) * 1e6, 2), errors,
     )
 
 
-def bench_position_reads(bus: ServoBus, servo_id: int, count: int) -> BenchResult:
+def bench_position_reads(bus: ServoBus, servo_id: int, count: int) -> BusBenchResult:
     """``count`` POS_READs of one servo, back to back."""
     read = bus.read_position_pulses
     return _timed_reads("position reads", bus, lambda: read(servo_id), count)
 
 
-def bench_os_floor(bus: ServoBus, servo_id: int, count: int) -> BenchResult | None:
+def bench_os_floor(bus: ServoBus, servo_id: int, count: int) -> BusBenchResult | None:
     """The same position read done with bare syscalls (flush, write, select, read) on
     the same file descriptor: what any client pays the OS. None if the port has no
     descriptor (URLs, the in-process simulator)."""
@@ -165,7 +153,7 @@ def bench_os_floor(bus: ServoBus, servo_id: int, count: int) -> BenchResult | No
     return _timed_reads("position reads, bare syscalls (OS floor)", bus, bare_read, count)
 
 
-def bench_state_loop(bus: ServoBus, servo_ids: Sequence[int], loops: int) -> BenchResult:
+def bench_state_loop(bus: ServoBus, servo_ids: Sequence[int], loops: int) -> BusBenchResult:
     """``loops`` rounds of position + temperature + voltage of every servo."""
     latencies: list[float] = []
     errors = 0
@@ -186,14 +174,14 @@ def bench_state_loop(bus: ServoBus, servo_ids: Sequence[int], loops: int) -> Ben
         bus.wire_time_s(6, _reply_bytes(c)) for c in (Command.POS_READ, Command.TEMP_READ,
                                                        Command.VIN_READ)
     )
-    return BenchResult(
+    return BusBenchResult(
         f"{len(servo_ids)}-servo state loop", "loops/s", loops, loops / elapsed,
         1.0 / (per_servo * len(servo_ids)), latency_percentiles_ms(latencies),
         round(statistics.median(cpu) * 1e6, 2), errors,
     )
 
 
-def bench_scan(bus: ServoBus, repeats: int = 3) -> BenchResult:
+def bench_scan(bus: ServoBus, repeats: int = 3) -> BusBenchResult:
     """Full ID scan 0..253, ``repeats`` times; the wire limit is every ID's request,
     turnaround and a reply's worth of waiting (a missing servo cannot be known sooner)."""
     durations: list[float] = []
@@ -204,11 +192,10 @@ def bench_scan(bus: ServoBus, repeats: int = 3) -> BenchResult:
         found = result.found
     wire = 254 * bus.wire_time_s(6, _reply_bytes(Command.ID_READ))
     best = min(durations)
-    return BenchResult(
+    return BusBenchResult(
         "ID scan 0..253", "scans/s", repeats, 1.0 / statistics.median(durations), 1.0 / wire,
         latency_percentiles_ms(durations), None, 0,
-        {"found": found, "best_s": round(best, 4),
-         "median_s": round(statistics.median(durations), 4)},
+        ScanTimes(found, round(best, 4), round(statistics.median(durations), 4)),
     )
 
 
@@ -271,7 +258,7 @@ def run_bench(
     scans: int = 3,
     turnaround_ms: float = 0.5,
     echo: str = "auto",
-) -> BenchReport:
+) -> BusBenchReport:
     """Run the three measurements on ``port`` (whose servos must include ``servo_ids``)."""
     if not servo_ids:
         raise ConfigError("bench needs at least one servo ID")
@@ -286,6 +273,6 @@ def run_bench(
         floor = bench_os_floor(bus, servo_ids[0], reads)
         if floor is not None:
             results.insert(1, floor)
-        return BenchReport(
+        return BusBenchReport(
             port, bus.transport.baudrate, turnaround_ms, bus.echo, machine_info(), results
         )

@@ -20,18 +20,19 @@ The twin runs these without a person; on hardware the CLI asks before each view.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
-from busarm.apps.locate import CAMERA_LINK, link2base
 from busarm.arm.arm import Arm
+from busarm.arm.camera_mount import CameraMount
+from busarm.arm.config import load_arm_config
 from busarm.arm.kinematics import ArmKinematics
-from busarm.errors import ConfigError, UnreachableError, VisionError
-from busarm.twin.model import CameraMount
+from busarm.errors import UnreachableError, VisionError
+from busarm.robot.locate import CAMERA_LINK, link2base
+from busarm.units import check_int_range
 from busarm.vision.calibration import (
     BoardObservation,
     BoardSpec,
@@ -47,8 +48,9 @@ from busarm.vision.camera import CameraSource
 
 FloatArray = npt.NDArray[np.float64]
 
-NOMINAL_MOUNT = CameraMount.jetauto()
-"""The camera where the drawing puts it (field notes): for choosing views only."""
+NOMINAL_MOUNT = CameraMount.from_config(load_arm_config().camera)
+"""The camera where the shipped arm's drawing puts it (its ``[camera]``): for choosing views
+only; ``calibration_views(mount=...)`` takes another arm's."""
 IMAGE_MARGIN_PX = 12.0
 SETTLE_S = 0.3
 
@@ -136,7 +138,7 @@ def calibration_views(
     intrinsics_guess: CameraIntrinsics | None = None, seed: int = 0,
     tilt_range_deg: tuple[float, float] = (-35.0, 35.0),
     distance_range_mm: tuple[float, float] = (220.0, 450.0),
-    min_visible: float | None = None,
+    min_visible: float | None = None, mount: CameraMount = NOMINAL_MOUNT,
 ) -> list[tuple[float, ...]]:
     """``count`` joint poses looking at the board from spread-out viewpoints.
 
@@ -145,10 +147,8 @@ def calibration_views(
     """
     if min_visible is None:
         min_visible = 1.0 if isinstance(spec, ChessboardSpec) else 0.7
-    if isinstance(count, bool) or not isinstance(count, int) or not 3 <= count <= 100:
-        raise ConfigError(f"views = {count!r} is out of range 3..100")
-    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
-        raise ConfigError(f"seed = {seed!r} is out of range 0..{2**32 - 1}")
+    check_int_range("views", count, 3, 100)
+    check_int_range("seed", seed, 0, 2**32 - 1)
     guess = intrinsics_guess or CameraIntrinsics.vendor_default()
     grid = _board_grid(spec, board2base)
     centre = grid.mean(axis=0)
@@ -162,10 +162,10 @@ def calibration_views(
         tilt = rng.uniform(*tilt_range_deg)
         distance = rng.uniform(*distance_range_mm)
         try:
-            q = joints_looking_at(kin, target, tilt, distance)
+            q = joints_looking_at(kin, target, tilt, distance, mount)
         except UnreachableError:
             continue
-        cam2base = link2base(kin, q) @ NOMINAL_MOUNT.cam2link
+        cam2base = link2base(kin, q) @ mount.cam2link
         if visible_fraction(grid, cam2base, guess) < min_visible:
             continue
         # Describe the view by where the camera is and which way it looks.
@@ -199,7 +199,7 @@ def capture_views(
     views: list[CalibrationView] = []
     for i, pose in enumerate(poses):
         arm.move_joints(pose, speed_deg_s=speed_deg_s)
-        time.sleep(settle_s)  # let the arm stop swaying and the camera deliver a new frame
+        arm.clock.sleep(settle_s)  # let the arm stop swaying and the camera deliver a new frame
         if confirm is not None and not confirm(i, len(poses)):
             continue
         frame = camera.read()

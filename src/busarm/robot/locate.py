@@ -18,8 +18,10 @@ from typing import TypeVar
 import numpy as np
 import numpy.typing as npt
 
+from busarm.arm.config import CAMERA_JOINT_INDEX
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import ConfigError, UnreachableError, VisionError
+from busarm.units import check_range
 from busarm.vision.calibration import CameraIntrinsics, HandEyeResult
 from busarm.vision.color import ColorDetector, Detection
 from busarm.vision.localize import (
@@ -34,7 +36,7 @@ T = TypeVar("T")
 R = TypeVar("R")
 FloatArray = npt.NDArray[np.float64]
 
-CAMERA_LINK = 3
+CAMERA_LINK = CAMERA_JOINT_INDEX
 """Index of the wrist-pitch link's frame in ``ArmKinematics.frames`` (DH frame 4)."""
 CAMERA_LINK_NAME = "wrist_pitch"
 MAX_CAMERA_OFFSET_MM = 300.0
@@ -92,8 +94,7 @@ class BlockLocator:
         self, kin: ArmKinematics, intrinsics: CameraIntrinsics, hand_eye: HandEyeResult,
         detector: ColorDetector, *, table_z_mm: float = 0.0, block_size_mm: float = 30.0,
     ) -> None:
-        if not (math.isfinite(block_size_mm) and 5.0 <= block_size_mm <= 200.0):
-            raise ConfigError(f"block_size_mm = {block_size_mm!r} is out of range 5..200")
+        check_range("block_size_mm", block_size_mm, 5.0, 200.0, "mm")
         if not math.isfinite(table_z_mm):
             raise ConfigError(f"table_z_mm = {table_z_mm!r} must be finite")
         if hand_eye.link != CAMERA_LINK_NAME:

@@ -16,27 +16,24 @@
    tiled to ``batch_n`` rows, best of ``BATCH_REPEATS``.
 4. Peers (optional, ``make bench-ik`` installs them): Robotics Toolbox ``ets().ik_LM``
    and ikpy ``inverse_kinematics(orientation_mode="all")`` on the first targets, timed
-   the same way and verified the same way (busarm's FK of their joints).
+   the same way and verified the same way (busarm's FK of their joints): see
+   ``busarm.bench.ik_peers``.
 """
 
 from __future__ import annotations
 
 import gc
-import importlib.metadata
-import io
 import math
 import time
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from busarm.arm.config import ArmConfig, load_arm_config
 from busarm.arm.kinematics import ArmKinematics, FloatArray
-from busarm.bench import machine_info
+from busarm.bench.common import machine_info
 from busarm.errors import UnreachableError
 
 POS_TOL_MM = 1e-3
@@ -153,7 +150,7 @@ def random_joints(kin: ArmKinematics, n: int, rng: np.random.Generator) -> Float
     return rng.uniform(lo, hi, size=(n, 5))
 
 
-def _in_limits(kin: ArmKinematics, q_deg: FloatArray) -> npt.NDArray[np.bool_]:
+def in_limits(kin: ArmKinematics, q_deg: FloatArray) -> npt.NDArray[np.bool_]:
     lo = np.array([a for a, _ in kin.limits_deg]) - LIMIT_SLACK_DEG
     hi = np.array([b for _, b in kin.limits_deg]) + LIMIT_SLACK_DEG
     ok: npt.NDArray[np.bool_] = np.all((q_deg >= lo) & (q_deg <= hi), axis=-1)
@@ -212,7 +209,7 @@ def timer_overhead_ns() -> float:
     return float(np.median(samples))
 
 
-def _timing(name: str, times_ns: Sequence[int]) -> Timing:
+def timing_of(name: str, times_ns: Sequence[int]) -> Timing:
     us = np.asarray(times_ns, dtype=np.float64) / 1000.0
     return Timing(name, len(us), round(float(np.median(us)), 3),
                   round(float(np.percentile(us, 90)), 3), round(float(us.mean()), 3))
@@ -221,20 +218,13 @@ def _timing(name: str, times_ns: Sequence[int]) -> Timing:
 # ------------------------------------------------------------------------ the bench
 
 
-def run_ik_bench(
-    config: ArmConfig | None = None, *, n: int = 10_000, batch_n: int = 1_000_000,
-    seed: int = 0, peers: bool = False, n_rtb: int = 1000, n_ikpy: int = 100,
-) -> IkBenchReport:
-    cfg = config if config is not None else load_arm_config()
-    kin = ArmKinematics.from_config(cfg, check_table=False)
-    rng = np.random.default_rng(seed)
-    q = random_joints(kin, n, rng)
-    target_t = kin.fk_matrix_batch(q)
-    poses = kin.fk_batch(q)
+def check_accuracy(
+    kin: ArmKinematics, poses: FloatArray, target_t: FloatArray, seed: int,
+) -> Accuracy:
+    """``ik``, ``ik_best`` and ``ik_batch`` on FK poses, checked against their 4x4 targets."""
+    n = len(poses)
     args = [tuple(float(v) for v in row) for row in poses]
-
-    # -------------------------------------------------------------- accuracy
-    no_sol = wrong = out_lim = n_sols = 0
+    no_sol = wrong = out_lim = 0
     failed = np.zeros(n, dtype=bool)
     worst_pos = worst_rot = 0.0
     all_sols: list[tuple[float, ...]] = []
@@ -252,7 +242,7 @@ def run_ik_bench(
         idx = np.asarray(owner)
         pos, rot = pose_errors(kin.fk_matrix_batch(s), target_t[idx])
         bad_pose = (pos > POS_TOL_MM) | (rot > ROT_TOL_DEG)
-        bad_lim = ~_in_limits(kin, s)
+        bad_lim = ~in_limits(kin, s)
         wrong = int(np.unique(idx[bad_pose]).size)
         out_lim = int(np.unique(idx[bad_lim]).size)
         failed[idx[bad_pose | bad_lim]] = True
@@ -271,36 +261,35 @@ def run_ik_bench(
 
     bq, bok = kin.ik_batch(poses)
     pos_q, rot_q = pose_errors(kin.fk_matrix_batch(np.where(bok[:, None], bq, 0.0)), target_t)
-    batch_bad = ~bok | (pos_q > POS_TOL_MM) | (rot_q > ROT_TOL_DEG) | ~_in_limits(kin, bq)
-    accuracy = Accuracy(
+    batch_bad = ~bok | (pos_q > POS_TOL_MM) | (rot_q > ROT_TOL_DEG) | ~in_limits(kin, bq)
+    return Accuracy(
         n, seed, False, int(failed.sum()), no_sol, wrong, out_lim, n_sols,
         worst_pos, worst_rot, best_fail, int(batch_bad.sum()),
         float(pos_q[bok].max(initial=0.0)), float(rot_q[bok].max(initial=0.0)),
     )
 
-    # -------------------------------------------------------------- just outside
+
+def check_outside(kin: ArmKinematics, n: int, seed: int) -> Outside:
+    """``n`` targets just beyond full stretch must all be refused, the same ones just
+    inside (no joint limits, free roll) all accepted."""
     free = ArmKinematics(kin.geometry, [(-180.0, 180.0)] * 5, table_z_mm=None)
-    out_rng = np.random.default_rng(seed + 1)
-    outside_t = outside_targets(kin, n, out_rng, OUTSIDE_MM)
+    outside_t = outside_targets(kin, n, np.random.default_rng(seed + 1), OUTSIDE_MM)
     inside_t = outside_targets(kin, n, np.random.default_rng(seed + 1), -OUTSIDE_MM)
 
     def accepted(k: ArmKinematics, t: FloatArray) -> int:
         return sum(1 for row in t if k.ik(*(float(v) for v in row[:4])))
 
-    outside = Outside(
+    return Outside(
         n, OUTSIDE_MM,
         accepted(kin, outside_t), int(kin.ik_batch(outside_t)[1].sum()),
         accepted(free, outside_t), int(free.ik_batch(outside_t)[1].sum()),
         accepted(free, inside_t),
     )
 
-    # -------------------------------------------------------------- speed
-    overhead = timer_overhead_ns()
-    best_ns = _timed(kin.ik_best, args)
-    all_ns = _timed(kin.ik, args)
-    single = [_timing("ik_best", best_ns),
-              _timing("ik (all solutions)", all_ns)]
-    reps = -(-batch_n // n)
+
+def time_batch(kin: ArmKinematics, poses: FloatArray, batch_n: int) -> Batch:
+    """``ik_batch`` on ``poses`` tiled to ``batch_n`` rows: best of ``BATCH_REPEATS``."""
+    reps = -(-batch_n // len(poses))
     big = np.tile(poses, (reps, 1))[:batch_n]
     kin.ik_batch(big[: min(batch_n, 10_000)])  # warm-up
     times = []
@@ -311,7 +300,30 @@ def run_ik_bench(
         times.append(time.perf_counter() - t0)
         all_ok = all_ok and bool(ok.all())
     best_s = min(times)
-    batch = Batch(batch_n, BATCH_REPEATS, round(best_s, 4), round(batch_n / best_s, 1), all_ok)
+    return Batch(batch_n, BATCH_REPEATS, round(best_s, 4), round(batch_n / best_s, 1), all_ok)
+
+
+def run_ik_bench(
+    config: ArmConfig | None = None, *, n: int = 10_000, batch_n: int = 1_000_000,
+    seed: int = 0, peers: bool = False, n_rtb: int = 1000, n_ikpy: int = 100,
+) -> IkBenchReport:
+    """Accuracy, refusal just outside the envelope, and speed; the peers if asked."""
+    cfg = config if config is not None else load_arm_config()
+    kin = ArmKinematics.from_config(cfg, check_table=False)
+    rng = np.random.default_rng(seed)
+    q = random_joints(kin, n, rng)
+    target_t = kin.fk_matrix_batch(q)
+    poses = kin.fk_batch(q)
+    args = [tuple(float(v) for v in row) for row in poses]
+
+    accuracy = check_accuracy(kin, poses, target_t, seed)
+    outside = check_outside(kin, n, seed)
+
+    overhead = timer_overhead_ns()
+    best_ns = _timed(kin.ik_best, args)
+    all_ns = _timed(kin.ik, args)
+    single = [timing_of("ik_best", best_ns), timing_of("ik (all solutions)", all_ns)]
+    batch = time_batch(kin, poses, batch_n)
 
     report = IkBenchReport(
         arm=cfg.name, machine=machine_info(),
@@ -323,115 +335,9 @@ def run_ik_bench(
     )
     if peers:
         try:
+            from busarm.bench.ik_peers import run_peers
+
             report.peers = run_peers(kin, q, target_t, best_ns, n_rtb, n_ikpy, cfg)
         except ImportError as exc:
             report.peers_note = f"{PEERS_HINT} ({exc})"
     return report
-
-
-# ------------------------------------------------------------------------ peers
-
-
-def _version(dist: str) -> str:
-    try:
-        return importlib.metadata.version(dist)
-    except importlib.metadata.PackageNotFoundError:
-        return "?"
-
-
-def build_rtb(kin: ArmKinematics) -> Any:
-    """The arm as a Robotics Toolbox ``DHRobot`` of ``RevoluteMDH`` links, in metres."""
-    rtb = importlib.import_module("roboticstoolbox")  # optional, untyped
-
-    links = [
-        rtb.RevoluteMDH(alpha=alpha, a=a / 1000.0, d=d / 1000.0,
-                        qlim=np.radians([lo, hi]))
-        for (alpha, a, d), (lo, hi) in zip(kin.dh_table(), kin.limits_deg, strict=True)
-    ]
-    tool = np.eye(4)
-    tool[2, 3] = kin.geometry.tool_mm / 1000.0
-    return rtb.DHRobot(links, tool=tool, name="busarm5")
-
-
-def build_ikpy(config: ArmConfig) -> Any:
-    """The arm as an ikpy chain, from busarm's own URDF."""
-    ikpy_chain = importlib.import_module("ikpy.chain")  # optional, untyped
-
-    from busarm.arm.urdf import BASE_LINK, urdf_from_config
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # ikpy warns about the fixed origin/tool links
-        return ikpy_chain.Chain.from_urdf_file(
-            io.StringIO(urdf_from_config(config)), base_elements=[BASE_LINK],
-            active_links_mask=[False, True, True, True, True, True, False], name="busarm5",
-        )
-
-
-def _m(t_mm: npt.ArrayLike) -> FloatArray:
-    t = np.array(t_mm, dtype=np.float64)
-    t[:3, 3] /= 1000.0
-    return t
-
-
-def run_peers(
-    kin: ArmKinematics, q_deg: FloatArray, target_t: FloatArray, busarm_ns: Sequence[int],
-    n_rtb: int, n_ikpy: int, config: ArmConfig | None = None,
-) -> list[PeerResult]:
-    """Time and verify the peers on the first targets; raises ImportError if missing."""
-    robot = build_rtb(kin)
-    chain = build_ikpy(config if config is not None else load_arm_config())
-    ets = robot.ets()  # ends with the tool; robot.ik_LM would strip the tool again (1.5.0)
-
-    # Both peers must model the same arm: FK against busarm's on the first targets.
-    for qd, t in zip(q_deg[:20], target_t[:20], strict=True):
-        qr = np.radians(qd)
-        for peer_t in (ets.fkine(qr).A, chain.forward_kinematics([0.0, *qr, 0.0])):
-            p = np.array(peer_t, dtype=np.float64)
-            p[:3, 3] *= 1000.0
-            if float(np.abs(p - t).max()) > 1e-6:
-                raise RuntimeError("peer FK differs from busarm's: not the same arm")
-
-    q0 = np.radians(PEER_Q0_DEG)
-    init = [0.0, *q0, 0.0]
-
-    def rtb_solve(t: npt.ArrayLike) -> tuple[FloatArray, bool]:
-        sol = ets.ik_LM(_m(t), q0=q0, ilimit=30, slimit=100, tol=1e-14)
-        return np.asarray(sol.q, dtype=np.float64), bool(sol.success)
-
-    def ikpy_solve(t: npt.ArrayLike) -> tuple[FloatArray, bool]:
-        tm = _m(t)
-        full = chain.inverse_kinematics(target_position=tm[:3, 3],
-                                        target_orientation=tm[:3, :3],
-                                        orientation_mode="all", initial_position=init)
-        return np.asarray(full[1:6], dtype=np.float64), True  # ikpy has no success flag
-
-    out = []
-    for name, dist, solve, m in (
-        ("RTB ets().ik_LM", "roboticstoolbox-python", rtb_solve, n_rtb),
-        ("ikpy inverse_kinematics", "ikpy", ikpy_solve, n_ikpy),
-    ):
-        targets = target_t[:m]
-        for t in targets[:5]:
-            solve(t)
-        ns: list[int] = []
-        qs = np.empty((len(targets), 5))
-        claimed = 0
-        clock = time.perf_counter_ns
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            for i, t in enumerate(targets):
-                t0 = clock()
-                qr, flag = solve(t)
-                ns.append(clock() - t0)
-                qs[i] = np.degrees(qr)
-                claimed += flag
-        pos, rot = pose_errors(kin.fk_matrix_batch(qs), targets)
-        ok = (pos <= POS_TOL_MM) & (rot <= ROT_TOL_DEG) & _in_limits(kin, qs)
-        tm = _timing(name, ns)
-        ref = float(np.median(np.asarray(busarm_ns[: len(targets)]))) / 1000.0
-        out.append(PeerResult(
-            name, f"{dist} {_version(dist)}", len(targets), tm.median_us, tm.p90_us,
-            int(ok.sum()), claimed, round(ref, 3), round(tm.median_us / ref, 1),
-            float(np.median(pos)), float(np.median(rot)),
-        ))
-    return out

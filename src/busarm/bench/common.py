@@ -1,0 +1,97 @@
+"""What the benchmarks share: the machine they ran on, latency percentiles, the progress
+callback, and the summary of the twin calibration the vision benchmarks start with."""
+
+from __future__ import annotations
+
+import os
+import platform
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from busarm.errors import ConfigError
+from busarm.progress import Progress, quiet
+
+if TYPE_CHECKING:
+    from busarm.robot.twin_calibration import TwinCalibration
+    from busarm.vision.calibration import CameraIntrinsics
+
+__all__ = ["CalibrationSummary", "Progress", "latency_percentiles_ms", "machine_info", "quiet",
+           "short_machine_info"]
+
+def machine_info() -> dict[str, str]:
+    """What ran the benchmark, for docs/benchmarks.md: cpu, cores, python, os."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return {
+        "cpu": cpu,
+        "cores": str(os.cpu_count()),
+        "python": platform.python_version(),
+        "os": f"{platform.system()} {platform.release()}",
+    }
+
+
+def short_machine_info() -> dict[str, str]:
+    """The processor and Python version only (the twin benchmarks' reports)."""
+    return {"cpu": platform.processor() or platform.machine(),
+            "python": platform.python_version()}
+
+
+def latency_percentiles_ms(samples_s: Sequence[float]) -> dict[str, float]:
+    """p50, p90, p99 and max of durations in seconds, in milliseconds."""
+    ordered = sorted(samples_s)
+
+    def pct(p: float) -> float:
+        return ordered[min(len(ordered) - 1, int(p * len(ordered)))] * 1e3
+
+    return {"p50": round(pct(0.50), 4), "p90": round(pct(0.90), 4),
+            "p99": round(pct(0.99), 4), "max": round(ordered[-1] * 1e3, 4)}
+
+
+@dataclass
+class IntrinsicsFit:
+    """The intrinsics calibration made in the twin: reprojection error and focal/centre."""
+
+    rms_px: float
+    views: int
+    fx_px: float
+    fy_px: float
+    cx_px: float
+    cy_px: float
+
+
+@dataclass
+class HandEyeFit:
+    """The hand-eye calibration made in the twin, and how far it is from the true mount."""
+
+    rms_px: float
+    views: int
+    error_vs_truth_mm: float
+    error_vs_truth_deg: float
+
+
+@dataclass
+class CalibrationSummary:
+    """Both calibrations a twin benchmark made with our own flows before measuring."""
+
+    intrinsics: IntrinsicsFit
+    hand_eye: HandEyeFit
+
+    @classmethod
+    def of(cls, run: TwinCalibration | None, i: CameraIntrinsics) -> CalibrationSummary:
+        """From a calibration made in the twin (``Robot.open`` or ``calibrate_twin_camera``)
+        and the intrinsics it found."""
+        if run is None or run.intrinsics_rms_px is None:
+            raise ConfigError("a benchmark's calibration must be made in the twin, "
+                              "intrinsics and hand-eye")
+        return cls(IntrinsicsFit(run.intrinsics_rms_px, run.intrinsics_views, i.fx, i.fy, i.cx,
+                                 i.cy),
+                   HandEyeFit(run.hand_eye_rms_px, run.hand_eye_views, run.hand_eye_error_mm,
+                              run.hand_eye_error_deg))

@@ -1,0 +1,259 @@
+"""``busarm bench pick``: pick-and-sort over seeded twin scenes, scored against the twin's
+truth: how many blocks end in their colour's bin, whether any run reports a block sorted
+that is not, the cycle time per block and the first survey's localisation error.
+
+The twin's camera is calibrated first by our own flows (as for ``busarm bench locate``),
+once, on the simulated clock like everything else. Each scene is a ``Robot`` on its own
+twin; with ``workers`` > 1 the scenes run in that many processes. ``realtime`` runs each
+twin on the wall clock with its physics thread instead (the way ``twin serve`` runs), to
+check that the simulated clock changes nothing but the speed.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import math
+import multiprocessing
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from busarm.bench.common import CalibrationSummary, Progress, quiet, short_machine_info
+from busarm.errors import BusArmError
+from busarm.robot import Robot
+from busarm.twin.scene import REACH_RADIUS_MM, random_scene
+from busarm.twin.twin import BlockState
+from busarm.units import check_int_range
+
+if TYPE_CHECKING:
+    from busarm.apps.pick_sort import BlockOutcome
+
+TARGET_SORTED = 0.98
+TARGET_CYCLE_S = 5.0
+TARGET_SPEEDUP = 5.0
+"""Simulated seconds per wall second, calibration included."""
+MAX_FAILURES = 20
+"""Failed scenes the report lists."""
+MAX_WORKERS = 64
+
+
+@dataclass(frozen=True)
+class SceneTask:
+    """One scene to sort (sent to a worker process)."""
+
+    index: int
+    scene_seed: int
+    blocks: int
+    colors: tuple[str, ...]
+    intrinsics: Path
+    hand_eye: Path
+    realtime: bool
+
+
+@dataclass
+class SceneResult:
+    """What one scene gave: the twin's truth at the end and what the run said."""
+
+    task: SceneTask
+    bins: dict[str, tuple[float, float]]
+    truth: list[BlockState]
+    outcomes: list[BlockOutcome]
+    error: str
+    survey_errors_mm: list[float]
+    sim_s: float
+    wall_s: float
+    slipped_s: float
+
+    def placed(self, in_bin_mm: float) -> list[bool]:
+        return [math.hypot(t.x_mm - self.bins[t.color][0], t.y_mm - self.bins[t.color][1])
+                < in_bin_mm for t in self.truth]
+
+
+@dataclass
+class PickFailure:
+    """A scene where a block did not end in its bin, the run stopped, or the run's own
+    count of sorted blocks disagrees with the twin's truth."""
+
+    scene_seed: int
+    blocks: int
+    error: str
+    """Why the run stopped (empty if it ran to the end)."""
+    outcomes: list[BlockOutcome]
+    not_in_bins: list[BlockState]
+
+    def to_dict(self) -> dict[str, object]:
+        return {"scene_seed": self.scene_seed, "blocks": self.blocks, "error": self.error,
+                "outcomes": [b.to_dict() for b in self.outcomes],
+                "not_in_bins": [asdict(t) for t in self.not_in_bins]}
+
+
+@dataclass
+class PickBenchReport:
+    """``busarm bench pick``: the calibration made in the twin, then the sorting's score."""
+
+    machine: dict[str, str]
+    calibration: CalibrationSummary
+    scenes: int
+    blocks: int
+    in_their_bins: int
+    sorted_fraction: float
+    reported_sorted: int
+    reported_sorted_but_not: int
+    sorted_with_a_tilted_grasp: int
+    median_cycle_s: float | None
+    """Twin time per sorted block; None if none was sorted."""
+    p95_cycle_s: float | None
+    survey_error_median_mm: float
+    survey_error_p95_mm: float
+    seconds: float
+    """Wall seconds of the whole run, calibration included."""
+    calibration_seconds: float
+    """Wall seconds of the calibration alone."""
+    sim_seconds: float
+    """Twin seconds of every scene's run, added up."""
+    speedup: float
+    """``sim_seconds`` / ``seconds``: how many times faster than real time."""
+    workers: int
+    clock: str
+    """``simulated`` (as fast as the CPU allows) or ``wall`` (real time)."""
+    twin_slipped_s: float
+    """How far a real-time twin fell behind the clock, over all scenes (0 when simulated)."""
+    failures: list[PickFailure]
+    """The first ``MAX_FAILURES``."""
+    cycles_s: list[float] = field(default_factory=list, repr=False)
+    """Every sorted block's cycle time (twin seconds), in scene order."""
+
+    def to_dict(self) -> dict[str, object]:
+        d = asdict(self)
+        d["failures"] = [f.to_dict() for f in self.failures]
+        return d
+
+
+def run_scene(task: SceneTask) -> SceneResult:
+    """Sort one seeded scene on a twin of its own (in this process)."""
+    from busarm.apps.pick_sort import PickSorter
+
+    wall = time.monotonic()
+    scene = random_scene(task.scene_seed, task.blocks, list(task.colors),
+                         radius_mm=REACH_RADIUS_MM)
+    port = "twin://?realtime=1" if task.realtime else "twin"
+    with Robot.open(port, scene=scene, intrinsics=task.intrinsics,
+                    hand_eye=task.hand_eye) as robot:
+        twin = robot.twin
+        assert twin is not None
+        sorter = PickSorter(robot, colors=task.colors)
+        first = sorter.survey()
+        survey_errors = []
+        for t in twin.blocks():
+            near = [math.hypot(s.location.x_mm - t.x_mm, s.location.y_mm - t.y_mm)
+                    for s in first if s.color == t.color]
+            if near:
+                survey_errors.append(min(near))
+        try:
+            sorter.run()
+            error = ""
+        except BusArmError as exc:  # a failed run is a result too: score what is there
+            error = f"{type(exc).__name__}: {exc}"
+        return SceneResult(task, dict(robot.bins), twin.blocks(), list(sorter.report.blocks),
+                           error, survey_errors, twin.sim_time_s, time.monotonic() - wall,
+                           twin.slipped_s)
+
+
+def _results(tasks: list[SceneTask], workers: int, progress: Progress) -> list[SceneResult]:
+    """Every scene's result, in scene order; ``workers`` processes (1: this one)."""
+    from busarm.apps.pick_sort import IN_BIN_MM
+
+    def report(done: int, r: SceneResult) -> None:
+        placed = r.placed(IN_BIN_MM)
+        stop = f"; the run stopped: {r.error}" if r.error else ""
+        progress(f"scene {done}/{len(tasks)} (seed {r.task.scene_seed}): "
+                 f"{sum(placed)}/{len(placed)} in their bins, {r.sim_s:.0f} s of twin time "
+                 f"in {r.wall_s:.1f} s{stop}")
+
+    if workers == 1:
+        out = []
+        for task in tasks:
+            out.append(run_scene(task))
+            report(len(out), out[-1])
+        return out
+    # Spawned, not forked: each worker starts its own OpenGL context for the cameras.
+    context = multiprocessing.get_context("spawn")
+    results: dict[int, SceneResult] = {}
+    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
+        for future in concurrent.futures.as_completed(
+                [pool.submit(run_scene, task) for task in tasks]):
+            r = future.result()
+            results[r.task.index] = r
+            report(len(results), r)
+    return [results[i] for i in range(len(tasks))]
+
+
+def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] = (3, 6),
+                   colors: tuple[str, ...] = ("red", "green", "blue"), workers: int = 1,
+                   realtime: bool = False, work_dir: Path | None = None,
+                   progress: Progress = quiet) -> PickBenchReport:
+    """Pick-and-sort over seeded twin scenes, scored against the twin's truth (see the
+    module docstring). Scene ``i`` uses seed ``seed + i``."""
+    check_int_range("scenes", scenes, 1, 10_000)
+    check_int_range("workers", workers, 1, MAX_WORKERS)
+    rng = np.random.default_rng(seed)
+    counts = [int(rng.integers(blocks[0], blocks[1] + 1)) for _ in range(scenes)]
+    start = time.monotonic()
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = work_dir or Path(tmp)
+        with Robot.open("twin://?blocks=0", calibration_dir=folder,
+                        progress=progress) as robot:
+            made = robot.require_camera_calibration()
+            calibration = CalibrationSummary.of(made.twin_run, made.intrinsics)
+        calibration_s = time.monotonic() - start
+        tasks = [SceneTask(i, seed + i, n, tuple(colors), folder / "camera.json",
+                           folder / "hand_eye.json", realtime) for i, n in enumerate(counts)]
+        results = _results(tasks, workers, progress)
+    return _score(results, calibration, time.monotonic() - start, calibration_s, workers,
+                  realtime)
+
+
+def _score(results: list[SceneResult], calibration: CalibrationSummary, seconds: float,
+           calibration_s: float, workers: int, realtime: bool) -> PickBenchReport:
+    from busarm.apps.pick_sort import IN_BIN_MM
+
+    total = in_bin = false_sorted = reported_sorted = tilted = 0
+    cycles: list[float] = []
+    survey_errors: list[float] = []
+    failures: list[PickFailure] = []
+    for r in results:
+        placed = r.placed(IN_BIN_MM)
+        total += len(placed)
+        in_bin += sum(placed)
+        sorted_here = sum(b.outcome == "sorted" for b in r.outcomes)
+        reported_sorted += sorted_here
+        false_sorted += max(0, sorted_here - sum(placed))
+        cycles += [b.seconds for b in r.outcomes if b.outcome == "sorted"]
+        tilted += sum(b.outcome == "sorted" and b.grasp_pitch_deg not in (None, -90.0)
+                      for b in r.outcomes)
+        survey_errors += r.survey_errors_mm
+        if not all(placed) or r.error or sorted_here != sum(placed):
+            failures.append(PickFailure(
+                scene_seed=r.task.scene_seed, blocks=r.task.blocks, error=r.error,
+                outcomes=r.outcomes,
+                not_in_bins=[t for t, ok in zip(r.truth, placed, strict=True) if not ok]))
+    errors = np.asarray(survey_errors) if survey_errors else np.asarray([math.nan])
+    sim_s = sum(r.sim_s for r in results)
+    return PickBenchReport(
+        machine=short_machine_info(), calibration=calibration, scenes=len(results),
+        blocks=total, in_their_bins=in_bin, sorted_fraction=round(in_bin / max(total, 1), 4),
+        reported_sorted=reported_sorted, reported_sorted_but_not=false_sorted,
+        sorted_with_a_tilted_grasp=tilted,
+        median_cycle_s=round(float(np.median(cycles)), 2) if cycles else None,
+        p95_cycle_s=round(float(np.percentile(cycles, 95)), 2) if cycles else None,
+        survey_error_median_mm=round(float(np.median(errors)), 2),
+        survey_error_p95_mm=round(float(np.percentile(errors, 95)), 2),
+        seconds=round(seconds, 1), calibration_seconds=round(calibration_s, 1),
+        sim_seconds=round(sim_s, 1), speedup=round(sim_s / max(seconds, 1e-9), 2),
+        workers=workers, clock="wall" if realtime else "simulated",
+        twin_slipped_s=round(sum(r.slipped_s for r in results), 2),
+        failures=failures[:MAX_FAILURES], cycles_s=[round(c, 3) for c in cycles])

@@ -1,0 +1,293 @@
+"""One robot: the arm, its cameras, their calibrations, the block locator, and the twin
+when it is one. Every job, benchmark, test and interface builds on it.
+
+``Robot.open(port)`` makes the one twin-or-hardware decision: ``twin`` or
+``twin://?...`` is a MuJoCo twin in this process (on a simulated clock: see
+``busarm.clock``), anything else a real bus (``/dev/ttyUSB0``, a pyserial URL, the
+``sim`` servo simulator, the pty of ``busarm twin serve``). On a twin the wrist camera
+is the twin's, the bins are its trays, and a camera calibration that was not given is
+made by our own flows in the twin (``calibrate-if-missing``); on hardware the camera,
+its calibration files and the bins come from the user.
+
+The twin is handed out (``robot.twin``) to whoever opened the robot: ground truth for
+benchmarks and tests, the overview camera for reports. Nothing else reaches for it.
+Parts the robot does not have yet (the mecanum base, the Lidar, more cameras) join as
+more attributes and more entries of ``robot.cameras``.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from collections.abc import Collection, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+from urllib.parse import parse_qs, urlsplit
+
+from busarm.arm.arm import Arm
+from busarm.arm.calibration import Calibration, load_calibration
+from busarm.arm.config import ArmConfig, load_arm_config
+from busarm.bus.driver import ServoBus
+from busarm.bus.transport import DEFAULT_BAUDRATE, Transport, open_transport
+from busarm.clock import Clock
+from busarm.errors import ConfigError
+from busarm.progress import Progress, quiet
+from busarm.robot.locate import NOT_BLOCK_COLORS, BlockLocator
+from busarm.robot.twin_calibration import TwinCalibration, calibrate_twin_camera
+from busarm.twin.camera import TwinCamera
+from busarm.twin.scene import Scene
+from busarm.twin.transport import TwinTransport, is_twin_url, twin_from_url
+from busarm.twin.twin import Twin
+from busarm.vision.calibration import (
+    CameraIntrinsics,
+    HandEyeResult,
+    load_hand_eye,
+    load_intrinsics,
+)
+from busarm.vision.camera import CameraSource, open_camera
+from busarm.vision.color import ColorDetector, ColorThresholds, default_thresholds
+
+Bins = dict[str, tuple[float, float]]
+
+
+@dataclass(frozen=True)
+class CameraCalibration:
+    """The wrist camera's lens (intrinsics) and where it sits on the arm (hand-eye)."""
+
+    intrinsics: CameraIntrinsics
+    hand_eye: HandEyeResult
+    source: str
+    """Where it came from: the files given, or "calibrated in the twin"."""
+    twin_run: TwinCalibration | None = None
+    """When it was made in the twin: what that found (errors against the twin's truth)."""
+
+
+def with_board(port: str, board: str) -> str:
+    """The twin URL ``port`` with calibration ``board`` on its table (unless its scene is
+    a file, or it already has that board)."""
+    given = parse_qs(urlsplit(port).query).get("board") if "://" in port else None
+    if given and given[-1] != board:
+        raise ConfigError(f"{port}: this step looks for a {board} board, but the twin's "
+                          f"table has a {given[-1]} board (board={board})")
+    if given or "scene=" in port:
+        return port
+    if port == "twin":
+        return f"twin://?board={board}"
+    return port + ("&" if "?" in port else "?") + f"board={board}"
+
+
+class Robot:
+    """The arm and what it sees with; ``with Robot.open(port) as robot: ...``.
+
+    Leaving the ``with`` block by an exception (Ctrl+C included) stops and holds the arm
+    (MOVE_STOP to every servo), then closes the cameras, the bus and the twin.
+    """
+
+    def __init__(self, arm: Arm, *, camera: CameraSource | None = None,
+                 calibration: CameraCalibration | None = None, bins: Bins | None = None,
+                 twin: Twin | None = None) -> None:
+        self.arm = arm
+        self.twin = twin
+        self.port = arm.bus.transport.name
+        """What it was opened on (``Robot.open``'s port)."""
+        self.cameras: dict[str, CameraSource] = {}
+        """Every camera by role: ``wrist`` (the arm's), and on a twin ``overview``."""
+        if camera is not None:
+            self.cameras["wrist"] = camera
+        if twin is not None:
+            self.cameras["overview"] = TwinCamera(twin, view="overview")
+        self.camera_calibration = calibration
+        if calibration is not None and camera is not None:
+            _check_size(camera, calibration)
+        self.bins: Bins = dict(bins) if bins is not None else (
+            {b.color: (b.x_mm, b.y_mm) for b in twin.scene.bins} if twin is not None else {})
+
+    # ------------------------------------------------------------------ opening
+
+    @classmethod
+    def open(cls, port: str = "twin", *, camera: str | None = None,
+             config: ArmConfig | str | Path | None = None,
+             arm_calibration: Calibration | str | Path | None = None,
+             intrinsics: Path | None = None, hand_eye: Path | None = None,
+             bins: Bins | None = None, calibrate: bool = True,
+             calibration_dir: Path | None = None, board: str | None = None,
+             scene: Scene | None = None, needs: Collection[str] = (),
+             baudrate: int = DEFAULT_BAUDRATE, progress: Progress = quiet,
+             **bus_options: Any) -> Robot:
+        """Open the robot on ``port`` (see the module docstring).
+
+        ``camera``: a camera source (default on a twin: its wrist camera; ``twin`` there
+        means the same). ``intrinsics``/``hand_eye``: calibration files; on a twin,
+        missing ones are made (``calibrate``), their files kept in ``calibration_dir``
+        if given. ``board``: on a twin, lay this calibration board on its table;
+        ``scene``: what stands on a twin's table (else the URL's). ``needs``: what the job
+        cannot do without (``camera``, ``camera_calibration``, ``bins``), checked before
+        the port is opened. ``bus_options`` go to ``ServoBus`` (echo, retries,
+        timeout_margin_s). Everything is checked before the arm moves; a failure closes
+        what was opened.
+        """
+        on_twin = is_twin_url(port)
+        if scene is not None and not on_twin:
+            raise ConfigError(f"a scene is for the twin; {port} is not one (use --port twin, "
+                              "or no --port)")
+        _check_needs(needs, on_twin, camera, intrinsics, hand_eye, bins)
+        cfg = config if isinstance(config, ArmConfig) else load_arm_config(
+            config or "jetauto_pro")
+        cal = (arm_calibration if isinstance(arm_calibration, Calibration | None)
+               else load_calibration(arm_calibration))
+        twin: Twin | None = None
+        transport: Transport
+        if on_twin:
+            twin = twin_from_url(with_board(port, board) if board else port, baudrate,
+                                 config=cfg, scene=scene)
+            transport = TwinTransport(twin)
+        else:
+            transport = open_transport(port, baudrate=baudrate)
+        opened: list[Any] = [transport]
+        try:
+            bus = ServoBus(transport, **bus_options)
+            arm = Arm(bus, cfg, cal)
+            source = _open_camera(camera, twin)
+            if source is not None:
+                opened.append(source)
+            calibration = _camera_calibration(twin, intrinsics, hand_eye, calibrate,
+                                              calibration_dir, progress)
+            robot = cls(arm, camera=source, calibration=calibration, bins=bins, twin=twin)
+            robot.port = port
+            return robot
+        except BaseException:
+            for thing in reversed(opened):  # nothing was sent to the arm: just close
+                thing.close()
+            raise
+
+    # ------------------------------------------------------------------ parts
+
+    @property
+    def config(self) -> ArmConfig:
+        return self.arm.config
+
+    @property
+    def clock(self) -> Clock:
+        """The robot's time: simulated seconds on a twin, the wall clock on hardware."""
+        return self.arm.clock
+
+    @property
+    def is_twin(self) -> bool:
+        return self.twin is not None
+
+    @property
+    def camera(self) -> CameraSource:
+        """The wrist camera; ConfigError if the robot was opened without one."""
+        source = self.cameras.get("wrist")
+        if source is None:
+            raise ConfigError("this job needs the wrist camera: give one (--camera "
+                              "/dev/video0); only a twin has one by default")
+        return source
+
+    @property
+    def has_camera(self) -> bool:
+        return "wrist" in self.cameras
+
+    def require_camera_calibration(self) -> CameraCalibration:
+        """The camera's calibration; ConfigError saying how to make it if there is none."""
+        if self.camera_calibration is None:
+            raise ConfigError("this job needs the camera's calibration: --intrinsics FILE "
+                              "(busarm camera calibrate) and --hand-eye FILE (busarm camera "
+                              "handeye)")
+        return self.camera_calibration
+
+    def locator(self, colors: Sequence[str] | None = None,
+                thresholds: ColorThresholds | None = None,
+                block_size_mm: float = 30.0) -> BlockLocator:
+        """A block locator for this arm and camera: ``colors`` (default every block colour
+        of ``thresholds``, default the shipped ones)."""
+        cal = self.require_camera_calibration()
+        table = thresholds if thresholds is not None else default_thresholds()
+        names = list(colors) if colors is not None else [
+            c for c in table.names if c not in NOT_BLOCK_COLORS]
+        return BlockLocator(self.arm.kin, cal.intrinsics, cal.hand_eye,
+                            ColorDetector(table, colors=names),
+                            table_z_mm=self.config.table_z_mm, block_size_mm=block_size_mm)
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def close(self) -> None:
+        """Close the cameras and the arm's bus (which closes a twin)."""
+        try:
+            for source in self.cameras.values():
+                source.close()
+        finally:
+            self.arm.close()
+
+    def __enter__(self) -> Robot:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        try:
+            for source in self.cameras.values():
+                source.close()
+        finally:
+            self.arm.__exit__(exc_type, exc, tb)  # stop and hold on an exception, then close
+
+    def __repr__(self) -> str:
+        where = "twin" if self.twin is not None else self.arm.bus.transport.name
+        return f"Robot({self.config.name!r} on {where}, cameras={sorted(self.cameras)})"
+
+
+NEEDS = {"camera": "the wrist camera (--camera)",
+         "camera_calibration": "the camera's calibration files (--intrinsics from busarm "
+                               "camera calibrate, --hand-eye from busarm camera handeye)",
+         "bins": "where the bins are (--bins COLOUR=X,Y;...)"}
+
+
+def _check_needs(needs: Collection[str], on_twin: bool, camera: str | None,
+                 intrinsics: Path | None, hand_eye: Path | None, bins: Bins | None) -> None:
+    unknown = set(needs) - set(NEEDS)
+    if unknown:
+        raise ConfigError(f"needs {sorted(unknown)}; allowed: {', '.join(NEEDS)}")
+    if on_twin:
+        return  # the twin has them all (its camera, calibration made in it, its trays)
+    given = {"camera": camera is not None, "bins": bins is not None,
+             "camera_calibration": intrinsics is not None and hand_eye is not None}
+    missing = [NEEDS[n] for n in NEEDS if n in needs and not given[n]]
+    if missing:
+        raise ConfigError("on hardware this job needs " + "; ".join(missing))
+
+
+def _open_camera(camera: str | None, twin: Twin | None) -> CameraSource | None:
+    if twin is not None and camera in (None, "twin"):
+        return TwinCamera(twin)
+    return open_camera(camera) if camera is not None else None
+
+
+def _check_size(camera: CameraSource, calibration: CameraCalibration) -> None:
+    i = calibration.intrinsics
+    if (camera.width_px, camera.height_px) != (i.width_px, i.height_px):
+        raise ConfigError(f"the camera calibration ({calibration.source}) is for "
+                          f"{i.width_px}x{i.height_px} pictures; {camera.name} gives "
+                          f"{camera.width_px}x{camera.height_px}")
+
+
+def _camera_calibration(twin: Twin | None, intrinsics: Path | None, hand_eye: Path | None,
+                        calibrate: bool, out_dir: Path | None,
+                        progress: Progress) -> CameraCalibration | None:
+    """The files given, else (on a twin) made there; None on hardware without files."""
+    if intrinsics is not None and hand_eye is not None:
+        intr = load_intrinsics(intrinsics)
+        return CameraCalibration(intr, load_hand_eye(hand_eye, intrinsics=intr),
+                                 f"{intrinsics}, {hand_eye}")
+    if twin is None or not calibrate:
+        if intrinsics is not None or hand_eye is not None:
+            raise ConfigError("give both camera calibration files: --intrinsics and "
+                              "--hand-eye")
+        return None
+    progress("calibrating the twin's camera (" + ("hand-eye" if intrinsics else
+                                                  "intrinsics, then hand-eye") + ")...")
+    with tempfile.TemporaryDirectory(prefix="busarm-twin-calibration-") as tmp:
+        run = calibrate_twin_camera(twin, out_dir or Path(tmp), intrinsics=intrinsics,
+                                    progress=progress)
+        intr = load_intrinsics(run.intrinsics_path)
+        he = load_hand_eye(run.hand_eye_path, intrinsics=intr)
+    return CameraCalibration(intr, he, "calibrated in the twin", run)
