@@ -15,7 +15,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from busarm.apps.pick_sort import (
+from busarm.apps.grasp import (
     MAX_CLOSING_TILT_DEG,
     MAX_TILTED_TURN_DEG,
     GraspPlan,

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from busarm.arm.kinematics import ArmKinematics
+from busarm.apps.grasp import GraspPlan, GraspPlanner
 from busarm.errors import BusArmError, ConfigError, ServoFaultError, UnreachableError
 from busarm.robot import Robot
 from busarm.robot.locate import Sighting
@@ -49,38 +49,9 @@ slots are 28 mm from the centre)."""
 BIN_SLOTS_MM = ((-20.0, -20.0), (20.0, -20.0), (-20.0, 20.0), (20.0, 20.0))
 """Where blocks go in a bin (from its centre): 2 x 2, 10 mm apart (the camera sees them
 apart when it checks the bin)."""
-TILTED_PITCHES_DEG = (-75.0, -60.0, -45.0, -30.0, -105.0, -120.0)
-"""Tool pitches tried, in order, where straight down does not reach: leaning out for far
-blocks, leaning back towards the base for near ones."""
-MAX_CLOSING_TILT_DEG = 20.0
-"""A tilted grasp's fingers close along a line at most this far from level, so the pads
-lie flat enough on the block's upright sides. (Leaning far, that leaves little room to
-turn the wrist: the fingers close nearly across the arm's bearing.)"""
-MAX_TILTED_TURN_DEG = 30.0
-"""A block left more than this off square to the fingers is not taken tilted (they would
-meet its edges)."""
-ROLL_STEP_DEG = 2.0
-"""The wrist rolls tried for a tilted grasp are this far apart."""
 ORDERS = ("nearest", "colors")
 HOLD_SLACK_MM = 4.0
 """A gripper this little wider than a block, squeezing one, holds it (pads give a little)."""
-LINE_CHECK_MM = 2.0
-"""Points this far apart are checked for reach along each straight move of a grasp plan
-(more densely than ``Arm.move_line`` solves them, so a plan that passes does not fail on
-the way)."""
-
-
-@dataclass(frozen=True)
-class GraspPlan:
-    """How to take one block: the tool's pitch and roll and three tool points (mm, base
-    frame): the straight approach starts ``above`` it, closes at ``grasp``, lifts to
-    ``lift``."""
-
-    pitch_deg: float
-    roll_deg: float
-    above: tuple[float, float, float]
-    grasp: tuple[float, float, float]
-    lift: tuple[float, float, float]
 
 
 @dataclass(frozen=True)
@@ -172,106 +143,6 @@ class RunReport:
                 "skipped": sum(b.outcome == "skipped" for b in self.blocks),
                 "moved": sum(b.outcome == "moved" for b in self.blocks),
                 "median_cycle_s": round(cycle, 2), "seconds": round(self.seconds, 1)}
-
-
-@dataclass(frozen=True)
-class GraspPlanner:
-    """Grasps of cubes ``block_mm`` wide on a table at ``table_z_mm``, for an arm: pure
-    geometry (no bus), the fingertips at the cube's half height."""
-
-    kin: ArmKinematics
-    table_z_mm: float
-    block_mm: float
-    approach_mm: float
-    """How far before the grasp the straight approach starts (along the tool's axis)."""
-    carry_mm: float
-    """The height above the table the block is lifted to."""
-
-    def __post_init__(self) -> None:
-        check_range("table_z_mm", self.table_z_mm, -500.0, 500.0, "mm")
-        check_range("block_mm", self.block_mm, 5.0, 100.0, "mm")
-        check_range("approach_mm", self.approach_mm, 5.0, 300.0, "mm")
-        check_range("carry_mm", self.carry_mm, self.block_mm, 300.0, "mm")
-
-    @property
-    def grasp_z_mm(self) -> float:
-        return self.table_z_mm + self.block_mm / 2
-
-    def roll_squared_deg(self, x_mm: float, y_mm: float, yaw_deg: float) -> float:
-        """The wrist roll that squares the fingers (closing along the tool's y) to a block
-        at ``yaw_deg`` (modulo 90), the smallest such turn."""
-        kin = self.kin
-
-        def finger_axis_deg(roll: float) -> float:
-            return _finger_axis_deg(
-                kin.fk_matrix(kin.ik_best(x_mm, y_mm, self.grasp_z_mm, -90.0, roll)))
-
-        a0, a1 = finger_axis_deg(0.0), finger_axis_deg(10.0)
-        sign = 1.0 if (a1 - a0 + 180.0) % 360.0 - 180.0 > 0 else -1.0
-        return ((yaw_deg - a0) * sign + 45.0) % 90.0 - 45.0
-
-    def plan(self, x_mm: float, y_mm: float, yaw_deg: float) -> GraspPlan:
-        """Straight down with the fingers squared to the block where that reaches; else
-        tilted (``TILTED_PITCHES_DEG``), closing level, the approach along the tool's axis.
-        Raises UnreachableError saying why neither works."""
-        z0, zg = self.table_z_mm, self.grasp_z_mm
-        grasp = (x_mm, y_mm, zg)
-        lift = (x_mm, y_mm, z0 + self.carry_mm)
-        try:
-            roll = self.roll_squared_deg(x_mm, y_mm, yaw_deg)
-            plan = GraspPlan(-90.0, roll, (x_mm, y_mm, z0 + self.approach_mm), grasp, lift)
-            self._check_plan(plan)
-            return plan
-        except UnreachableError as exc:
-            top_down_failure = str(exc)
-        turned = ""
-        for pitch in TILTED_PITCHES_DEG:
-            level = self._best_level_roll(x_mm, y_mm, yaw_deg, pitch)
-            if level is None:
-                continue
-            roll, turn, m = level
-            if turn > MAX_TILTED_TURN_DEG:
-                turned = (f"; tilted, the fingers would meet it {turn:.0f} deg off square "
-                          f"(at most {MAX_TILTED_TURN_DEG:g})")
-                continue
-            back = m[:3, 2] * self.approach_mm  # back along the tool's axis
-            above = (x_mm - back[0], y_mm - back[1], zg - back[2])
-            plan = GraspPlan(pitch, roll, above, grasp, lift)
-            try:
-                self._check_plan(plan)
-            except UnreachableError:
-                continue
-            return plan
-        raise UnreachableError(f"no grasp reaches it: straight down {top_down_failure}"
-                               f"{turned or '; nor tilted'}")
-
-    def _best_level_roll(self, x_mm: float, y_mm: float, yaw_deg: float, pitch_deg: float
-                    ) -> tuple[float, float, FloatArray] | None:
-        """At a tilted pitch: the roll that best squares the fingers to the block while
-        they close within ``MAX_CLOSING_TILT_DEG`` of level; (roll, degrees still off
-        square, the tool's pose), or None if the pitch does not reach."""
-        kin = self.kin
-        best: tuple[float, float, FloatArray] | None = None
-        for roll in np.arange(-90.0, 90.5, ROLL_STEP_DEG).tolist():
-            try:
-                m = kin.fk_matrix(kin.ik_best(x_mm, y_mm, self.grasp_z_mm, pitch_deg, roll))
-            except UnreachableError:
-                continue
-            if math.degrees(math.asin(min(1.0, abs(m[2, 1])))) > MAX_CLOSING_TILT_DEG:
-                continue
-            turn = abs((yaw_deg - _finger_axis_deg(m) + 45.0) % 90.0 - 45.0)
-            if best is None or turn < best[1] - 1e-9:
-                best = (float(roll), turn, m)
-        return best
-
-    def _check_plan(self, plan: GraspPlan) -> None:
-        """Every point of the plan's straight moves within reach (UnreachableError)."""
-        kin = self.kin
-        for a, b in ((plan.above, plan.grasp), (plan.grasp, plan.lift)):
-            steps = math.ceil(math.dist(a, b) / LINE_CHECK_MM)
-            for t in np.linspace(0.0, 1.0, steps + 1):
-                x, y, z = (p + (q - p) * t for p, q in zip(a, b, strict=True))
-                kin.ik_best(x, y, z, plan.pitch_deg, plan.roll_deg)
 
 
 class PickSorter:
@@ -633,7 +504,3 @@ def _off_mm(seen: Sighting, x_mm: float, y_mm: float) -> float:
 def _bearing_deg(seen: Sighting) -> float:
     return math.degrees(math.atan2(seen.location.y_mm, seen.location.x_mm))
 
-
-def _finger_axis_deg(tool: FloatArray) -> float:
-    """The direction (deg, base frame) the fingers close along: the tool's y seen from above."""
-    return math.degrees(math.atan2(tool[1, 1], tool[0, 1]))

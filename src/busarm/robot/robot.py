@@ -215,10 +215,10 @@ class Robot:
     def close(self) -> None:
         """Close the cameras and the arm's bus (which closes a twin)."""
         try:
+            self.arm.close()
+        finally:
             for source in self.cameras.values():
                 source.close()
-        finally:
-            self.arm.close()
 
     def __enter__(self) -> Robot:
         return self
@@ -226,10 +226,10 @@ class Robot:
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
         try:
+            self.arm.__exit__(exc_type, exc, tb)  # first stop and hold on an exception
+        finally:
             for source in self.cameras.values():
                 source.close()
-        finally:
-            self.arm.__exit__(exc_type, exc, tb)  # stop and hold on an exception, then close
 
     def __repr__(self) -> str:
         where = "twin" if self.twin is not None else self.arm.bus.transport.name
