@@ -416,6 +416,9 @@ def test_sim_serve_and_monitor_as_subprocesses() -> None:
         monitor = subprocess.Popen(
             [*_busarm(), "--port", path, "monitor", "--ids", "1,10", "--interval", "0.05"],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+            # Ctrl+C must reach it even when the tests run as a background job (which
+            # starts every child with SIGINT ignored).
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
         )
         assert monitor.stdout is not None
         while "refresh 2" not in monitor.stdout.readline():

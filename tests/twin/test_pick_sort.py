@@ -238,7 +238,10 @@ def test_ctrl_c_leaves_the_arm_stopped_holding_and_the_gripper_known(
          "--intrinsics", str(calibration[0]), "--hand-eye", str(calibration[1]),
          "--bins", bins, "--report", str(report)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        env=dict(os.environ, PYTHONUNBUFFERED="1"))
+        env=dict(os.environ, PYTHONUNBUFFERED="1"),
+        # Ctrl+C must reach it even when the tests run as a background job (which starts
+        # every child with SIGINT ignored).
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     assert run.stderr is not None
     lines = []
     for line in run.stderr:
