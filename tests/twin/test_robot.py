@@ -105,3 +105,16 @@ def test_an_exception_in_the_job_stops_and_holds_the_arm() -> None:
     shoulder = twin.config.joints[1]
     home_pulses = shoulder.pulses_from_angle_deg(twin.config.pose("home")[1])
     assert abs(twin.servos[1].position_pulses - home_pulses) > 5
+
+
+def test_the_twins_arm_is_the_one_given_in_its_url_or_by_the_program() -> None:
+    from busarm.arm.config import load_arm_config
+
+    armpi = str(Path(__file__).parents[1] / "data" / "armpi_style.toml")
+    with Robot.open(f"twin://?config={armpi}&blocks=0", calibrate=False) as robot:
+        assert robot.config.name == "ArmPi-style test arm" == robot.twin.config.name  # type: ignore[union-attr]
+    with Robot.open("twin://?blocks=0", config=armpi, calibrate=False) as robot:
+        assert robot.config.name == "ArmPi-style test arm"
+    with pytest.raises(ConfigError, match="is not the arm config given"):
+        Robot.open(f"twin://?config={armpi}&blocks=0", config=load_arm_config(),
+                   calibrate=False)

@@ -132,17 +132,17 @@ class Robot:
             raise ConfigError(f"a scene is for the twin; {port} is not one (use --port twin, "
                               "or no --port)")
         _check_needs(needs, on_twin, camera, intrinsics, hand_eye, bins)
-        cfg = config if isinstance(config, ArmConfig) else load_arm_config(
-            config or "jetauto_pro")
+        given = config if isinstance(config, ArmConfig | None) else load_arm_config(config)
         cal = (arm_calibration if isinstance(arm_calibration, Calibration | None)
                else load_calibration(arm_calibration))
         twin: Twin | None = None
         transport: Transport
-        if on_twin:
+        if on_twin:  # the arm is the twin's (its URL's config=, if the program gave none)
             twin = twin_from_url(with_board(port, board) if board else port, baudrate,
-                                 config=cfg, scene=scene)
-            transport = TwinTransport(twin)
+                                 config=given, scene=scene)
+            cfg, transport = twin.config, TwinTransport(twin)
         else:
+            cfg = given or load_arm_config()
             transport = open_transport(port, baudrate=baudrate)
         opened: list[Any] = [transport]
         try:

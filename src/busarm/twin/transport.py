@@ -97,9 +97,12 @@ def twin_from_url(url: str, baudrate: int = 115200, *, realtime: bool = False,
     if scene is not None and {"scene", "seed", "blocks", "colors", "board"} & set(q):
         raise ConfigError(f"{url}: the table is given twice (in the URL and as a scene)")
     scene = scene if scene is not None else scene_from_query(q)
-    if config is not None and q.get("config"):
-        raise ConfigError("twin URL: config= given twice (in the URL and by the program)")
-    config = config or load_arm_config(q.get("config") or "jetauto_pro")
+    in_url = load_arm_config(q["config"]) if q.get("config") else None
+    if config is not None and in_url is not None and replace(in_url, source="") != replace(
+            config, source=""):
+        raise ConfigError(f"twin URL: config={q['config']} is not the arm config given "
+                          f"({config.source}): give one of them")
+    config = config or in_url or load_arm_config("jetauto_pro")
     timing = WireTiming(baudrate, enabled=query_flag(q, "timing", True, "twin URL"))
     realtime = realtime or query_flag(q, "realtime", False, "twin URL")
     pace = query_float(q, "pace", 0.0, "twin URL") if "pace" in q else None
