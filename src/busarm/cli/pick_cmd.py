@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import click
 
@@ -26,6 +27,16 @@ from busarm.cli.common import (
     scene_options,
 )
 from busarm.errors import BusArmError, ConfigError
+
+if TYPE_CHECKING:
+    import numpy as np
+    import numpy.typing as npt
+
+    from busarm.apps.pick_sort import PickSorter, RunReport
+    from busarm.robot.locate import Sighting
+    from busarm.vision.camera import CameraSource
+
+    Image = npt.NDArray[np.uint8]
 
 DEFAULT_REPORT = "pick-sort-report"
 
@@ -96,7 +107,6 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
     """
     from busarm.apps.pick_report import write_report
     from busarm.apps.pick_sort import PickSorter, PickSortSettings
-    from busarm.vision.annotate import annotate
     from busarm.vision.color import parse_color_names
 
     names = parse_color_names(colors or DEFAULT_COLORS)
@@ -109,60 +119,86 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
     survey_poses = parse_survey(survey_text, ac.config)
     check_writable(report_dir / "report.json" if report_dir.is_dir() else report_dir)
     wall_start = time.monotonic()
-    frames: list[Any] = []
-    picks: list[tuple[str, Any]] = []
     with settings.open_robot(default="twin", camera=camera_src, config=ac.config,
                              intrinsics=intrinsics, hand_eye=hand_eye, bins=bins_given,
                              scene=scene, calibration_dir=report_dir / "calibration",
                              needs=("camera", "camera_calibration", "bins"),
                              progress=lambda text: None if " view " in text else
                              settings.err.print(text, highlight=False)) as robot:
-
-        def on_step(step: str) -> None:
-            frames.append(robot.camera.read().image)
-
-        def on_pick(target: Any) -> None:
-            image, found = sorter.last_survey[0]
-            picks.append((target.color, annotate(
-                image, [s.detection for s in found if s.detection is not None],
-                text_lines=[f"next: {target.color} at ({target.location.x_mm:.0f}, "
-                            f"{target.location.y_mm:.0f}) mm"])))
-
-        sorter = PickSorter(robot, colors=names, survey_poses=survey_poses,
-                            settings=PickSortSettings(order=order),
-                            progress=lambda text: settings.err.print(text, highlight=False),
-                            on_step=on_step, on_pick=on_pick)
+        pictures = _Pictures(robot.camera)
+        sorter = pictures.sorter = PickSorter(
+            robot, colors=names, survey_poses=survey_poses,
+            settings=PickSortSettings(order=order),
+            progress=lambda text: settings.err.print(text, highlight=False),
+            on_step=pictures.on_step, on_pick=pictures.on_pick)
         overview = robot.cameras.get("overview")
         before = overview.read().image if overview is not None else None
         simulated = robot.clock.is_simulated
         about = {"port": robot.port, "clock": "simulated" if simulated else "wall"}
-        try:
-            report = sorter.run()
-        except BaseException:
-            # Stopped and holding (the sorter saw to it): say so, keep what was done.
-            stopped = sorter.report
-            held = ("The bus did not answer: look at the arm" if
-                    stopped.gripper.startswith("unknown") else "The arm holds where it is")
-            settings.err.print(f"pick-sort stopped: {stopped.stopped}. {held}; the gripper: "
-                               f"{stopped.gripper}. The report so far: {report_dir}/",
-                               highlight=False, soft_wrap=True)
-            try:
-                write_report(report_dir, stopped, picks=picks, camera_frames=frames,
-                             extra=about)
-            except (BusArmError, OSError) as exc:  # the stop's own error is the one to see
-                settings.err.print(f"(the report could not be written: {exc})",
-                                   highlight=False, soft_wrap=True)
-            raise
+        report = _run(settings, sorter, pictures, report_dir, about)
         robot.arm.move_joints(ac.config.pose("home"))
         after = overview.read().image if overview is not None else (
             sorter.last_survey[0][0] if sorter.last_survey else None)
-    path = write_report(report_dir, report, before=before, after=after, picks=picks,
-                        camera_frames=frames,
+    path = write_report(report_dir, report, before=before, after=after, picks=pictures.picks,
+                        camera_frames=pictures.frames,
                         extra={**about, "wall_seconds_with_calibration":
                                round(time.monotonic() - wall_start, 1)})
     if as_json:
         click.echo(json.dumps(json.loads(path.read_text()), indent=2))
         return
+    _print_summary(report, simulated, time.monotonic() - wall_start, report_dir)
+
+
+@dataclass
+class _Pictures:
+    """What the report shows: the camera after each step, and the annotated picture each
+    pick started from."""
+
+    camera: CameraSource
+    sorter: PickSorter | None = None
+    frames: list[Image] = field(default_factory=list)
+    picks: list[tuple[str, Image]] = field(default_factory=list)
+
+    def on_step(self, step: str) -> None:
+        self.frames.append(self.camera.read().image)
+
+    def on_pick(self, target: Sighting) -> None:
+        from busarm.vision.annotate import annotate
+
+        assert self.sorter is not None
+        image, found = self.sorter.last_survey[0]
+        self.picks.append((target.color, annotate(
+            image, [s.detection for s in found if s.detection is not None],
+            text_lines=[f"next: {target.color} at ({target.location.x_mm:.0f}, "
+                        f"{target.location.y_mm:.0f}) mm"])))
+
+
+def _run(settings: Settings, sorter: PickSorter, pictures: _Pictures, report_dir: Path,
+         about: dict[str, str]) -> RunReport:
+    """The sorter's run; if it stops early (the sorter stopped and holds the arm), say so
+    and keep the report so far."""
+    from busarm.apps.pick_report import write_report
+
+    try:
+        return sorter.run()
+    except BaseException:
+        stopped = sorter.report
+        held = ("The bus did not answer: look at the arm" if
+                stopped.gripper.startswith("unknown") else "The arm holds where it is")
+        settings.err.print(f"pick-sort stopped: {stopped.stopped}. {held}; the gripper: "
+                           f"{stopped.gripper}. The report so far: {report_dir}/",
+                           highlight=False, soft_wrap=True)
+        try:
+            write_report(report_dir, stopped, picks=pictures.picks,
+                         camera_frames=pictures.frames, extra=about)
+        except (BusArmError, OSError) as exc:  # the stop's own error is the one to see
+            settings.err.print(f"(the report could not be written: {exc})",
+                               highlight=False, soft_wrap=True)
+        raise
+
+
+def _print_summary(report: RunReport, simulated: bool, wall_s: float,
+                   report_dir: Path) -> None:
     for b in report.blocks:
         where = f"({b.found_mm[0]:.0f}, {b.found_mm[1]:.0f}) mm"
         extra = f": {b.reason}" if b.reason else f", {b.attempts} attempt(s), {b.seconds:.1f} s"
@@ -171,8 +207,7 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
     unit = "s of twin time" if simulated else "s"
     click.echo(f"sorted {t['sorted']}, failed {t['failed']}, skipped {t['skipped']}; median "
                f"cycle {t['median_cycle_s']} {unit} per block; {t['seconds']} {unit} in all "
-               f"({time.monotonic() - wall_start:.0f} s on this computer). Report: "
-               f"{report_dir}/")
+               f"({wall_s:.0f} s on this computer). Report: {report_dir}/")
 
 
 COMMANDS = [pick_sort]
