@@ -44,6 +44,10 @@ class Clock(Protocol):
         """Wait ``seconds`` of this clock's time (0 or more)."""
         ...
 
+    def wait(self, event: threading.Event, seconds: float) -> bool:
+        """Wait up to ``seconds`` of this clock's time for ``event``; whether it is set."""
+        ...
+
 
 def _check_sleep(seconds: float) -> float:
     # A negative wait (a deadline already passed) is no wait; a huge one is a bug.
@@ -58,6 +62,9 @@ class WallClock:
 
     def sleep(self, seconds: float) -> None:
         time.sleep(_check_sleep(seconds))
+
+    def wait(self, event: threading.Event, seconds: float) -> bool:
+        return event.wait(_check_sleep(seconds))
 
     def __repr__(self) -> str:
         return "WallClock()"
@@ -117,6 +124,13 @@ class SimClock:
                     time.monotonic() - self._wall_start)
                 if ahead > 0:
                     time.sleep(ahead)
+
+    def wait(self, event: threading.Event, seconds: float) -> bool:
+        # Another thread sets the event in wall time: look at it every step.
+        end = self._now + _check_sleep(seconds)
+        while not event.is_set() and self._now < end - 1e-12:
+            self.sleep(min(self.step_s, end - self._now))
+        return event.is_set()
 
     def __repr__(self) -> str:
         return f"SimClock(now={self._now:.3f} s, pace={self.pace})"

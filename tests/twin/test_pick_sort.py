@@ -67,6 +67,8 @@ def test_the_pick_sort_command_sorts_and_reports(calibration: tuple[Path, Path],
     import json
 
     report = tmp_path / "report"
+    (report / "picks").mkdir(parents=True)
+    (report / "picks" / "09-red.png").write_bytes(b"an earlier run's picture")
     result = CliRunner(mix_stderr=False).invoke(cli, [
         "pick-sort", "--seed", "2", "--blocks", "3", "--intrinsics", str(calibration[0]),
         "--hand-eye", str(calibration[1]), "--report", str(report), "--json",

@@ -57,7 +57,7 @@ def test_the_same_calibration_files_give_the_same_robot_on_another_scene(
 
 
 def test_missing_parts_are_refused_before_the_port_is_opened() -> None:
-    with pytest.raises(ConfigError, match=r"on hardware this job needs the wrist camera "
+    with pytest.raises(ConfigError, match=r"on /dev/ttyUSB9 this job needs the wrist camera "
                                           r"\(--camera\); the camera's calibration"):
         Robot.open("/dev/ttyUSB9", needs=("camera", "camera_calibration"))
     with pytest.raises(ConfigError, match="where the bins are"):
@@ -68,6 +68,8 @@ def test_missing_parts_are_refused_before_the_port_is_opened() -> None:
         Robot.open("sim", scene=Scene())
     with pytest.raises(ConfigError, match="give both camera calibration files"):
         Robot.open("sim", intrinsics=Path("camera.json"))
+    with pytest.raises(ConfigError, match="needs the intrinsics it was made with"):
+        Robot.open("twin", hand_eye=Path("hand_eye.json"))
 
 
 def test_a_robot_without_a_camera_says_what_is_missing() -> None:
@@ -118,3 +120,17 @@ def test_the_twins_arm_is_the_one_given_in_its_url_or_by_the_program() -> None:
     with pytest.raises(ConfigError, match="is not the arm config given"):
         Robot.open(f"twin://?config={armpi}&blocks=0", config=load_arm_config(),
                    calibrate=False)
+
+
+def test_an_action_group_plays_on_the_twins_clock() -> None:
+    from busarm.arm.actions import read_d6a
+
+    group = read_d6a(Path(__file__).parents[1] / "data" / "vendor" /
+                     "arm_calibration_pose.d6a")
+    with Robot.open("twin://?blocks=0", calibrate=False) as robot:
+        start = robot.clock.now()
+        assert robot.arm.play(group) == len(group.frames)
+        # Each frame's time passed on the twin (not on the wall), and the arm got there.
+        assert robot.clock.now() - start >= sum(f.duration_ms for f in group.frames) / 1000
+        target = robot.arm.action_targets(group)[-1][1]
+        np.testing.assert_allclose(robot.arm.read_joints_deg(), target, atol=1.5)

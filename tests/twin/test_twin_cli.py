@@ -119,3 +119,9 @@ def test_a_blank_frame_is_named_as_such(tmp_path: Path) -> None:
     result = run("vision", "detect", "--camera", str(folder))
     assert result.exit_code == 0, result.stderr
     assert "the frame is uniform" in result.stdout
+
+
+def test_the_bus_benchmark_refuses_a_twin_on_a_simulated_clock() -> None:
+    result = run("--port", "twin", "bench", "--reads", "10", "--loops", "1", "--scans", "1")
+    assert result.exit_code == 2, result.stderr
+    assert "runs on a simulated clock" in result.stderr and "reads/s" not in result.stdout

@@ -100,3 +100,22 @@ def test_a_silent_servo_times_out_in_simulated_time_without_waiting_for_it() -> 
         budget = bus.read_budget_s(Command.POS_READ)
     assert bus.retries == 2
     assert 3 * bus.timeout_s(6, 8) <= waited <= budget + 1e-6, (waited, budget)
+
+
+def test_waiting_for_an_event_ends_when_it_is_set_or_the_time_has_passed() -> None:
+    import threading
+
+    for clock in (WALL_CLOCK, SimClock(step_s=0.01)):
+        event = threading.Event()
+        start = clock.now()
+        assert clock.wait(event, 0.05) is False
+        assert clock.now() - start >= 0.05 - 1e-9
+        event.set()
+        start = clock.now()
+        assert clock.wait(event, 10.0) is True
+        assert clock.now() - start < 0.01
+    # Set by another thread while simulated time runs: seen within a step.
+    clock, event = SimClock(step_s=0.01), threading.Event()
+    clock.attach(lambda: event.set() if clock.now() >= 0.3 else None)
+    assert clock.wait(event, 5.0) is True
+    assert clock.now() == pytest.approx(0.3, abs=0.011)

@@ -37,6 +37,7 @@ def write_report(folder: Path, report: RunReport, *, before: Image | None = None
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ConfigError(f"cannot make the report folder {folder}: {exc.strerror}") from exc
+    _clear_pictures(folder)
     data = {"format": "busarm.pick_sort_report", "version": 1,
             "totals": report.totals(), "blocks": [b.to_dict() for b in report.blocks],
             **({"stopped": report.stopped, "gripper": report.gripper} if report.stopped else {}),
@@ -54,6 +55,13 @@ def write_report(folder: Path, report: RunReport, *, before: Image | None = None
     if camera_frames:
         write_bytes_atomic(folder / "camera.gif", gif_bytes(camera_frames), "animation")
     return path
+
+
+def _clear_pictures(folder: Path) -> None:
+    """Remove an earlier run's pictures, so the folder shows this run's only."""
+    old = [folder / name for name in ("before.png", "after.png", "camera.gif")]
+    for path in [*old, *sorted((folder / "picks").glob("*.png"))]:
+        path.unlink(missing_ok=True)
 
 
 def gif_bytes(frames: Sequence[Image], width_px: int = GIF_WIDTH_PX,

@@ -355,7 +355,7 @@ class PickSorter:
             for missing in sorted_here[len(inside):]:
                 missing.outcome = "failed"
                 missing.reason = "not in its bin when the bins were checked (it fell out?)"
-                self.progress(f"{color} block from {missing.found_mm}: not in its bin")
+                self.progress(f"{color} block from {_mm(missing.found_mm)}: not in its bin")
 
     # ------------------------------------------------------------------ the job
 
@@ -405,7 +405,7 @@ class PickSorter:
             reason = self._why_not(sighting)
             if reason:
                 outcome.outcome, outcome.reason = "skipped", reason
-                self.progress(f"skip {sighting.color} at {outcome.found_mm}: {reason}")
+                self.progress(f"skip {sighting.color} at {_mm(outcome.found_mm)}: {reason}")
                 continue
             distance = math.hypot(sighting.location.x_mm, sighting.location.y_mm)
             rank = list(self.bins).index(sighting.color) if self.settings.order == "colors" else 0
@@ -419,7 +419,7 @@ class PickSorter:
         reason = self._why_not(closer) if closer is not None else ""
         if reason:  # seen better, it is out of reach after all
             outcome.outcome, outcome.reason = "skipped", reason
-            self.progress(f"skip {target.color} at {outcome.found_mm}: {reason}")
+            self.progress(f"skip {target.color} at {_mm(outcome.found_mm)}: {reason}")
             return True
         outcome.attempts += 1
         if closer is None:
@@ -431,8 +431,7 @@ class PickSorter:
         outcome.seconds += self.clock.now() - t0
         if held:
             outcome.outcome, outcome.placed_mm = "sorted", placed
-            x, y = outcome.found_mm
-            self.progress(f"{target.color} from ({x:.0f}, {y:.0f}) mm into its bin "
+            self.progress(f"{target.color} from {_mm(outcome.found_mm)} into its bin "
                           f"({outcome.seconds:.1f} s)")
         elif outcome.attempts >= self.settings.max_attempts:
             outcome.outcome, outcome.reason = "failed", why
@@ -489,6 +488,11 @@ class PickSorter:
         except UnreachableError as exc:
             return str(exc)
         return ""
+
+
+def _mm(xy: tuple[float, float]) -> str:
+    """A place on the table as the progress lines say it: ``(208, -124) mm``."""
+    return f"({xy[0]:.0f}, {xy[1]:.0f}) mm"
 
 
 def _same_block(color: str, x_mm: float, y_mm: float, seen: Sighting,

@@ -688,7 +688,7 @@ class Arm:
                     pulses[gid] = grip
                 self._send_pulses(pulses, duration)
                 played += 1
-                if stop.wait(duration):
+                if self.clock.wait(stop, duration):
                     break
             if stop.is_set():
                 self.stop()

@@ -263,6 +263,10 @@ def run_bench(
     if not servo_ids:
         raise ConfigError("bench needs at least one servo ID")
     with ServoBus.open(port, echo=echo, turnaround_s=turnaround_ms / 1000.0) as bus:
+        if bus.clock.is_simulated:
+            raise ConfigError(f"{port} runs on a simulated clock: its wire takes no real time "
+                              "to measure; bench the servo simulator (the default port, "
+                              "sim) or `busarm twin serve`'s pty instead")
         for _ in range(WARM_UP_READS):  # fails fast if nobody is there
             bus.read_position_pulses(servo_ids[0])
         results = [

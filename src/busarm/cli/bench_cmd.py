@@ -326,8 +326,10 @@ def _print_pick(settings: Settings, report: PickBenchReport) -> None:
         f"cycle per block (twin time): median {cycle} s "
         f"({'[green]ok[/]' if ok_cycle else '[red]FAIL[/]'} <= {TARGET_CYCLE_S:g}; the vendor's "
         f"fixed grasp sequence alone takes about 5 s), "
-        f"p95 {report.p95_cycle_s} s; the twin fell behind the clock by "
-        f"{report.twin_slipped_s} s in all\nsurvey error median "
+        f"p95 {report.p95_cycle_s} s"
+        + ("" if report.clock != "wall" else
+           f"; the twins fell behind the wall clock by {report.twin_slipped_s} s in all")
+        + "\nsurvey error median "
         f"{report.survey_error_median_mm} mm, p95 {report.survey_error_p95_mm} mm\n"
         f"time: {report.sim_seconds} s of twin time in {report.seconds} s on this computer "
         f"({report.calibration_seconds} s of it calibrating), {report.workers} worker(s), "

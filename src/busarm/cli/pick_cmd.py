@@ -115,6 +115,9 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
             not settings.port_given):
         scene = make_scene(scene_file, seed, blocks, None if scene_file else colors)
     bins_given = parse_bins(bins_text) if bins_text is not None else None
+    if bins_given is not None and not set(bins_given) & set(names):
+        raise ConfigError(f"--bins has no bin for the colours to sort ({', '.join(names)}): "
+                          "give COLOUR=X,Y for at least one of them")
     ac = ArmContext(settings, config, None)
     survey_poses = parse_survey(survey_text, ac.config)
     check_writable(report_dir / "report.json" if report_dir.is_dir() else report_dir)
@@ -141,7 +144,7 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
             sorter.last_survey[0][0] if sorter.last_survey else None)
     path = write_report(report_dir, report, before=before, after=after, picks=pictures.picks,
                         camera_frames=pictures.frames,
-                        extra={**about, "wall_seconds_with_calibration":
+                        extra={**about, "wall_seconds":
                                round(time.monotonic() - wall_start, 1)})
     if as_json:
         click.echo(json.dumps(json.loads(path.read_text()), indent=2))
@@ -205,9 +208,11 @@ def _print_summary(report: RunReport, simulated: bool, wall_s: float,
         click.echo(f"{b.color:7s} at {where:18s} {b.outcome}{extra}")
     t = report.totals()
     unit = "s of twin time" if simulated else "s"
-    click.echo(f"sorted {t['sorted']}, failed {t['failed']}, skipped {t['skipped']}; median "
-               f"cycle {t['median_cycle_s']} {unit} per block; {t['seconds']} {unit} in all "
-               f"({wall_s:.0f} s on this computer). Report: {report_dir}/")
+    moved = f", moved {t['moved']}" if t["moved"] else ""
+    click.echo(f"sorted {t['sorted']}, failed {t['failed']}, skipped {t['skipped']}{moved}; "
+               f"median cycle {t['median_cycle_s']} {unit} per block; {t['seconds']} {unit} "
+               f"in all ({wall_s:.0f} s on this computer, with the set-up). Report: "
+               f"{report_dir}/")
 
 
 COMMANDS = [pick_sort]

@@ -131,7 +131,7 @@ class Robot:
         if scene is not None and not on_twin:
             raise ConfigError(f"a scene is for the twin; {port} is not one (use --port twin, "
                               "or no --port)")
-        _check_needs(needs, on_twin, camera, intrinsics, hand_eye, bins)
+        _check_needs(needs, port, on_twin, camera, intrinsics, hand_eye, bins)
         given = config if isinstance(config, ArmConfig | None) else load_arm_config(config)
         cal = (arm_calibration if isinstance(arm_calibration, Calibration | None)
                else load_calibration(arm_calibration))
@@ -242,18 +242,25 @@ NEEDS = {"camera": "the wrist camera (--camera)",
          "bins": "where the bins are (--bins COLOUR=X,Y;...)"}
 
 
-def _check_needs(needs: Collection[str], on_twin: bool, camera: str | None,
+def _check_needs(needs: Collection[str], port: str, on_twin: bool, camera: str | None,
                  intrinsics: Path | None, hand_eye: Path | None, bins: Bins | None) -> None:
     unknown = set(needs) - set(NEEDS)
     if unknown:
         raise ConfigError(f"needs {sorted(unknown)}; allowed: {', '.join(NEEDS)}")
+    if hand_eye is not None and intrinsics is None:  # it was solved with those intrinsics
+        raise ConfigError("a hand-eye calibration needs the intrinsics it was made with: "
+                          "give --intrinsics too")
+    if intrinsics is not None and hand_eye is None and not on_twin:
+        raise ConfigError("give both camera calibration files: --intrinsics and --hand-eye "
+                          "(only a twin can make the hand-eye one itself)")
     if on_twin:
         return  # the twin has them all (its camera, calibration made in it, its trays)
     given = {"camera": camera is not None, "bins": bins is not None,
              "camera_calibration": intrinsics is not None and hand_eye is not None}
     missing = [NEEDS[n] for n in NEEDS if n in needs and not given[n]]
     if missing:
-        raise ConfigError("on hardware this job needs " + "; ".join(missing))
+        raise ConfigError(f"on {port} this job needs " + "; ".join(missing)
+                          + " (only a twin, --port twin, has them all by default)")
 
 
 def _open_camera(camera: str | None, twin: Twin | None) -> CameraSource | None:
@@ -279,9 +286,6 @@ def _camera_calibration(twin: Twin | None, intrinsics: Path | None, hand_eye: Pa
         return CameraCalibration(intr, load_hand_eye(hand_eye, intrinsics=intr),
                                  f"{intrinsics}, {hand_eye}")
     if twin is None or not calibrate:
-        if intrinsics is not None or hand_eye is not None:
-            raise ConfigError("give both camera calibration files: --intrinsics and "
-                              "--hand-eye")
         return None
     progress("calibrating the twin's camera (" + ("hand-eye" if intrinsics else
                                                   "intrinsics, then hand-eye") + ")...")

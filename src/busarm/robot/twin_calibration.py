@@ -17,6 +17,7 @@ import numpy as np
 from busarm.arm.arm import Arm
 from busarm.arm.camera_mount import CameraMount
 from busarm.bus.driver import ServoBus
+from busarm.errors import ConfigError
 from busarm.progress import Progress, quiet
 from busarm.robot.camera_calibration import (
     CalibrationView,
@@ -81,7 +82,11 @@ def calibrate_twin_camera(job: Twin, out_dir: Path, *,
                           progress: Progress = quiet) -> TwinCalibration:
     """Calibrate ``job``'s camera (intrinsics unless given, then hand-eye) into
     ``out_dir``/camera.json and hand_eye.json."""
-    out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"cannot make the calibration folder {out_dir}: {exc.strerror}"
+                          ) from None
     he_path = out_dir / "hand_eye.json"
     rms: float | None = None
     n_intr = 0
