@@ -5,11 +5,13 @@ reach. Pure geometry: no bus, no camera."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
 
+from busarm.apps.footprint import Footprint
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import UnreachableError
 from busarm.units import check_range
@@ -28,6 +30,9 @@ MAX_TILTED_TURN_DEG = 30.0
 meet its edges)."""
 ROLL_STEP_DEG = 2.0
 """The wrist rolls tried for a tilted grasp are this far apart."""
+CLEARANCE_MARGIN_MM = 2.5
+"""How far a finger pad keeps from a neighbour: the survey's localisation error (p95 about
+2 mm, docs/benchmarks.md) and a little."""
 LINE_CHECK_MM = 2.0
 """Points this far apart are checked for reach along each straight move of a grasp plan
 (more densely than ``Arm.move_line`` solves them, so a plan that passes does not fail on
@@ -45,6 +50,12 @@ class GraspPlan:
     above: tuple[float, float, float]
     grasp: tuple[float, float, float]
     lift: tuple[float, float, float]
+    gap_mm: float = 0.0
+    """How far apart the fingers open for it (0: not chosen yet)."""
+
+
+class NoClearGrasp(UnreachableError):
+    """Every grasp that reaches the block would put a finger on a neighbour."""
 
 
 @dataclass(frozen=True)
@@ -59,6 +70,10 @@ class GraspPlanner:
     """How far before the grasp the straight approach starts (along the tool's axis)."""
     carry_mm: float
     """The height above the table the block is lifted to."""
+    pad_mm: tuple[float, float, float] = (10.0, 16.0, 36.0)
+    """A finger pad's thickness, width and length (``GripperConfig.pad_mm``)."""
+    margin_mm: float = CLEARANCE_MARGIN_MM
+    """How far a finger must stay from a neighbour (where things are is known this well)."""
 
     def __post_init__(self) -> None:
         check_range("table_z_mm", self.table_z_mm, -500.0, 500.0, "mm")
@@ -83,30 +98,51 @@ class GraspPlanner:
         sign = 1.0 if (a1 - a0 + 180.0) % 360.0 - 180.0 > 0 else -1.0
         return ((yaw_deg - a0) * sign + 45.0) % 90.0 - 45.0
 
-    def plan(self, x_mm: float, y_mm: float, yaw_deg: float) -> GraspPlan:
-        """Straight down with the fingers squared to the block where that reaches; else
-        tilted (``TILTED_PITCHES_DEG``), closing level, the approach along the tool's axis.
-        Raises UnreachableError saying why neither works."""
+    def plan(self, x_mm: float, y_mm: float, yaw_deg: float,
+             neighbours: Sequence[Footprint] = (),
+             gaps_mm: Sequence[float] = ()) -> GraspPlan:
+        """The first grasp that reaches the block and keeps both fingers off its
+        ``neighbours`` all the way down (with ``margin_mm``): straight down with the
+        fingers squared to the block, along one face pair then the other; else tilted
+        (``TILTED_PITCHES_DEG``), closing level, the approach along the tool's axis; for
+        each, the fingers opened ``gaps_mm`` apart (widest first; default: the block and
+        10 mm a side). Raises NoClearGrasp naming what is in the way if every reaching
+        grasp is blocked, UnreachableError saying why none reaches."""
+        gaps = sorted(gaps_mm or (self.block_mm + 20.0,), reverse=True)
+        blocked = ""
+        for plan in self._reaching(x_mm, y_mm, yaw_deg):
+            for gap in gaps:
+                hit = self._first_hit(plan, gap, neighbours)
+                if hit is None:
+                    return replace(plan, gap_mm=gap)
+                blocked = blocked or (f"a finger would land on the block at "
+                                      f"({hit[0]:.0f}, {hit[1]:.0f}) mm")
+        if blocked:
+            raise NoClearGrasp(f"no grasp clears its neighbours: {blocked}")
+        raise UnreachableError(self._why_unreachable(x_mm, y_mm, yaw_deg))
+
+    def _reaching(self, x_mm: float, y_mm: float, yaw_deg: float) -> Iterator[GraspPlan]:
+        """Every grasp that reaches, best first: straight down (both face pairs), then
+        tilted."""
         z0, zg = self.table_z_mm, self.grasp_z_mm
-        grasp = (x_mm, y_mm, zg)
-        lift = (x_mm, y_mm, z0 + self.carry_mm)
+        grasp, lift = (x_mm, y_mm, zg), (x_mm, y_mm, z0 + self.carry_mm)
         try:
-            roll = self.roll_squared_deg(x_mm, y_mm, yaw_deg)
-            plan = GraspPlan(-90.0, roll, (x_mm, y_mm, z0 + self.approach_mm), grasp, lift)
-            self._check_plan(plan)
-            return plan
-        except UnreachableError as exc:
-            top_down_failure = str(exc)
-        turned = ""
+            squared = self.roll_squared_deg(x_mm, y_mm, yaw_deg)
+        except UnreachableError:
+            squared = None
+        if squared is not None:
+            for roll in (squared, squared + 90.0, squared - 90.0):
+                plan = GraspPlan(-90.0, roll, (x_mm, y_mm, z0 + self.approach_mm), grasp, lift)
+                try:
+                    self._check_plan(plan)
+                except UnreachableError:
+                    continue
+                yield plan
         for pitch in TILTED_PITCHES_DEG:
             level = self._best_level_roll(x_mm, y_mm, yaw_deg, pitch)
-            if level is None:
+            if level is None or level[1] > MAX_TILTED_TURN_DEG:
                 continue
-            roll, turn, m = level
-            if turn > MAX_TILTED_TURN_DEG:
-                turned = (f"; tilted, the fingers would meet it {turn:.0f} deg off square "
-                          f"(at most {MAX_TILTED_TURN_DEG:g})")
-                continue
+            roll, _, m = level
             back = m[:3, 2] * self.approach_mm  # back along the tool's axis
             above = (x_mm - back[0], y_mm - back[1], zg - back[2])
             plan = GraspPlan(pitch, roll, above, grasp, lift)
@@ -114,9 +150,62 @@ class GraspPlanner:
                 self._check_plan(plan)
             except UnreachableError:
                 continue
-            return plan
-        raise UnreachableError(f"no grasp reaches it: straight down {top_down_failure}"
-                               f"{turned or '; nor tilted'}")
+            yield plan
+
+    def pads(self, plan: GraspPlan, gap_mm: float) -> list[Footprint]:
+        """What the two finger pads cover on the table on their way down to ``plan``'s
+        grasp, opened ``gap_mm`` apart, while they are low enough to meet a block."""
+        t, w, length = self.pad_mm
+        kin = self.kin
+        m = kin.fk_matrix(kin.ik_best(*plan.grasp, plan.pitch_deg, plan.roll_deg))
+        x_axis, y_axis, back = m[:3, 0], m[:3, 1], -m[:3, 2]
+        tip = np.asarray(plan.grasp, dtype=float)
+        low = self.table_z_mm + self.block_mm + self.margin_mm - tip[2]  # above the tips
+        rise = float(back[2])
+        # Only the part of a pad below a neighbour's top can meet it; while descending the
+        # pads slide along the tool's axis (straight down: they stay where they are).
+        reach = min(length, low / rise) if rise > 1e-6 else length
+        slide = min(self.approach_mm, low / rise) if rise > 1e-6 else self.approach_mm
+        out = []
+        for side in (-1.0, 1.0):
+            centre = tip + side * (gap_mm / 2 + t / 2) * y_axis
+            corners = [centre + a * t / 2 * y_axis + b * w / 2 * x_axis + c * back + d * back
+                       for a in (-1, 1) for b in (-1, 1) for c in (0.0, reach)
+                       for d in (0.0, slide)]
+            out.append(Footprint.hull(p[:2] for p in corners))
+        return out
+
+    def _first_hit(self, plan: GraspPlan, gap_mm: float, neighbours: Sequence[Footprint]
+                   ) -> tuple[float, float] | None:
+        """The centre of the first neighbour a pad would meet, or None."""
+        if not neighbours:
+            return None
+        for pad in self.pads(plan, gap_mm):
+            for other in neighbours:
+                if pad.overlaps(other, self.margin_mm):
+                    centre = other.corners.mean(axis=0)
+                    return float(centre[0]), float(centre[1])
+        return None
+
+    def _why_unreachable(self, x_mm: float, y_mm: float, yaw_deg: float) -> str:
+        """Why no grasp reaches the block (straight down, and tilted)."""
+        z0, zg = self.table_z_mm, self.grasp_z_mm
+        grasp = (x_mm, y_mm, zg)
+        lift = (x_mm, y_mm, z0 + self.carry_mm)
+        try:
+            roll = self.roll_squared_deg(x_mm, y_mm, yaw_deg)
+            self._check_plan(GraspPlan(-90.0, roll, (x_mm, y_mm, z0 + self.approach_mm),
+                                       grasp, lift))
+            top_down_failure = "reaches"  # not expected: plan() found it reaching
+        except UnreachableError as exc:
+            top_down_failure = str(exc)
+        turned = ""
+        for pitch in TILTED_PITCHES_DEG:
+            level = self._best_level_roll(x_mm, y_mm, yaw_deg, pitch)
+            if level is not None and level[1] > MAX_TILTED_TURN_DEG:
+                turned = (f"; tilted, the fingers would meet it {level[1]:.0f} deg off "
+                          f"square (at most {MAX_TILTED_TURN_DEG:g})")
+        return f"no grasp reaches it: straight down {top_down_failure}{turned or '; nor tilted'}"
 
     def _best_level_roll(self, x_mm: float, y_mm: float, yaw_deg: float, pitch_deg: float
                     ) -> tuple[float, float, FloatArray] | None:

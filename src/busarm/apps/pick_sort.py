@@ -30,7 +30,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from busarm.apps.grasp import GraspPlan, GraspPlanner
+from busarm.apps.footprint import Footprint
+from busarm.apps.grasp import GraspPlan, GraspPlanner, NoClearGrasp
 from busarm.errors import BusArmError, ConfigError, ServoFaultError, UnreachableError
 from busarm.robot import Robot
 from busarm.robot.locate import Sighting
@@ -49,6 +50,11 @@ slots are 28 mm from the centre)."""
 BIN_SLOTS_MM = ((-20.0, -20.0), (20.0, -20.0), (-20.0, 20.0), (20.0, 20.0))
 """Where blocks go in a bin (from its centre): 2 x 2, 10 mm apart (the camera sees them
 apart when it checks the bin)."""
+BIN_LAYERS = 2
+"""Layers of blocks a bin takes: the second stands square on the first (a third would be
+above the tray's walls and the camera's view of it)."""
+STACK_DROP_MM = 3.0
+"""A block for the second layer is let go this far above the first layer's tops."""
 ORDERS = ("nearest", "colors")
 HOLD_SLACK_MM = 4.0
 """A gripper this little wider than a block, squeezing one, holds it (pads give a little)."""
@@ -63,6 +69,8 @@ class PickSortSettings:
     release_mm: float = 45.0
     finger_clearance_mm: float = 10.0
     """Opening beyond the block on each side when grasping (its yaw is known to a few deg)."""
+    min_finger_clearance_mm: float = 3.0
+    """Between close neighbours the fingers open down to this beyond the block a side."""
     line_speed_mm_s: float = 200.0
     joint_speed_deg_s: float = 180.0
     max_attempts: int = 2
@@ -90,7 +98,8 @@ class PickSortSettings:
             raise ConfigError(f"resume_below_c {self.resume_below_c:g} must be below "
                               f"pause_above_c {self.pause_above_c:g}")
         for name, lo, hi in (("approach_mm", 20.0, 200.0), ("carry_mm", 30.0, 250.0),
-                             ("finger_clearance_mm", 2.0, 40.0), ("pause_above_c", 40.0, 84.0),
+                             ("finger_clearance_mm", 2.0, 40.0),
+                             ("min_finger_clearance_mm", 1.0, 40.0), ("pause_above_c", 40.0, 84.0),
                              ("resume_below_c", 30.0, 83.0), ("min_supply_v", 4.5, 12.0),
                              ("max_pause_s", 0.0, 3600.0),
                              ("release_mm", 20.0, 200.0), ("line_speed_mm_s", 10.0, 400.0),
@@ -179,7 +188,10 @@ class PickSorter:
         # The last survey's pictures and what was found in each (for reports).
         self.last_survey: list[tuple[npt.NDArray[np.uint8], list[Sighting]]] = []
         self.planner = GraspPlanner(arm.kin, locator.table_z_mm, locator.block_size_mm,
-                                    self.settings.approach_mm, self.settings.carry_mm)
+                                    self.settings.approach_mm, self.settings.carry_mm,
+                                    pad_mm=arm.config.gripper.pad_mm)
+        # Every block the last survey saw: the neighbours a grasp must keep clear of.
+        self._seen: list[Sighting] = []
         self._placed: dict[str, int] = {}
         # The colour of the block in the fingers, from a good grip to its release.
         self._holding: str | None = None
@@ -281,14 +293,22 @@ class PickSorter:
                                       f"{s.max_pause_s:g} s of rest", hot.servo_id)
             self.clock.sleep(2.0)
 
-    def _bin_spot(self, color: str) -> tuple[float, float]:
-        """Where in the bin the next block of ``color`` goes: four places side by side
-        (squared to the bin, so they fit), then on top of the first ones again."""
+    def _bin_spot(self, color: str) -> tuple[float, float, int]:
+        """Where in the bin the next block of ``color`` goes and in which layer (0, 1):
+        four places side by side (squared to the bin, so they fit), then a second layer,
+        each block square on one below."""
         bx, by = self.bins[color]
         k = self._placed.get(color, 0)
+        if k >= self.bin_capacity:
+            raise ConfigError(f"the {color} bin is full ({self.bin_capacity} blocks)")
         self._placed[color] = k + 1
         dx, dy = BIN_SLOTS_MM[k % len(BIN_SLOTS_MM)]
-        return bx + dx, by + dy
+        return bx + dx, by + dy, k // len(BIN_SLOTS_MM)
+
+    @property
+    def bin_capacity(self) -> int:
+        """How many blocks a bin takes: its places, in ``BIN_LAYERS`` layers."""
+        return len(BIN_SLOTS_MM) * BIN_LAYERS
 
     def pick_and_place(self, target: Sighting
                        ) -> tuple[bool, str, tuple[float, float] | None, GraspPlan]:
@@ -296,11 +316,10 @@ class PickSorter:
         grasp plan)."""
         arm, s = self.arm, self.settings
         z0 = self.locator.table_z_mm
-        plan = self.planner.plan(target.location.x_mm, target.location.y_mm,
-                               target.location.yaw_deg)
+        plan = self._plan(target)
         pitch, roll = plan.pitch_deg, plan.roll_deg
-        # Open no wider than the block needs: wide-open fingers would hit a neighbour.
-        gap = self.locator.block_size_mm + 2 * s.finger_clearance_mm
+        # Open no wider than the neighbours allow (the plan chose it).
+        gap = plan.gap_mm
         arm.open_gripper(wait=False, gap_mm=gap)
         arm.move_to(*plan.above, pitch, roll, speed_deg_s=s.joint_speed_deg_s)
         arm.open_gripper(gap_mm=gap)
@@ -317,21 +336,26 @@ class PickSorter:
                     None, plan)
         arm.move_line(*plan.lift, pitch, roll, speed_mm_s=s.line_speed_mm_s)
         self.on_step("lift")
-        bx, by = self._bin_spot(target.color)
+        bx, by, layer = self._bin_spot(target.color)
+        # A second layer: carried higher over the first, set down just above it (a drop
+        # from the first layer's height would bounce it off).
+        size = self.locator.block_size_mm
+        carry_z = z0 + s.carry_mm + layer * size
+        release_z = z0 + (s.release_mm if layer == 0 else size + STACK_DROP_MM + size / 2)
         # The block's faces along the bin's walls.
         square = self.planner.roll_squared_deg(bx, by, 0.0)
-        arm.move_to(bx, by, z0 + s.carry_mm, -90.0, square, speed_deg_s=s.joint_speed_deg_s)
+        arm.move_to(bx, by, carry_z, -90.0, square, speed_deg_s=s.joint_speed_deg_s)
         self.on_step("carry")
         if not self._still_holding():
             self._holding = None
             arm.open_gripper(wait=False, gap_mm=gap)
             self._placed[target.color] -= 1
             return False, "the block slipped out during the carry", None, plan
-        arm.move_line(bx, by, z0 + s.release_mm, -90.0, square, speed_mm_s=s.line_speed_mm_s)
+        arm.move_line(bx, by, release_z, -90.0, square, speed_mm_s=s.line_speed_mm_s)
         self._holding = None  # from the release on (an open gripper reads as open)
         arm.open_gripper(gap_mm=gap)
         self.on_step("release")
-        arm.move_line(bx, by, z0 + s.carry_mm, -90.0, square, speed_mm_s=s.line_speed_mm_s)
+        arm.move_line(bx, by, carry_z, -90.0, square, speed_mm_s=s.line_speed_mm_s)
         return True, "", (bx, by), plan
 
     def verify_bins(self, report: RunReport) -> None:
@@ -352,7 +376,10 @@ class PickSorter:
             _, found = self._look(pose)
             inside = [v for v in found if v.color == color
                       and math.hypot(v.location.x_mm - bx, v.location.y_mm - by) < IN_BIN_MM]
-            for missing in sorted_here[len(inside):]:
+            # A block of the second layer hides the one it stands on: the camera sees one
+            # block a place at most.
+            seen = len(inside) + max(0, len(sorted_here) - len(BIN_SLOTS_MM))
+            for missing in sorted_here[seen:]:
                 missing.outcome = "failed"
                 missing.reason = "not in its bin when the bins were checked (it fell out?)"
                 self.progress(f"{color} block from {_mm(missing.found_mm)}: not in its bin")
@@ -387,7 +414,7 @@ class PickSorter:
 
     def _cycle(self, report: RunReport) -> bool:
         """Survey, then pick and place the next block; False if there is none to pick."""
-        seen = self.survey()
+        seen = self._seen = self.survey()
         for outcome in report.blocks:
             # Missed, and no longer where it was: someone moved it. It is looked for
             # afresh (a new record if it is seen elsewhere).
@@ -396,6 +423,7 @@ class PickSorter:
                 outcome.outcome = "moved"
                 outcome.reason = "not where it was after a missed grasp: it was moved"
         candidates: list[tuple[tuple[int, float], Sighting, BlockOutcome]] = []
+        boxed_in: list[tuple[BlockOutcome, str]] = []
         for sighting in seen:
             if self._in_a_bin(sighting):
                 continue  # sorted already
@@ -407,10 +435,19 @@ class PickSorter:
                 outcome.outcome, outcome.reason = "skipped", reason
                 self.progress(f"skip {sighting.color} at {_mm(outcome.found_mm)}: {reason}")
                 continue
+            if sighting.whole:
+                try:
+                    self._plan(sighting)
+                except NoClearGrasp as exc:  # perhaps once a neighbour has gone
+                    boxed_in.append((outcome, str(exc)))
+                    continue
             distance = math.hypot(sighting.location.x_mm, sighting.location.y_mm)
             rank = list(self.bins).index(sighting.color) if self.settings.order == "colors" else 0
             candidates.append(((rank, distance), sighting, outcome))
         if not candidates:
+            for outcome, why in boxed_in:
+                outcome.outcome, outcome.reason = "skipped", why
+                self.progress(f"skip {outcome.color} at {_mm(outcome.found_mm)}: {why}")
             return False
         _, target, outcome = min(candidates, key=lambda c: c[0])
         self.check_servos()
@@ -426,8 +463,11 @@ class PickSorter:
             held, why, placed = False, "not seen whole when looked at closer", None
         else:
             self.on_pick(closer)
-            held, why, placed, plan = self.pick_and_place(closer)
-            outcome.grasp_pitch_deg = plan.pitch_deg
+            try:
+                held, why, placed, plan = self.pick_and_place(closer)
+                outcome.grasp_pitch_deg = plan.pitch_deg
+            except NoClearGrasp as exc:  # seen closer, the neighbours are in the way
+                held, why, placed = False, str(exc), None
         outcome.seconds += self.clock.now() - t0
         if held:
             outcome.outcome, outcome.placed_mm = "sorted", placed
@@ -435,9 +475,9 @@ class PickSorter:
                           f"({outcome.seconds:.1f} s)")
         elif outcome.attempts >= self.settings.max_attempts:
             outcome.outcome, outcome.reason = "failed", why
-            self.progress(f"{target.color} at {outcome.found_mm}: gave up: {why}")
+            self.progress(f"{target.color} at {_mm(outcome.found_mm)}: gave up: {why}")
         else:
-            self.progress(f"{target.color} at {outcome.found_mm}: {why}; looking again")
+            self.progress(f"{target.color} at {_mm(outcome.found_mm)}: {why}; looking again")
         return True
 
     def _stop_and_read_gripper(self) -> str:
@@ -478,16 +518,34 @@ class PickSorter:
         """Why this block is not to be picked ("" if it is)."""
         if sighting.color not in self.bins:
             return f"no bin for {sighting.color}"
+        if self._placed.get(sighting.color, 0) >= self.bin_capacity:
+            return f"bin full: the {sighting.color} bin holds {self.bin_capacity} blocks"
         if not sighting.whole:
             return ""  # where it is, and so whether it is reached, is known after a closer look
         if not sighting.reachable:
             return sighting.reason or "out of reach"
-        loc = sighting.location
         try:
-            self.planner.plan(loc.x_mm, loc.y_mm, loc.yaw_deg)
+            self._plan(sighting)
+        except NoClearGrasp:
+            return ""  # reachable: whether its neighbours leave room is decided each cycle
         except UnreachableError as exc:
             return str(exc)
         return ""
+
+    def _plan(self, target: Sighting) -> GraspPlan:
+        """A grasp of ``target`` that keeps the fingers off every other block seen."""
+        loc, s = target.location, self.settings
+        size = self.locator.block_size_mm
+        neighbours = [Footprint.square(v.location.x_mm, v.location.y_mm, size,
+                                       v.location.yaw_deg)
+                      for v in self._seen if not _same_block(target.color, loc.x_mm,
+                                                             loc.y_mm, v)
+                      and math.hypot(v.location.x_mm - loc.x_mm,
+                                     v.location.y_mm - loc.y_mm) > size / 2]
+        gaps = [size + 2 * c for c in (s.finger_clearance_mm,
+                                       (s.finger_clearance_mm + s.min_finger_clearance_mm) / 2,
+                                       s.min_finger_clearance_mm)]
+        return self.planner.plan(loc.x_mm, loc.y_mm, loc.yaw_deg, neighbours, gaps)
 
 
 def _mm(xy: tuple[float, float]) -> str:

@@ -98,6 +98,9 @@ class GripperConfig:
     holding_margin_pulses: int
     gap_mm_per_pulse: float = 0.1875
     """How much the fingers' gap changes per pulse; the fingers touch at ``closed_pulses``."""
+    pad_mm: tuple[float, float, float] = (10.0, 16.0, 36.0)
+    """One finger pad's thickness (along the closing axis), width and length (along the
+    tool): what a grasp must find room for beside a block."""
 
     @property
     def min_pulses(self) -> int:
@@ -420,7 +423,7 @@ class _Reader:
 
     def gripper(self, data: dict[str, Any]) -> GripperConfig:
         keys = {"servo_id", "open_pulses", "closed_pulses", "grip_time_s", "holding_margin_pulses",
-                "gap_mm_per_pulse"}
+                "gap_mm_per_pulse", "pad_thickness_mm", "pad_width_mm", "pad_length_mm"}
         self.unknown(data, "gripper", keys)
         g = GripperConfig(
             servo_id=self.integer(data, "servo_id", "gripper", 0, 253),
@@ -435,6 +438,9 @@ class _Reader:
                 data, "holding_margin_pulses", "gripper", 1, 500, 20
             ),
             gap_mm_per_pulse=self.number(data, "gap_mm_per_pulse", "gripper", 0.01, 5.0, 0.1875),
+            pad_mm=(self.number(data, "pad_thickness_mm", "gripper", 1.0, 50.0, 10.0),
+                    self.number(data, "pad_width_mm", "gripper", 1.0, 100.0, 16.0),
+                    self.number(data, "pad_length_mm", "gripper", 1.0, 200.0, 36.0)),
         )
         if abs(g.open_pulses - g.closed_pulses) <= g.holding_margin_pulses:
             raise self.fail(

@@ -1,0 +1,67 @@
+"""Pick-and-sort on tables like real ones: full bins, neighbours close by (issue 12).
+Scored against the twin's truth, which the sorter never reads."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from busarm.apps.pick_sort import BIN_SLOTS_MM, IN_BIN_MM, PickSorter
+from busarm.robot import Robot
+from busarm.twin.scene import DEFAULT_BINS, Block, Scene
+
+
+@pytest.fixture(scope="module")
+def calibration(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, Path]]:
+    out = tmp_path_factory.mktemp("cal")
+    with Robot.open("twin://?blocks=0", calibration_dir=out):
+        pass
+    yield out / "camera.json", out / "hand_eye.json"
+
+
+def test_a_colour_with_more_blocks_than_a_layer_is_stacked_in_its_bin(
+        calibration: tuple[Path, Path]) -> None:
+    spots = [(150.0, -90.0), (150.0, -30.0), (150.0, 30.0), (150.0, 90.0),
+             (215.0, -60.0), (215.0, 0.0)]
+    scene = Scene(blocks=tuple(Block("red", x, y, 10.0 * i) for i, (x, y) in enumerate(spots)),
+                  bins=DEFAULT_BINS[:1])
+    with Robot.open("twin", scene=scene, intrinsics=calibration[0],
+                    hand_eye=calibration[1]) as robot:
+        report = PickSorter(robot, colors=["red"]).run()
+        assert robot.twin is not None
+        truth = robot.twin.blocks()
+        bx, by = robot.bins["red"]
+    assert report.totals()["sorted"] == len(spots), [b.to_dict() for b in report.blocks]
+    for block in truth:  # all in the bin, the last two on top of the first layer
+        assert math.hypot(block.x_mm - bx, block.y_mm - by) < IN_BIN_MM, block
+    layers = sorted(b.z_mm for b in truth)
+    floor = layers[0]  # the first layer stands on the tray's floor
+    assert all(abs(z - floor) < 1.0 for z in layers[: len(BIN_SLOTS_MM)]), layers
+    # ... the second square on it, one block higher, not tipped over.
+    assert all(abs(z - floor - 30.0) < 1.5 for z in layers[len(BIN_SLOTS_MM):]), layers
+    assert all(b.is_upright for b in truth)
+
+
+def test_a_full_bin_leaves_the_rest_on_the_table_with_a_reason(
+        calibration: tuple[Path, Path]) -> None:
+    spots = [(x, y) for x in (135.0, 185.0, 235.0) for y in (-75.0, -20.0, 35.0)]
+    scene = Scene(blocks=tuple(Block("red", x, y, 0.0) for x, y in spots),
+                  bins=DEFAULT_BINS[:1])
+    with Robot.open("twin", scene=scene, intrinsics=calibration[0],
+                    hand_eye=calibration[1]) as robot:
+        sorter = PickSorter(robot, colors=["red"])
+        report = sorter.run()
+        assert robot.twin is not None
+        truth = robot.twin.blocks()
+        bx, by = robot.bins["red"]
+    outcomes = [b.outcome for b in report.blocks]
+    assert outcomes.count("sorted") == sorter.bin_capacity == 8, outcomes
+    skipped = [b for b in report.blocks if b.outcome == "skipped"]
+    assert len(skipped) == 1 and skipped[0].reason.startswith("bin full"), skipped
+    in_bin = [b for b in truth if math.hypot(b.x_mm - bx, b.y_mm - by) < IN_BIN_MM]
+    assert len(in_bin) == 8  # and the ninth was never dropped beside it
+    left = [b for b in truth if b not in in_bin]
+    assert len(left) == 1 and math.hypot(left[0].x_mm - bx, left[0].y_mm - by) > 100
