@@ -9,9 +9,10 @@ from pathlib import Path
 
 import pytest
 
-from busarm.apps.pick_sort import BIN_SLOTS_MM, IN_BIN_MM, PickSorter
+from busarm.apps.pick_sort import BIN_SLOTS_MM, IN_BIN_MM, PickSorter, RunReport
 from busarm.robot import Robot
 from busarm.twin.scene import DEFAULT_BINS, Block, Scene
+from busarm.twin.twin import BlockState
 
 
 @pytest.fixture(scope="module")
@@ -65,3 +66,51 @@ def test_a_full_bin_leaves_the_rest_on_the_table_with_a_reason(
     assert len(in_bin) == 8  # and the ninth was never dropped beside it
     left = [b for b in truth if b not in in_bin]
     assert len(left) == 1 and math.hypot(left[0].x_mm - bx, left[0].y_mm - by) > 100
+
+
+Sorted = tuple[RunReport, list[BlockState], dict[str, tuple[float, float]]]
+
+
+def _touching(calibration: tuple[Path, Path], colors: list[str],
+              offsets: list[tuple[float, float]], yaw_deg: float) -> Sorted:
+    """Sort blocks of ``colors`` put side by side (``offsets`` in block sides, turned
+    ``yaw_deg``, around (190, -20) mm); the report, the truth after, the bins."""
+    parked = [(130.0, -100.0), (130.0, -20.0), (130.0, 60.0), (210.0, -100.0)]
+    scene = Scene(blocks=tuple(Block(c, x, y, 0.0) for c, (x, y) in zip(colors, parked,
+                                                                         strict=False)),
+                  bins=tuple(b for b in DEFAULT_BINS if b.color in colors))
+    a = math.radians(yaw_deg)
+    with Robot.open("twin", scene=scene, intrinsics=calibration[0],
+                    hand_eye=calibration[1]) as robot:
+        assert robot.twin is not None
+        robot.twin.place_blocks({  # touching: closer than a scene file may put them
+            k: (190.0 + 30.0 * (u * math.cos(a) - v * math.sin(a)),
+                -20.0 + 30.0 * (u * math.sin(a) + v * math.cos(a)), yaw_deg, None)
+            for k, (u, v) in enumerate(offsets)})
+        robot.clock.sleep(0.3)
+        report = PickSorter(robot, colors=sorted(set(colors))).run()
+        return report, list(robot.twin.blocks()), dict(robot.bins)
+
+
+@pytest.mark.parametrize("yaw", [0.0, -60.0])
+def test_a_row_of_four_touching_blocks_of_one_colour_is_all_sorted(
+        calibration: tuple[Path, Path], yaw: float) -> None:
+    report, truth, bins = _touching(calibration, ["red"] * 4,
+                                    [(-1.5, 0), (-0.5, 0), (0.5, 0), (1.5, 0)], yaw)
+    assert [b.outcome for b in report.blocks] == ["sorted"] * 4
+    for block in truth:
+        assert math.hypot(block.x_mm - bins["red"][0],
+                          block.y_mm - bins["red"][1]) < IN_BIN_MM
+
+
+@pytest.mark.parametrize(("colors", "yaw"), [(["red", "green", "blue", "red"], 0.0),
+                                             (["green"] * 4, 25.0)])
+def test_a_touching_2x2_group_is_pushed_apart_and_all_sorted(
+        calibration: tuple[Path, Path], colors: list[str], yaw: float) -> None:
+    report, truth, bins = _touching(calibration, colors,
+                                    [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)], yaw)
+    outcomes = [b.outcome for b in report.blocks]
+    assert outcomes.count("sorted") == 4 and len(outcomes) == 4, outcomes
+    for block in truth:
+        bx, by = bins[block.color]
+        assert math.hypot(block.x_mm - bx, block.y_mm - by) < IN_BIN_MM

@@ -53,6 +53,8 @@ apart when it checks the bin)."""
 BIN_LAYERS = 2
 """Layers of blocks a bin takes: the second stands square on the first (a third would be
 above the tray's walls and the camera's view of it)."""
+NUDGE_PRESS_MM = 3.0
+"""Pushing a block, the closed fingers press this far into its top (friction drags it)."""
 STACK_DROP_MM = 3.0
 """A block for the second layer is let go this far above the first layer's tops."""
 ORDERS = ("nearest", "colors")
@@ -71,6 +73,10 @@ class PickSortSettings:
     """Opening beyond the block on each side when grasping (its yaw is known to a few deg)."""
     min_finger_clearance_mm: float = 3.0
     """Between close neighbours the fingers open down to this beyond the block a side."""
+    nudge_mm: float = 30.0
+    """How far a block boxed in by its neighbours is pushed out of the group."""
+    max_nudges: int = 2
+    """Pushes a boxed-in block gets before it is skipped."""
     line_speed_mm_s: float = 200.0
     joint_speed_deg_s: float = 180.0
     max_attempts: int = 2
@@ -99,14 +105,16 @@ class PickSortSettings:
                               f"pause_above_c {self.pause_above_c:g}")
         for name, lo, hi in (("approach_mm", 20.0, 200.0), ("carry_mm", 30.0, 250.0),
                              ("finger_clearance_mm", 2.0, 40.0),
-                             ("min_finger_clearance_mm", 1.0, 40.0), ("pause_above_c", 40.0, 84.0),
+                             ("min_finger_clearance_mm", 1.0, 40.0), ("nudge_mm", 5.0, 100.0),
+                             ("pause_above_c", 40.0, 84.0),
                              ("resume_below_c", 30.0, 83.0), ("min_supply_v", 4.5, 12.0),
                              ("max_pause_s", 0.0, 3600.0),
                              ("release_mm", 20.0, 200.0), ("line_speed_mm_s", 10.0, 400.0),
                              ("look_closer_beyond_deg", 0.0, 180.0),
                              ("joint_speed_deg_s", 10.0, 180.0), ("settle_s", 0.0, 5.0)):
             check_range(name, getattr(self, name), lo, hi)
-        for name, ilo, ihi in (("max_attempts", 1, 10), ("survey_frames", 1, 20)):
+        for name, ilo, ihi in (("max_attempts", 1, 10), ("survey_frames", 1, 20),
+                               ("max_nudges", 0, 10)):
             check_int_range(name, getattr(self, name), ilo, ihi)
 
 
@@ -192,6 +200,7 @@ class PickSorter:
                                     pad_mm=arm.config.gripper.pad_mm)
         # Every block the last survey saw: the neighbours a grasp must keep clear of.
         self._seen: list[Sighting] = []
+        self._nudges: dict[int, int] = {}  # pushes per block record
         self._placed: dict[str, int] = {}
         # The colour of the block in the fingers, from a good grip to its release.
         self._holding: str | None = None
@@ -310,6 +319,36 @@ class PickSorter:
         """How many blocks a bin takes: its places, in ``BIN_LAYERS`` layers."""
         return len(BIN_SLOTS_MM) * BIN_LAYERS
 
+    def nudge(self, target: Sighting, seen: Sequence[Sighting]) -> None:
+        """Drag a boxed-in block out of its group: the closed fingers pressed on its top,
+        moved away from its neighbours by ``nudge_mm``, lifted again."""
+        arm, s = self.arm, self.settings
+        loc, size = target.location, self.locator.block_size_mm
+        near = [(v.location.x_mm, v.location.y_mm) for v in seen
+                if 0.5 * size < math.hypot(v.location.x_mm - loc.x_mm,
+                                           v.location.y_mm - loc.y_mm) < 2.0 * size]
+        if near:
+            cx, cy = np.mean(np.array(near), axis=0)
+            away = np.array([loc.x_mm - cx, loc.y_mm - cy])
+        else:
+            away = np.array([-loc.x_mm, -loc.y_mm])  # alone: towards the base
+        away /= max(float(np.linalg.norm(away)), 1e-9)
+        to_x, to_y = loc.x_mm + away[0] * s.nudge_mm, loc.y_mm + away[1] * s.nudge_mm
+        top = self.locator.table_z_mm + size
+        roll = self.planner.roll_squared_deg(loc.x_mm, loc.y_mm, loc.yaw_deg)
+        self.progress(f"{target.color} at {_mm((loc.x_mm, loc.y_mm))} is boxed in: pushing "
+                      f"it out to {_mm((to_x, to_y))}")
+        arm.grip()  # closed: the pads side by side press on the block's top
+        arm.move_to(loc.x_mm, loc.y_mm, top + s.approach_mm / 2, -90.0, roll,
+                    speed_deg_s=s.joint_speed_deg_s)
+        arm.move_line(loc.x_mm, loc.y_mm, top - NUDGE_PRESS_MM, -90.0, roll,
+                      speed_mm_s=s.line_speed_mm_s / 4)
+        arm.move_line(to_x, to_y, top - NUDGE_PRESS_MM, -90.0, roll,
+                      speed_mm_s=s.line_speed_mm_s / 4)
+        arm.move_line(to_x, to_y, top + s.approach_mm / 2, -90.0, roll,
+                      speed_mm_s=s.line_speed_mm_s)
+        self.on_step("nudge")
+
     def pick_and_place(self, target: Sighting
                        ) -> tuple[bool, str, tuple[float, float] | None, GraspPlan]:
         """One grasp-carry-release cycle; (holding was seen, why not, where it was put, the
@@ -423,9 +462,12 @@ class PickSorter:
                 outcome.outcome = "moved"
                 outcome.reason = "not where it was after a missed grasp: it was moved"
         candidates: list[tuple[tuple[int, float], Sighting, BlockOutcome]] = []
-        boxed_in: list[tuple[BlockOutcome, str]] = []
+        boxed_in: list[tuple[BlockOutcome, str, Sighting]] = []
+        # A blob split into touching blocks is in a bin if any of them is (blocks side by
+        # side in a bin can look like one blob).
+        binned = {id(v.detection) for v in seen if v.detection is not None and self._in_a_bin(v)}
         for sighting in seen:
-            if self._in_a_bin(sighting):
+            if self._in_a_bin(sighting) or id(sighting.detection) in binned:
                 continue  # sorted already
             outcome = self._outcome_for(sighting, report)
             if outcome.outcome != "pending":
@@ -439,13 +481,20 @@ class PickSorter:
                 try:
                     self._plan(sighting)
                 except NoClearGrasp as exc:  # perhaps once a neighbour has gone
-                    boxed_in.append((outcome, str(exc)))
+                    boxed_in.append((outcome, str(exc), sighting))
                     continue
             distance = math.hypot(sighting.location.x_mm, sighting.location.y_mm)
             rank = list(self.bins).index(sighting.color) if self.settings.order == "colors" else 0
             candidates.append(((rank, distance), sighting, outcome))
         if not candidates:
-            for outcome, why in boxed_in:
+            # Every block left is boxed in by its neighbours: push one out of the group,
+            # then look again; one pushed too often is skipped.
+            for outcome, _, sighting in boxed_in:
+                if self._nudges.get(id(outcome), 0) < self.settings.max_nudges:
+                    self._nudges[id(outcome)] = self._nudges.get(id(outcome), 0) + 1
+                    self.nudge(sighting, seen)
+                    return True
+            for outcome, why, _ in boxed_in:
                 outcome.outcome, outcome.reason = "skipped", why
                 self.progress(f"skip {outcome.color} at {_mm(outcome.found_mm)}: {why}")
             return False

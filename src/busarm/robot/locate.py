@@ -15,6 +15,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TypeVar
 
+import cv2
 import numpy as np
 import numpy.typing as npt
 
@@ -48,6 +49,10 @@ from where it is: less is a glimpse or a speck, more is not a block (a table, an
 CUT_AREA_FRACTION = 0.25
 """A blob cut by the picture's edge needs only this fraction of the lower bound (part of a
 block is out of the picture), so that a speck at the edge is still no block."""
+SPLIT_INSIDE_PX = 3.0
+"""A place of a split blob's grid holds a block when its centre lies this deep inside."""
+MAX_SPLIT = 4
+"""At most this many touching blocks along one side of a blob are split out of it."""
 MATCH_RADIUS_MM = 20.0
 """Sightings of one block in several pictures are closer than this."""
 
@@ -141,6 +146,23 @@ class BlockLocator:
         cam2base = self.cam2base(joints_deg)
         if not detections:
             return []
+        # Blocks of one colour that touch make one blob: such a blob is split into its
+        # blocks by its size on the table, and each is located on its own.
+        out: list[Sighting] = []
+        single = []
+        for d in detections:
+            parts = None if _touches_edge(d, w, h) else self._split(d, cam2base)
+            if parts is None:
+                single.append(d)
+            else:
+                out += [self._sighting(d.color, loc, d) for loc in parts]
+        return out + self._locate_single(single, cam2base, w, h)
+
+    def _locate_single(self, detections: list[Detection], cam2base: FloatArray, w: int,
+                       h: int) -> list[Sighting]:
+        """Sightings of blobs that are one block each (or none: not block-sized)."""
+        if not detections:
+            return []
         # Yaw, then position, for all blobs at once (vectorised); a blob whose rays miss
         # the table is no block on it, and is left out.
         yaws = _all_or_each(lambda ds: self._table_yaws(ds, cam2base), detections)
@@ -160,6 +182,52 @@ class BlockLocator:
             if self._block_sized(d, loc, cam2base, whole):
                 out.append(replace(self._sighting(d.color, loc, d), whole=whole))
         return out
+
+    def _split(self, d: Detection, cam2base: FloatArray) -> list[BlockLocation] | None:
+        """The blocks in a blob that holds several touching ones (a row, a 2 x 2, two
+        meeting at a corner), located from the blob's outline cast onto the blocks' top
+        plane; None for one block.
+
+        Cast onto that plane, one block covers its top face plus the side faces the
+        camera sees; n in a row cover n - 1 sides more. So the number along each of the
+        blocks' axes (the outline's main edge direction) is how many block sides fit in
+        what one block's cube, cast the same way, leaves over; of that grid, the places
+        the blob covers hold a block.
+        """
+        size, top = self.block_size_mm, self.table_z_mm + self.block_size_mm
+        # Straight edges (a pixel outline is a staircase, whose steps run along the
+        # picture's axes, not the blocks').
+        contour = cv2.approxPolyDP(d.contour_px.reshape(-1, 1, 2), 1.5, True).reshape(-1, 2)
+        try:
+            pts = table_points_from_pixels(contour.astype(np.float64), self.intrinsics,
+                                           cam2base, top)[:, :2]
+        except VisionError:
+            return None
+        yaw = _edge_yaw_deg(pts)
+        a = math.radians(yaw)
+        axes = np.array([[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]])
+        rel = pts @ axes.T
+        lo_blob, hi_blob = rel.min(axis=0), rel.max(axis=0)
+        centre = ((lo_blob + hi_blob) / 2) @ axes
+        lo, hi = _cast_cube_extent(centre, axes, yaw, size, self.table_z_mm, cam2base[:3, 3])
+        counts = [1 + round((hb - lb - (h - low)) / size) for lb, hb, low, h in
+                  zip(lo_blob, hi_blob, lo, hi, strict=True)]
+        if counts[0] * counts[1] <= 1 or max(counts) > MAX_SPLIT or min(counts) < 1:
+            return None
+        base2cam = np.linalg.inv(cam2base)
+        out = []
+        for i in range(counts[0]):
+            for j in range(counts[1]):
+                u, v = lo_blob - lo + np.array([i * size, j * size])
+                x, y = u * axes[0] + v * axes[1]
+                p_cam = base2cam[:3, :3] @ np.array([x, y, top]) + base2cam[:3, 3]
+                px = self.intrinsics.pixels_from_camera_points(p_cam[None, :])[0]
+                inside = cv2.pointPolygonTest(d.contour_px.reshape(-1, 1, 2),
+                                              (float(px[0]), float(px[1])), True)
+                if inside >= SPLIT_INSIDE_PX:  # this place of the grid holds a block
+                    out.append(BlockLocation(float(x), float(y), top, yaw, size,
+                                             (float(px[0]), float(px[1])), silhouette=False))
+        return out if len(out) > 1 else None
 
     def _block_sized(self, d: Detection, loc: BlockLocation, cam2base: FloatArray,
                      whole: bool = True) -> bool:
@@ -209,6 +277,35 @@ class BlockLocator:
             out.append(replace(self._sighting(group[0].color, loc, dets[-1] if dets else None,
                                               dets), whole=all(s.whole for s in group)))
         return out
+
+
+def _edge_yaw_deg(points: FloatArray) -> float:
+    """The direction (deg, -45..45) most of an outline's length runs along, modulo 90:
+    a row of cubes' sides, whatever the row's own shape."""
+    edges = np.roll(points, -1, axis=0) - points
+    length = np.hypot(edges[:, 0], edges[:, 1])
+    angle4 = 4.0 * np.arctan2(edges[:, 1], edges[:, 0])
+    mean = math.atan2(float(np.sum(length * np.sin(angle4))),
+                      float(np.sum(length * np.cos(angle4))))
+    return (math.degrees(mean / 4.0) + 45.0) % 90.0 - 45.0
+
+
+def _cast_cube_extent(centre: FloatArray, axes: FloatArray, yaw_deg: float, size: float,
+                      table_z: float, camera: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """How far a cube at ``centre`` (turned ``yaw_deg``) reaches along each of ``axes``,
+    cast from the ``camera`` onto its top plane: (lowest, highest) per axis, from the
+    centre (mm)."""
+    a = math.radians(yaw_deg)
+    u, v = np.array([math.cos(a), math.sin(a)]), np.array([-math.sin(a), math.cos(a)])
+    top = table_z + size
+    corners = [centre + su * size / 2 * u + sv * size / 2 * v for su in (-1, 1)
+               for sv in (-1, 1)]
+    cast = list(corners)
+    for c in corners:  # a bottom corner, seen from the camera, lands further out on top
+        scale = (camera[2] - top) / (camera[2] - table_z)
+        cast.append(camera[:2] + (c - camera[:2]) * scale)
+    rel = (np.array(cast) - centre) @ axes.T
+    return rel.min(axis=0), rel.max(axis=0)
 
 
 def _touches_edge(d: Detection, width_px: int, height_px: int) -> bool:

@@ -614,6 +614,12 @@ class ColorDetector:
         offset = (f - 1) / 2.0
         margin = _MARGIN_SMALL_PX * f
         chosen: list[npt.NDArray[Any]] = []
+        cm = cv2.moments(coarse)
+        # The coarse blob's centre at full resolution: a full-resolution blob that covers
+        # it is this blob too, even if its own centre lies elsewhere (two blocks meeting
+        # at a corner are one blob here, centred where they meet).
+        middle = ((cm["m10"] / cm["m00"]) * f + offset, (cm["m01"] / cm["m00"]) * f + offset
+                  ) if cm["m00"] > 0 else None
         for _ in range(3):
             x0, y0 = max(0, x * f - margin), max(0, y * f - margin)
             x1, y1 = min(width, (x + w) * f + margin), min(height, (y + h) * f + margin)
@@ -632,7 +638,8 @@ class ColorDetector:
                 if m["m00"] <= 0:
                     continue
                 hint = ((m["m10"] / m["m00"] - offset) / f, (m["m01"] / m["m00"] - offset) / f)
-                if cv2.pointPolygonTest(coarse, hint, True) < -1.0:
+                if cv2.pointPolygonTest(coarse, hint, True) < -1.0 and (
+                        middle is None or cv2.pointPolygonTest(c, middle, False) < 0):
                     continue
                 chosen.append(c)
                 clipped = clipped or (bx <= x0 < x * f) or (by <= y0 < y * f) or (
