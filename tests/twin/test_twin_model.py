@@ -14,7 +14,7 @@ import pytest
 from busarm.arm.config import load_arm_config
 from busarm.errors import ConfigError
 from busarm.twin.lens import LensSpec
-from busarm.twin.scene import Block, Scene, random_scene
+from busarm.twin.scene import Block, Distractor, Scene, random_scene
 from busarm.twin.twin import Twin
 
 DATA = Path(__file__).parent.parent / "data"
@@ -143,3 +143,25 @@ def test_bad_lens_and_start_values_are_refused() -> None:
         Twin(scene=Scene(), realtime=False, start_joints_deg=[0, 10, 0, 0, 0])
     with pytest.raises(ConfigError, match="gripper position 5"):
         Twin(scene=Scene(), realtime=False, gripper_pulses=5)
+
+
+def test_each_block_is_a_cube_of_its_own_size_and_distractors_are_named_bodies() -> None:
+    sizes = (25.0, 33.0, 40.0)
+    scene = Scene(blocks=tuple(Block("blue", 200.0, -60.0 + 60.0 * i, 15.0 * i, size)
+                               for i, size in enumerate(sizes)),
+                  distractors=(Distractor("disc", "grey", 280.0, -80.0, 50.0, 50.0, 3.0),
+                               Distractor("bar", "white", 290.0, 60.0, 120.0, 12.0, 8.0, 80.0)))
+    with Twin(scene=scene, realtime=False) as tw:
+        for i, (size, state) in enumerate(zip(sizes, tw.blocks(), strict=True)):
+            np.testing.assert_allclose(tw.model.geom(f"block{i}").size, [size / 2000] * 3)
+            assert state.size_mm == size
+            assert state.z_mm == pytest.approx(size / 2, abs=0.1)
+        mj = tw.mujoco
+        disc, bar = tw.model.geom("distractor0"), tw.model.geom("distractor1")
+        assert disc.type[0] == mj.mjtGeom.mjGEOM_CYLINDER
+        np.testing.assert_allclose(disc.size[:2], (0.025, 0.0015))
+        assert bar.type[0] == mj.mjtGeom.mjGEOM_BOX
+        np.testing.assert_allclose(bar.size, (0.06, 0.006, 0.004))
+        for i in (0, 1):  # a free body each, so a push moves it
+            assert tw.model.joint(f"distractor{i}").type[0] == mj.mjtJoint.mjJNT_FREE
+            assert tw.model.body(f"distractor{i}").id == tw.data.body(f"distractor{i}").id

@@ -23,8 +23,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from busarm.bench.common import CalibrationSummary, Progress, quiet, short_machine_info
-from busarm.errors import BusArmError
+from busarm.errors import BusArmError, ConfigError
 from busarm.robot import Robot
+from busarm.twin.clutter import clutter_scene
 from busarm.twin.scene import REACH_RADIUS_MM, random_scene
 from busarm.twin.twin import BlockState
 from busarm.units import check_int_range
@@ -39,6 +40,12 @@ TARGET_SPEEDUP = 5.0
 MAX_FAILURES = 20
 """Failed scenes the report lists."""
 MAX_WORKERS = 64
+DISTRACTOR_MOVED_MM = 5.0
+"""A thing that is not a block and moved further than this was disturbed by the run."""
+FAMILIES = {"random": (3, 6), "clutter": (6, 12)}
+"""Scene families and the blocks a scene of each has by default: ``random`` (spaced out,
+``busarm.twin.scene.random_scene``) and ``clutter`` (rows, clusters, touching groups,
+things that are not blocks, lamp or window light: ``busarm.twin.clutter``)."""
 
 
 @dataclass(frozen=True)
@@ -52,6 +59,7 @@ class SceneTask:
     intrinsics: Path
     hand_eye: Path
     realtime: bool
+    family: str = "random"
 
 
 @dataclass
@@ -67,6 +75,8 @@ class SceneResult:
     sim_s: float
     wall_s: float
     slipped_s: float
+    distractors_moved_mm: list[float] = field(default_factory=list)
+    """How far each thing that is not a block moved during the run."""
 
     def placed(self, in_bin_mm: float) -> list[bool]:
         return [math.hypot(t.x_mm - self.bins[t.color][0], t.y_mm - self.bins[t.color][1])
@@ -97,6 +107,7 @@ class PickBenchReport:
 
     machine: dict[str, str]
     calibration: CalibrationSummary
+    family: str
     scenes: int
     blocks: int
     in_their_bins: int
@@ -122,6 +133,10 @@ class PickBenchReport:
     """``simulated`` (as fast as the CPU allows) or ``wall`` (real time)."""
     twin_slipped_s: float
     """How far a real-time twin fell behind the clock, over all scenes (0 when simulated)."""
+    distractors: int
+    """Things on the tables that are not blocks, for the sorter to leave alone."""
+    distractors_moved: int
+    """Of them, how many the run moved more than ``DISTRACTOR_MOVED_MM``."""
     failures: list[PickFailure]
     """The first ``MAX_FAILURES``."""
     cycles_s: list[float] = field(default_factory=list, repr=False)
@@ -138,13 +153,17 @@ def run_scene(task: SceneTask) -> SceneResult:
     from busarm.apps.pick_sort import PickSorter
 
     wall = time.monotonic()
-    scene = random_scene(task.scene_seed, task.blocks, list(task.colors),
-                         radius_mm=REACH_RADIUS_MM)
+    if task.family == "clutter":
+        scene = clutter_scene(task.scene_seed, task.blocks, task.colors)
+    else:
+        scene = random_scene(task.scene_seed, task.blocks, list(task.colors),
+                             radius_mm=REACH_RADIUS_MM)
     port = "twin://?realtime=1" if task.realtime else "twin"
     with Robot.open(port, scene=scene, intrinsics=task.intrinsics,
                     hand_eye=task.hand_eye) as robot:
         twin = robot.twin
         assert twin is not None
+        distractors_before = twin.distractor_positions_mm()
         sorter = PickSorter(robot, colors=task.colors)
         first = sorter.survey()
         survey_errors = []
@@ -158,9 +177,11 @@ def run_scene(task: SceneTask) -> SceneResult:
             error = ""
         except BusArmError as exc:  # a failed run is a result too: score what is there
             error = f"{type(exc).__name__}: {exc}"
+        moved = [math.dist(a[:2], b[:2]) for a, b in
+                 zip(distractors_before, twin.distractor_positions_mm(), strict=True)]
         return SceneResult(task, dict(robot.bins), twin.blocks(), list(sorter.report.blocks),
                            error, survey_errors, twin.sim_time_s, time.monotonic() - wall,
-                           twin.slipped_s)
+                           twin.slipped_s, moved)
 
 
 def _results(tasks: list[SceneTask], workers: int, progress: Progress) -> list[SceneResult]:
@@ -192,12 +213,16 @@ def _results(tasks: list[SceneTask], workers: int, progress: Progress) -> list[S
     return [results[i] for i in range(len(tasks))]
 
 
-def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] = (3, 6),
+def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] | None = None,
                    colors: tuple[str, ...] = ("red", "green", "blue"), workers: int = 1,
-                   realtime: bool = False, work_dir: Path | None = None,
-                   progress: Progress = quiet) -> PickBenchReport:
-    """Pick-and-sort over seeded twin scenes, scored against the twin's truth (see the
-    module docstring). Scene ``i`` uses seed ``seed + i``."""
+                   realtime: bool = False, family: str = "random",
+                   work_dir: Path | None = None, progress: Progress = quiet) -> PickBenchReport:
+    """Pick-and-sort over seeded twin scenes of a ``family`` (``FAMILIES``), scored
+    against the twin's truth (see the module docstring). Scene ``i`` uses seed
+    ``seed + i``; ``blocks``: the range of blocks a scene has (the family's by default)."""
+    if family not in FAMILIES:
+        raise ConfigError(f"family = {family!r}; allowed: {', '.join(FAMILIES)}")
+    blocks = blocks or FAMILIES[family]
     check_int_range("scenes", scenes, 1, 10_000)
     check_int_range("workers", workers, 1, MAX_WORKERS)
     rng = np.random.default_rng(seed)
@@ -211,14 +236,16 @@ def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] =
             calibration = CalibrationSummary.of(made.twin_run, made.intrinsics)
         calibration_s = time.monotonic() - start
         tasks = [SceneTask(i, seed + i, n, tuple(colors), folder / "camera.json",
-                           folder / "hand_eye.json", realtime) for i, n in enumerate(counts)]
+                           folder / "hand_eye.json", realtime, family)
+                 for i, n in enumerate(counts)]
         results = _results(tasks, workers, progress)
     return _score(results, calibration, time.monotonic() - start, calibration_s, workers,
-                  realtime)
+                  realtime, family)
 
 
 def _score(results: list[SceneResult], calibration: CalibrationSummary, seconds: float,
-           calibration_s: float, workers: int, realtime: bool) -> PickBenchReport:
+           calibration_s: float, workers: int, realtime: bool,
+           family: str = "random") -> PickBenchReport:
     from busarm.apps.pick_sort import IN_BIN_MM
 
     total = in_bin = false_sorted = reported_sorted = tilted = 0
@@ -244,7 +271,8 @@ def _score(results: list[SceneResult], calibration: CalibrationSummary, seconds:
     errors = np.asarray(survey_errors) if survey_errors else np.asarray([math.nan])
     sim_s = sum(r.sim_s for r in results)
     return PickBenchReport(
-        machine=short_machine_info(), calibration=calibration, scenes=len(results),
+        machine=short_machine_info(), calibration=calibration, family=family,
+        scenes=len(results),
         blocks=total, in_their_bins=in_bin, sorted_fraction=round(in_bin / max(total, 1), 4),
         reported_sorted=reported_sorted, reported_sorted_but_not=false_sorted,
         sorted_with_a_tilted_grasp=tilted,
@@ -256,4 +284,7 @@ def _score(results: list[SceneResult], calibration: CalibrationSummary, seconds:
         sim_seconds=round(sim_s, 1), speedup=round(sim_s / max(seconds, 1e-9), 2),
         workers=workers, clock="wall" if realtime else "simulated",
         twin_slipped_s=round(sum(r.slipped_s for r in results), 2),
+        distractors=sum(len(r.distractors_moved_mm) for r in results),
+        distractors_moved=sum(m > DISTRACTOR_MOVED_MM for r in results
+                              for m in r.distractors_moved_mm),
         failures=failures[:MAX_FAILURES], cycles_s=[round(c, 3) for c in cycles])

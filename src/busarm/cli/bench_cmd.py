@@ -288,13 +288,17 @@ def _print_vision(settings: Settings, report: VisionBenchReport) -> None:
               help="Seed of the first scene (scene i uses seed + i).")
 @click.option("--workers", type=click.IntRange(1, 64), default=1, show_default=True,
               help="Scenes sorted side by side, each in its own process.")
+@click.option("--family", type=click.Choice(["random", "clutter"]), default="random",
+              show_default=True,
+              help="random: 3-6 blocks spaced out; clutter: 6-12 blocks in rows, clusters "
+                   "and touching groups, things that are not blocks, lamp or window light.")
 @click.option("--realtime", is_flag=True,
               help="Run each twin on the wall clock (as `twin serve` does) instead of as "
                    "fast as the CPU allows: to compare the two.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @pass_settings
-def bench_pick(settings: Settings, scenes: int, seed: int, workers: int, realtime: bool,
-               as_json: bool) -> None:
+def bench_pick(settings: Settings, scenes: int, seed: int, workers: int, family: str,
+               realtime: bool, as_json: bool) -> None:
     """Pick-and-sort success rate, cycle time and localisation error over twin scenes.
 
     Calibrates the twin's camera with our flows first, then sorts each scene and checks
@@ -305,6 +309,7 @@ def bench_pick(settings: Settings, scenes: int, seed: int, workers: int, realtim
     from busarm.bench.pick import run_pick_bench
 
     report = run_pick_bench(scenes=scenes, seed=seed, workers=workers, realtime=realtime,
+                            family=family,
                             progress=lambda text: settings.err.print(text, highlight=False))
     if as_json:
         click.echo(json.dumps(report.to_dict(), indent=2))
@@ -319,7 +324,8 @@ def _print_pick(settings: Settings, report: PickBenchReport) -> None:
     cycle = report.median_cycle_s
     ok_cycle = cycle is not None and cycle <= TARGET_CYCLE_S
     settings.out.print(
-        f"[bold]busarm bench pick[/]: {report.scenes} scenes, {report.blocks} blocks\n"
+        f"[bold]busarm bench pick[/]: {report.scenes} {report.family} scenes, "
+        f"{report.blocks} blocks\n"
         f"in their bins: {report.in_their_bins} ({report.sorted_fraction:.1%}, "
         f"{'[green]ok[/]' if ok_sorted else '[red]FAIL[/]'} >= {TARGET_SORTED:.0%}); "
         f"reported sorted but not: {report.reported_sorted_but_not}\n"
@@ -331,7 +337,9 @@ def _print_pick(settings: Settings, report: PickBenchReport) -> None:
            f"; the twins fell behind the wall clock by {report.twin_slipped_s} s in all")
         + "\nsurvey error median "
         f"{report.survey_error_median_mm} mm, p95 {report.survey_error_p95_mm} mm\n"
-        f"time: {report.sim_seconds} s of twin time in {report.seconds} s on this computer "
+        + (f"things that are not blocks: {report.distractors}, moved by the runs: "
+           f"{report.distractors_moved}\n" if report.distractors else "")
+        + f"time: {report.sim_seconds} s of twin time in {report.seconds} s on this computer "
         f"({report.calibration_seconds} s of it calibrating), {report.workers} worker(s), "
         f"{report.clock} clock: {report.speedup:.1f}x real time"
         + ("" if report.clock == "wall" else

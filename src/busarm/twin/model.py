@@ -20,7 +20,13 @@ link masses                 0.10-0.25 kg a servo and a bracket per link (guess)
 gripper gap                 config       the arm config's gap_mm_per_pulse (0.1875: 30 mm at 540)
 block                       30 mm, 20 g  a wooden toy cube (density 0.74)
 friction finger/block       1.2          rubber pad on wood (guess)
+room light                  5 x 0.25     diffuse, one above and four from the sides
 =========================== ============ =================================================
+
+Body names a test may look up: ``block<i>`` and ``distractor<i>`` (each a free body whose
+free joint and geom have the same name; i is the index in ``scene.blocks`` or
+``scene.distractors``), ``bin<i>``; the lights are ``top`` (the key light, which
+``Lighting`` aims) and ``side0``..``side3``.
 """
 
 from __future__ import annotations
@@ -33,7 +39,7 @@ import numpy.typing as npt
 
 from busarm.arm.camera_mount import CameraMount
 from busarm.arm.config import ArmConfig
-from busarm.twin.scene import COLORS, Scene
+from busarm.twin.scene import COLORS, DISTRACTOR_COLORS, Distractor, Lighting, Scene
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -97,6 +103,76 @@ MJ_FROM_CV = np.diag([1.0, -1.0, -1.0])
 """A MuJoCo camera looks along its -z with +y up; OpenCV's along +z with +y down."""
 
 
+ROOM_LIGHT = 0.25
+"""Diffuse light of each of the room's five lights at the usual ``Lighting``."""
+NEUTRAL_TEMP_K = 5000.0
+"""The colour temperature the twin's lights are white at (the usual ``Lighting``)."""
+
+
+def _blackbody_rgb(temp_k: float) -> FloatArray:
+    """A black body's colour at ``temp_k`` (Tanner Helland's fit to CIE data, 0..1)."""
+    t = temp_k / 100.0
+    r = 1.0 if t <= 66 else 1.2929361861 * (t - 60) ** -0.1332047592
+    g = (0.3900815787 * math.log(t) - 0.6318414438 if t <= 66
+         else 1.1298908609 * (t - 60) ** -0.0755148492)
+    b = 1.0 if t >= 66 else 0.5432067891 * math.log(t - 10) - 1.1962540892
+    return np.clip(np.array([r, g, b]), 0.0, 1.0)
+
+
+def light_tint(color_temp_k: float) -> FloatArray:
+    """The lights' colour at ``color_temp_k``: white at ``NEUTRAL_TEMP_K``, as bright to
+    the eye (Rec. 709 luminance 1) at every temperature, warmer or cooler."""
+    if color_temp_k == NEUTRAL_TEMP_K:
+        return np.ones(3)
+    rgb = _blackbody_rgb(color_temp_k) / _blackbody_rgb(NEUTRAL_TEMP_K)
+    out: FloatArray = rgb / float(np.dot(rgb, (0.2126, 0.7152, 0.0722)))
+    return out
+
+
+def _lights(lighting: Lighting) -> list[str]:
+    """The room's lights: a key light (``top``) and four softer ones from the sides.
+
+    At the usual ``Lighting``: the key light straight down from above, every light as
+    bright, so the side faces of a block are shaded but keep their colour (as under
+    ceiling lights). ``key_share`` moves light from the sides to the key light (the
+    total stays), which comes from where a desk lamp or a window would stand.
+    """
+    tint = light_tint(lighting.color_temp_k) * lighting.intensity
+    key = 5 * ROOM_LIGHT * lighting.key_share * tint
+    side = 5 * ROOM_LIGHT * (1 - lighting.key_share) / 4 * tint
+    az, el = math.radians(lighting.key_azimuth_deg), math.radians(lighting.key_elevation_deg)
+    # From 1.6 m away, aimed at the middle of the arm's work area (0.1, 0, 0).
+    towards = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+    towards = np.round(towards, 9) + 0.0  # straight down is "0 0 1", not 6e-17
+    pos = np.array([0.1, 0.0, 0.0]) + 1.6 * towards
+    out = [f'    <light name="top" pos="{_fmt(pos)}" dir="{_fmt(-towards + 0.0)}" '
+           f'diffuse="{_fmt(key)}" specular="0 0 0" castshadow="false"/>']
+    for k, (dx, dy) in enumerate(((1, 0), (-1, 0), (0, 1), (0, -1))):
+        out.append(f'    <light name="side{k}" directional="true" dir="{-dx} {-dy} -0.6" '
+                   f'diffuse="{_fmt(side)}" specular="0 0 0" castshadow="false"/>')
+    return out
+
+
+def _distractor_body(i: int, thing: Distractor, table_z_m: float) -> list[str]:
+    """A free body ``distractor<i>`` standing (a cylinder, a disc) or lying (a bar) on the
+    table: physics may push it, as a real one would be."""
+    m = M_PER_MM
+    half_h = thing.height_mm / 2 * m
+    if thing.is_round:
+        geom = f'type="cylinder" size="{_fmt((thing.length_mm / 2 * m, half_h))}"'
+    else:
+        geom = (f'type="box" size="'
+                f'{_fmt((thing.length_mm / 2 * m, thing.width_mm / 2 * m, half_h))}"')
+    yaw = math.radians(thing.yaw_deg)
+    quat = (math.cos(yaw / 2), 0, 0, math.sin(yaw / 2))
+    pos = (thing.x_mm * m, thing.y_mm * m, table_z_m + half_h)
+    return [f'    <body name="distractor{i}" pos="{_fmt(pos)}" quat="{_fmt(quat)}">',
+            f'      <freejoint name="distractor{i}"/>',
+            f'      <geom name="distractor{i}" class="object" {geom} '
+            f'material="distractor_{thing.color}" mass="{thing.mass_g / 1000:.6g}"/>',
+            '    </body>']
+
+
 @dataclass(frozen=True)
 class TwinModelSpec:
     """What the generated model needs besides the arm config and the scene."""
@@ -112,34 +188,21 @@ class TwinModelSpec:
     board (see busarm.twin.boards)."""
 
 
-def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
-    """The whole world as MJCF text (assets, if any, are passed to MuJoCo separately)."""
-    g = config.geometry
-    m = M_PER_MM
-    lim = [(math.radians(j.min_deg), math.radians(j.max_deg)) for j in config.joints]
-    names = [j.name for j in config.joints]
-    table_z = config.table_z_mm * m
-    t = scene.table
-    pad_t, pad_w, pad_l = (v * m for v in FINGER_PAD_MM)
-    max_half_gap = (config.gripper.max_pulses - config.gripper.min_pulses) \
-        * config.gripper.gap_mm_per_pulse / 2 * m
-    cam = spec.mount.cam2link
-    cam_quat = quat_from_matrix(cam[:3, :3] @ MJ_FROM_CV)
+def _head(scene: Scene, spec: TwinModelSpec) -> list[str]:
+    """Options, the headlight, materials and default classes: all before the world."""
     width = max(spec.render_size_px[0], spec.overview_size_px[0])
     height = max(spec.render_size_px[1], spec.overview_size_px[1])
-    # Servo angle per metre of one finger's travel (the gripper actuator's gear).
-    finger_gear = -1.0 / (config.gripper.gap_mm_per_pulse / 2 * m / math.radians(0.24))
-
     out: list[str] = []
     w = out.append
     w('<mujoco model="busarm twin">')
     w('  <compiler angle="radian" autolimits="true"/>')
     w(f'  <option timestep="{TIMESTEP_S}" integrator="implicitfast" cone="elliptic" '
       'impratio="10"/>')
+    tint = light_tint(scene.lighting.color_temp_k) * scene.lighting.intensity
     w(f'  <visual><global offwidth="{width}" offheight="{height}"/>'
       '<quality shadowsize="2048" offsamples="4"/>'
-      '<headlight ambient="0.12 0.12 0.12" diffuse="0.1 0.1 0.1" specular="0 0 0"/>'
-      '</visual>')
+      f'<headlight ambient="{_fmt(0.12 * tint)}" diffuse="{_fmt(0.1 * tint)}" '
+      'specular="0 0 0"/></visual>')
     w('  <asset>')
     r, gg, b = TABLE_RGB
     w(f'    <material name="table" rgba="{r} {gg} {b} 1" specular="0" shininess="0"/>')
@@ -147,6 +210,11 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
         w(f'    <material name="{color}" rgba="{cr} {cg} {cb} 1" specular="0.05" '
           'shininess="0.1"/>')
     w('    <material name="tray" rgba="0.55 0.55 0.57 1" specular="0"/>')
+    for color, rgb in DISTRACTOR_COLORS.items():
+        if all(d.color != color for d in scene.distractors):
+            continue  # a scene without distractors builds the model it always did
+        w(f'    <material name="distractor_{color}" rgba="{_fmt(rgb)} 1" specular="0.1" '
+          'shininess="0.2"/>')
     for i, (fname, _data, _w, _h, _pose) in enumerate(spec.textures):
         w(f'    <texture name="board{i}" type="2d" file="{fname}"/>')
         w(f'    <material name="board{i}" texture="board{i}" specular="0" shininess="0"/>')
@@ -158,14 +226,14 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
     w('    <default class="object"><geom contype="1" conaffinity="1" condim="4" '
       'friction="1.0 0.01 0.001" solref="0.004 1"/></default>')
     w('  </default>')
-    w('  <worldbody>')
-    # A room, not a spotlight: light from above and, softer, from four sides, so the
-    # side faces of a block are shaded but keep their colour (as under ceiling lights).
-    w('    <light name="top" pos="0.1 0 1.6" dir="0 0 -1" diffuse="0.25 0.25 0.25" '
-      'specular="0 0 0" castshadow="false"/>')
-    for k, (dx, dy) in enumerate(((1, 0), (-1, 0), (0, 1), (0, -1))):
-        w(f'    <light name="side{k}" directional="true" dir="{-dx} {-dy} -0.6" '
-          'diffuse="0.25 0.25 0.25" specular="0 0 0" castshadow="false"/>')
+    return out
+
+
+def _table_and_things(scene: Scene, spec: TwinModelSpec, table_z: float) -> list[str]:
+    """The table, the overview camera, and everything on the table (metres)."""
+    m, t = M_PER_MM, scene.table
+    out: list[str] = []
+    w = out.append
     tx, ty = (t.x_min_mm + t.x_max_mm) / 2 * m, (t.y_min_mm + t.y_max_mm) / 2 * m
     hx, hy = (t.x_max_mm - t.x_min_mm) / 2 * m, (t.y_max_mm - t.y_min_mm) / 2 * m
     th = TABLE_THICKNESS_MM / 2 * m
@@ -180,17 +248,7 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
           f'conaffinity="0" pos="{_fmt(board_pos)}" quat="{_fmt(board_quat)}" '
           f'size="{_fmt((bw / 2 * m, bh / 2 * m, 0.01))}"/>')
     for i, tray in enumerate(scene.bins):
-        s, wall = tray.size_mm / 2 * m, tray.wall_mm * m
-        t_w = 0.002  # wall thickness, m
-        w(f'    <body name="bin{i}" pos="{_fmt((tray.x_mm * m, tray.y_mm * m, table_z))}">')
-        w(f'      <geom class="object" type="box" material="tray" pos="0 0 0.001" '
-          f'size="{_fmt((s, s, 0.001))}"/>')
-        walls = ((s - t_w, 0.0, t_w, s), (-s + t_w, 0.0, t_w, s), (0.0, s - t_w, s, t_w),
-                 (0.0, -s + t_w, s, t_w))
-        for px, py, sx, sy in walls:
-            w(f'      <geom class="object" type="box" material="tray" '
-              f'pos="{_fmt((px, py, wall / 2))}" size="{_fmt((sx, sy, wall / 2))}"/>')
-        w('    </body>')
+        out += _bin_body(i, tray.x_mm, tray.y_mm, tray.size_mm, tray.wall_mm, table_z)
     for i, block in enumerate(scene.blocks):
         half = block.size_mm / 2 * m
         quat = (math.cos(math.radians(block.yaw_deg) / 2), 0, 0,
@@ -202,6 +260,49 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
           f'size="{_fmt((half, half, half))}" mass="{block.mass_g / 1000:.6g}" '
           'friction="1.2 0.02 0.002"/>')
         w('    </body>')
+    for i, thing in enumerate(scene.distractors):
+        out += _distractor_body(i, thing, table_z)
+    return out
+
+
+def _bin_body(i: int, x_mm: float, y_mm: float, size_mm: float, wall_mm: float,
+              table_z: float) -> list[str]:
+    """An open tray: a thin floor and four walls of 2 mm inside its outer square."""
+    m = M_PER_MM
+    s, wall = size_mm / 2 * m, wall_mm * m
+    t_w = 0.002  # wall thickness, m
+    out = [f'    <body name="bin{i}" pos="{_fmt((x_mm * m, y_mm * m, table_z))}">',
+           f'      <geom class="object" type="box" material="tray" pos="0 0 0.001" '
+           f'size="{_fmt((s, s, 0.001))}"/>']
+    walls = ((s - t_w, 0.0, t_w, s), (-s + t_w, 0.0, t_w, s), (0.0, s - t_w, s, t_w),
+             (0.0, -s + t_w, s, t_w))
+    for px, py, sx, sy in walls:
+        out.append(f'      <geom class="object" type="box" material="tray" '
+                   f'pos="{_fmt((px, py, wall / 2))}" size="{_fmt((sx, sy, wall / 2))}"/>')
+    out.append('    </body>')
+    return out
+
+
+def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
+    """The whole world as MJCF text (assets, if any, are passed to MuJoCo separately)."""
+    g = config.geometry
+    m = M_PER_MM
+    lim = [(math.radians(j.min_deg), math.radians(j.max_deg)) for j in config.joints]
+    names = [j.name for j in config.joints]
+    table_z = config.table_z_mm * m
+    pad_t, pad_w, pad_l = (v * m for v in FINGER_PAD_MM)
+    max_half_gap = (config.gripper.max_pulses - config.gripper.min_pulses) \
+        * config.gripper.gap_mm_per_pulse / 2 * m
+    cam = spec.mount.cam2link
+    cam_quat = quat_from_matrix(cam[:3, :3] @ MJ_FROM_CV)
+    # Servo angle per metre of one finger's travel (the gripper actuator's gear).
+    finger_gear = -1.0 / (config.gripper.gap_mm_per_pulse / 2 * m / math.radians(0.24))
+
+    out = _head(scene, spec)
+    out.append('  <worldbody>')
+    out += _lights(scene.lighting)
+    out += _table_and_things(scene, spec, table_z)
+    w = out.append
 
     # The arm: modified DH, body i at RotX(alpha) TransX(a) TransZ(d), turning about z.
     dh = [(0.0, 0.0, g.base_height_mm), (-math.pi / 2, 0.0, 0.0), (0.0, g.upper_arm_mm, 0.0),

@@ -1,10 +1,13 @@
-"""What stands on the twin's table: blocks, bins and calibration boards, in millimetres.
+"""What stands on the twin's table: blocks, bins, calibration boards and distractors (things
+that are not blocks), in millimetres, and how the room is lit.
 
 A scene is data (``Scene``), read from a TOML file or drawn from a seed
-(``random_scene``), always validated: a block off the table, overlapping another one or
-a bin, or of an unknown colour is refused with the key and the allowed range. Positions
-are in the arm's base frame (x forward, y left, z up; the table top at the arm config's
-``table_z_mm``). Blocks are cubes standing on the table, turned by ``yaw_deg`` about z.
+(``random_scene``; ``busarm.twin.clutter.clutter_scene`` for tables like real ones),
+always validated: a block off the table, interpenetrating another one, a bin or a
+distractor, or of an unknown colour is refused with the key and the allowed range.
+Touching is allowed (``busarm.twin.footprints``). Positions are in the arm's base frame
+(x forward, y left, z up; the table top at the arm config's ``table_z_mm``). Blocks are
+cubes standing on the table, turned by ``yaw_deg`` about z.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from typing import Any
 
 from busarm.errors import ConfigError
 from busarm.fileio import write_text_atomic
+from busarm.twin.footprints import TOUCH_TOLERANCE_MM, Footprint, penetration_mm
 from busarm.units import check_int_range, check_range
 
 if sys.version_info >= (3, 11):
@@ -37,7 +41,28 @@ COLORS: dict[str, tuple[float, float, float]] = {
 }
 """Block colours the twin can paint (linear RGB 0..1): matte, as wooden toy blocks."""
 
+DISTRACTOR_COLORS: dict[str, tuple[float, float, float]] = {
+    "grey": (0.40, 0.40, 0.42),
+    "white": (0.92, 0.92, 0.90),
+    "brown": (0.30, 0.20, 0.14),
+    "purple": (0.42, 0.18, 0.52),
+}
+"""Colours of things that are not blocks, none of them a block colour. Purple still lies
+inside busarm.vision's default blue threshold, as a violet pen would: only its shape
+tells it from a block."""
+
+DISTRACTOR_SIZES_MM: dict[str, dict[str, tuple[float, float]]] = {
+    "cylinder": {"length_mm": (20.0, 100.0), "height_mm": (40.0, 120.0)},
+    "disc": {"length_mm": (20.0, 120.0), "height_mm": (1.0, 8.0)},
+    "bar": {"length_mm": (60.0, 250.0), "width_mm": (5.0, 25.0), "height_mm": (5.0, 25.0)},
+}
+"""Distractor shapes and their sizes: an upright cylinder (a cup, a glue stick), a flat
+disc (a coaster, a coin), a bar lying down (a pen, a ruler); none looks like a cube. A
+round shape's footprint is a circle of diameter ``length_mm`` (= ``width_mm``)."""
+
 DEFAULT_BLOCK_MM = 30.0
+BLOCK_SIZE_MM = (10.0, 60.0)
+"""Block sides the twin builds (toy blocks are 25-40 mm)."""
 BOARD_KINDS = ("chessboard", "charuco", "tags")
 
 
@@ -71,6 +96,11 @@ class Block:
         """Half the diagonal: no part of the block is farther from its centre axis."""
         return self.size_mm * math.sqrt(0.5)
 
+    @property
+    def footprint(self) -> Footprint:
+        """The square it stands on."""
+        return Footprint.square(self.x_mm, self.y_mm, self.size_mm, self.yaw_deg)
+
 
 @dataclass(frozen=True)
 class Bin:
@@ -81,6 +111,11 @@ class Bin:
     y_mm: float
     size_mm: float = 90.0
     wall_mm: float = 12.0
+
+    @property
+    def footprint(self) -> Footprint:
+        """Its outer square (nothing may stand in a wall; a block may stand against one)."""
+        return Footprint.square(self.x_mm, self.y_mm, self.size_mm)
 
 
 @dataclass(frozen=True)
@@ -98,8 +133,71 @@ class Board:
 
 
 @dataclass(frozen=True)
+class Distractor:
+    """Something on the table that is not a block, for a sorter to leave alone.
+
+    ``shape`` is one of ``DISTRACTOR_SIZES_MM`` (its sizes' ranges), ``color`` one of
+    ``DISTRACTOR_COLORS``. ``length_mm`` x ``width_mm`` is its footprint, centred at
+    (x, y) and turned by ``yaw_deg``; a cylinder's or a disc's diameter is both.
+    In the twin it is a free body named ``distractor<i>`` (i its index in the scene).
+    """
+
+    shape: str
+    color: str
+    x_mm: float
+    y_mm: float
+    length_mm: float
+    width_mm: float
+    height_mm: float
+    yaw_deg: float = 0.0
+    mass_g: float = 30.0
+
+    @property
+    def is_round(self) -> bool:
+        return self.shape in ("cylinder", "disc")
+
+    @property
+    def footprint(self) -> Footprint:
+        if self.is_round:
+            return Footprint.disc(self.x_mm, self.y_mm, self.length_mm)
+        return Footprint(self.x_mm, self.y_mm, self.length_mm / 2, self.width_mm / 2,
+                         self.yaw_deg)
+
+
+LIGHTING_RANGES: dict[str, tuple[float, float]] = {
+    "intensity": (0.4, 1.6),
+    "key_azimuth_deg": (-180.0, 180.0),
+    "key_elevation_deg": (15.0, 90.0),
+    "key_share": (0.0, 0.8),
+    "color_temp_k": (2700.0, 6500.0),
+}
+"""What a room with a desk lamp or a window gives (see ``Lighting``)."""
+
+
+@dataclass(frozen=True)
+class Lighting:
+    """How the table is lit: the room's light and its key light (a desk lamp, a window).
+
+    ``intensity`` scales every light (1 = the twin's usual room); ``key_share`` is the
+    key light's part of the light (0.2 = no stronger than the room's four other lights,
+    more for a lamp close by); it shines from ``key_azimuth_deg`` (bearing, 0 = from
+    beyond the table's far edge, +x) and ``key_elevation_deg`` above the table (90 =
+    straight down); ``color_temp_k`` tints all of it as the camera sees it, 5000 K
+    neutral, 2700 K a warm desk lamp, 6500 K daylight from a window (a camera's white
+    balance takes most of that away: ``busarm.twin.clutter`` draws 4500-5800 K). The
+    defaults are the twin's lighting from before there was this.
+    """
+
+    intensity: float = 1.0
+    key_azimuth_deg: float = 0.0
+    key_elevation_deg: float = 90.0
+    key_share: float = 0.2
+    color_temp_k: float = 5000.0
+
+
+@dataclass(frozen=True)
 class Scene:
-    """Everything on the table."""
+    """Everything on the table, and the light on it."""
 
     blocks: tuple[Block, ...] = ()
     bins: tuple[Bin, ...] = ()
@@ -107,6 +205,8 @@ class Scene:
     table: Table = field(default_factory=Table)
     seed: int | None = None
     source: str = "<memory>"
+    distractors: tuple[Distractor, ...] = ()
+    lighting: Lighting = field(default_factory=Lighting)
 
     def __post_init__(self) -> None:
         check_scene(self)
@@ -137,6 +237,12 @@ def _finite(scene: Scene, what: str, value: object, lo: float, hi: float) -> flo
     return check_range(_where(scene, what), value, lo, hi)
 
 
+def _check_color(scene: Scene, key: str, color: str, allowed: dict[str, Any]) -> None:
+    if color not in allowed:
+        raise ConfigError(_where(scene, f"{key}.color = {color!r}; allowed: "
+                                        f"{', '.join(allowed)}"))
+
+
 def check_scene(scene: Scene) -> None:
     """Raise ConfigError naming the first thing in ``scene`` that cannot stand there."""
     t = scene.table
@@ -146,13 +252,26 @@ def check_scene(scene: Scene) -> None:
             and t.y_min_mm < -BASE_CLEARANCE_MM and t.y_max_mm > BASE_CLEARANCE_MM):
         raise ConfigError(_where(scene, "the table must extend at least "
                                         f"{BASE_CLEARANCE_MM:g} mm around the arm base (0, 0)"))
-    footprints: list[tuple[str, float, float, float]] = []
+    footprints = [*_check_blocks(scene), *_check_bins(scene), *_check_distractors(scene)]
+    for i, board in enumerate(scene.boards):
+        key = f"boards[{i}]"
+        if board.kind not in BOARD_KINDS:
+            raise ConfigError(_where(scene, f"{key}.kind = {board.kind!r}; allowed: "
+                                            f"{', '.join(BOARD_KINDS)}"))
+        for name in ("x_mm", "y_mm"):
+            _finite(scene, f"{key}.{name}", getattr(board, name), -2000.0, 2000.0)
+        _finite(scene, f"{key}.yaw_deg", board.yaw_deg, -360.0, 360.0)
+    for name, (lo, hi) in LIGHTING_RANGES.items():
+        _finite(scene, f"lighting.{name}", getattr(scene.lighting, name), lo, hi)
+    _check_overlaps(scene, footprints)
+
+
+def _check_blocks(scene: Scene) -> list[tuple[str, Footprint]]:
+    t, out = scene.table, []
     for i, b in enumerate(scene.blocks):
         key = f"blocks[{i}]"
-        if b.color not in COLORS:
-            raise ConfigError(_where(scene, f"{key}.color = {b.color!r}; allowed: "
-                                            f"{', '.join(COLORS)}"))
-        size = _finite(scene, f"{key}.size_mm", b.size_mm, 10.0, 60.0)
+        _check_color(scene, key, b.color, COLORS)
+        _finite(scene, f"{key}.size_mm", b.size_mm, *BLOCK_SIZE_MM)
         _finite(scene, f"{key}.mass_g", b.mass_g, 1.0, 500.0)
         _finite(scene, f"{key}.yaw_deg", b.yaw_deg, -360.0, 360.0)
         x = _finite(scene, f"{key}.x_mm", b.x_mm, -2000.0, 2000.0)
@@ -162,35 +281,74 @@ def check_scene(scene: Scene) -> None:
                 scene, f"{key} at ({x:g}, {y:g}) mm is off the table: its centre must lie in "
                 f"x {t.x_min_mm + b.radius_mm:g}..{t.x_max_mm - b.radius_mm:g}, "
                 f"y {t.y_min_mm + b.radius_mm:g}..{t.y_max_mm - b.radius_mm:g} mm"))
-        footprints.append((key, x, y, size * math.sqrt(0.5)))
+        _check_base(scene, key, x, y, b.radius_mm)
+        out.append((key, b.footprint))
+    return out
+
+
+def _check_bins(scene: Scene) -> list[tuple[str, Footprint]]:
+    out = []
     for i, bin_ in enumerate(scene.bins):
         key = f"bins[{i}]"
-        if bin_.color not in COLORS:
-            raise ConfigError(_where(scene, f"{key}.color = {bin_.color!r}; allowed: "
-                                            f"{', '.join(COLORS)}"))
+        _check_color(scene, key, bin_.color, COLORS)
         size = _finite(scene, f"{key}.size_mm", bin_.size_mm, 40.0, 200.0)
         _finite(scene, f"{key}.wall_mm", bin_.wall_mm, 2.0, 60.0)
         x = _finite(scene, f"{key}.x_mm", bin_.x_mm, -2000.0, 2000.0)
         y = _finite(scene, f"{key}.y_mm", bin_.y_mm, -2000.0, 2000.0)
-        if not t.contains(x, y, size / 2):
+        if not scene.table.contains(x, y, size / 2):
             raise ConfigError(_where(scene, f"{key} at ({x:g}, {y:g}) mm is off the table"))
-        footprints.append((key, x, y, size * math.sqrt(0.5)))
-    for i, board in enumerate(scene.boards):
-        key = f"boards[{i}]"
-        if board.kind not in BOARD_KINDS:
-            raise ConfigError(_where(scene, f"{key}.kind = {board.kind!r}; allowed: "
-                                            f"{', '.join(BOARD_KINDS)}"))
-        for name in ("x_mm", "y_mm"):
-            _finite(scene, f"{key}.{name}", getattr(board, name), -2000.0, 2000.0)
-        _finite(scene, f"{key}.yaw_deg", board.yaw_deg, -360.0, 360.0)
-    for j, (key, x, y, r) in enumerate(footprints):
-        if math.hypot(x, y) < BASE_CLEARANCE_MM + r * 0.5:
-            raise ConfigError(_where(scene, f"{key} at ({x:g}, {y:g}) mm stands on the arm "
-                                            f"base: keep it {BASE_CLEARANCE_MM:g} mm from (0, 0)"))
-        for key2, x2, y2, r2 in footprints[j + 1:]:
-            if math.hypot(x - x2, y - y2) < r + r2:
-                raise ConfigError(_where(scene, f"{key} and {key2} overlap at ({x:g}, {y:g}) "
-                                                 f"and ({x2:g}, {y2:g}) mm"))
+        _check_base(scene, key, x, y, size * math.sqrt(0.5))
+        out.append((key, bin_.footprint))
+    return out
+
+
+def _check_base(scene: Scene, key: str, x: float, y: float, radius_mm: float) -> None:
+    if math.hypot(x, y) < BASE_CLEARANCE_MM + radius_mm * 0.5:
+        raise ConfigError(_where(scene, f"{key} at ({x:g}, {y:g}) mm stands on the arm "
+                                        f"base: keep it {BASE_CLEARANCE_MM:g} mm from (0, 0)"))
+
+
+def _check_distractors(scene: Scene) -> list[tuple[str, Footprint]]:
+    out = []
+    for i, d in enumerate(scene.distractors):
+        key = f"distractors[{i}]"
+        if d.shape not in DISTRACTOR_SIZES_MM:
+            raise ConfigError(_where(scene, f"{key}.shape = {d.shape!r}; allowed: "
+                                            f"{', '.join(DISTRACTOR_SIZES_MM)}"))
+        _check_color(scene, key, d.color, DISTRACTOR_COLORS)
+        for name, (lo, hi) in DISTRACTOR_SIZES_MM[d.shape].items():
+            _finite(scene, f"{key}.{name} of a {d.shape}", getattr(d, name), lo, hi)
+        if d.is_round and d.width_mm != d.length_mm:
+            raise ConfigError(_where(scene, f"{key}.width_mm = {d.width_mm!r}: a {d.shape} is "
+                                            f"round, give its diameter as both length_mm and "
+                                            f"width_mm ({d.length_mm!r})"))
+        _finite(scene, f"{key}.mass_g", d.mass_g, 1.0, 1000.0)
+        _finite(scene, f"{key}.yaw_deg", d.yaw_deg, -360.0, 360.0)
+        x = _finite(scene, f"{key}.x_mm", d.x_mm, -2000.0, 2000.0)
+        y = _finite(scene, f"{key}.y_mm", d.y_mm, -2000.0, 2000.0)
+        fp = d.footprint
+        if not scene.table.contains(x, y, fp.radius_mm):
+            raise ConfigError(_where(scene, f"{key} at ({x:g}, {y:g}) mm hangs off the table"))
+        if fp.distance_from_mm(0.0, 0.0) < BASE_CLEARANCE_MM:
+            raise ConfigError(_where(scene, f"{key} at ({x:g}, {y:g}) mm comes within "
+                                            f"{BASE_CLEARANCE_MM:g} mm of the arm base (0, 0)"))
+        out.append((key, fp))
+    return out
+
+
+def _check_overlaps(scene: Scene, footprints: list[tuple[str, Footprint]]) -> None:
+    """Refuse the first pair that interpenetrates (touching is fine)."""
+    for j, (key, a) in enumerate(footprints):
+        for key2, b in footprints[j + 1:]:
+            if abs(a.x_mm - b.x_mm) > a.radius_mm + b.radius_mm or abs(
+                    a.y_mm - b.y_mm) > a.radius_mm + b.radius_mm:
+                continue  # far apart: skip the exact test
+            depth = penetration_mm(a, b)
+            if depth > TOUCH_TOLERANCE_MM:
+                raise ConfigError(_where(
+                    scene, f"{key} at ({a.x_mm:g}, {a.y_mm:g}) mm and {key2} at "
+                    f"({b.x_mm:g}, {b.y_mm:g}) mm overlap by {depth:.2f} mm; they may touch "
+                    f"but not interpenetrate more than {TOUCH_TOLERANCE_MM:g} mm"))
 
 
 # ---------------------------------------------------------------------- seeded scenes
@@ -273,7 +431,12 @@ def _table_from(data: dict[str, Any], cls: Any, key: str, source: str) -> Any:
 
 
 def scene_from_toml(text: str, source: str = "<string>") -> Scene:
-    """Parse a scene file's text (``format = "busarm.scene"``, ``version = 1``)."""
+    """Parse a scene file's text (``format = "busarm.scene"``, ``version = 1``).
+
+    Besides ``[table]``, ``[[blocks]]``, ``[[bins]]`` and ``[[boards]]``, a file may hold
+    ``[[distractors]]`` (the fields of ``Distractor``) and a ``[lighting]`` table (the
+    fields of ``Lighting``; absent = the usual light).
+    """
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -281,7 +444,8 @@ def scene_from_toml(text: str, source: str = "<string>") -> Scene:
     if data.get("format") != SCENE_FORMAT or data.get("version") != SCENE_VERSION:
         raise ConfigError(f"scene {source}: expected format = {SCENE_FORMAT!r} and version = "
                           f"{SCENE_VERSION}, got {data.get('format')!r} {data.get('version')!r}")
-    known = {"format", "version", "table", "blocks", "bins", "boards", "seed"}
+    known = {"format", "version", "table", "blocks", "bins", "boards", "distractors",
+             "lighting", "seed"}
     unknown = sorted(set(data) - known)
     if unknown:
         raise ConfigError(f"scene {source}: unknown key(s) {unknown}; known: {sorted(known)}")
@@ -292,9 +456,12 @@ def scene_from_toml(text: str, source: str = "<string>") -> Scene:
             raise ConfigError(f"scene {source}: {key} must be an array of tables ([[{key}]])")
         return value
 
-    table = data.get("table", {})
-    if not isinstance(table, dict):
-        raise ConfigError(f"scene {source}: table must be a table ([table])")
+    def table(key: str) -> dict[str, Any]:
+        value = data.get(key, {})
+        if not isinstance(value, dict):
+            raise ConfigError(f"scene {source}: {key} must be a table ([{key}])")
+        return value
+
     seed = data.get("seed")
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
         raise ConfigError(f"scene {source}: seed = {seed!r} must be an integer")
@@ -304,9 +471,12 @@ def scene_from_toml(text: str, source: str = "<string>") -> Scene:
         bins=tuple(_table_from(b, Bin, f"bins[{i}]", source) for i, b in enumerate(items("bins"))),
         boards=tuple(_table_from(b, Board, f"boards[{i}]", source)
                      for i, b in enumerate(items("boards"))),
-        table=_table_from(table, Table, "table", source),
+        table=_table_from(table("table"), Table, "table", source),
         seed=seed,
         source=source,
+        distractors=tuple(_table_from(d, Distractor, f"distractors[{i}]", source)
+                          for i, d in enumerate(items("distractors"))),
+        lighting=_table_from(table("lighting"), Lighting, "lighting", source),
     )
 
 
@@ -334,7 +504,12 @@ def scene_to_toml(scene: Scene) -> str:
     lines += ["", "[table]"]
     lines += [f"{k} = {_toml_value(getattr(scene.table, k))}"
               for k in Table.__dataclass_fields__]
-    for key, items in (("blocks", scene.blocks), ("bins", scene.bins), ("boards", scene.boards)):
+    if scene.lighting != Lighting():  # a file for the usual light stays as it was
+        lines += ["", "[lighting]"]
+        lines += [f"{k} = {_toml_value(getattr(scene.lighting, k))}"
+                  for k in Lighting.__dataclass_fields__]
+    for key, items in (("blocks", scene.blocks), ("bins", scene.bins), ("boards", scene.boards),
+                       ("distractors", scene.distractors)):
         for item in items:
             lines += ["", f"[[{key}]]"]
             lines += [f"{k} = {_toml_value(getattr(item, k))}"

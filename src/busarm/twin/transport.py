@@ -3,12 +3,18 @@
 URL query parameters (all optional):
 
 =========== =========================================================== ==============
-``seed``    seed of the random scene                                    0
-``blocks``  how many blocks in the random scene                         5
-``colors``  block colours of the random scene, comma separated          red,green,blue
-``scene``   a scene file instead of a random scene                      (none)
-``board``   a calibration board on the table: chessboard, charuco, tags (none; then
-            ``blocks`` defaults to 0)
+``family``  the seeded scenes: ``random`` (blocks spread out) or         random
+            ``clutter`` (a table like a real one: rows, clusters,
+            touching blocks, distractors, a lamp's light; see
+            busarm.twin.clutter)
+``seed``    seed of the seeded scene                                    0
+``blocks``  how many blocks in the random scene (0..8); in a clutter    5; clutter: 8
+            scene, the most it holds (0..12)
+``colors``  block colours of the seeded scene, comma separated          red,green,blue;
+                                                                        clutter: all four
+``scene``   a scene file instead of a seeded scene                      (none)
+``board``   a calibration board on the table (family=random only):      (none; then
+            chessboard, charuco, tags                                   ``blocks`` is 0)
 ``config``  arm config name or file                                     jetauto_pro
 ``lens``    the camera's lens: wide (strong barrel), vendor, none          wide
 ``echo``    1 = the adapter echoes every byte sent                      0
@@ -36,12 +42,16 @@ from busarm.errors import ConfigError
 from busarm.sim.bus import WireTiming
 from busarm.sim.transport import SimTransport, query_flag, query_float
 from busarm.twin.boards import BOARD_SPECS, calibration_board
+from busarm.twin.clutter import CLUTTER_DEFAULT_BLOCKS, CLUTTER_MAX_BLOCKS, clutter_scene
 from busarm.twin.lens import lens_by_name
-from busarm.twin.scene import MAX_BLOCKS, Scene, load_scene, random_scene
+from busarm.twin.scene import COLORS, MAX_BLOCKS, Scene, load_scene, random_scene
 from busarm.twin.twin import CONTROL_PERIOD_S, Twin
 
-_KNOWN = {"seed", "blocks", "colors", "scene", "config", "echo", "timing", "board", "lens",
-          "pace", "realtime"}
+_KNOWN = {"family", "seed", "blocks", "colors", "scene", "config", "echo", "timing", "board",
+          "lens", "pace", "realtime"}
+_TABLE_KEYS = {"family", "seed", "blocks", "colors", "board"}
+"""The keys that draw a seeded scene (instead of ``scene=``)."""
+FAMILIES = ("random", "clutter")
 
 
 def twin_query(url: str) -> dict[str, str]:
@@ -61,22 +71,35 @@ def twin_query(url: str) -> dict[str, str]:
 
 
 def scene_from_query(q: dict[str, str]) -> Scene:
-    """The scene a twin URL asks for: a file, or a seeded random scene."""
+    """The scene a twin URL asks for: a file, or a seeded scene of a family."""
     if q.get("scene"):
-        if {"seed", "blocks", "colors", "board"} & set(q):
-            raise ConfigError("twin URL: give either scene= or seed=/blocks=/colors=/board=")
+        if _TABLE_KEYS & set(q):
+            raise ConfigError("twin URL: give either scene= or "
+                              "family=/seed=/blocks=/colors=/board=")
         return load_scene(q["scene"])
+    family = q.get("family", "random")
+    if family not in FAMILIES:
+        raise ConfigError(f"twin URL: family={family!r}; allowed: {', '.join(FAMILIES)}")
     board = q.get("board")
+    if board is not None and family != "random":
+        raise ConfigError(f"twin URL: board= is for family=random (a bare table), not "
+                          f"family={family}")
     if board is not None and board not in BOARD_SPECS:
         raise ConfigError(f"twin URL: board={board!r}; allowed: {', '.join(BOARD_SPECS)}")
+    clutter = family == "clutter"
     seed = query_float(q, "seed", 0.0, "twin URL")
-    blocks = query_float(q, "blocks", 0.0 if board else 5.0, "twin URL")
-    for key, value, hi in (("seed", seed, 2**32 - 1), ("blocks", blocks, MAX_BLOCKS)):
+    default_blocks = CLUTTER_DEFAULT_BLOCKS if clutter else 0 if board else 5
+    blocks = query_float(q, "blocks", float(default_blocks), "twin URL")
+    max_blocks = CLUTTER_MAX_BLOCKS if clutter else MAX_BLOCKS
+    for key, value, hi in (("seed", seed, 2**32 - 1), ("blocks", blocks, max_blocks)):
         if not (value.is_integer() and 0 <= value <= hi):
-            raise ConfigError(f"twin URL: {key}={q[key]!r} must be a whole number 0..{hi}")
-    colors = q.get("colors", "red,green,blue").split(",")
-    scene = random_scene(int(seed), int(blocks), [c.strip() for c in colors if c.strip()],
-                         bins=board is None)
+            raise ConfigError(f"twin URL: {key}={q[key]!r} must be a whole number 0..{hi}"
+                              + (f" (family={family})" if key == "blocks" else ""))
+    default_colors = ",".join(COLORS) if clutter else "red,green,blue"
+    colors = [c.strip() for c in q.get("colors", default_colors).split(",") if c.strip()]
+    if clutter:
+        return clutter_scene(int(seed), int(blocks), colors)
+    scene = random_scene(int(seed), int(blocks), colors, bins=board is None)
     if board is None:
         return scene
     return replace(scene, boards=(calibration_board(board),), source=f"{scene.source}, {board}")
@@ -94,7 +117,7 @@ def twin_from_url(url: str, baudrate: int = 115200, *, realtime: bool = False,
     given, is the arm it builds (else the URL's ``config=``, else the JetAuto Pro);
     ``scene``, if given, what stands on its table (else the URL's)."""
     q = twin_query(url)
-    if scene is not None and {"scene", "seed", "blocks", "colors", "board"} & set(q):
+    if scene is not None and ({"scene"} | _TABLE_KEYS) & set(q):
         raise ConfigError(f"{url}: the table is given twice (in the URL and as a scene)")
     scene = scene if scene is not None else scene_from_query(q)
     in_url = load_arm_config(q["config"]) if q.get("config") else None

@@ -417,6 +417,16 @@ class Twin:
                     bool(abs(r[2, up_axis]) > math.cos(math.radians(10)))))
         return out
 
+    def distractor_positions_mm(self) -> list[tuple[float, float, float]]:
+        """Where each of the scene's distractors (things that are not blocks) really is:
+        (x, y, z) of its body, mm, base frame (ground truth)."""
+        out = []
+        with self._lock:
+            for i in range(len(self.scene.distractors)):
+                p = self._body_pose_mm(self.model.body(f"distractor{i}").id)[:3, 3]
+                out.append((float(p[0]), float(p[1]), float(p[2])))
+        return out
+
     def place_block(self, index: int, x_mm: float, y_mm: float, yaw_deg: float = 0.0,
                     z_mm: float | None = None) -> None:
         """Put block ``index`` at (x, y), standing on the table unless ``z_mm`` is given
