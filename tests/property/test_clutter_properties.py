@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from busarm.errors import ConfigError
 from busarm.twin.clutter import (
     BIN_CLEARANCE_MM,
+    CLUTTER_DISTRACTOR_COLORS,
     CLUTTER_LIGHTING,
     CLUTTER_MAX_BLOCKS,
     clutter_scene,
@@ -102,7 +103,7 @@ def test_the_family_has_what_real_tables_have(family: list[Scene]) -> None:
                                         for b in s.blocks)) >= 60
     things = [d for s in family for d in s.distractors]
     assert {d.shape for d in things} == {"cylinder", "disc", "bar"}
-    assert {d.color for d in things} == set(DISTRACTOR_COLORS)
+    assert {d.color for d in things} == set(CLUTTER_DISTRACTOR_COLORS)
     assert sum(1 for s in family if s.distractors) >= 120
     assert len({s.lighting for s in family}) == len(family)
     yaws = {round(b.yaw_deg) for s in family for b in s.blocks}
