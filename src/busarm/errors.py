@@ -7,6 +7,8 @@ still catch them.
 
 from __future__ import annotations
 
+import functools
+
 
 class BusArmError(Exception):
     """Root of every busarm error."""
@@ -94,6 +96,43 @@ class TwinError(BusArmError):
     """The digital twin cannot be built or rendered (MuJoCo or its OpenGL backend missing)."""
 
 
+class MotionError(BusArmError):
+    """A move that did not go as commanded: a servo did not arrive, or the arm hit something."""
+
+
+class MotionTimeoutError(MotionError, TimeoutError):
+    """Servos did not reach their targets within the allowed time."""
+
+
+class ContactError(MotionError):
+    """A guarded move found a joint stopped short of its commanded path: the arm touched
+    something. The arm is stopped; ``backed_off`` says whether it then went back to where
+    the move started (else it is stopped and holding where it was).
+
+    ``joint`` names the joint that stopped short and ``lag_deg`` by how much; ``along_mm``
+    is how far along the line the tool was, ``tool_mm`` where it was (x, y, z), and
+    ``detected_s`` the arm clock's time of the detection.
+    """
+
+    def __init__(
+        self, message: str, *, joint: str, lag_deg: float, along_mm: float,
+        tool_mm: tuple[float, float, float], backed_off: bool, detected_s: float,
+    ) -> None:
+        super().__init__(message)
+        self.joint = joint
+        self.lag_deg = lag_deg
+        self.along_mm = along_mm
+        self.tool_mm = tool_mm
+        self.backed_off = backed_off
+        self.detected_s = detected_s
+
+    def __reduce__(self) -> tuple[object, ...]:
+        # Keyword-only fields: pickle them by name (bench workers send errors back).
+        fields = {k: getattr(self, k) for k in (
+            "joint", "lag_deg", "along_mm", "tool_mm", "backed_off", "detected_s")}
+        return (functools.partial(type(self), **fields), (str(self),))
+
+
 __all__ = [
     "BusArmError",
     "BusConflictError",
@@ -102,8 +141,10 @@ __all__ = [
     "CameraError",
     "ChecksumError",
     "ConfigError",
+    "ContactError",
     "KinematicsError",
     "LimitError",
+    "MotionError",
     "MotionTimeoutError",
     "ProtocolError",
     "ServoFaultError",
@@ -112,7 +153,3 @@ __all__ = [
     "UnreachableError",
     "VisionError",
 ]
-
-
-class MotionTimeoutError(BusArmError, TimeoutError):
-    """Servos did not reach their targets within the allowed time."""

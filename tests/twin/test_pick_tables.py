@@ -114,3 +114,39 @@ def test_a_touching_2x2_group_is_pushed_apart_and_all_sorted(
     for block in truth:
         bx, by = bins[block.color]
         assert math.hypot(block.x_mm - bx, block.y_mm - by) < IN_BIN_MM
+
+
+def test_a_descent_onto_an_unseen_obstacle_backs_off_and_the_run_goes_on(
+        calibration: tuple[Path, Path]) -> None:
+    parked = ((140.0, 200.0), (190.0, 170.0))
+    scene = Scene(blocks=(Block("red", 190.0, -40.0, 10.0),
+                          *(Block("yellow", x, y) for x, y in parked)),
+                  bins=DEFAULT_BINS[:1])
+    with Robot.open("twin", scene=scene, intrinsics=calibration[0],
+                    hand_eye=calibration[1]) as robot:
+        twin = robot.twin
+        assert twin is not None
+        events: list[str] = []
+
+        def obstacle(step: str) -> None:
+            events.append(step)
+            red = twin.blocks()[0]
+            a = math.radians(red.yaw_deg)
+            if step == "above" and events.count("above") == 1:
+                # Once the camera has looked: blocks land against two sides of the red
+                # one, where the fingers go down whichever way they close.
+                twin.place_blocks({
+                    1: (red.x_mm + 30.5 * math.cos(a), red.y_mm + 30.5 * math.sin(a),
+                        red.yaw_deg, None),
+                    2: (red.x_mm - 30.5 * math.sin(a), red.y_mm + 30.5 * math.cos(a),
+                        red.yaw_deg, None)})
+            elif step == "survey" and events.count("above") == 1:
+                twin.place_blocks({1: (*parked[0], 0.0, None), 2: (*parked[1], 0.0, None)})
+
+        report = PickSorter(robot, colors=["red"], on_step=obstacle).run()
+        truth = twin.blocks()[0]
+        bx, by = robot.bins["red"]
+    (red,) = report.blocks
+    assert red.outcome == "sorted" and red.attempts == 2, red.to_dict()
+    assert math.hypot(truth.x_mm - bx, truth.y_mm - by) < IN_BIN_MM
+    assert report.stopped == ""

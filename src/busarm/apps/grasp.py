@@ -4,6 +4,7 @@ reach. Pure geometry: no bus, no camera."""
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
@@ -228,12 +229,17 @@ class GraspPlanner:
 
     def _check_plan(self, plan: GraspPlan) -> None:
         """Every point of the plan's straight moves within reach (UnreachableError)."""
-        kin = self.kin
-        for a, b in ((plan.above, plan.grasp), (plan.grasp, plan.lift)):
+        self.check_path([plan.above, plan.grasp, plan.lift], plan.pitch_deg, plan.roll_deg)
+
+    def check_path(self, points: Sequence[tuple[float, float, float]], pitch_deg: float,
+                   roll_deg: float) -> None:
+        """Every point of the straight moves through ``points`` (mm) within reach at this
+        tool pitch and roll; UnreachableError if not."""
+        for a, b in itertools.pairwise(points):
             steps = math.ceil(math.dist(a, b) / LINE_CHECK_MM)
             for t in np.linspace(0.0, 1.0, steps + 1):
                 x, y, z = (p + (q - p) * t for p, q in zip(a, b, strict=True))
-                kin.ik_best(x, y, z, plan.pitch_deg, plan.roll_deg)
+                self.kin.ik_best(x, y, z, pitch_deg, roll_deg)
 
 
 def _finger_axis_deg(tool: FloatArray) -> float:

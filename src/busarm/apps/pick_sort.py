@@ -32,7 +32,14 @@ import numpy.typing as npt
 
 from busarm.apps.footprint import Footprint
 from busarm.apps.grasp import GraspPlan, GraspPlanner, NoClearGrasp
-from busarm.errors import BusArmError, ConfigError, ServoFaultError, UnreachableError
+from busarm.errors import (
+    BusArmError,
+    ConfigError,
+    ContactError,
+    MotionTimeoutError,
+    ServoFaultError,
+    UnreachableError,
+)
 from busarm.robot import Robot
 from busarm.robot.locate import Sighting
 from busarm.units import check_int_range, check_range
@@ -201,6 +208,9 @@ class PickSorter:
         # Every block the last survey saw: the neighbours a grasp must keep clear of.
         self._seen: list[Sighting] = []
         self._nudges: dict[int, int] = {}  # pushes per block record
+        # Records of blocks pushed out of a group: (record, from, towards), until seen.
+        self._pushed: dict[int, tuple[BlockOutcome, tuple[float, float],
+                                      tuple[float, float]]] = {}
         self._placed: dict[str, int] = {}
         # The colour of the block in the fingers, from a good grip to its release.
         self._holding: str | None = None
@@ -319,9 +329,21 @@ class PickSorter:
         """How many blocks a bin takes: its places, in ``BIN_LAYERS`` layers."""
         return len(BIN_SLOTS_MM) * BIN_LAYERS
 
-    def nudge(self, target: Sighting, seen: Sequence[Sighting]) -> None:
+    def _retreat(self) -> None:
+        """After a move that met something: stop and hold, then go straight up from
+        where the arm stopped (the next survey moves on from there)."""
+        arm, s = self.arm, self.settings
+        arm.stop()
+        tool = arm.read_pose()
+        up = self.locator.table_z_mm + s.carry_mm + self.locator.block_size_mm
+        if tool.z_mm < up:
+            arm.move_line(tool.x_mm, tool.y_mm, up, tool.pitch_deg, tool.roll_deg,
+                          speed_mm_s=s.line_speed_mm_s / 2)
+
+    def nudge(self, target: Sighting, seen: Sequence[Sighting]) -> tuple[float, float] | None:
         """Drag a boxed-in block out of its group: the closed fingers pressed on its top,
-        moved away from its neighbours by ``nudge_mm``, lifted again."""
+        moved away from its neighbours by ``nudge_mm``, lifted again; where it was pushed
+        to, or None (nothing moved) if the arm cannot reach along that path."""
         arm, s = self.arm, self.settings
         loc, size = target.location, self.locator.block_size_mm
         near = [(v.location.x_mm, v.location.y_mm) for v in seen
@@ -335,19 +357,29 @@ class PickSorter:
         away /= max(float(np.linalg.norm(away)), 1e-9)
         to_x, to_y = loc.x_mm + away[0] * s.nudge_mm, loc.y_mm + away[1] * s.nudge_mm
         top = self.locator.table_z_mm + size
-        roll = self.planner.roll_squared_deg(loc.x_mm, loc.y_mm, loc.yaw_deg)
+        path = [(loc.x_mm, loc.y_mm, top + s.approach_mm / 2),
+                (loc.x_mm, loc.y_mm, top - NUDGE_PRESS_MM), (to_x, to_y, top - NUDGE_PRESS_MM),
+                (to_x, to_y, top + s.approach_mm / 2)]
+        try:
+            roll = self.planner.roll_squared_deg(loc.x_mm, loc.y_mm, loc.yaw_deg)
+            self.planner.check_path(path, -90.0, roll)
+        except UnreachableError:
+            return None
         self.progress(f"{target.color} at {_mm((loc.x_mm, loc.y_mm))} is boxed in: pushing "
                       f"it out to {_mm((to_x, to_y))}")
         arm.grip()  # closed: the pads side by side press on the block's top
         arm.move_to(loc.x_mm, loc.y_mm, top + s.approach_mm / 2, -90.0, roll,
                     speed_deg_s=s.joint_speed_deg_s)
-        arm.move_line(loc.x_mm, loc.y_mm, top - NUDGE_PRESS_MM, -90.0, roll,
-                      speed_mm_s=s.line_speed_mm_s / 4)
-        arm.move_line(to_x, to_y, top - NUDGE_PRESS_MM, -90.0, roll,
-                      speed_mm_s=s.line_speed_mm_s / 4)
+        # Pressing on the block, the fingers never get quite where they are sent: these
+        # two moves (streamed in their time) are not waited for to arrive, only to settle.
+        for x, y in ((loc.x_mm, loc.y_mm), (to_x, to_y)):
+            arm.move_line(x, y, top - NUDGE_PRESS_MM, -90.0, roll,
+                          speed_mm_s=s.line_speed_mm_s / 4, wait=False)
+            self.clock.sleep(s.settle_s)
         arm.move_line(to_x, to_y, top + s.approach_mm / 2, -90.0, roll,
                       speed_mm_s=s.line_speed_mm_s)
         self.on_step("nudge")
+        return to_x, to_y
 
     def pick_and_place(self, target: Sighting
                        ) -> tuple[bool, str, tuple[float, float] | None, GraspPlan]:
@@ -360,10 +392,22 @@ class PickSorter:
         # Open no wider than the neighbours allow (the plan chose it).
         gap = plan.gap_mm
         arm.open_gripper(wait=False, gap_mm=gap)
-        arm.move_to(*plan.above, pitch, roll, speed_deg_s=s.joint_speed_deg_s)
+        try:
+            arm.move_to(*plan.above, pitch, roll, speed_deg_s=s.joint_speed_deg_s)
+        except MotionTimeoutError as exc:  # the arm met something on its way: an event
+            self._retreat()
+            return False, f"blocked on the way to it ({exc}): backed off", None, plan
         arm.open_gripper(gap_mm=gap)
         self.on_step("above")
-        arm.move_line(*plan.grasp, pitch, roll, speed_mm_s=s.line_speed_mm_s)
+        try:  # watched: fingers landing on something stop, back off, and try again later
+            arm.move_line_guarded(*plan.grasp, pitch, roll, speed_mm_s=s.line_speed_mm_s)
+        except ContactError as exc:
+            if not exc.backed_off:
+                raise  # stopped and holding where it touched: not for a retry
+            arm.open_gripper(wait=False, gap_mm=gap)
+            x, y, z = exc.tool_mm
+            return (False, f"blocked on the way down at ({x:.0f}, {y:.0f}, {z:.0f}) mm "
+                           f"({exc.joint} stopped short): backed off", None, plan)
         self._holding = target.color  # from the squeeze on: the reading says if it holds
         grip = arm.grip()
         self.on_step("grip")
@@ -492,8 +536,10 @@ class PickSorter:
             for outcome, _, sighting in boxed_in:
                 if self._nudges.get(id(outcome), 0) < self.settings.max_nudges:
                     self._nudges[id(outcome)] = self._nudges.get(id(outcome), 0) + 1
-                    self.nudge(sighting, seen)
-                    return True
+                    pushed_to = self.nudge(sighting, seen)
+                    if pushed_to is not None:  # the record follows it (_outcome_for)
+                        self._pushed[id(outcome)] = (outcome, outcome.found_mm, pushed_to)
+                        return True
             for outcome, why, _ in boxed_in:
                 outcome.outcome, outcome.reason = "skipped", why
                 self.progress(f"skip {outcome.color} at {_mm(outcome.found_mm)}: {why}")
@@ -558,6 +604,17 @@ class PickSorter:
                 if outcome.outcome == "sorted":
                     # Sorted, yet seen where it was: it did not go (a slip). Try again.
                     outcome.outcome, outcome.placed_mm = "pending", None
+                self._pushed.pop(id(outcome), None)
+                return outcome
+        here = np.array([sighting.location.x_mm, sighting.location.y_mm])
+        for key, (outcome, start, end) in list(self._pushed.items()):
+            # A pushed block ends somewhere along its push: the record goes there too.
+            a, b = np.asarray(start), np.asarray(end)
+            t = float(np.clip(np.dot(here - a, b - a) / max(np.dot(b - a, b - a), 1e-9), 0, 1))
+            if outcome.color == sighting.color and float(
+                    np.linalg.norm(here - (a + t * (b - a)))) < 2 * SAME_BLOCK_MM:
+                del self._pushed[key]
+                outcome.found_mm = (float(here[0]), float(here[1]))
                 return outcome
         outcome = BlockOutcome(sighting.color, (sighting.location.x_mm, sighting.location.y_mm))
         report.blocks.append(outcome)

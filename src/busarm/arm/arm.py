@@ -20,8 +20,15 @@ from types import TracebackType
 from busarm.arm.actions import ActionFrame, ActionGroup
 from busarm.arm.calibration import Calibration, load_calibration
 from busarm.arm.config import ArmConfig, JointConfig, load_arm_config
+from busarm.arm.guard import GuardedMove, GuardSettings, LineGuard
 from busarm.arm.kinematics import ArmKinematics, Joints, Pose
-from busarm.arm.motion import LinePath, check_profile, duration_for_speed, sample_times
+from busarm.arm.motion import (
+    LinePath,
+    check_line_request,
+    check_profile,
+    duration_for_speed,
+    sample_times,
+)
 from busarm.bus.driver import ServoBus
 from busarm.clock import Clock
 from busarm.errors import (
@@ -414,16 +421,15 @@ class Arm:
         stretched until no joint exceeds its speed limit between waypoints. Raises
         UnreachableError naming the first waypoint that cannot be reached.
         """
+        check_line_request(
+            (x_mm, y_mm, z_mm, pitch_deg, roll_deg), speed_mm_s=speed_mm_s,
+            duration_s=duration_s, profile=profile, rate_hz=rate_hz, max_rate_hz=MAX_RATE_HZ,
+        )
         fn, _ = check_profile(profile)
-        check_range("rate_hz", rate_hz, 1.0, MAX_RATE_HZ, "Hz")
-        check_range("speed_mm_s", speed_mm_s, 0.1, 1000.0, "mm/s")
         start_q = self.config.check_joints(start_deg)
         start = self.kin.fk(start_q)
         pitch = start.pitch_deg if pitch_deg is None else pitch_deg
         roll = start.roll_deg if roll_deg is None else roll_deg
-        for name, v in (("x_mm", x_mm), ("y_mm", y_mm), ("z_mm", z_mm), ("pitch_deg", pitch),
-                        ("roll_deg", roll)):
-            check_range(name, v, -1e4, 1e4)
         end = (float(x_mm), float(y_mm), float(z_mm), float(pitch), float(roll))
         path = LinePath(tuple(start), end)  # type: ignore[arg-type]
         # The end must be reachable from the start's branch; check it first for a clear error.
@@ -434,8 +440,6 @@ class Arm:
                 duration_for_speed(profile, path.turn_deg, MAX_TURN_SPEED_DEG_S),
                 1.0 / rate_hz,
             )
-        else:
-            check_range("duration_s", duration_s, 1.0 / rate_hz, 600.0, "s")
         for _ in range(8):
             times = sample_times(duration_s, rate_hz)
             joints: list[Joints] = []
@@ -510,6 +514,33 @@ class Arm:
             if wait:
                 self.wait(joints[-1])
             return result
+
+    def move_line_guarded(
+        self,
+        x_mm: float, y_mm: float, z_mm: float, pitch_deg: float | None = None,
+        roll_deg: float | None = None, *,
+        speed_mm_s: float = DEFAULT_LINE_SPEED_MM_S,
+        duration_s: float | None = None,
+        profile: str = "min_jerk",
+        rate_hz: float = DEFAULT_RATE_HZ,
+        guard: GuardSettings | None = None,
+    ) -> GuardedMove:
+        """``move_line``, watched for contact (busarm.arm.guard): a joint that stops short
+        of its commanded path stops the arm, which goes straight back to the line's start;
+        then ContactError (``backed_off`` False: it could not, and is stopped, holding).
+        Bad arguments: ConfigError before anything is sent."""
+        check_line_request(
+            (x_mm, y_mm, z_mm, pitch_deg, roll_deg), speed_mm_s=speed_mm_s,
+            duration_s=duration_s, profile=profile, rate_hz=rate_hz, max_rate_hz=MAX_RATE_HZ,
+        )
+        with self._lock:
+            watch = LineGuard(self, guard, DEFAULT_TOLERANCE_DEG)
+            start = watch.settled_start()
+            times, joints = self.plan_line(
+                x_mm, y_mm, z_mm, pitch_deg, roll_deg, start_deg=start, speed_mm_s=speed_mm_s,
+                duration_s=duration_s, profile=profile, rate_hz=rate_hz,
+            )
+            return watch.run(times, joints, start)
 
     def stream(
         self, times: Sequence[float], joints: Sequence[Sequence[float]], *, record: bool = False

@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from busarm.errors import ConfigError
+from busarm.units import check_range
 
 TRAPEZOID_RAMP = 0.25
 """Fraction of a trapezoidal move spent accelerating (and again decelerating)."""
@@ -59,6 +60,22 @@ def check_profile(name: str) -> tuple[Callable[[float], float], float]:
         raise ConfigError(
             f"profile {name!r} is unknown; choose one of {', '.join(PROFILES)}"
         ) from None
+
+
+def check_line_request(
+    pose: Sequence[float | None], *, speed_mm_s: float, duration_s: float | None,
+    profile: str, rate_hz: float, max_rate_hz: float,
+) -> None:
+    """ConfigError for a straight-line request that cannot be planned, before any bus
+    traffic: ``pose`` is (x, y, z mm, pitch, roll deg), pitch and roll may be None."""
+    for name, v in zip(("x_mm", "y_mm", "z_mm", "pitch_deg", "roll_deg"), pose, strict=True):
+        if v is not None:
+            check_range(name, v, -1e4, 1e4)
+    check_profile(profile)
+    check_range("speed_mm_s", speed_mm_s, 0.1, 1000.0, "mm/s")
+    check_range("rate_hz", rate_hz, 1.0, max_rate_hz, "Hz")
+    if duration_s is not None:
+        check_range("duration_s", duration_s, 1.0 / rate_hz, 600.0, "s")
 
 
 def progress(profile: str, tau: float) -> float:
@@ -130,6 +147,7 @@ __all__ = [
     "PROFILES",
     "TRAPEZOID_RAMP",
     "LinePath",
+    "check_line_request",
     "check_profile",
     "duration_for_speed",
     "progress",
