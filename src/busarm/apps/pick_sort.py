@@ -208,6 +208,7 @@ class PickSorter:
         # Every block the last survey saw: the neighbours a grasp must keep clear of.
         self._seen: list[Sighting] = []
         self._nudges: dict[int, int] = {}  # pushes per block record
+        self._boxed: set[int] = set()  # records seen boxed in when looked at closer
         # Records of blocks pushed out of a group: (record, from, towards), until seen.
         self._pushed: dict[int, tuple[BlockOutcome, tuple[float, float],
                                       tuple[float, float]]] = {}
@@ -434,7 +435,10 @@ class PickSorter:
             arm.open_gripper(wait=False, gap_mm=gap)
             self._placed[target.color] -= 1
             return False, "the block slipped out during the carry", None, plan
-        arm.move_line(bx, by, release_z, -90.0, square, speed_mm_s=s.line_speed_mm_s)
+        try:
+            arm.move_line(bx, by, release_z, -90.0, square, speed_mm_s=s.line_speed_mm_s)
+        except MotionTimeoutError:  # it rests on something in the bin: let go there
+            arm.stop()
         self._holding = None  # from the release on (an open gripper reads as open)
         arm.open_gripper(gap_mm=gap)
         self.on_step("release")
@@ -524,6 +528,8 @@ class PickSorter:
             if sighting.whole:
                 try:
                     self._plan(sighting)
+                    if id(outcome) in self._boxed:  # clear from afar, not seen closer
+                        raise NoClearGrasp("no grasp clears its neighbours, seen closer")
                 except NoClearGrasp as exc:  # perhaps once a neighbour has gone
                     boxed_in.append((outcome, str(exc), sighting))
                     continue
@@ -539,6 +545,7 @@ class PickSorter:
                     pushed_to = self.nudge(sighting, seen)
                     if pushed_to is not None:  # the record follows it (_outcome_for)
                         self._pushed[id(outcome)] = (outcome, outcome.found_mm, pushed_to)
+                        self._boxed.discard(id(outcome))
                         return True
             for outcome, why, _ in boxed_in:
                 outcome.outcome, outcome.reason = "skipped", why
@@ -561,8 +568,10 @@ class PickSorter:
             try:
                 held, why, placed, plan = self.pick_and_place(closer)
                 outcome.grasp_pitch_deg = plan.pitch_deg
-            except NoClearGrasp as exc:  # seen closer, the neighbours are in the way
-                held, why, placed = False, str(exc), None
+            except NoClearGrasp as exc:  # seen closer, the neighbours are in the way:
+                held, why, placed = False, str(exc), None  # no attempt; boxed in
+                outcome.attempts -= 1
+                self._boxed.add(id(outcome))
         outcome.seconds += self.clock.now() - t0
         if held:
             outcome.outcome, outcome.placed_mm = "sorted", placed
