@@ -572,6 +572,12 @@ class PickSorter:
                 held, why, placed = False, str(exc), None  # no attempt; boxed in
                 outcome.attempts -= 1
                 self._boxed.add(id(outcome))
+            except MotionTimeoutError as exc:  # a move met something: back off, go on
+                self._retreat()
+                if self._holding is not None:  # let it go: it is looked for afresh
+                    self._holding = None
+                    self.arm.open_gripper()
+                held, why, placed = False, f"a move met something ({exc}): backed off", None
         outcome.seconds += self.clock.now() - t0
         if held:
             outcome.outcome, outcome.placed_mm = "sorted", placed
