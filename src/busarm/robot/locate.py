@@ -49,6 +49,10 @@ from where it is: less is a glimpse or a speck, more is not a block (a table, an
 CUT_AREA_FRACTION = 0.25
 """A blob cut by the picture's edge needs only this fraction of the lower bound (part of a
 block is out of the picture), so that a speck at the edge is still no block."""
+SPLIT_MIN_AREA = 1.5
+"""A blob is looked at for several touching blocks only if it is this many times one
+block's top face (one block, top and sides, stays under it seen from the survey poses;
+two side by side are twice the top at least)."""
 SPLIT_INSIDE_PX = 3.0
 """A place of a split blob's grid holds a block when its centre lies this deep inside."""
 MAX_SPLIT = 4
@@ -150,8 +154,14 @@ class BlockLocator:
         # blocks by its size on the table, and each is located on its own.
         out: list[Sighting] = []
         single = []
-        for d in detections:
-            parts = None if _touches_edge(d, w, h) else self._split(d, cam2base)
+        # Only a blob larger than one block's top face can be (is split, costly) is tried.
+        centres = _all_or_each(lambda ds: list(table_points_from_pixels(
+            np.array([d.centroid_px for d in ds]), self.intrinsics, cam2base,
+            self.table_z_mm + self.block_size_mm)), detections)
+        for d, centre in zip(detections, centres, strict=True):
+            big = centre is not None and d.area_px > SPLIT_MIN_AREA * self._top_face_px(
+                centre, cam2base)
+            parts = self._split(d, cam2base) if big and not _touches_edge(d, w, h) else None
             if parts is None:
                 single.append(d)
             else:
@@ -229,10 +239,14 @@ class BlockLocator:
                                              (float(px[0]), float(px[1])), silhouette=False))
         return out if len(out) > 1 else None
 
+    def _top_face_px(self, point_mm: npt.ArrayLike, cam2base: FloatArray) -> float:
+        """The area (px) a block's top face at ``point_mm`` takes in the picture, about."""
+        depth = float(np.linalg.norm(np.asarray(point_mm, dtype=float) - cam2base[:3, 3]))
+        return float((self.intrinsics.fx * self.block_size_mm / max(depth, 1.0)) ** 2)
+
     def _block_sized(self, d: Detection, loc: BlockLocation, cam2base: FloatArray,
                      whole: bool = True) -> bool:
-        depth = float(np.linalg.norm(np.array([loc.x_mm, loc.y_mm, loc.z_mm]) - cam2base[:3, 3]))
-        top_px = (self.intrinsics.fx * self.block_size_mm / max(depth, 1.0)) ** 2
+        top_px = self._top_face_px((loc.x_mm, loc.y_mm, loc.z_mm), cam2base)
         low = AREA_RANGE[0] * (1.0 if whole else CUT_AREA_FRACTION)
         return low * top_px <= d.area_px <= AREA_RANGE[1] * top_px
 

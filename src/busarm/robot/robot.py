@@ -213,12 +213,8 @@ class Robot:
     # ------------------------------------------------------------------ lifecycle
 
     def close(self) -> None:
-        """Close the cameras and the arm's bus (which closes a twin)."""
-        try:
-            self.arm.close()
-        finally:
-            for source in self.cameras.values():
-                source.close()
+        """Close the arm's bus (which closes a twin) and the cameras."""
+        self.__exit__(None, None, None)
 
     def __enter__(self) -> Robot:
         return self

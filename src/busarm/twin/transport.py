@@ -132,7 +132,8 @@ def twin_from_url(url: str, baudrate: int = 115200, *, realtime: bool = False,
     if pace is not None and realtime:
         raise ConfigError("twin URL: pace= is for a twin in this process; this one follows "
                           "the wall clock")
-    clock = None if realtime else SimClock(step_s=CONTROL_PERIOD_S, pace=pace)
+    # Unpaced, the twin makes its own simulated clock.
+    clock = None if realtime or pace is None else SimClock(step_s=CONTROL_PERIOD_S, pace=pace)
     return Twin(config, scene, lens=lens_by_name(q.get("lens", "wide")), timing=timing,
                 echo=query_flag(q, "echo", False, "twin URL"), realtime=realtime,
                 clock=clock)
