@@ -89,15 +89,17 @@ class GraspPlanner:
     def roll_squared_deg(self, x_mm: float, y_mm: float, yaw_deg: float) -> float:
         """The wrist roll that squares the fingers (closing along the tool's y) to a block
         at ``yaw_deg`` (modulo 90), the smallest such turn."""
-        kin = self.kin
-
-        def finger_axis_deg(roll: float) -> float:
-            return _finger_axis_deg(
-                kin.fk_matrix(kin.ik_best(x_mm, y_mm, self.grasp_z_mm, -90.0, roll)))
-
-        a0, a1 = finger_axis_deg(0.0), finger_axis_deg(10.0)
+        a0 = self.finger_axis_deg(x_mm, y_mm, 0.0)
+        a1 = self.finger_axis_deg(x_mm, y_mm, 10.0)
         sign = 1.0 if (a1 - a0 + 180.0) % 360.0 - 180.0 > 0 else -1.0
         return ((yaw_deg - a0) * sign + 45.0) % 90.0 - 45.0
+
+    def finger_axis_deg(self, x_mm: float, y_mm: float, roll_deg: float) -> float:
+        """The direction (deg, base frame) the fingers close along, straight down over
+        (x, y) at this wrist roll; UnreachableError if the arm cannot be there so."""
+        kin = self.kin
+        return _finger_axis_deg(
+            kin.fk_matrix(kin.ik_best(x_mm, y_mm, self.grasp_z_mm, -90.0, roll_deg)))
 
     def plan(self, x_mm: float, y_mm: float, yaw_deg: float,
              neighbours: Sequence[Footprint] = (),

@@ -32,6 +32,7 @@ import numpy.typing as npt
 
 from busarm.apps.footprint import Footprint
 from busarm.apps.grasp import GraspPlan, GraspPlanner, NoClearGrasp
+from busarm.apps.push import Push, PushPlanner
 from busarm.errors import (
     BusArmError,
     ConfigError,
@@ -57,14 +58,16 @@ slots are 28 mm from the centre)."""
 BIN_SLOTS_MM = ((-20.0, -20.0), (20.0, -20.0), (-20.0, 20.0), (20.0, 20.0))
 """Where blocks go in a bin (from its centre): 2 x 2, 10 mm apart (the camera sees them
 apart when it checks the bin)."""
-BIN_LAYERS = 2
-"""Layers of blocks a bin takes: the second stands square on the first (a third would be
-above the tray's walls and the camera's view of it)."""
-NUDGE_PRESS_MM = 3.0
-"""Pushing a block, the closed fingers press this far into its top (friction drags it)."""
+BIN_PLACES = (*((slot, 0) for slot in range(4)), (0, 1), (1, 1), (2, 1))
+"""The places a bin takes, in order: (slot, layer). The second layer stands square on the
+first, three blocks: a fourth would have a neighbour on both sides of both finger axes
+(a 10 mm gap takes no finger pad), and a third layer would stand above the tray's walls
+and the camera's view of it."""
 STACK_DROP_MM = 3.0
 """A block for the second layer is let go this far above the first layer's tops."""
 ORDERS = ("nearest", "colors")
+MAX_EXTRA_LOOKS = 3
+"""A survey looks this many more times at most, facing blocks cut by its pictures' edges."""
 HOLD_SLACK_MM = 4.0
 """A gripper this little wider than a block, squeezing one, holds it (pads give a little)."""
 
@@ -80,8 +83,6 @@ class PickSortSettings:
     """Opening beyond the block on each side when grasping (its yaw is known to a few deg)."""
     min_finger_clearance_mm: float = 3.0
     """Between close neighbours the fingers open down to this beyond the block a side."""
-    nudge_mm: float = 30.0
-    """How far a block boxed in by its neighbours is pushed out of the group."""
     max_nudges: int = 2
     """Pushes a boxed-in block gets before it is skipped."""
     line_speed_mm_s: float = 200.0
@@ -112,7 +113,7 @@ class PickSortSettings:
                               f"pause_above_c {self.pause_above_c:g}")
         for name, lo, hi in (("approach_mm", 20.0, 200.0), ("carry_mm", 30.0, 250.0),
                              ("finger_clearance_mm", 2.0, 40.0),
-                             ("min_finger_clearance_mm", 1.0, 40.0), ("nudge_mm", 5.0, 100.0),
+                             ("min_finger_clearance_mm", 1.0, 40.0),
                              ("pause_above_c", 40.0, 84.0),
                              ("resume_below_c", 30.0, 83.0), ("min_supply_v", 4.5, 12.0),
                              ("max_pause_s", 0.0, 3600.0),
@@ -205,14 +206,19 @@ class PickSorter:
         self.planner = GraspPlanner(arm.kin, locator.table_z_mm, locator.block_size_mm,
                                     self.settings.approach_mm, self.settings.carry_mm,
                                     pad_mm=arm.config.gripper.pad_mm)
+        self.pusher = PushPlanner(self.planner, [Footprint.square(x, y, 2 * BIN_RADIUS_MM, 0.0)
+                                                 for x, y in self.bins.values()])
         # Every block the last survey saw: the neighbours a grasp must keep clear of.
         self._seen: list[Sighting] = []
         self._nudges: dict[int, int] = {}  # pushes per block record
-        self._boxed: set[int] = set()  # records seen boxed in when looked at closer
+        # Records seen boxed in when looked at closer, and how (until the table changes).
+        self._boxed: dict[int, Sighting] = {}
         # Records of blocks pushed out of a group: (record, from, towards), until seen.
         self._pushed: dict[int, tuple[BlockOutcome, tuple[float, float],
                                       tuple[float, float]]] = {}
         self._placed: dict[str, int] = {}
+        # Where the survey saw a block that was found elsewhere when looked at closer.
+        self._aliases: dict[int, list[tuple[float, float]]] = {}
         # The colour of the block in the fingers, from a good grip to its release.
         self._holding: str | None = None
         self.report = RunReport()
@@ -221,28 +227,50 @@ class PickSorter:
     # ------------------------------------------------------------------ seeing
 
     def survey(self) -> list[Sighting]:
-        """Every block seen from the survey poses, merged (averaged per pose). A block seen
-        from several poses keeps its best sighting: whole rather than cut by the picture's
-        edge, then the one nearest the middle of its picture (in bearing)."""
+        """Every block seen from the survey poses, merged (averaged per pose), then from
+        poses turned to face what was cut by a picture's edge (the table may reach beyond
+        the survey's pictures). A block seen from several poses keeps its best sighting:
+        whole rather than cut, then the one nearest the middle of its picture (in
+        bearing)."""
         seen: list[tuple[tuple[bool, float], Sighting]] = []
         self.last_survey = []
+        looked: list[float] = []
         for pose in self.survey_poses:
-            image, found = self._look(pose)
-            self.last_survey.append((image, found))
-            for new in found:
-                rank = (not new.whole, abs(_bearing_deg(new) - pose[0]))
-                # A cut blob's location is rough: it may lie further from the whole one.
-                radius = SAME_BLOCK_MM if new.whole else 2 * SAME_BLOCK_MM
-                for i, (old_rank, old) in enumerate(seen):
-                    if _same_block(old.color, old.location.x_mm, old.location.y_mm, new,
-                                   radius if old.whole else 2 * SAME_BLOCK_MM):
-                        if rank < old_rank:
-                            seen[i] = (rank, new)
-                        break
-                else:
-                    seen.append((rank, new))
+            self._merge(seen, pose)
+            looked.append(pose[0])
+        for _ in range(MAX_EXTRA_LOOKS):
+            cut = [v for _, v in seen if not v.whole and all(
+                abs(_bearing_deg(v) - b) > self.settings.look_closer_beyond_deg
+                for b in looked)]
+            if not cut:
+                break
+            bearing = _bearing_deg(cut[0])
+            looked.append(bearing)
+            try:
+                pose = self.arm.config.check_joints((bearing, *self.survey_poses[0][1:]))
+            except ConfigError:  # the base cannot turn that far
+                continue
+            self._merge(seen, pose)
         self.on_step("survey")
         return [sighting for _, sighting in seen]
+
+    def _merge(self, seen: list[tuple[tuple[bool, float], Sighting]],
+               pose: Sequence[float]) -> None:
+        """Look from ``pose`` and merge what is found into ``seen`` (see ``survey``)."""
+        image, found = self._look(pose)
+        self.last_survey.append((image, found))
+        for new in found:
+            rank = (not new.whole, abs(_bearing_deg(new) - pose[0]))
+            # A cut blob's location is rough: it may lie further from the whole one.
+            radius = SAME_BLOCK_MM if new.whole else 2 * SAME_BLOCK_MM
+            for i, (old_rank, old) in enumerate(seen):
+                if _same_block(old.color, old.location.x_mm, old.location.y_mm, new,
+                               radius if old.whole else 2 * SAME_BLOCK_MM):
+                    if rank < old_rank:
+                        seen[i] = (rank, new)
+                    break
+            else:
+                seen.append((rank, new))
 
     def _look(self, pose: Sequence[float]) -> tuple[npt.NDArray[np.uint8], list[Sighting]]:
         """The blocks seen from ``pose`` (frames averaged), and the last picture."""
@@ -270,9 +298,18 @@ class PickSorter:
         image, found = self._look(facing)
         self.last_survey = [(image, found)]
         self.on_step("closer")
+        # The neighbours a grasp keeps clear of, as seen from here where seen whole.
+        self._seen = [v for v in found if v.whole] + [
+            old for old in self._seen if not any(
+                v.whole and _same_block(old.color, old.location.x_mm, old.location.y_mm, v,
+                                        (1 if old.whole else 3) * SAME_BLOCK_MM)
+                for v in found)]
 
+        # Cut by the picture's edge, it was seen only in part (or a group of touching
+        # blocks was): the nearest whole block of its colour about there is the one.
+        radius = (2 if target.whole else 3) * SAME_BLOCK_MM
         same = sorted((v for v in found if v.whole
-                       and _same_block(target.color, x, y, v, 2 * SAME_BLOCK_MM)),
+                       and _same_block(target.color, x, y, v, radius)),
                       key=lambda v: _off_mm(v, x, y))
         return same[0] if same else None
 
@@ -313,22 +350,39 @@ class PickSorter:
                                       f"{s.max_pause_s:g} s of rest", hot.servo_id)
             self.clock.sleep(2.0)
 
-    def _bin_spot(self, color: str) -> tuple[float, float, int]:
-        """Where in the bin the next block of ``color`` goes and in which layer (0, 1):
-        four places side by side (squared to the bin, so they fit), then a second layer,
-        each block square on one below."""
+    def _bin_spot(self, color: str) -> tuple[float, float, int, float]:
+        """Where in the bin the next block of ``color`` goes (``BIN_PLACES``): x, y, its
+        layer (0, 1), and the wrist roll that squares it to the bin's walls with the
+        fingers clear of the blocks already beside it in that layer."""
         bx, by = self.bins[color]
         k = self._placed.get(color, 0)
         if k >= self.bin_capacity:
             raise ConfigError(f"the {color} bin is full ({self.bin_capacity} blocks)")
         self._placed[color] = k + 1
-        dx, dy = BIN_SLOTS_MM[k % len(BIN_SLOTS_MM)]
-        return bx + dx, by + dy, k // len(BIN_SLOTS_MM)
+        slot, layer = BIN_PLACES[k]
+        dx, dy = BIN_SLOTS_MM[slot]
+        beside = [BIN_SLOTS_MM[other] for other, lay in BIN_PLACES[:k] if lay == layer]
+        square = self.planner.roll_squared_deg(bx + dx, by + dy, 0.0)
+
+        def along_neighbours(roll: float) -> float:
+            """How much the fingers would close towards a block beside (0: across)."""
+            axis = math.radians(self.planner.finger_axis_deg(bx + dx, by + dy, roll))
+            return max((abs(math.cos(axis) * (ox - dx) + math.sin(axis) * (oy - dy))
+                        / math.hypot(ox - dx, oy - dy) for ox, oy in beside), default=0.0)
+
+        rolls = []
+        for roll in (square, square + 90.0, square - 90.0):
+            try:
+                rolls.append((round(along_neighbours(roll), 3), abs(roll), roll))
+            except UnreachableError:
+                continue
+        roll = min(rolls)[2] if rolls else square
+        return bx + dx, by + dy, layer, roll
 
     @property
     def bin_capacity(self) -> int:
-        """How many blocks a bin takes: its places, in ``BIN_LAYERS`` layers."""
-        return len(BIN_SLOTS_MM) * BIN_LAYERS
+        """How many blocks a bin takes (``BIN_PLACES``)."""
+        return len(BIN_PLACES)
 
     def _retreat(self) -> None:
         """After a move that met something: stop and hold, then go straight up from
@@ -338,49 +392,45 @@ class PickSorter:
         tool = arm.read_pose()
         up = self.locator.table_z_mm + s.carry_mm + self.locator.block_size_mm
         if tool.z_mm < up:
-            arm.move_line(tool.x_mm, tool.y_mm, up, tool.pitch_deg, tool.roll_deg,
-                          speed_mm_s=s.line_speed_mm_s / 2)
+            try:
+                arm.move_line(tool.x_mm, tool.y_mm, up, tool.pitch_deg, tool.roll_deg,
+                              speed_mm_s=s.line_speed_mm_s / 2)
+            except UnreachableError:  # not straight up from here: nearly, joint by joint
+                arm.move_to(tool.x_mm, tool.y_mm, up, tool.pitch_deg, tool.roll_deg,
+                            speed_deg_s=s.joint_speed_deg_s / 2)
 
-    def nudge(self, target: Sighting, seen: Sequence[Sighting]) -> tuple[float, float] | None:
-        """Drag a boxed-in block out of its group: the closed fingers pressed on its top,
-        moved away from its neighbours by ``nudge_mm``, lifted again; where it was pushed
-        to, or None (nothing moved) if the arm cannot reach along that path."""
+    def nudge(self, target: Sighting) -> Push | None:
+        """Drag a boxed-in block out of its group (``PushPlanner``): the closed fingers
+        pressed on its top, moved along the push, lifted again; the push, or None (nothing
+        moved) if the arm cannot push it anywhere."""
         arm, s = self.arm, self.settings
-        loc, size = target.location, self.locator.block_size_mm
-        near = [(v.location.x_mm, v.location.y_mm) for v in seen
-                if 0.5 * size < math.hypot(v.location.x_mm - loc.x_mm,
-                                           v.location.y_mm - loc.y_mm) < 2.0 * size]
-        if near:
-            cx, cy = np.mean(np.array(near), axis=0)
-            away = np.array([loc.x_mm - cx, loc.y_mm - cy])
-        else:
-            away = np.array([-loc.x_mm, -loc.y_mm])  # alone: towards the base
-        away /= max(float(np.linalg.norm(away)), 1e-9)
-        to_x, to_y = loc.x_mm + away[0] * s.nudge_mm, loc.y_mm + away[1] * s.nudge_mm
-        top = self.locator.table_z_mm + size
-        path = [(loc.x_mm, loc.y_mm, top + s.approach_mm / 2),
-                (loc.x_mm, loc.y_mm, top - NUDGE_PRESS_MM), (to_x, to_y, top - NUDGE_PRESS_MM),
-                (to_x, to_y, top + s.approach_mm / 2)]
-        try:
-            roll = self.planner.roll_squared_deg(loc.x_mm, loc.y_mm, loc.yaw_deg)
-            self.planner.check_path(path, -90.0, roll)
-        except UnreachableError:
+        loc = target.location
+        push = self.pusher.plan(loc.x_mm, loc.y_mm, loc.yaw_deg, self._neighbours(target),
+                                self._gaps())
+        if push is None:
             return None
-        self.progress(f"{target.color} at {_mm((loc.x_mm, loc.y_mm))} is boxed in: pushing "
-                      f"it out to {_mm((to_x, to_y))}")
+        how = "" if push.frees else " (a grasp may not clear it even there)"
+        self.progress(f"{target.color} at {_mm(push.start)} is boxed in: pushing it "
+                      f"to {_mm(push.end)}{how}")
+        above, on_top, pushed, lifted = push.path
+        pitch, roll = push.pitch_deg, push.roll_deg
         arm.grip()  # closed: the pads side by side press on the block's top
-        arm.move_to(loc.x_mm, loc.y_mm, top + s.approach_mm / 2, -90.0, roll,
-                    speed_deg_s=s.joint_speed_deg_s)
-        # Pressing on the block, the fingers never get quite where they are sent: these
-        # two moves (streamed in their time) are not waited for to arrive, only to settle.
-        for x, y in ((loc.x_mm, loc.y_mm), (to_x, to_y)):
-            arm.move_line(x, y, top - NUDGE_PRESS_MM, -90.0, roll,
-                          speed_mm_s=s.line_speed_mm_s / 4, wait=False)
-            self.clock.sleep(s.settle_s)
-        arm.move_line(to_x, to_y, top + s.approach_mm / 2, -90.0, roll,
-                      speed_mm_s=s.line_speed_mm_s)
+        try:
+            arm.move_to(*above, pitch, roll, speed_deg_s=s.joint_speed_deg_s)
+            # Pressing on the block, the fingers never get quite where they are sent:
+            # these two moves (streamed in their time) are not waited for to arrive, only
+            # to settle.
+            for point in (on_top, pushed):
+                arm.move_line(*point, pitch, roll, speed_mm_s=s.line_speed_mm_s / 4,
+                              wait=False)
+                self.clock.sleep(s.settle_s)
+            arm.move_line(*lifted, pitch, roll, speed_mm_s=s.line_speed_mm_s)
+        except (MotionTimeoutError, UnreachableError) as exc:  # met something, or the
+            # fingers held back by the block left the line's reach: up, and look again
+            self.progress(f"the push stopped short ({exc}): backing off")
+            self._retreat()
         self.on_step("nudge")
-        return to_x, to_y
+        return push
 
     def pick_and_place(self, target: Sighting
                        ) -> tuple[bool, str, tuple[float, float] | None, GraspPlan]:
@@ -420,14 +470,12 @@ class PickSorter:
                     None, plan)
         arm.move_line(*plan.lift, pitch, roll, speed_mm_s=s.line_speed_mm_s)
         self.on_step("lift")
-        bx, by, layer = self._bin_spot(target.color)
+        bx, by, layer, square = self._bin_spot(target.color)
         # A second layer: carried higher over the first, set down just above it (a drop
         # from the first layer's height would bounce it off).
         size = self.locator.block_size_mm
         carry_z = z0 + s.carry_mm + layer * size
         release_z = z0 + (s.release_mm if layer == 0 else size + STACK_DROP_MM + size / 2)
-        # The block's faces along the bin's walls.
-        square = self.planner.roll_squared_deg(bx, by, 0.0)
         arm.move_to(bx, by, carry_z, -90.0, square, speed_deg_s=s.joint_speed_deg_s)
         self.on_step("carry")
         if not self._still_holding():
@@ -525,11 +573,13 @@ class PickSorter:
                 outcome.outcome, outcome.reason = "skipped", reason
                 self.progress(f"skip {sighting.color} at {_mm(outcome.found_mm)}: {reason}")
                 continue
+            if id(outcome) in self._boxed:  # seen closer since, and boxed in there
+                boxed_in.append((outcome, "no grasp clears its neighbours, seen closer",
+                                 self._boxed[id(outcome)]))
+                continue
             if sighting.whole:
                 try:
                     self._plan(sighting)
-                    if id(outcome) in self._boxed:  # clear from afar, not seen closer
-                        raise NoClearGrasp("no grasp clears its neighbours, seen closer")
                 except NoClearGrasp as exc:  # perhaps once a neighbour has gone
                     boxed_in.append((outcome, str(exc), sighting))
                     continue
@@ -542,10 +592,10 @@ class PickSorter:
             for outcome, _, sighting in boxed_in:
                 if self._nudges.get(id(outcome), 0) < self.settings.max_nudges:
                     self._nudges[id(outcome)] = self._nudges.get(id(outcome), 0) + 1
-                    pushed_to = self.nudge(sighting, seen)
-                    if pushed_to is not None:  # the record follows it (_outcome_for)
-                        self._pushed[id(outcome)] = (outcome, outcome.found_mm, pushed_to)
-                        self._boxed.discard(id(outcome))
+                    push = self.nudge(sighting)
+                    if push is not None:  # the record follows it (_outcome_for)
+                        self._pushed[id(outcome)] = (outcome, outcome.found_mm, push.end)
+                        self._boxed.pop(id(outcome), None)
                         return True
             for outcome, why, _ in boxed_in:
                 outcome.outcome, outcome.reason = "skipped", why
@@ -564,6 +614,12 @@ class PickSorter:
         if closer is None:
             held, why, placed = False, "not seen whole when looked at closer", None
         else:
+            # Where it is, as seen closer: it is looked for there from now on (and where
+            # the survey saw it, while it waits).
+            here = (closer.location.x_mm, closer.location.y_mm)
+            if math.dist(here, outcome.found_mm) > SAME_BLOCK_MM:
+                self._aliases.setdefault(id(outcome), []).append(outcome.found_mm)
+            outcome.found_mm = here
             self.on_pick(closer)
             try:
                 held, why, placed, plan = self.pick_and_place(closer)
@@ -571,7 +627,7 @@ class PickSorter:
             except NoClearGrasp as exc:  # seen closer, the neighbours are in the way:
                 held, why, placed = False, str(exc), None  # no attempt; boxed in
                 outcome.attempts -= 1
-                self._boxed.add(id(outcome))
+                self._boxed[id(outcome)] = closer
             except MotionTimeoutError as exc:  # a move met something: back off, go on
                 self._retreat()
                 if self._holding is not None:  # let it go: it is looked for afresh
@@ -580,6 +636,7 @@ class PickSorter:
                 held, why, placed = False, f"a move met something ({exc}): backed off", None
         outcome.seconds += self.clock.now() - t0
         if held:
+            self._boxed.clear()  # a neighbour gone may have freed them
             outcome.outcome, outcome.placed_mm = "sorted", placed
             self.progress(f"{target.color} from {_mm(outcome.found_mm)} into its bin "
                           f"({outcome.seconds:.1f} s)")
@@ -621,6 +678,11 @@ class PickSorter:
                     outcome.outcome, outcome.placed_mm = "pending", None
                 self._pushed.pop(id(outcome), None)
                 return outcome
+        for outcome in report.blocks:  # seen where the survey saw it, not as seen closer
+            if outcome.outcome == "pending" and any(
+                    _same_block(outcome.color, x, y, sighting)
+                    for x, y in self._aliases.get(id(outcome), ())):
+                return outcome
         here = np.array([sighting.location.x_mm, sighting.location.y_mm])
         for key, (outcome, start, end) in list(self._pushed.items()):
             # A pushed block ends somewhere along its push: the record goes there too.
@@ -655,18 +717,24 @@ class PickSorter:
 
     def _plan(self, target: Sighting) -> GraspPlan:
         """A grasp of ``target`` that keeps the fingers off every other block seen."""
-        loc, s = target.location, self.settings
-        size = self.locator.block_size_mm
-        neighbours = [Footprint.square(v.location.x_mm, v.location.y_mm, size,
-                                       v.location.yaw_deg)
-                      for v in self._seen if not _same_block(target.color, loc.x_mm,
-                                                             loc.y_mm, v)
-                      and math.hypot(v.location.x_mm - loc.x_mm,
-                                     v.location.y_mm - loc.y_mm) > size / 2]
-        gaps = [size + 2 * c for c in (s.finger_clearance_mm,
+        loc = target.location
+        return self.planner.plan(loc.x_mm, loc.y_mm, loc.yaw_deg, self._neighbours(target),
+                                 self._gaps())
+
+    def _neighbours(self, target: Sighting) -> list[Footprint]:
+        """The footprints of every other block the last survey saw."""
+        loc, size = target.location, self.locator.block_size_mm
+        return [Footprint.square(v.location.x_mm, v.location.y_mm, size, v.location.yaw_deg)
+                for v in self._seen
+                if not _same_block(target.color, loc.x_mm, loc.y_mm, v)
+                and _off_mm(v, loc.x_mm, loc.y_mm) > size / 2]
+
+    def _gaps(self) -> list[float]:
+        """How far apart the fingers may open for a grasp, widest first."""
+        s, size = self.settings, self.locator.block_size_mm
+        return [size + 2 * c for c in (s.finger_clearance_mm,
                                        (s.finger_clearance_mm + s.min_finger_clearance_mm) / 2,
                                        s.min_finger_clearance_mm)]
-        return self.planner.plan(loc.x_mm, loc.y_mm, loc.yaw_deg, neighbours, gaps)
 
 
 def _mm(xy: tuple[float, float]) -> str:

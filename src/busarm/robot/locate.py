@@ -22,6 +22,7 @@ import numpy.typing as npt
 from busarm.arm.config import CAMERA_JOINT_INDEX
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import ConfigError, UnreachableError, VisionError
+from busarm.robot.split import top_faces_mm
 from busarm.units import check_range
 from busarm.vision.calibration import CameraIntrinsics, HandEyeResult
 from busarm.vision.color import ColorDetector, Detection
@@ -53,10 +54,11 @@ SPLIT_MIN_AREA = 1.5
 """A blob is looked at for several touching blocks only if it is this many times one
 block's top face (one block, top and sides, stays under it seen from the survey poses;
 two side by side are twice the top at least)."""
-SPLIT_INSIDE_PX = 3.0
-"""A place of a split blob's grid holds a block when its centre lies this deep inside."""
 MAX_SPLIT = 4
 """At most this many touching blocks along one side of a blob are split out of it."""
+SIDES_SHOWN = 0.7
+"""A single block's blob with less than this much of its visible side faces in it is
+located by its top face's outline rather than by its whole silhouette."""
 MATCH_RADIUS_MM = 20.0
 """Sightings of one block in several pictures are closer than this."""
 
@@ -190,19 +192,22 @@ class BlockLocator:
         for d, loc in pairs:
             whole = not _touches_edge(d, w, h)
             if self._block_sized(d, loc, cam2base, whole):
+                if whole:
+                    loc = self._sides_missing(d, loc, cam2base)
                 out.append(replace(self._sighting(d.color, loc, d), whole=whole))
         return out
 
-    def _split(self, d: Detection, cam2base: FloatArray) -> list[BlockLocation] | None:
-        """The blocks in a blob that holds several touching ones (a row, a 2 x 2, two
-        meeting at a corner), located from the blob's outline cast onto the blocks' top
-        plane; None for one block.
+    def _outline_grid(self, d: Detection, cam2base: FloatArray) -> _Grid | None:
+        """The blob's outline cast onto the blocks' top plane, read as a grid of touching
+        blocks (see ``_Grid``); None if the outline cannot be cast.
 
         Cast onto that plane, one block covers its top face plus the side faces the
-        camera sees; n in a row cover n - 1 sides more. So the number along each of the
-        blocks' axes (the outline's main edge direction) is how many block sides fit in
-        what one block's cube, cast the same way, leaves over; of that grid, the places
-        the blob covers hold a block.
+        camera sees; n in a row cover n - 1 sides more. Lit from the side, a block's dark
+        side faces may be too dark for its colour, and the blob is then its top faces
+        only. So half the sides is assumed to count the blocks along each of the blocks'
+        axes (the outline's main edge direction: right either way while the sides add
+        less than a block), and how much of the sides the blob has is read from what its
+        length leaves over.
         """
         size, top = self.block_size_mm, self.table_z_mm + self.block_size_mm
         # Straight edges (a pixel outline is a staircase, whose steps run along the
@@ -220,24 +225,50 @@ class BlockLocator:
         lo_blob, hi_blob = rel.min(axis=0), rel.max(axis=0)
         centre = ((lo_blob + hi_blob) / 2) @ axes
         lo, hi = _cast_cube_extent(centre, axes, yaw, size, self.table_z_mm, cam2base[:3, 3])
-        counts = [1 + round((hb - lb - (h - low)) / size) for lb, hb, low, h in
-                  zip(lo_blob, hi_blob, lo, hi, strict=True)]
-        if counts[0] * counts[1] <= 1 or max(counts) > MAX_SPLIT or min(counts) < 1:
+        sides = (hi - lo) - size
+        counts = tuple(max(1, round((ext - side / 2) / size))
+                       for ext, side in zip(hi_blob - lo_blob, sides, strict=True))
+        shown = np.clip((hi_blob - lo_blob - np.array(counts) * size) / np.maximum(sides, 1e-6),
+                        0.0, 1.0)
+        first = lo_blob + size / 2 + shown * (-lo - size / 2)  # the first top face's centre
+        # The sides reach out from a top face on the camera's side only: lo or hi is
+        # the top's half side, and their sum is how far the sides reach, signed.
+        return _Grid(yaw, axes, (counts[0], counts[1]), first, shown, (lo_blob, hi_blob),
+                     lo + hi)
+
+    def _split(self, d: Detection, cam2base: FloatArray) -> list[BlockLocation] | None:
+        """The blocks in a blob that holds several touching ones (a row, a 2 x 2, a
+        staggered cluster): their top faces found on the top plane
+        (``busarm.robot.split``); None for one block."""
+        grid = self._outline_grid(d, cam2base)
+        if grid is None or grid.counts[0] * grid.counts[1] <= 1 or max(grid.counts) > MAX_SPLIT:
+            return None
+        size, top = self.block_size_mm, self.table_z_mm + self.block_size_mm
+        try:
+            centres = top_faces_mm(d.contour_px, self.intrinsics, cam2base, top, size,
+                                   grid.axes, grid.extent_uv_mm, grid.cast_uv_mm)
+        except VisionError:
+            return None
+        if len(centres) <= 1:
             return None
         base2cam = np.linalg.inv(cam2base)
-        out = []
-        for i in range(counts[0]):
-            for j in range(counts[1]):
-                u, v = lo_blob - lo + np.array([i * size, j * size])
-                x, y = u * axes[0] + v * axes[1]
-                p_cam = base2cam[:3, :3] @ np.array([x, y, top]) + base2cam[:3, 3]
-                px = self.intrinsics.pixels_from_camera_points(p_cam[None, :])[0]
-                inside = cv2.pointPolygonTest(d.contour_px.reshape(-1, 1, 2),
-                                              (float(px[0]), float(px[1])), True)
-                if inside >= SPLIT_INSIDE_PX:  # this place of the grid holds a block
-                    out.append(BlockLocation(float(x), float(y), top, yaw, size,
-                                             (float(px[0]), float(px[1])), silhouette=False))
-        return out if len(out) > 1 else None
+        p_cam = np.array([[x, y, top] for x, y in centres]) @ base2cam[:3, :3].T \
+            + base2cam[:3, 3]
+        pixels = self.intrinsics.pixels_from_camera_points(p_cam)
+        return [BlockLocation(x, y, top, grid.yaw_deg, size, (float(u), float(v)),
+                              silhouette=False)
+                for (x, y), (u, v) in zip(centres, pixels.tolist(), strict=True)]
+
+    def _sides_missing(self, d: Detection, loc: BlockLocation, cam2base: FloatArray
+                       ) -> BlockLocation:
+        """``loc`` (from the whole silhouette), or, if the blob lacks much of the side
+        faces the camera sees (dark, lit from elsewhere), the block's top face as its
+        outline gives it: the silhouette's centroid would be off by millimetres then."""
+        grid = self._outline_grid(d, cam2base)
+        if grid is None or grid.counts != (1, 1) or float(grid.shown.min()) >= SIDES_SHOWN:
+            return loc
+        x, y = grid.centre_mm(0, 0, self.block_size_mm)
+        return replace(loc, x_mm=x, y_mm=y, silhouette=False)
 
     def _top_face_px(self, point_mm: npt.ArrayLike, cam2base: FloatArray) -> float:
         """The area (px) a block's top face at ``point_mm`` takes in the picture, about."""
@@ -248,7 +279,9 @@ class BlockLocator:
                      whole: bool = True) -> bool:
         top_px = self._top_face_px((loc.x_mm, loc.y_mm, loc.z_mm), cam2base)
         low = AREA_RANGE[0] * (1.0 if whole else CUT_AREA_FRACTION)
-        return low * top_px <= d.area_px <= AREA_RANGE[1] * top_px
+        # A cut blob may be a group of touching blocks (not split: its outline is cut).
+        high = AREA_RANGE[1] * (1.0 if whole else MAX_SPLIT)
+        return low * top_px <= d.area_px <= high * top_px
 
     def _sighting(self, color: str, loc: BlockLocation, detection: Detection | None,
                   detections: tuple[Detection, ...] = ()) -> Sighting:
@@ -291,6 +324,30 @@ class BlockLocator:
             out.append(replace(self._sighting(group[0].color, loc, dets[-1] if dets else None,
                                               dets), whole=all(s.whole for s in group)))
         return out
+
+
+@dataclass(frozen=True)
+class _Grid:
+    """A blob's outline on the blocks' top plane read as ``counts`` touching blocks
+    along its ``axes`` (rows: unit vectors, base frame): the first top face's centre
+    (``first``, in the axes' coordinates) and how much of the side faces the camera sees
+    along each axis is in the blob (``shown``, 0..1)."""
+
+    yaw_deg: float
+    axes: FloatArray
+    counts: tuple[int, int]
+    first: FloatArray
+    shown: FloatArray
+    extent_uv_mm: tuple[FloatArray, FloatArray]
+    """The outline's (lowest, highest) place along the axes."""
+    cast_uv_mm: FloatArray
+    """How far the side faces the camera sees reach out from a top face, along the axes."""
+
+    def centre_mm(self, i: int, j: int, size_mm: float) -> tuple[float, float]:
+        """The centre (base frame) of the top face at place (i, j) of the grid."""
+        u, v = self.first + np.array([i * size_mm, j * size_mm])
+        x, y = u * self.axes[0] + v * self.axes[1]
+        return float(x), float(y)
 
 
 def _edge_yaw_deg(points: FloatArray) -> float:

@@ -19,7 +19,8 @@ joint damping / armature    0.66 / 0.01  stall torque / no-load speed (the motor
 link masses                 0.10-0.25 kg a servo and a bracket per link (guess)
 gripper gap                 config       the arm config's gap_mm_per_pulse (0.1875: 30 mm at 540)
 block                       30 mm, 20 g  a wooden toy cube (density 0.74)
-friction finger/block       1.2          rubber pad on wood (guess)
+friction finger pad         1.2          rubber pad on wood (guess), rules its contacts
+friction everything else    0.5          wood on wood, desk laminate, plastic trays
 room light                  5 x 0.25     diffuse, one above and four from the sides
 =========================== ============ =================================================
 
@@ -55,6 +56,12 @@ NO_LOAD_SPEED_DEG_S = 300.0
 JOINT_DAMPING = JOINT_TORQUE_NM / math.radians(NO_LOAD_SPEED_DEG_S)
 JOINT_ARMATURE = 0.01
 FINGER_PAD_MM = (10.0, 16.0, 36.0)
+PAD_FRICTION = 1.2
+"""Rubber finger pads on wood or plastic (a guess); it rules every contact of a pad."""
+OBJECT_FRICTION = 0.5
+"""Wood on wood, a desk's laminate or a plastic tray: blocks, the table, bins and other
+things on it (about 0.3-0.6 measured for dry wood; a pad dragging on a block's top moves
+it only because the rubber grips harder than the table does)."""
 """One finger pad's thickness (along the closing axis), width and length."""
 ARM_RGBA = "0.13 0.13 0.14 1"
 TABLE_RGB = (0.78, 0.76, 0.72)
@@ -224,7 +231,7 @@ def _head(scene: Scene, spec: TwinModelSpec) -> list[str]:
       'frictionloss="0.05"/>')
     w(f'      <geom contype="2" conaffinity="1" rgba="{ARM_RGBA}" density="0"/></default>')
     w('    <default class="object"><geom contype="1" conaffinity="1" condim="4" '
-      'friction="1.0 0.01 0.001" solref="0.004 1"/></default>')
+      f'friction="{OBJECT_FRICTION} 0.01 0.001" solref="0.004 1"/></default>')
     w('  </default>')
     return out
 
@@ -257,8 +264,7 @@ def _table_and_things(scene: Scene, spec: TwinModelSpec, table_z: float) -> list
         w(f'    <body name="block{i}" pos="{_fmt(block_pos)}" quat="{_fmt(quat)}">')
         w(f'      <freejoint name="block{i}"/>')
         w(f'      <geom name="block{i}" class="object" type="box" material="{block.color}" '
-          f'size="{_fmt((half, half, half))}" mass="{block.mass_g / 1000:.6g}" '
-          'friction="1.2 0.02 0.002"/>')
+          f'size="{_fmt((half, half, half))}" mass="{block.mass_g / 1000:.6g}"/>')
         w('    </body>')
     for i, thing in enumerate(scene.distractors):
         out += _distractor_body(i, thing, table_z)
@@ -363,8 +369,9 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
         w(f'{indent}  <geom type="box" contype="0" conaffinity="0" '
           f'pos="0 {sign * pad_t * 0.25:.9g} {-pad_l / 2 - 0.01:.9g}" '
           f'size="{_fmt((pad_w / 2, pad_t / 4, 0.012))}"/>')
-        w(f'{indent}  <geom name="finger_{side}" type="box" condim="4" '
-          f'friction="1.2 0.02 0.002" solref="0.004 1" solimp="0.95 0.99 0.001" '
+        # Priority: the rubber pad's friction rules every contact it makes.
+        w(f'{indent}  <geom name="finger_{side}" type="box" condim="4" priority="1" '
+          f'friction="{PAD_FRICTION} 0.02 0.002" solref="0.004 1" solimp="0.95 0.99 0.001" '
           f'pos="0 {sign * pad_t / 2:.9g} 0" size="{_fmt((pad_w / 2, pad_t / 2, pad_l / 2))}"/>')
         w(f'{indent}</body>')
     for _ in range(5):

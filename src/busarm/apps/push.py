@@ -1,0 +1,153 @@
+"""Pushes that free a boxed-in block: where to drag it (closed fingers pressed on its
+top) so that afterwards a grasp clears its neighbours. Pure geometry: no bus, no camera.
+
+A push is tried in ``PUSH_DIRECTIONS`` directions and a few lengths. One is kept only if
+the block, all the way along, stays off every other block (sliding past a touching one is
+allowed) and off the bins, the arm reaches the whole drag (the tool straight down, else
+leaning out a little: the closed pads' lower edge presses then), and
+at its end a grasp of the block clears its neighbours. Of those, the shortest wins, then
+the one towards the base (reach is better there). If none frees the block, the push that
+leaves it furthest from its neighbours is offered instead (the next look may still find a
+way).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from busarm.apps.footprint import Footprint
+from busarm.apps.grasp import GraspPlanner
+from busarm.errors import UnreachableError
+
+PUSH_DIRECTIONS = 16
+"""Directions tried, evenly around the block."""
+PUSH_LENGTHS = (1.0, 1.5)
+"""Lengths tried, in block sides (shortest first)."""
+SLIDE_MM = 1.0
+"""A pushed block may slide along a neighbour it touches: its footprint is checked this
+much smaller a side."""
+PATH_STEP_MM = 3.0
+"""Points this far apart along a push are checked against the other blocks."""
+BIN_KEEP_OFF_MM = 8.0
+"""A pushed block stays this far from a bin's walls."""
+PUSH_PITCHES_DEG = (-90.0, -75.0, -60.0)
+"""Tool pitches a push is tried with: straight down, else leaning out (far blocks)."""
+PRESS_MM = 3.0
+"""Pushing, the closed fingers press this far into the block's top (friction drags it)."""
+
+
+@dataclass(frozen=True)
+class Push:
+    """Drag the block from ``start`` to ``end`` (mm, base frame), the tool at ``pitch_deg``
+    and ``roll_deg``, along ``path`` (tool points: above, on its top, at the end, above)."""
+
+    start: tuple[float, float]
+    end: tuple[float, float]
+    pitch_deg: float
+    roll_deg: float
+    path: tuple[tuple[float, float, float], ...]
+    frees: bool
+    """Whether a grasp of it clears its neighbours at the end."""
+
+
+@dataclass(frozen=True)
+class PushPlanner:
+    """Plans pushes of cubes for ``grasps`` (its table, block size and arm), keeping off
+    the ``bins`` (their footprints)."""
+
+    grasps: GraspPlanner
+    bins: Sequence[Footprint] = ()
+
+    def plan(self, x_mm: float, y_mm: float, yaw_deg: float, others: Sequence[Footprint],
+             gaps_mm: Sequence[float] = ()) -> Push | None:
+        """The best push of the block at (x, y) turned ``yaw_deg`` among ``others`` (the
+        other blocks' footprints); None if the arm cannot push it anywhere."""
+        g = self.grasps
+        best: tuple[tuple[float, ...], Push] | None = None
+        for length in PUSH_LENGTHS:
+            for k in range(PUSH_DIRECTIONS):
+                angle = 2 * math.pi * k / PUSH_DIRECTIONS
+                end = self._clear_end(x_mm, y_mm, yaw_deg, angle, length * g.block_mm, others)
+                if end is None:
+                    continue
+                push = self._reaching(x_mm, y_mm, yaw_deg, end, others, gaps_mm)
+                if push is None:
+                    continue
+                rank = self._rank(push, others)
+                if best is None or rank < best[0]:
+                    best = (rank, push)
+            if best is not None and best[1].frees:
+                break  # a shorter push that frees it beats any longer one
+        return None if best is None else best[1]
+
+    def _clear_end(self, x_mm: float, y_mm: float, yaw_deg: float, angle: float,
+                   length_mm: float, others: Sequence[Footprint]) -> tuple[float, float] | None:
+        """Where the block ends pushed this way, or None if it would meet something."""
+        size = self.grasps.block_mm
+        dx, dy = math.cos(angle), math.sin(angle)
+        steps = max(1, math.ceil(length_mm / PATH_STEP_MM))
+        for t in np.linspace(1.0 / steps, 1.0, steps).tolist():
+            here = Footprint.square(x_mm + dx * length_mm * t, y_mm + dy * length_mm * t,
+                                    size - 2 * SLIDE_MM, yaw_deg)
+            if any(here.overlaps(o) for o in others):
+                return None
+            if any(here.overlaps(b, BIN_KEEP_OFF_MM) for b in self.bins):
+                return None
+        return x_mm + dx * length_mm, y_mm + dy * length_mm
+
+    def _reaching(self, x_mm: float, y_mm: float, yaw_deg: float, end: tuple[float, float],
+                  others: Sequence[Footprint], gaps_mm: Sequence[float]) -> Push | None:
+        """The push to ``end`` at the first tool pitch (``PUSH_PITCHES_DEG``) and roll the
+        arm reaches it all the way with, or None."""
+        g = self.grasps
+        top = g.table_z_mm + g.block_mm
+        above = top + g.approach_mm / 2
+        path = ((x_mm, y_mm, above), (x_mm, y_mm, top - PRESS_MM),
+                (end[0], end[1], top - PRESS_MM), (end[0], end[1], above))
+        # The fingers may stay short of the press (it is not waited for): both heights.
+        alike = tuple((x, y, top) for x, y, _ in path[1:3])
+        for pitch in PUSH_PITCHES_DEG:
+            for roll in self._rolls(x_mm, y_mm, yaw_deg, pitch):
+                try:
+                    g.check_path(path, pitch, roll)
+                    g.check_path(alike, pitch, roll)
+                except UnreachableError:
+                    continue
+                try:
+                    g.plan(end[0], end[1], yaw_deg, others, gaps_mm)
+                    frees = True
+                except UnreachableError:  # boxed in still (NoClearGrasp), or out of reach
+                    frees = False
+                return Push((x_mm, y_mm), end, pitch, roll, path, frees)
+        return None
+
+    def _rolls(self, x_mm: float, y_mm: float, yaw_deg: float, pitch_deg: float
+               ) -> list[float]:
+        """Wrist rolls to push with: squared to the block straight down, else any."""
+        if pitch_deg == -90.0:
+            try:
+                return [self.grasps.roll_squared_deg(x_mm, y_mm, yaw_deg)]
+            except UnreachableError:
+                return []
+        return [0.0, 45.0, -45.0]
+
+    def _rank(self, push: Push, others: Sequence[Footprint]) -> tuple[float, ...]:
+        """Smaller is better: freeing first; then towards the base; a push that does not
+        free the block, the further from its neighbours the better."""
+        (x0, y0), (x1, y1) = push.start, push.end
+        toward_base = (math.hypot(x1, y1) - math.hypot(x0, y0)) / max(
+            math.dist(push.start, push.end), 1e-9)
+        if push.frees:
+            return (0.0, toward_base)
+        clearance = min((_distance_mm(push.end, o) for o in others), default=math.inf)
+        return (1.0, -clearance, toward_base)
+
+
+def _distance_mm(point: tuple[float, float], footprint: Footprint) -> float:
+    """From a point to the nearest corner or centre of a footprint (a rough clearance)."""
+    pts = np.vstack([footprint.corners, footprint.corners.mean(axis=0)])
+    return float(np.min(np.hypot(pts[:, 0] - point[0], pts[:, 1] - point[1])))

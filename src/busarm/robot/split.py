@@ -1,0 +1,163 @@
+"""Touching blocks of one colour in one blob: where each block's top face is.
+
+The blob is redrawn on the blocks' top plane, along their axes (``RESOLUTION_MM`` a
+pixel), where each block is a square. The side faces the camera sees, cast onto that
+plane, lie on the camera's side of each top face; the part of them the blob holds is
+taken off (an erosion along the cast direction), leaving the top faces. Then squares are
+placed greedily: each where a block's top fits inside and covers the most of what no
+square covers yet (ties: the furthest out), then centred on what it covers; until what is
+left is less than half a block. Rows, 2 x 2 groups and staggered clusters alike.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from busarm.errors import VisionError
+from busarm.vision.calibration import CameraIntrinsics
+
+FloatArray = npt.NDArray[np.float64]
+
+RESOLUTION_MM = 0.5
+"""The top plane's pixel, redrawn."""
+FIT_SLACK_MM = 2.0
+"""A block's top fits where a square this much smaller a side lies inside the blob (the
+outline's pixels and the cast are a little rough)."""
+MIN_COVER = 0.5
+"""A square is placed only where it covers this much of a block's top not yet covered."""
+MAX_BLOCKS = 16
+SIDE_SHARES = (0.0, 0.5, 1.0)
+"""The shares of the side faces the blob may hold, tried along each axis."""
+"""At most this many blocks in one blob."""
+
+
+@dataclass(frozen=True)
+class TopPlane:
+    """The blocks' top plane around a blob, along the blocks' ``axes`` (rows: unit
+    vectors in the base frame): ``origin`` (u, v mm) is the corner pixel's place."""
+
+    axes: FloatArray
+    origin: FloatArray
+    shape: tuple[int, int]
+
+    def to_base(self, uv_px: FloatArray) -> FloatArray:
+        """(N, 2) pixels (column, row) of the redrawn plane -> (N, 2) base x, y mm."""
+        uv = self.origin + uv_px * RESOLUTION_MM
+        return uv @ self.axes
+
+
+def top_faces_mm(contour_px: npt.NDArray[np.int32], intrinsics: CameraIntrinsics,
+                 cam2base: FloatArray, top_z_mm: float, size_mm: float, axes: FloatArray,
+                 extent_uv_mm: tuple[FloatArray, FloatArray], cast_uv_mm: FloatArray
+                 ) -> list[tuple[float, float]]:
+    """The centres (base x, y mm) of the blocks' top faces in the blob outlined by
+    ``contour_px``. ``extent_uv_mm``: the outline's (lowest, highest) u, v on the top
+    plane; ``cast_uv_mm``: how far the side faces the blob holds reach out from a top face
+    towards the camera, along u and v. Empty if no block's top fits in the blob."""
+    lo, hi = extent_uv_mm
+    plane = TopPlane(axes, lo - 2.0, (math.ceil((hi[1] - lo[1] + 4.0) / RESOLUTION_MM),
+                                      math.ceil((hi[0] - lo[0] + 4.0) / RESOLUTION_MM)))
+    blob = _redraw(contour_px, intrinsics, cam2base, top_z_mm, plane)
+    # How much of the sides the blob holds (lit or dark) is found by trying: the right
+    # share leaves the blob a union of whole squares (none cut short, nothing over).
+    best: tuple[float, FloatArray] | None = None
+    for share in itertools.product(*(SIDE_SHARES if abs(c) > FIT_SLACK_MM else (0.0,)
+                                     for c in cast_uv_mm)):
+        tops = _without_sides(blob, np.asarray(share) * cast_uv_mm)
+        centres, fit = _place_squares(tops, size_mm)
+        if best is None or fit > best[0]:
+            best = (fit, centres)
+    assert best is not None
+    return [(float(x), float(y)) for x, y in plane.to_base(best[1])]
+
+
+def _redraw(contour_px: npt.NDArray[np.int32], intrinsics: CameraIntrinsics,
+            cam2base: FloatArray, top_z_mm: float, plane: TopPlane) -> npt.NDArray[np.uint8]:
+    """The blob as a mask on the top plane (1 inside)."""
+    x0, y0, w, h = cv2.boundingRect(contour_px.reshape(-1, 1, 2))
+    mask = np.zeros((h + 2, w + 2), np.uint8)
+    cv2.drawContours(mask, [contour_px.reshape(-1, 1, 2) - (x0 - 1, y0 - 1)], -1, 1, -1)
+    rows, cols = plane.shape
+    grid = np.stack(np.meshgrid(np.arange(cols), np.arange(rows)), axis=-1).reshape(-1, 2)
+    base = plane.to_base(grid.astype(np.float64))
+    base2cam = np.linalg.inv(cam2base)
+    p_cam = np.column_stack([base, np.full(len(base), top_z_mm)]) @ base2cam[:3, :3].T \
+        + base2cam[:3, 3]
+    if np.any(p_cam[:, 2] <= 0.0):
+        raise VisionError("the blob's top plane reaches behind the camera")
+    px = intrinsics.pixels_from_camera_points(p_cam) - (x0 - 1, y0 - 1)
+    maps = px.reshape(rows, cols, 2).astype(np.float32)
+    return np.asarray(cv2.remap(mask, maps[..., 0], maps[..., 1], cv2.INTER_NEAREST,
+                                borderMode=cv2.BORDER_CONSTANT, borderValue=0), np.uint8)
+
+
+def _without_sides(blob: npt.NDArray[np.uint8], cast_uv_mm: FloatArray
+                   ) -> npt.NDArray[np.uint8]:
+    """The blob less the side faces it holds: a place stays if the blob reaches from it
+    along the whole cast (a top face's place does; a side's runs off the blob's edge)."""
+    du, dv = (round(c / RESOLUTION_MM) for c in cast_uv_mm)
+    if du == 0 and dv == 0:
+        return blob
+    kernel = np.zeros((abs(dv) + 1, abs(du) + 1), np.uint8)
+    anchor = (0 if du >= 0 else -du, 0 if dv >= 0 else -dv)
+    cv2.line(kernel, anchor, (anchor[0] + du, anchor[1] + dv), 1, 1)
+    return np.asarray(cv2.erode(blob, kernel, anchor=anchor, borderType=cv2.BORDER_CONSTANT,
+                                borderValue=0), np.uint8)
+
+
+def _place_squares(tops: npt.NDArray[np.uint8], size_mm: float) -> tuple[FloatArray, float]:
+    """Greedy squares on the top faces (see the module docstring): their centres (N x 2,
+    pixels: column, row) and how well they explain the tops (what they cover, less twice
+    what is left over, in blocks)."""
+    side = max(3, round(size_mm / RESOLUTION_MM))
+    inner = max(1, side - 2 * round(FIT_SLACK_MM / RESOLUTION_MM))
+    fits = cv2.erode(tops, np.ones((inner, inner), np.uint8), borderType=cv2.BORDER_CONSTANT,
+                     borderValue=0) > 0
+    left = tops.astype(np.float32)
+    centres: list[FloatArray] = []
+    covered = 0.0
+    for _ in range(MAX_BLOCKS):
+        cover = cv2.boxFilter(left, -1, (side, side), normalize=False,
+                              borderType=cv2.BORDER_CONSTANT)
+        cover[~fits] = 0.0
+        best = float(cover.max())
+        if best < MIN_COVER * side * side:
+            break
+        rows, cols = np.nonzero(cover >= best - 0.01 * side * side)
+        # Of the (nearly) best places, the one furthest from what is left's middle: a
+        # row's end block rather than a square straddling two.
+        mass_r, mass_c = (float(v.mean()) for v in np.nonzero(left > 0))
+        k = int(np.argmax((rows - mass_r) ** 2 + (cols - mass_c) ** 2))
+        centre = _centred(left, int(rows[k]), int(cols[k]), side)
+        centres.append(centre)
+        r0, c0 = round(centre[0]) - side // 2, round(centre[1]) - side // 2
+        window = left[max(r0, 0):max(r0 + side, 0), max(c0, 0):max(c0 + side, 0)]
+        covered += float(window.sum())
+        window[:] = 0.0
+    fit = (covered - 2.0 * float(left.sum())) / (side * side)
+    rc = np.array(centres).reshape(-1, 2)
+    return rc[:, ::-1].copy(), fit
+
+
+def _centred(left: npt.NDArray[np.float32], row: int, col: int, side: int) -> FloatArray:
+    """The square at (row, col) moved to the middle of what it covers, twice (a place
+    found on a tie sits a little off its block)."""
+    centre = np.array([row, col], dtype=float)
+    for _ in range(2):
+        r0, c0 = round(centre[0]) - side // 2, round(centre[1]) - side // 2
+        window = left[max(r0, 0):max(r0 + side, 0), max(c0, 0):max(c0 + side, 0)]
+        rr, cc = np.nonzero(window > 0)
+        if rr.size == 0:
+            break
+        # Half a square's shift at most: it stays on the block it was placed on.
+        shift = np.array([rr.mean() + max(r0, 0), cc.mean() + max(c0, 0)]) - centre
+        if float(np.abs(shift).max()) < 0.25:
+            break
+        centre = centre + np.clip(shift, -side / 4, side / 4)
+    return centre
