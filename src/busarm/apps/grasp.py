@@ -103,22 +103,25 @@ class GraspPlanner:
 
     def plan(self, x_mm: float, y_mm: float, yaw_deg: float,
              neighbours: Sequence[Footprint] = (),
-             gaps_mm: Sequence[float] = ()) -> GraspPlan:
+             gaps_mm: Sequence[float] = (), obstacles: Sequence[Footprint] = ()
+             ) -> GraspPlan:
         """The first grasp that reaches the block and keeps both fingers off its
         ``neighbours`` all the way down (with ``margin_mm``): straight down with the
         fingers squared to the block, along one face pair then the other; else tilted
         (``TILTED_PITCHES_DEG``), closing level, the approach along the tool's axis; for
         each, the fingers opened ``gaps_mm`` apart (widest first; default: the block and
-        10 mm a side). Raises NoClearGrasp naming what is in the way if every reaching
-        grasp is blocked, UnreachableError saying why none reaches."""
+        10 mm a side). ``obstacles``: things of unknown height (not blocks), kept off
+        all the way from ``above``. Raises NoClearGrasp naming what is in the way if every
+        reaching grasp is blocked, UnreachableError saying why none reaches."""
         gaps = sorted(gaps_mm or (self.block_mm + 20.0,), reverse=True)
         blocked = ""
         for plan in self._reaching(x_mm, y_mm, yaw_deg):
             for gap in gaps:
-                hit = self._first_hit(plan, gap, neighbours)
+                hit = self._first_hit(plan, gap, neighbours) or self._first_hit(
+                    plan, gap, obstacles, tall=True)
                 if hit is None:
                     return replace(plan, gap_mm=gap)
-                blocked = blocked or (f"a finger would land on the block at "
+                blocked = blocked or (f"a finger would land on the {hit[2]} at "
                                       f"({hit[0]:.0f}, {hit[1]:.0f}) mm")
         if blocked:
             raise NoClearGrasp(f"no grasp clears its neighbours: {blocked}")
@@ -155,15 +158,17 @@ class GraspPlanner:
                 continue
             yield plan
 
-    def pads(self, plan: GraspPlan, gap_mm: float) -> list[Footprint]:
+    def pads(self, plan: GraspPlan, gap_mm: float, *, tall: bool = False) -> list[Footprint]:
         """What the two finger pads cover on the table on their way down to ``plan``'s
-        grasp, opened ``gap_mm`` apart, while they are low enough to meet a block."""
+        grasp, opened ``gap_mm`` apart, while they are low enough to meet a block (or,
+        ``tall``, anything: all the way from ``above``)."""
         t, w, length = self.pad_mm
         kin = self.kin
         m = kin.fk_matrix(kin.ik_best(*plan.grasp, plan.pitch_deg, plan.roll_deg))
         x_axis, y_axis, back = m[:3, 0], m[:3, 1], -m[:3, 2]
         tip = np.asarray(plan.grasp, dtype=float)
-        low = self.table_z_mm + self.block_mm + self.margin_mm - tip[2]  # above the tips
+        top = math.inf if tall else self.table_z_mm + self.block_mm + self.margin_mm
+        low = top - tip[2]  # how far above the tips a thing reaches
         rise = float(back[2])
         # Only the part of a pad below a neighbour's top can meet it; while descending the
         # pads slide along the tool's axis (straight down: they stay where they are).
@@ -178,16 +183,16 @@ class GraspPlanner:
             out.append(Footprint.hull(p[:2] for p in corners))
         return out
 
-    def _first_hit(self, plan: GraspPlan, gap_mm: float, neighbours: Sequence[Footprint]
-                   ) -> tuple[float, float] | None:
-        """The centre of the first neighbour a pad would meet, or None."""
+    def _first_hit(self, plan: GraspPlan, gap_mm: float, neighbours: Sequence[Footprint],
+                   *, tall: bool = False) -> tuple[float, float, str] | None:
+        """The centre of the first neighbour a pad would meet and what it is, or None."""
         if not neighbours:
             return None
-        for pad in self.pads(plan, gap_mm):
+        for pad in self.pads(plan, gap_mm, tall=tall):
             for other in neighbours:
                 if pad.overlaps(other, self.margin_mm):
                     centre = other.corners.mean(axis=0)
-                    return float(centre[0]), float(centre[1])
+                    return float(centre[0]), float(centre[1]), "thing" if tall else "block"
         return None
 
     def _why_unreachable(self, x_mm: float, y_mm: float, yaw_deg: float) -> str:
@@ -234,14 +239,21 @@ class GraspPlanner:
         self.check_path([plan.above, plan.grasp, plan.lift], plan.pitch_deg, plan.roll_deg)
 
     def check_path(self, points: Sequence[tuple[float, float, float]], pitch_deg: float,
-                   roll_deg: float) -> None:
+                   roll_deg: float, margin_deg: float = 0.0) -> None:
         """Every point of the straight moves through ``points`` (mm) within reach at this
-        tool pitch and roll; UnreachableError if not."""
+        tool pitch and roll, each joint ``margin_deg`` inside its limits; UnreachableError
+        if not."""
         for a, b in itertools.pairwise(points):
             steps = math.ceil(math.dist(a, b) / LINE_CHECK_MM)
             for t in np.linspace(0.0, 1.0, steps + 1):
                 x, y, z = (p + (q - p) * t for p, q in zip(a, b, strict=True))
-                self.kin.ik_best(x, y, z, pitch_deg, roll_deg)
+                joints = self.kin.ik_best(x, y, z, pitch_deg, roll_deg)
+                for name, q, (lo, hi) in zip(self.kin.joint_names, joints,
+                                             self.kin.limits_deg, strict=True):
+                    if not lo + margin_deg <= q <= hi - margin_deg:
+                        raise UnreachableError(
+                            f"({x:.1f}, {y:.1f}, {z:.1f}) mm needs {name} = {q:.1f} deg, "
+                            f"within {margin_deg:g} deg of its limits {lo:g}..{hi:g} deg")
 
 
 def _finger_axis_deg(tool: FloatArray) -> float:

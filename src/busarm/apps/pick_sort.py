@@ -23,6 +23,7 @@ what was done, why it stopped and what the gripper holds, as read back.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -43,6 +44,7 @@ from busarm.errors import (
 )
 from busarm.robot import Robot
 from busarm.robot.locate import Sighting
+from busarm.robot.obstacles import Obstacle, refine
 from busarm.units import check_int_range, check_range
 
 FloatArray = npt.NDArray[np.float64]
@@ -66,6 +68,13 @@ and the camera's view of it."""
 STACK_DROP_MM = 3.0
 """A block for the second layer is let go this far above the first layer's tops."""
 ORDERS = ("nearest", "colors")
+OVER_THINGS_MM = 100.0
+"""A carried block's bottom passes this high over things that are not blocks (a mug is
+about 95 mm tall)."""
+CARRY_CLEARANCE_MM = 25.0
+"""A carry passing this close to such a thing goes over it."""
+MAX_CYCLES = 150
+"""Surveys a run makes at most (a cycle picks a block, or pushes one, or looks closer)."""
 MAX_EXTRA_LOOKS = 3
 """A survey looks this many more times at most, facing blocks cut by its pictures' edges."""
 HOLD_SLACK_MM = 4.0
@@ -210,6 +219,9 @@ class PickSorter:
                                                  for x, y in self.bins.values()])
         # Every block the last survey saw: the neighbours a grasp must keep clear of.
         self._seen: list[Sighting] = []
+        # Things seen since the last survey began that are not blocks (cast on the table).
+        self._obstacles: list[Footprint] = []
+        self._things: list[Obstacle] = []  # the same, as seen (refined by each look)
         self._nudges: dict[int, int] = {}  # pushes per block record
         # Records seen boxed in when looked at closer, and how (until the table changes).
         self._boxed: dict[int, Sighting] = {}
@@ -234,6 +246,7 @@ class PickSorter:
         bearing)."""
         seen: list[tuple[tuple[bool, float], Sighting]] = []
         self.last_survey = []
+        self._obstacles, self._things = [], []
         looked: list[float] = []
         for pose in self.survey_poses:
             self._merge(seen, pose)
@@ -279,17 +292,22 @@ class PickSorter:
         self.clock.sleep(s.settle_s)
         pictures = [(self.camera.read().image, arm.read_joints_deg())
                     for _ in range(s.survey_frames)]
+        # Things that are not blocks, for the fingers and pushes to keep off.
+        self._things = refine(self._things, self.locator.obstacles(
+            *pictures[-1], [(x, y, 2 * BIN_RADIUS_MM) for x, y in self.bins.values()]))
+        self._obstacles = [Footprint(o.corners) for o in self._things]
         return pictures[-1][0], self.locator.locate_averaged(pictures)
 
-    def look_closer(self, target: Sighting) -> Sighting | None:
+    def look_closer(self, target: Sighting, *, always: bool = False) -> Sighting | None:
         """The block as seen with the camera turned to face it, if the survey saw it more
-        than ``look_closer_beyond_deg`` off to the side or cut by the picture's edge; else
-        ``target`` itself. None if it is not seen whole there when looked at again."""
+        than ``look_closer_beyond_deg`` off to the side or cut by the picture's edge (or
+        ``always``); else ``target`` itself. None if it is not seen whole there when
+        looked at again."""
         s, arm = self.settings, self.arm
         x, y = target.location.x_mm, target.location.y_mm
         bearing = _bearing_deg(target)
         pose = min(self.survey_poses, key=lambda p: abs(bearing - p[0]))
-        if target.whole and abs(bearing - pose[0]) <= s.look_closer_beyond_deg:
+        if target.whole and abs(bearing - pose[0]) <= s.look_closer_beyond_deg and not always:
             return target
         try:
             facing = arm.config.check_joints((bearing, *pose[1:]))
@@ -308,7 +326,7 @@ class PickSorter:
         # Cut by the picture's edge, it was seen only in part (or a group of touching
         # blocks was): the nearest whole block of its colour about there is the one.
         radius = (2 if target.whole else 3) * SAME_BLOCK_MM
-        same = sorted((v for v in found if v.whole
+        same = sorted((v for v in found if v.whole and not self._in_a_bin(v)
                        and _same_block(target.color, x, y, v, radius)),
                       key=lambda v: _off_mm(v, x, y))
         return same[0] if same else None
@@ -387,8 +405,13 @@ class PickSorter:
     def _retreat(self) -> None:
         """After a move that met something: stop and hold, then go straight up from
         where the arm stopped (the next survey moves on from there)."""
+        self.arm.stop()
+        self._rise()
+
+    def _rise(self) -> None:
+        """Straight up from where the tool is to above the tallest block carried, so that
+        the next joint move sweeps over what stands on the table."""
         arm, s = self.arm, self.settings
-        arm.stop()
         tool = arm.read_pose()
         up = self.locator.table_z_mm + s.carry_mm + self.locator.block_size_mm
         if tool.z_mm < up:
@@ -406,7 +429,7 @@ class PickSorter:
         arm, s = self.arm, self.settings
         loc = target.location
         push = self.pusher.plan(loc.x_mm, loc.y_mm, loc.yaw_deg, self._neighbours(target),
-                                self._gaps())
+                                self._gaps(), self._obstacles)
         if push is None:
             return None
         how = "" if push.frees else " (a grasp may not clear it even there)"
@@ -429,6 +452,8 @@ class PickSorter:
             # fingers held back by the block left the line's reach: up, and look again
             self.progress(f"the push stopped short ({exc}): backing off")
             self._retreat()
+        if self._obstacles:  # the way back to the survey could sweep into one
+            self._rise()
         self.on_step("nudge")
         return push
 
@@ -476,6 +501,14 @@ class PickSorter:
         size = self.locator.block_size_mm
         carry_z = z0 + s.carry_mm + layer * size
         release_z = z0 + (s.release_mm if layer == 0 else size + STACK_DROP_MM + size / 2)
+        if self._thing_on_the_way(plan.lift[:2], (bx, by)):
+            # Something that is not a block (of a height not known) near the way: over it
+            # at the height of the tallest cup a desk has.
+            carry_z = max(carry_z, z0 + OVER_THINGS_MM + size / 2)
+            # (Not straight up from here: it rises on the way over.)
+            with contextlib.suppress(UnreachableError):
+                arm.move_line(*plan.lift[:2], carry_z, pitch, roll,
+                              speed_mm_s=s.line_speed_mm_s)
         arm.move_to(bx, by, carry_z, -90.0, square, speed_deg_s=s.joint_speed_deg_s)
         self.on_step("carry")
         if not self._still_holding():
@@ -492,6 +525,22 @@ class PickSorter:
         self.on_step("release")
         arm.move_line(bx, by, carry_z, -90.0, square, speed_mm_s=s.line_speed_mm_s)
         return True, "", (bx, by), plan
+
+    def _thing_on_the_way(self, start: Sequence[float], end: Sequence[float]) -> bool:
+        """Whether a thing that is not a block lies near the carry from ``start`` to
+        ``end`` (x, y mm): the way taken as the base turns, bearing and radius changing
+        evenly."""
+        if not self._obstacles:
+            return False
+        (r0, a0), (r1, a1) = ((math.hypot(x, y), math.atan2(y, x)) for x, y in (start, end))
+        turn = (a1 - a0 + math.pi) % (2 * math.pi) - math.pi
+        size = self.locator.block_size_mm
+        for t in np.linspace(0.0, 1.0, 40):
+            r, a = r0 + (r1 - r0) * t, a0 + turn * t
+            here = Footprint.square(r * math.cos(a), r * math.sin(a), size, 0.0)
+            if any(here.overlaps(o, CARRY_CLEARANCE_MM) for o in self._obstacles):
+                return True
+        return False
 
     def verify_bins(self, report: RunReport) -> None:
         """Look into each bin a block was put in: a block reported sorted but not found
@@ -521,8 +570,9 @@ class PickSorter:
 
     # ------------------------------------------------------------------ the job
 
-    def run(self, *, max_cycles: int = 50) -> RunReport:
-        """Sort until the table shows no block that can be sorted; the whole report.
+    def run(self, *, max_cycles: int = MAX_CYCLES) -> RunReport:
+        """Sort until the table shows no block that can be sorted (or ``max_cycles``
+        surveys have been made); the whole report.
 
         On an error or Ctrl+C the arm is stopped where it is, holding, ``self.report``
         says why and what the gripper reads, and the exception goes on up.
@@ -531,12 +581,14 @@ class PickSorter:
         self.report = report = RunReport()
         self._holding = None
         try:
+            why = f"not done when the run's {max_cycles} cycles were up"
             for _ in range(max_cycles):
                 if not self._cycle(report):
+                    why = "not seen again"
                     break
             for outcome in report.blocks:
                 if outcome.outcome == "pending":
-                    outcome.outcome, outcome.reason = "failed", "not seen again"
+                    outcome.outcome, outcome.reason = "failed", why
             self.verify_bins(report)
         except BaseException as exc:
             report.stopped = ("interrupted (Ctrl+C)" if isinstance(exc, KeyboardInterrupt)
@@ -592,7 +644,9 @@ class PickSorter:
             for outcome, _, sighting in boxed_in:
                 if self._nudges.get(id(outcome), 0) < self.settings.max_nudges:
                     self._nudges[id(outcome)] = self._nudges.get(id(outcome), 0) + 1
-                    push = self.nudge(sighting)
+                    # Its neighbours as seen facing it (the survey may see a group as one).
+                    fresh = self.look_closer(sighting, always=True)
+                    push = self.nudge(fresh) if fresh is not None else None
                     if push is not None:  # the record follows it (_outcome_for)
                         self._pushed[id(outcome)] = (outcome, outcome.found_mm, push.end)
                         self._boxed.pop(id(outcome), None)
@@ -719,7 +773,7 @@ class PickSorter:
         """A grasp of ``target`` that keeps the fingers off every other block seen."""
         loc = target.location
         return self.planner.plan(loc.x_mm, loc.y_mm, loc.yaw_deg, self._neighbours(target),
-                                 self._gaps())
+                                 self._gaps(), self._obstacles)
 
     def _neighbours(self, target: Sighting) -> list[Footprint]:
         """The footprints of every other block the last survey saw."""

@@ -3,12 +3,12 @@ top) so that afterwards a grasp clears its neighbours. Pure geometry: no bus, no
 
 A push is tried in ``PUSH_DIRECTIONS`` directions and a few lengths. One is kept only if
 the block, all the way along, stays off every other block (sliding past a touching one is
-allowed) and off the bins, the arm reaches the whole drag (the tool straight down, else
-leaning out a little: the closed pads' lower edge presses then), and
-at its end a grasp of the block clears its neighbours. Of those, the shortest wins, then
-the one towards the base (reach is better there). If none frees the block, the push that
-leaves it furthest from its neighbours is offered instead (the next look may still find a
-way).
+allowed), the bins and things that are not blocks; the arm reaches the whole drag (the
+tool straight down, else leaning: the closed pads' lower edge presses then) with no pad
+on another block; and at its end a grasp of the block clears its neighbours. Of those,
+the shortest wins, then one straight down, then the one towards the base (reach is
+better there). If none frees the block, the push that leaves it furthest from its
+neighbours is offered instead (the next look may still find a way).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from busarm.apps.footprint import Footprint
-from busarm.apps.grasp import GraspPlanner
+from busarm.apps.grasp import GraspPlan, GraspPlanner
 from busarm.errors import UnreachableError
 
 PUSH_DIRECTIONS = 16
@@ -30,12 +30,14 @@ PUSH_LENGTHS = (1.0, 1.5)
 SLIDE_MM = 1.0
 """A pushed block may slide along a neighbour it touches: its footprint is checked this
 much smaller a side."""
-PATH_STEP_MM = 3.0
-"""Points this far apart along a push are checked against the other blocks."""
 BIN_KEEP_OFF_MM = 8.0
 """A pushed block stays this far from a bin's walls."""
-PUSH_PITCHES_DEG = (-90.0, -75.0, -60.0)
-"""Tool pitches a push is tried with: straight down, else leaning out (far blocks)."""
+PUSH_PITCHES_DEG = (-90.0, -75.0, -105.0, -60.0, -120.0)
+"""Tool pitches a push is tried with: straight down, else leaning out (far blocks) or back
+(near ones)."""
+LIMIT_MARGIN_DEG = 3.0
+"""A push keeps every joint this far inside its limits: pressing, the arm is off its line
+a little, and the line is planned again from where it is."""
 PRESS_MM = 3.0
 """Pushing, the closed fingers press this far into the block's top (friction drags it)."""
 
@@ -63,18 +65,22 @@ class PushPlanner:
     bins: Sequence[Footprint] = ()
 
     def plan(self, x_mm: float, y_mm: float, yaw_deg: float, others: Sequence[Footprint],
-             gaps_mm: Sequence[float] = ()) -> Push | None:
+             gaps_mm: Sequence[float] = (), obstacles: Sequence[Footprint] = ()
+             ) -> Push | None:
         """The best push of the block at (x, y) turned ``yaw_deg`` among ``others`` (the
-        other blocks' footprints); None if the arm cannot push it anywhere."""
+        other blocks' footprints) and ``obstacles`` (things that are not blocks: the
+        block keeps ``BIN_KEEP_OFF_MM`` off them too); None if the arm cannot push it
+        anywhere."""
         g = self.grasps
         best: tuple[tuple[float, ...], Push] | None = None
         for length in PUSH_LENGTHS:
             for k in range(PUSH_DIRECTIONS):
                 angle = 2 * math.pi * k / PUSH_DIRECTIONS
-                end = self._clear_end(x_mm, y_mm, yaw_deg, angle, length * g.block_mm, others)
+                end = self._clear_end(x_mm, y_mm, yaw_deg, angle, length * g.block_mm, others,
+                                      obstacles)
                 if end is None:
                     continue
-                push = self._reaching(x_mm, y_mm, yaw_deg, end, others, gaps_mm)
+                push = self._reaching(x_mm, y_mm, yaw_deg, end, others, gaps_mm, obstacles)
                 if push is None:
                     continue
                 rank = self._rank(push, others)
@@ -85,22 +91,24 @@ class PushPlanner:
         return None if best is None else best[1]
 
     def _clear_end(self, x_mm: float, y_mm: float, yaw_deg: float, angle: float,
-                   length_mm: float, others: Sequence[Footprint]) -> tuple[float, float] | None:
+                   length_mm: float, others: Sequence[Footprint],
+                   obstacles: Sequence[Footprint]) -> tuple[float, float] | None:
         """Where the block ends pushed this way, or None if it would meet something."""
         size = self.grasps.block_mm
-        dx, dy = math.cos(angle), math.sin(angle)
-        steps = max(1, math.ceil(length_mm / PATH_STEP_MM))
-        for t in np.linspace(1.0 / steps, 1.0, steps).tolist():
-            here = Footprint.square(x_mm + dx * length_mm * t, y_mm + dy * length_mm * t,
-                                    size - 2 * SLIDE_MM, yaw_deg)
-            if any(here.overlaps(o) for o in others):
-                return None
-            if any(here.overlaps(b, BIN_KEEP_OFF_MM) for b in self.bins):
-                return None
-        return x_mm + dx * length_mm, y_mm + dy * length_mm
+        end = (x_mm + math.cos(angle) * length_mm, y_mm + math.sin(angle) * length_mm)
+        # A square slid along a straight line sweeps the hull of where it starts and ends.
+        start_sq = Footprint.square(x_mm, y_mm, size - 2 * SLIDE_MM, yaw_deg)
+        end_sq = Footprint.square(*end, size - 2 * SLIDE_MM, yaw_deg)
+        swept = Footprint.hull([*start_sq.corners, *end_sq.corners])
+        if any(swept.overlaps(o) for o in others):
+            return None
+        if any(swept.overlaps(b, BIN_KEEP_OFF_MM) for b in (*self.bins, *obstacles)):
+            return None
+        return end
 
     def _reaching(self, x_mm: float, y_mm: float, yaw_deg: float, end: tuple[float, float],
-                  others: Sequence[Footprint], gaps_mm: Sequence[float]) -> Push | None:
+                  others: Sequence[Footprint], gaps_mm: Sequence[float],
+                  obstacles: Sequence[Footprint]) -> Push | None:
         """The push to ``end`` at the first tool pitch (``PUSH_PITCHES_DEG``) and roll the
         arm reaches it all the way with, or None."""
         g = self.grasps
@@ -113,17 +121,35 @@ class PushPlanner:
         for pitch in PUSH_PITCHES_DEG:
             for roll in self._rolls(x_mm, y_mm, yaw_deg, pitch):
                 try:
-                    g.check_path(path, pitch, roll)
-                    g.check_path(alike, pitch, roll)
+                    g.check_path(path, pitch, roll, LIMIT_MARGIN_DEG)
+                    g.check_path(alike, pitch, roll, LIMIT_MARGIN_DEG)
                 except UnreachableError:
                     continue
+                if self._pads_hit(path, pitch, roll, others, obstacles):
+                    continue  # leaning, the pads' backs would press on a neighbour
                 try:
-                    g.plan(end[0], end[1], yaw_deg, others, gaps_mm)
+                    g.plan(end[0], end[1], yaw_deg, others, gaps_mm, obstacles)
                     frees = True
                 except UnreachableError:  # boxed in still (NoClearGrasp), or out of reach
                     frees = False
                 return Push((x_mm, y_mm), end, pitch, roll, path, frees)
         return None
+
+    def _pads_hit(self, path: tuple[tuple[float, float, float], ...], pitch_deg: float,
+                  roll_deg: float, others: Sequence[Footprint],
+                  obstacles: Sequence[Footprint]) -> bool:
+        """Whether the closed pads, pressing at the push's start or end, would touch a
+        block other than the pushed one, or a thing that is not a block."""
+        g = self.grasps
+        for tip in path[1:3]:
+            pads = g.pads(GraspPlan(pitch_deg, roll_deg, path[0], tip, path[3]), 0.0)
+            if any(p.overlaps(o, g.margin_mm) for p in pads for o in others):
+                return True
+            tall = g.pads(GraspPlan(pitch_deg, roll_deg, path[0], tip, path[3]), 0.0,
+                          tall=True)
+            if any(p.overlaps(o, g.margin_mm) for p in tall for o in obstacles):
+                return True
+        return False
 
     def _rolls(self, x_mm: float, y_mm: float, yaw_deg: float, pitch_deg: float
                ) -> list[float]:
@@ -141,10 +167,11 @@ class PushPlanner:
         (x0, y0), (x1, y1) = push.start, push.end
         toward_base = (math.hypot(x1, y1) - math.hypot(x0, y0)) / max(
             math.dist(push.start, push.end), 1e-9)
+        leaning = float(push.pitch_deg != -90.0)  # straight down presses flat: surer
         if push.frees:
-            return (0.0, toward_base)
+            return (0.0, leaning, toward_base)
         clearance = min((_distance_mm(push.end, o) for o in others), default=math.inf)
-        return (1.0, -clearance, toward_base)
+        return (1.0, leaning, -clearance, toward_base)
 
 
 def _distance_mm(point: tuple[float, float], footprint: Footprint) -> float:

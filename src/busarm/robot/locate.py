@@ -22,6 +22,7 @@ import numpy.typing as npt
 from busarm.arm.config import CAMERA_JOINT_INDEX
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import ConfigError, UnreachableError, VisionError
+from busarm.robot.obstacles import Obstacle, find_obstacles
 from busarm.robot.split import top_faces_mm
 from busarm.units import check_range
 from busarm.vision.calibration import CameraIntrinsics, HandEyeResult
@@ -169,6 +170,14 @@ class BlockLocator:
             else:
                 out += [self._sighting(d.color, loc, d) for loc in parts]
         return out + self._locate_single(single, cam2base, w, h)
+
+    def obstacles(self, image: npt.NDArray[np.uint8], joints_deg: Sequence[float],
+                  bins: Sequence[tuple[float, float, float]] = ()) -> list[Obstacle]:
+        """Things in ``image`` that are not blocks (``busarm.robot.obstacles``), cast onto
+        the table; ``bins``: (x, y, side mm) of each tray."""
+        blocks = self.detector.detect(image)
+        return find_obstacles(image, blocks, self.intrinsics, self.cam2base(joints_deg),
+                              self.table_z_mm, bins)
 
     def _locate_single(self, detections: list[Detection], cam2base: FloatArray, w: int,
                        h: int) -> list[Sighting]:

@@ -113,15 +113,16 @@ def _without_sides(blob: npt.NDArray[np.uint8], cast_uv_mm: FloatArray
 
 def _place_squares(tops: npt.NDArray[np.uint8], size_mm: float) -> tuple[FloatArray, float]:
     """Greedy squares on the top faces (see the module docstring): their centres (N x 2,
-    pixels: column, row) and how well they explain the tops (what they cover, less twice
-    what is left over, in blocks)."""
+    pixels: column, row) and how well they explain the tops, in blocks: what they cover,
+    less twice what is left over and twice what they cover of nothing (a square put on a
+    side face's strip, or a top cut short by too much taken off)."""
     side = max(3, round(size_mm / RESOLUTION_MM))
     inner = max(1, side - 2 * round(FIT_SLACK_MM / RESOLUTION_MM))
     fits = cv2.erode(tops, np.ones((inner, inner), np.uint8), borderType=cv2.BORDER_CONSTANT,
                      borderValue=0) > 0
     left = tops.astype(np.float32)
     centres: list[FloatArray] = []
-    covered = 0.0
+    covered = empty = 0.0
     for _ in range(MAX_BLOCKS):
         cover = cv2.boxFilter(left, -1, (side, side), normalize=False,
                               borderType=cv2.BORDER_CONSTANT)
@@ -139,8 +140,9 @@ def _place_squares(tops: npt.NDArray[np.uint8], size_mm: float) -> tuple[FloatAr
         r0, c0 = round(centre[0]) - side // 2, round(centre[1]) - side // 2
         window = left[max(r0, 0):max(r0 + side, 0), max(c0, 0):max(c0 + side, 0)]
         covered += float(window.sum())
+        empty += side * side - float(window.sum())
         window[:] = 0.0
-    fit = (covered - 2.0 * float(left.sum())) / (side * side)
+    fit = (covered - 2.0 * float(left.sum()) - 2.0 * empty) / (side * side)
     rc = np.array(centres).reshape(-1, 2)
     return rc[:, ::-1].copy(), fit
 

@@ -1,0 +1,182 @@
+"""Things on the table that are not blocks (a cup, a pen, a coaster): where the wrist
+camera sees them, cast onto the table, for the fingers and the pushes to keep off.
+
+The table is what most of the picture's unsaturated pixels show; its brightness is their
+median. A pixel much darker than that (darker than a shadow: a lamp's share of the light
+is a third at most) or much brighter and unsaturated (a white thing under the same light)
+is something else. Blobs of such pixels, less the blocks' own blobs, the arm's own black
+parts, and what lies on the arm's base or a bin, are cast onto the table plane. A thing
+standing up casts further than its foot (its top is higher), so the cast covers at least
+what it stands on: its convex hull is kept off.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from busarm.errors import VisionError
+from busarm.vision.calibration import CameraIntrinsics
+from busarm.vision.color import Detection
+from busarm.vision.localize import table_points_from_pixels
+
+FloatArray = npt.NDArray[np.float64]
+
+TABLE_SATURATION = 40
+"""Pixels under this saturation (0-255) are the table's candidates."""
+DARK = 0.55
+"""A pixel under this share of the table's brightness is something dark (a shadow keeps
+two thirds of the light or more)."""
+BRIGHT = 1.12
+"""An unsaturated pixel over this share of the table's brightness is something white."""
+WHITE_SATURATION = 60
+MIN_AREA_PX = 120.0
+"""Smaller blobs are specks (or a block's edge)."""
+ARM_DARK = 0.25
+"""A blob whose median brightness is under this share of the table's is black: the arm's
+own fingers and links in the picture (a brown or grey thing is lighter)."""
+BLOCK_MARGIN_PX = 5
+"""The blocks' own blobs, grown this much, are not obstacles (their dark edges)."""
+BASE_KEEP_OUT_MM = 80.0
+"""What lies this close to the arm's axis is the arm's own base."""
+BIN_MARGIN_MM = 10.0
+PIECE_GAP_MM = 10.0
+"""Casts this close are pieces of one thing (its lit top and a shaded side, say)."""
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """Something that is not a block: its outline cast onto the table (N x 2, mm, base
+    frame, convex, in order); ``whole``: not cut by the picture's edge."""
+
+    corners: FloatArray
+    whole: bool = True
+
+    @property
+    def centre_mm(self) -> tuple[float, float]:
+        c = self.corners.mean(axis=0)
+        return float(c[0]), float(c[1])
+
+
+def find_obstacles(image: npt.NDArray[np.uint8], blocks: Sequence[Detection],
+                   intrinsics: CameraIntrinsics, cam2base: FloatArray, table_z_mm: float,
+                   bins: Sequence[tuple[float, float, float]] = ()) -> list[Obstacle]:
+    """Things in ``image`` (RGB) that are neither the table nor ``blocks`` (their
+    detections), cast onto the table; ``bins``: (x, y, side mm) of each tray, not
+    obstacles. Pieces of one thing (a lit top, a shaded side) cast close together are one
+    obstacle."""
+    found = _thing_blobs(image, blocks)
+    if found is None:
+        return []
+    mask, val, table = found
+    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    h, w = image.shape[:2]
+    out = []
+    for c in contours:
+        pts = c.reshape(-1, 2)
+        if cv2.contourArea(c) < MIN_AREA_PX or pts[:, 1].max() >= h - 2:
+            continue  # a speck, or the arm's own fingers at the picture's bottom
+        inside = np.zeros(mask.shape, np.uint8)
+        cv2.drawContours(inside, [c], -1, 1, -1)
+        if float(np.median(val[(inside > 0) & (mask > 0)])) < ARM_DARK * table:
+            continue  # black: the arm itself
+        hull = cv2.convexHull(c).reshape(-1, 2).astype(np.float64)
+        try:
+            cast = table_points_from_pixels(hull, intrinsics, cam2base, table_z_mm)[:, :2]
+        except VisionError:
+            continue  # part of it above the horizon: no thing on the table
+        centre = cast.mean(axis=0)
+        if math.hypot(*centre) < BASE_KEEP_OUT_MM or any(
+                abs(centre[0] - bx) < side / 2 + BIN_MARGIN_MM
+                and abs(centre[1] - by) < side / 2 + BIN_MARGIN_MM for bx, by, side in bins):
+            continue
+        whole = not (pts[:, 0].min() <= 0 or pts[:, 1].min() <= 0 or pts[:, 0].max() >= w - 1)
+        out.append(Obstacle(_hull_mm(cast), whole))
+    return _merged(out)
+
+
+def refine(seen: Sequence[Obstacle], new: Sequence[Obstacle]) -> list[Obstacle]:
+    """What is known of the things after another picture: a thing standing up, seen
+    whole from two places, stands inside both its casts (each stretches away from its
+    camera): where they overlap is kept; the rest as seen."""
+    out: list[Obstacle] = []
+    used: set[int] = set()
+    for old in seen:
+        same = [i for i, n in enumerate(new) if old.whole and n.whole
+                and _overlap(old.corners, n.corners) > 0.0]
+        if not same:
+            out.append(old)
+            continue
+        used.update(same)
+        other = _hull_mm(np.vstack([new[i].corners for i in same]))
+        area, both = cv2.intersectConvexConvex(old.corners.astype(np.float32),
+                                               other.astype(np.float32))
+        kept = np.asarray(both, np.float64).reshape(-1, 2) if area > 1.0 else old.corners
+        out.append(Obstacle(_hull_mm(kept)))
+    return out + [n for i, n in enumerate(new) if i not in used]
+
+
+def _thing_blobs(image: npt.NDArray[np.uint8], blocks: Sequence[Detection]
+                 ) -> tuple[npt.NDArray[np.uint8], FloatArray, float] | None:
+    """The mask of pixels that are neither table nor block, the brightness, and the
+    table's brightness; None if the picture shows little table."""
+    hsv = cv2.cvtColor(image, cv2.COLOR_RGB2HSV)
+    sat, val = hsv[..., 1], hsv[..., 2].astype(np.float64)
+    plain = sat < TABLE_SATURATION
+    if int(plain.sum()) < image.shape[0] * image.shape[1] // 4:
+        return None  # no table to speak of in this picture
+    table = float(np.median(val[plain]))
+    mask = ((val < DARK * table) | ((val > BRIGHT * table) & (sat < WHITE_SATURATION)))
+    mask_u8 = mask.astype(np.uint8)
+    for d in blocks:
+        cv2.drawContours(mask_u8, [d.contour_px.reshape(-1, 1, 2)], -1, 0, -1)
+        cv2.drawContours(mask_u8, [d.contour_px.reshape(-1, 1, 2)], -1, 0,
+                         2 * BLOCK_MARGIN_PX)
+    opened = cv2.morphologyEx(mask_u8, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    return np.asarray(opened, np.uint8), val, table
+
+
+def _merged(things: list[Obstacle]) -> list[Obstacle]:
+    """Casts that overlap or nearly (``PIECE_GAP_MM``) merged into their hull."""
+    out = list(things)
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(out)):
+            for j in range(i + 1, len(out)):
+                a, b = out[i], out[j]
+                if _gap_mm(a.corners, b.corners) <= PIECE_GAP_MM:
+                    out[i] = Obstacle(_hull_mm(np.vstack([a.corners, b.corners])),
+                                      a.whole and b.whole)
+                    del out[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    return out
+
+
+def _overlap(a: FloatArray, b: FloatArray) -> float:
+    area, _ = cv2.intersectConvexConvex(a.astype(np.float32), b.astype(np.float32))
+    return float(area)
+
+
+def _gap_mm(a: FloatArray, b: FloatArray) -> float:
+    """How far apart two convex outlines are (0 if they overlap), about: the least
+    distance from a corner of one to the other's outline."""
+    if _overlap(a, b) > 0.0:
+        return 0.0
+    d = [abs(cv2.pointPolygonTest(poly.astype(np.float32).reshape(-1, 1, 2),
+                                  (float(p[0]), float(p[1])), True))
+         for poly, pts in ((a, b), (b, a)) for p in pts]
+    return float(min(d))
+
+
+def _hull_mm(points: FloatArray) -> FloatArray:
+    hull = cv2.convexHull(points.astype(np.float32)).reshape(-1, 2)
+    return np.asarray(hull, dtype=np.float64)
