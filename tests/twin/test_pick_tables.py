@@ -60,7 +60,7 @@ def test_a_full_bin_leaves_the_rest_on_the_table_with_a_reason(
         bx, by = robot.bins["red"]
     outcomes = [b.outcome for b in report.blocks]
     # Four, and three on them (a fourth on top would leave no room for the fingers).
-    assert outcomes.count("sorted") == sorter.bin_capacity == 7, outcomes
+    assert outcomes.count("sorted") == sorter.places.capacity == 7, outcomes
     skipped = [b for b in report.blocks if b.outcome == "skipped"]
     assert len(skipped) == 2 and all(b.reason.startswith("bin full") for b in skipped), skipped
     in_bin = [b for b in truth if math.hypot(b.x_mm - bx, b.y_mm - by) < IN_BIN_MM]

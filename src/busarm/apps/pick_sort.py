@@ -26,14 +26,24 @@ from __future__ import annotations
 import contextlib
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
 
+from busarm.apps.bins import (
+    BIN_PLACES,
+    BIN_RADIUS_MM,
+    BIN_SLOTS_MM,
+    IN_BIN_MM,
+    STACK_DROP_MM,
+    BinPlaces,
+)
 from busarm.apps.footprint import Footprint
 from busarm.apps.grasp import GraspPlan, GraspPlanner, NoClearGrasp
+from busarm.apps.pick_outcomes import BlockOutcome, RunReport
+from busarm.apps.pick_settings import ORDERS, PickSortSettings
 from busarm.apps.push import Push, PushPlanner
+from busarm.apps.table_view import SAME_BLOCK_MM, TableView, off_mm, same_block
 from busarm.errors import (
     BusArmError,
     ConfigError,
@@ -44,30 +54,9 @@ from busarm.errors import (
 )
 from busarm.robot import Robot
 from busarm.robot.locate import Sighting
-from busarm.robot.obstacles import Obstacle, refine
-from busarm.units import check_int_range, check_range
 
 FloatArray = npt.NDArray[np.float64]
 
-SAME_BLOCK_MM = 20.0
-"""Two sightings this close are the same block."""
-BIN_RADIUS_MM = 45.0
-"""A block seen this close to a bin's centre is in or at that bin: not to be picked."""
-IN_BIN_MM = 35.0
-"""A block whose centre is this close to its bin's centre is sorted: inside a 90 mm tray
-(a cube squared to the walls fits with its centre up to 28 mm off along each axis; the
-slots are 28 mm from the centre)."""
-BIN_SLOTS_MM = ((-20.0, -20.0), (20.0, -20.0), (-20.0, 20.0), (20.0, 20.0))
-"""Where blocks go in a bin (from its centre): 2 x 2, 10 mm apart (the camera sees them
-apart when it checks the bin)."""
-BIN_PLACES = (*((slot, 0) for slot in range(4)), (0, 1), (1, 1), (2, 1))
-"""The places a bin takes, in order: (slot, layer). The second layer stands square on the
-first, three blocks: a fourth would have a neighbour on both sides of both finger axes
-(a 10 mm gap takes no finger pad), and a third layer would stand above the tray's walls
-and the camera's view of it."""
-STACK_DROP_MM = 3.0
-"""A block for the second layer is let go this far above the first layer's tops."""
-ORDERS = ("nearest", "colors")
 OVER_THINGS_MM = 100.0
 """A carried block's bottom passes this high over things that are not blocks (a mug is
 about 95 mm tall)."""
@@ -75,108 +64,8 @@ CARRY_CLEARANCE_MM = 25.0
 """A carry passing this close to such a thing goes over it."""
 MAX_CYCLES = 150
 """Surveys a run makes at most (a cycle picks a block, or pushes one, or looks closer)."""
-MAX_EXTRA_LOOKS = 3
-"""A survey looks this many more times at most, facing blocks cut by its pictures' edges."""
 HOLD_SLACK_MM = 4.0
 """A gripper this little wider than a block, squeezing one, holds it (pads give a little)."""
-
-
-@dataclass(frozen=True)
-class PickSortSettings:
-    """Heights in mm above the table, speeds, and how hard to try."""
-
-    approach_mm: float = 60.0
-    carry_mm: float = 75.0
-    release_mm: float = 45.0
-    finger_clearance_mm: float = 10.0
-    """Opening beyond the block on each side when grasping (its yaw is known to a few deg)."""
-    min_finger_clearance_mm: float = 3.0
-    """Between close neighbours the fingers open down to this beyond the block a side."""
-    max_nudges: int = 2
-    """Pushes a boxed-in block gets before it is skipped."""
-    line_speed_mm_s: float = 200.0
-    joint_speed_deg_s: float = 180.0
-    max_attempts: int = 2
-    survey_frames: int = 2
-    order: str = "nearest"
-    """Which block next: ``nearest`` to the base, or ``colors``: by colour in the bins'
-    order, nearest first within a colour."""
-    look_closer_beyond_deg: float = 20.0
-    """A block seen further than this (bearing) from where the camera looked is looked at
-    again, the camera turned to face it, before the grasp (the picture's edges are where
-    the lens distorts most and a block is seen most from the side)."""
-    settle_s: float = 0.2
-    pause_above_c: float = 70.0
-    """A servo this hot pauses the run (arm at home, gripper open) ..."""
-    resume_below_c: float = 60.0
-    """... until every servo is this cool again (LX servos cut out at 85 C by default)."""
-    min_supply_v: float = 6.8
-    """A supply this low stops the run cleanly (LX servos go silent near 6 V)."""
-    max_pause_s: float = 600.0
-
-    def __post_init__(self) -> None:
-        if self.order not in ORDERS:
-            raise ConfigError(f"order = {self.order!r}; allowed: {', '.join(ORDERS)}")
-        if not self.resume_below_c < self.pause_above_c:
-            raise ConfigError(f"resume_below_c {self.resume_below_c:g} must be below "
-                              f"pause_above_c {self.pause_above_c:g}")
-        for name, lo, hi in (("approach_mm", 20.0, 200.0), ("carry_mm", 30.0, 250.0),
-                             ("finger_clearance_mm", 2.0, 40.0),
-                             ("min_finger_clearance_mm", 1.0, 40.0),
-                             ("pause_above_c", 40.0, 84.0),
-                             ("resume_below_c", 30.0, 83.0), ("min_supply_v", 4.5, 12.0),
-                             ("max_pause_s", 0.0, 3600.0),
-                             ("release_mm", 20.0, 200.0), ("line_speed_mm_s", 10.0, 400.0),
-                             ("look_closer_beyond_deg", 0.0, 180.0),
-                             ("joint_speed_deg_s", 10.0, 180.0), ("settle_s", 0.0, 5.0)):
-            check_range(name, getattr(self, name), lo, hi)
-        for name, ilo, ihi in (("max_attempts", 1, 10), ("survey_frames", 1, 20),
-                               ("max_nudges", 0, 10)):
-            check_int_range(name, getattr(self, name), ilo, ihi)
-
-
-@dataclass
-class BlockOutcome:
-    """What happened to one block."""
-
-    color: str
-    found_mm: tuple[float, float]
-    outcome: str = "pending"
-    """``sorted``, ``failed``, ``skipped`` or ``moved`` (gone from where it was seen after
-    a missed grasp; if it is seen elsewhere, it has a record of its own there)."""
-    reason: str = ""
-    placed_mm: tuple[float, float] | None = None
-    attempts: int = 0
-    seconds: float = 0.0
-    grasp_pitch_deg: float | None = None
-    """The tool's pitch at the last grasp: -90 straight down, else tilted."""
-
-    def to_dict(self) -> dict[str, object]:
-        return {"color": self.color, "found_mm": [round(v, 1) for v in self.found_mm],
-                "outcome": self.outcome, "reason": self.reason,
-                "placed_mm": None if self.placed_mm is None else
-                [round(v, 1) for v in self.placed_mm],
-                "attempts": self.attempts, "seconds": round(self.seconds, 2),
-                "grasp_pitch_deg": self.grasp_pitch_deg}
-
-
-@dataclass
-class RunReport:
-    blocks: list[BlockOutcome] = field(default_factory=list)
-    seconds: float = 0.0
-    stopped: str = ""
-    """Why the run stopped before the table was clear (empty if it did not)."""
-    gripper: str = ""
-    """The gripper's state when it stopped that way, as read back."""
-
-    def totals(self) -> dict[str, object]:
-        done = [b for b in self.blocks if b.outcome == "sorted"]
-        cycle = float(np.median([b.seconds for b in done])) if done else math.nan
-        return {"sorted": len(done),
-                "failed": sum(b.outcome == "failed" for b in self.blocks),
-                "skipped": sum(b.outcome == "skipped" for b in self.blocks),
-                "moved": sum(b.outcome == "moved" for b in self.blocks),
-                "median_cycle_s": round(cycle, 2), "seconds": round(self.seconds, 1)}
 
 
 class PickSorter:
@@ -210,25 +99,20 @@ class PickSorter:
         self.on_pick = on_pick or (lambda _: None)
         # Every wait and cycle time is on the arm's clock (a twin's simulated seconds).
         self.clock = arm.clock
-        # The last survey's pictures and what was found in each (for reports).
-        self.last_survey: list[tuple[npt.NDArray[np.uint8], list[Sighting]]] = []
         self.planner = GraspPlanner(arm.kin, locator.table_z_mm, locator.block_size_mm,
                                     self.settings.approach_mm, self.settings.carry_mm,
                                     pad_mm=arm.config.gripper.pad_mm)
         self.pusher = PushPlanner(self.planner, [Footprint.square(x, y, 2 * BIN_RADIUS_MM, 0.0)
                                                  for x, y in self.bins.values()])
-        # Every block the last survey saw: the neighbours a grasp must keep clear of.
-        self._seen: list[Sighting] = []
-        # Things seen since the last survey began that are not blocks (cast on the table).
-        self._obstacles: list[Footprint] = []
-        self._things: list[Obstacle] = []  # the same, as seen (refined by each look)
+        self.places = BinPlaces(self.bins, self.planner)
+        self.view = TableView(arm, self.camera, locator, self.bins, self.survey_poses,
+                              self.settings, lambda step: self.on_step(step))
         self._nudges: dict[int, int] = {}  # pushes per block record
         # Records seen boxed in when looked at closer, and how (until the table changes).
         self._boxed: dict[int, Sighting] = {}
         # Records of blocks pushed out of a group: (record, from, towards), until seen.
         self._pushed: dict[int, tuple[BlockOutcome, tuple[float, float],
                                       tuple[float, float]]] = {}
-        self._placed: dict[str, int] = {}
         # Where the survey saw a block that was found elsewhere when looked at closer.
         self._aliases: dict[int, list[tuple[float, float]]] = {}
         # The colour of the block in the fingers, from a good grip to its release.
@@ -238,98 +122,18 @@ class PickSorter:
 
     # ------------------------------------------------------------------ seeing
 
+    @property
+    def last_survey(self) -> list[tuple[npt.NDArray[np.uint8], list[Sighting]]]:
+        """The last survey's (or closer look's) pictures and what was found in each."""
+        return self.view.last_survey
+
     def survey(self) -> list[Sighting]:
-        """Every block seen from the survey poses, merged (averaged per pose), then from
-        poses turned to face what was cut by a picture's edge (the table may reach beyond
-        the survey's pictures). A block seen from several poses keeps its best sighting:
-        whole rather than cut, then the one nearest the middle of its picture (in
-        bearing)."""
-        seen: list[tuple[tuple[bool, float], Sighting]] = []
-        self.last_survey = []
-        self._obstacles, self._things = [], []
-        looked: list[float] = []
-        for pose in self.survey_poses:
-            self._merge(seen, pose)
-            looked.append(pose[0])
-        for _ in range(MAX_EXTRA_LOOKS):
-            cut = [v for _, v in seen if not v.whole and all(
-                abs(_bearing_deg(v) - b) > self.settings.look_closer_beyond_deg
-                for b in looked)]
-            if not cut:
-                break
-            bearing = _bearing_deg(cut[0])
-            looked.append(bearing)
-            try:
-                pose = self.arm.config.check_joints((bearing, *self.survey_poses[0][1:]))
-            except ConfigError:  # the base cannot turn that far
-                continue
-            self._merge(seen, pose)
-        self.on_step("survey")
-        return [sighting for _, sighting in seen]
-
-    def _merge(self, seen: list[tuple[tuple[bool, float], Sighting]],
-               pose: Sequence[float]) -> None:
-        """Look from ``pose`` and merge what is found into ``seen`` (see ``survey``)."""
-        image, found = self._look(pose)
-        self.last_survey.append((image, found))
-        for new in found:
-            rank = (not new.whole, abs(_bearing_deg(new) - pose[0]))
-            # A cut blob's location is rough: it may lie further from the whole one.
-            radius = SAME_BLOCK_MM if new.whole else 2 * SAME_BLOCK_MM
-            for i, (old_rank, old) in enumerate(seen):
-                if _same_block(old.color, old.location.x_mm, old.location.y_mm, new,
-                               radius if old.whole else 2 * SAME_BLOCK_MM):
-                    if rank < old_rank:
-                        seen[i] = (rank, new)
-                    break
-            else:
-                seen.append((rank, new))
-
-    def _look(self, pose: Sequence[float]) -> tuple[npt.NDArray[np.uint8], list[Sighting]]:
-        """The blocks seen from ``pose`` (frames averaged), and the last picture."""
-        s, arm = self.settings, self.arm
-        arm.move_joints(pose, speed_deg_s=s.joint_speed_deg_s)
-        self.clock.sleep(s.settle_s)
-        pictures = [(self.camera.read().image, arm.read_joints_deg())
-                    for _ in range(s.survey_frames)]
-        # Things that are not blocks, for the fingers and pushes to keep off.
-        self._things = refine(self._things, self.locator.obstacles(
-            *pictures[-1], [(x, y, 2 * BIN_RADIUS_MM) for x, y in self.bins.values()]))
-        self._obstacles = [Footprint(o.corners) for o in self._things]
-        return pictures[-1][0], self.locator.locate_averaged(pictures)
+        """Every block seen (``TableView.survey``)."""
+        return self.view.survey()
 
     def look_closer(self, target: Sighting, *, always: bool = False) -> Sighting | None:
-        """The block as seen with the camera turned to face it, if the survey saw it more
-        than ``look_closer_beyond_deg`` off to the side or cut by the picture's edge (or
-        ``always``); else ``target`` itself. None if it is not seen whole there when
-        looked at again."""
-        s, arm = self.settings, self.arm
-        x, y = target.location.x_mm, target.location.y_mm
-        bearing = _bearing_deg(target)
-        pose = min(self.survey_poses, key=lambda p: abs(bearing - p[0]))
-        if target.whole and abs(bearing - pose[0]) <= s.look_closer_beyond_deg and not always:
-            return target
-        try:
-            facing = arm.config.check_joints((bearing, *pose[1:]))
-        except ConfigError:  # the base cannot turn that far: the survey's sighting it is
-            return target if target.whole else None
-        image, found = self._look(facing)
-        self.last_survey = [(image, found)]
-        self.on_step("closer")
-        # The neighbours a grasp keeps clear of, as seen from here where seen whole.
-        self._seen = [v for v in found if v.whole] + [
-            old for old in self._seen if not any(
-                v.whole and _same_block(old.color, old.location.x_mm, old.location.y_mm, v,
-                                        (1 if old.whole else 3) * SAME_BLOCK_MM)
-                for v in found)]
-
-        # Cut by the picture's edge, it was seen only in part (or a group of touching
-        # blocks was): the nearest whole block of its colour about there is the one.
-        radius = (2 if target.whole else 3) * SAME_BLOCK_MM
-        same = sorted((v for v in found if v.whole and not self._in_a_bin(v)
-                       and _same_block(target.color, x, y, v, radius)),
-                      key=lambda v: _off_mm(v, x, y))
-        return same[0] if same else None
+        """``target`` seen facing it (``TableView.look_closer``)."""
+        return self.view.look_closer(target, always=always)
 
     # ------------------------------------------------------------------ moving
 
@@ -368,40 +172,6 @@ class PickSorter:
                                       f"{s.max_pause_s:g} s of rest", hot.servo_id)
             self.clock.sleep(2.0)
 
-    def _bin_spot(self, color: str) -> tuple[float, float, int, float]:
-        """Where in the bin the next block of ``color`` goes (``BIN_PLACES``): x, y, its
-        layer (0, 1), and the wrist roll that squares it to the bin's walls with the
-        fingers clear of the blocks already beside it in that layer."""
-        bx, by = self.bins[color]
-        k = self._placed.get(color, 0)
-        if k >= self.bin_capacity:
-            raise ConfigError(f"the {color} bin is full ({self.bin_capacity} blocks)")
-        self._placed[color] = k + 1
-        slot, layer = BIN_PLACES[k]
-        dx, dy = BIN_SLOTS_MM[slot]
-        beside = [BIN_SLOTS_MM[other] for other, lay in BIN_PLACES[:k] if lay == layer]
-        square = self.planner.roll_squared_deg(bx + dx, by + dy, 0.0)
-
-        def along_neighbours(roll: float) -> float:
-            """How much the fingers would close towards a block beside (0: across)."""
-            axis = math.radians(self.planner.finger_axis_deg(bx + dx, by + dy, roll))
-            return max((abs(math.cos(axis) * (ox - dx) + math.sin(axis) * (oy - dy))
-                        / math.hypot(ox - dx, oy - dy) for ox, oy in beside), default=0.0)
-
-        rolls = []
-        for roll in (square, square + 90.0, square - 90.0):
-            try:
-                rolls.append((round(along_neighbours(roll), 3), abs(roll), roll))
-            except UnreachableError:
-                continue
-        roll = min(rolls)[2] if rolls else square
-        return bx + dx, by + dy, layer, roll
-
-    @property
-    def bin_capacity(self) -> int:
-        """How many blocks a bin takes (``BIN_PLACES``)."""
-        return len(BIN_PLACES)
-
     def _retreat(self) -> None:
         """After a move that met something: stop and hold, then go straight up from
         where the arm stopped (the next survey moves on from there)."""
@@ -429,7 +199,7 @@ class PickSorter:
         arm, s = self.arm, self.settings
         loc = target.location
         push = self.pusher.plan(loc.x_mm, loc.y_mm, loc.yaw_deg, self._neighbours(target),
-                                self._gaps(), self._obstacles)
+                                self._gaps(), self.view.obstacles)
         if push is None:
             return None
         how = "" if push.frees else " (a grasp may not clear it even there)"
@@ -452,7 +222,7 @@ class PickSorter:
             # fingers held back by the block left the line's reach: up, and look again
             self.progress(f"the push stopped short ({exc}): backing off")
             self._retreat()
-        if self._obstacles:  # the way back to the survey could sweep into one
+        if self.view.obstacles:  # the way back to the survey could sweep into one
             self._rise()
         self.on_step("nudge")
         return push
@@ -495,7 +265,7 @@ class PickSorter:
                     None, plan)
         arm.move_line(*plan.lift, pitch, roll, speed_mm_s=s.line_speed_mm_s)
         self.on_step("lift")
-        bx, by, layer, square = self._bin_spot(target.color)
+        bx, by, layer, square = self.places.next_spot(target.color)
         # A second layer: carried higher over the first, set down just above it (a drop
         # from the first layer's height would bounce it off).
         size = self.locator.block_size_mm
@@ -514,7 +284,7 @@ class PickSorter:
         if not self._still_holding():
             self._holding = None
             arm.open_gripper(wait=False, gap_mm=gap)
-            self._placed[target.color] -= 1
+            self.places.take_back(target.color)
             return False, "the block slipped out during the carry", None, plan
         try:
             arm.move_line(bx, by, release_z, -90.0, square, speed_mm_s=s.line_speed_mm_s)
@@ -530,7 +300,7 @@ class PickSorter:
         """Whether a thing that is not a block lies near the carry from ``start`` to
         ``end`` (x, y mm): the way taken as the base turns, bearing and radius changing
         evenly."""
-        if not self._obstacles:
+        if not self.view.obstacles:
             return False
         (r0, a0), (r1, a1) = ((math.hypot(x, y), math.atan2(y, x)) for x, y in (start, end))
         turn = (a1 - a0 + math.pi) % (2 * math.pi) - math.pi
@@ -538,7 +308,7 @@ class PickSorter:
         for t in np.linspace(0.0, 1.0, 40):
             r, a = r0 + (r1 - r0) * t, a0 + turn * t
             here = Footprint.square(r * math.cos(a), r * math.sin(a), size, 0.0)
-            if any(here.overlaps(o, CARRY_CLEARANCE_MM) for o in self._obstacles):
+            if any(here.overlaps(o, CARRY_CLEARANCE_MM) for o in self.view.obstacles):
                 return True
         return False
 
@@ -557,7 +327,7 @@ class PickSorter:
                 arm.config.check_joints(pose)
             except ConfigError:
                 continue  # no look at it from here: the release is trusted
-            _, found = self._look(pose)
+            _, found = self.view.look(pose)
             inside = [v for v in found if v.color == color
                       and math.hypot(v.location.x_mm - bx, v.location.y_mm - by) < IN_BIN_MM]
             # A block of the second layer hides the one it stands on: the camera sees one
@@ -601,21 +371,22 @@ class PickSorter:
 
     def _cycle(self, report: RunReport) -> bool:
         """Survey, then pick and place the next block; False if there is none to pick."""
-        seen = self._seen = self.survey()
+        seen = self.survey()
         for outcome in report.blocks:
             # Missed, and no longer where it was: someone moved it. It is looked for
             # afresh (a new record if it is seen elsewhere).
             if outcome.outcome == "pending" and outcome.attempts and not any(
-                    _same_block(outcome.color, *outcome.found_mm, s) for s in seen):
+                    same_block(outcome.color, *outcome.found_mm, s) for s in seen):
                 outcome.outcome = "moved"
                 outcome.reason = "not where it was after a missed grasp: it was moved"
         candidates: list[tuple[tuple[int, float], Sighting, BlockOutcome]] = []
         boxed_in: list[tuple[BlockOutcome, str, Sighting]] = []
         # A blob split into touching blocks is in a bin if any of them is (blocks side by
         # side in a bin can look like one blob).
-        binned = {id(v.detection) for v in seen if v.detection is not None and self._in_a_bin(v)}
+        binned = {id(v.detection) for v in seen
+                  if v.detection is not None and self.view.in_a_bin(v)}
         for sighting in seen:
-            if self._in_a_bin(sighting) or id(sighting.detection) in binned:
+            if self.view.in_a_bin(sighting) or id(sighting.detection) in binned:
                 continue  # sorted already
             outcome = self._outcome_for(sighting, report)
             if outcome.outcome != "pending":
@@ -719,14 +490,10 @@ class PickSorter:
             return f"holding a {self._holding} block ({said})"
         return f"open ({said})"
 
-    def _in_a_bin(self, sighting: Sighting) -> bool:
-        return any(math.hypot(sighting.location.x_mm - bx, sighting.location.y_mm - by)
-                   < BIN_RADIUS_MM for bx, by in self.bins.values())
-
     def _outcome_for(self, sighting: Sighting, report: RunReport) -> BlockOutcome:
         """The record of this block: one already made where it was seen, or a new one."""
         for outcome in report.blocks:
-            if _same_block(outcome.color, *outcome.found_mm, sighting):
+            if same_block(outcome.color, *outcome.found_mm, sighting):
                 if outcome.outcome == "sorted":
                     # Sorted, yet seen where it was: it did not go (a slip). Try again.
                     outcome.outcome, outcome.placed_mm = "pending", None
@@ -734,7 +501,7 @@ class PickSorter:
                 return outcome
         for outcome in report.blocks:  # seen where the survey saw it, not as seen closer
             if outcome.outcome == "pending" and any(
-                    _same_block(outcome.color, x, y, sighting)
+                    same_block(outcome.color, x, y, sighting)
                     for x, y in self._aliases.get(id(outcome), ())):
                 return outcome
         here = np.array([sighting.location.x_mm, sighting.location.y_mm])
@@ -755,8 +522,8 @@ class PickSorter:
         """Why this block is not to be picked ("" if it is)."""
         if sighting.color not in self.bins:
             return f"no bin for {sighting.color}"
-        if self._placed.get(sighting.color, 0) >= self.bin_capacity:
-            return f"bin full: the {sighting.color} bin holds {self.bin_capacity} blocks"
+        if self.places.is_full(sighting.color):
+            return f"bin full: the {sighting.color} bin holds {self.places.capacity} blocks"
         if not sighting.whole:
             return ""  # where it is, and so whether it is reached, is known after a closer look
         if not sighting.reachable:
@@ -773,15 +540,15 @@ class PickSorter:
         """A grasp of ``target`` that keeps the fingers off every other block seen."""
         loc = target.location
         return self.planner.plan(loc.x_mm, loc.y_mm, loc.yaw_deg, self._neighbours(target),
-                                 self._gaps(), self._obstacles)
+                                 self._gaps(), self.view.obstacles)
 
     def _neighbours(self, target: Sighting) -> list[Footprint]:
         """The footprints of every other block the last survey saw."""
         loc, size = target.location, self.locator.block_size_mm
         return [Footprint.square(v.location.x_mm, v.location.y_mm, size, v.location.yaw_deg)
-                for v in self._seen
-                if not _same_block(target.color, loc.x_mm, loc.y_mm, v)
-                and _off_mm(v, loc.x_mm, loc.y_mm) > size / 2]
+                for v in self.view.seen
+                if not same_block(target.color, loc.x_mm, loc.y_mm, v)
+                and off_mm(v, loc.x_mm, loc.y_mm) > size / 2]
 
     def _gaps(self) -> list[float]:
         """How far apart the fingers may open for a grasp, widest first."""
@@ -796,16 +563,5 @@ def _mm(xy: tuple[float, float]) -> str:
     return f"({xy[0]:.0f}, {xy[1]:.0f}) mm"
 
 
-def _same_block(color: str, x_mm: float, y_mm: float, seen: Sighting,
-                radius_mm: float = SAME_BLOCK_MM) -> bool:
-    """Whether ``seen`` is the block of ``color`` seen at (x, y) before."""
-    return seen.color == color and _off_mm(seen, x_mm, y_mm) < radius_mm
-
-
-def _off_mm(seen: Sighting, x_mm: float, y_mm: float) -> float:
-    return math.hypot(seen.location.x_mm - x_mm, seen.location.y_mm - y_mm)
-
-
-def _bearing_deg(seen: Sighting) -> float:
-    return math.degrees(math.atan2(seen.location.y_mm, seen.location.x_mm))
-
+__all__ = ["BIN_PLACES", "BIN_SLOTS_MM", "IN_BIN_MM", "ORDERS", "BlockOutcome", "PickSortSettings",
+           "PickSorter", "RunReport"]
