@@ -88,7 +88,8 @@ def _look(calibration: tuple[Path, Path], scene: Scene) -> Look:
         joints = robot.arm.read_joints_deg()
         locator = robot.locator()
         obstacles = locator.obstacles(
-            image, joints, [(x, y, BIN_SIDE_MM) for x, y in robot.bins.values()])
+            image, joints, [(x, y, BIN_SIDE_MM) for x, y in robot.bins.values()],
+            locator.locate(image, joints))
         base2cam = np.linalg.inv(locator.cam2base(joints))
         intrinsics = robot.require_camera_calibration().intrinsics
         table_z = robot.config.table_z_mm

@@ -44,6 +44,10 @@ class BinPlaces:
     def is_full(self, color: str) -> bool:
         return self._placed.get(color, 0) >= self.capacity
 
+    def next_layer(self, color: str) -> int:
+        """The layer the next block of ``color`` goes to (0, 1)."""
+        return BIN_PLACES[min(self._placed.get(color, 0), self.capacity - 1)][1]
+
     def take_back(self, color: str) -> None:
         """The last place taken for ``color`` is free again (its block did not get there)."""
         self._placed[color] -= 1
@@ -76,8 +80,3 @@ class BinPlaces:
                 continue
         roll = min(rolls)[2] if rolls else square
         return bx + dx, by + dy, layer, roll
-
-    @property
-    def bin_capacity(self) -> int:
-        """How many blocks a bin takes (``BIN_PLACES``)."""
-        return len(BIN_PLACES)

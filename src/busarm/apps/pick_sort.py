@@ -64,6 +64,9 @@ CARRY_CLEARANCE_MM = 25.0
 """A carry passing this close to such a thing goes over it."""
 MAX_CYCLES = 150
 """Surveys a run makes at most (a cycle picks a block, or pushes one, or looks closer)."""
+STAGING_RADII_MM = (150.0, 170.0, 190.0, 210.0)
+STAGING_BEARINGS_DEG = tuple(range(-40, 41, 10))
+"""Where a block taken tilted may be set down to be taken again straight down."""
 HOLD_SLACK_MM = 4.0
 """A gripper this little wider than a block, squeezing one, holds it (pads give a little)."""
 
@@ -238,6 +241,12 @@ class PickSorter:
         # Open no wider than the neighbours allow (the plan chose it).
         gap = plan.gap_mm
         arm.open_gripper(wait=False, gap_mm=gap)
+        tool = arm.read_pose()
+        if self._thing_on_the_way((tool.x_mm, tool.y_mm), plan.above[:2]):
+            # Over the thing that is not a block first, then down to the approach.
+            over = (*plan.above[:2], z0 + OVER_THINGS_MM + self.locator.block_size_mm)
+            with contextlib.suppress(UnreachableError):
+                arm.move_to(*over, pitch, roll, speed_deg_s=s.joint_speed_deg_s)
         try:
             arm.move_to(*plan.above, pitch, roll, speed_deg_s=s.joint_speed_deg_s)
         except MotionTimeoutError as exc:  # the arm met something on its way: an event
@@ -265,6 +274,13 @@ class PickSorter:
                     None, plan)
         arm.move_line(*plan.lift, pitch, roll, speed_mm_s=s.line_speed_mm_s)
         self.on_step("lift")
+        if pitch != -90.0 and self.places.next_layer(target.color) == 1:
+            # Taken tilted, it turns with the tool and would lean when set down straight:
+            # a first layer forgives that, a second does not. Put down to be taken again.
+            stage = self._staging_spot(target)
+            if stage is not None:
+                self._set_down(stage, gap)
+                raise _Restaged(stage)
         bx, by, layer, square = self.places.next_spot(target.color)
         # A second layer: carried higher over the first, set down just above it (a drop
         # from the first layer's height would bounce it off).
@@ -295,6 +311,47 @@ class PickSorter:
         self.on_step("release")
         arm.move_line(bx, by, carry_z, -90.0, square, speed_mm_s=s.line_speed_mm_s)
         return True, "", (bx, by), plan
+
+    def _staging_spot(self, held: Sighting) -> tuple[float, float] | None:
+        """A free place on the table, nearest the base, where a block set down can be
+        taken straight down: clear of every other block, thing and bin by a finger's
+        room; None if there is none."""
+        size = self.locator.block_size_mm
+        room = size + 2 * (self.planner.pad_mm[0] + self.settings.finger_clearance_mm)
+        loc = held.location
+        others = [Footprint.square(v.location.x_mm, v.location.y_mm, size,
+                                   v.location.yaw_deg) for v in self.view.seen
+                  if off_mm(v, loc.x_mm, loc.y_mm) > size / 2]
+        keep_off = [*others, *self.view.obstacles,
+                    *(Footprint.square(x, y, 2 * BIN_RADIUS_MM, 0.0)
+                      for x, y in self.bins.values())]
+        for radius in STAGING_RADII_MM:
+            for bearing in STAGING_BEARINGS_DEG:
+                x = radius * math.cos(math.radians(bearing))
+                y = radius * math.sin(math.radians(bearing))
+                if any(Footprint.square(x, y, room, 0.0).overlaps(k) for k in keep_off):
+                    continue
+                try:
+                    if self.planner.plan(x, y, 0.0, others, self._gaps(),
+                                         self.view.obstacles).pitch_deg == -90.0:
+                        return x, y
+                except UnreachableError:
+                    continue
+        return None
+
+    def _set_down(self, spot: tuple[float, float], gap_mm: float) -> None:
+        """Set the held block down at ``spot`` straight down, let go, and rise."""
+        arm, s = self.arm, self.settings
+        z0 = self.locator.table_z_mm
+        roll = self.planner.roll_squared_deg(*spot, 0.0)
+        arm.move_to(*spot, z0 + s.carry_mm, -90.0, roll, speed_deg_s=s.joint_speed_deg_s)
+        try:
+            arm.move_line(*spot, z0 + s.release_mm, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
+        except MotionTimeoutError:  # it rests on something: let go there
+            arm.stop()
+        self._holding = None
+        arm.open_gripper(gap_mm=gap_mm)
+        arm.move_line(*spot, z0 + s.carry_mm, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
 
     def _thing_on_the_way(self, start: Sequence[float], end: Sequence[float]) -> bool:
         """Whether a thing that is not a block lies near the carry from ``start`` to
@@ -436,6 +493,7 @@ class PickSorter:
             self.progress(f"skip {target.color} at {_mm(outcome.found_mm)}: {reason}")
             return True
         outcome.attempts += 1
+        restaged: tuple[float, float] | None = None
         if closer is None:
             held, why, placed = False, "not seen whole when looked at closer", None
         else:
@@ -449,6 +507,10 @@ class PickSorter:
             try:
                 held, why, placed, plan = self.pick_and_place(closer)
                 outcome.grasp_pitch_deg = plan.pitch_deg
+            except _Restaged as exc:  # set down to be taken straight down: no attempt
+                held, why, placed = False, str(exc), None
+                outcome.attempts -= 1
+                restaged = exc.spot_mm
             except NoClearGrasp as exc:  # seen closer, the neighbours are in the way:
                 held, why, placed = False, str(exc), None  # no attempt; boxed in
                 outcome.attempts -= 1
@@ -460,7 +522,11 @@ class PickSorter:
                     self.arm.open_gripper()
                 held, why, placed = False, f"a move met something ({exc}): backed off", None
         outcome.seconds += self.clock.now() - t0
-        if held:
+        if restaged is not None:  # its record goes with it (after saying where from)
+            self.progress(f"{target.color} from {_mm(outcome.found_mm)}: {why}")
+            outcome.found_mm = restaged
+            self._boxed.clear()  # where it was is free now
+        elif held:
             self._boxed.clear()  # a neighbour gone may have freed them
             outcome.outcome, outcome.placed_mm = "sorted", placed
             self.progress(f"{target.color} from {_mm(outcome.found_mm)} into its bin "
@@ -492,13 +558,18 @@ class PickSorter:
 
     def _outcome_for(self, sighting: Sighting, report: RunReport) -> BlockOutcome:
         """The record of this block: one already made where it was seen, or a new one."""
-        for outcome in report.blocks:
-            if same_block(outcome.color, *outcome.found_mm, sighting):
-                if outcome.outcome == "sorted":
-                    # Sorted, yet seen where it was: it did not go (a slip). Try again.
-                    outcome.outcome, outcome.placed_mm = "pending", None
-                self._pushed.pop(id(outcome), None)
-                return outcome
+        # Of the records made about here, one still waiting first (a block set down
+        # where one was picked before is that one), then the nearest.
+        near = sorted((outcome for outcome in report.blocks
+                       if same_block(outcome.color, *outcome.found_mm, sighting)),
+                      key=lambda o: (o.outcome != "pending", off_mm(sighting, *o.found_mm)))
+        if near:
+            outcome = near[0]
+            if outcome.outcome == "sorted":
+                # Sorted, yet seen where it was: it did not go (a slip). Try again.
+                outcome.outcome, outcome.placed_mm = "pending", None
+            self._pushed.pop(id(outcome), None)
+            return outcome
         for outcome in report.blocks:  # seen where the survey saw it, not as seen closer
             if outcome.outcome == "pending" and any(
                     same_block(outcome.color, x, y, sighting)
@@ -556,6 +627,15 @@ class PickSorter:
         return [size + 2 * c for c in (s.finger_clearance_mm,
                                        (s.finger_clearance_mm + s.min_finger_clearance_mm) / 2,
                                        s.min_finger_clearance_mm)]
+
+
+class _Restaged(Exception):
+    """A block taken tilted for a second layer was set down to be taken straight down."""
+
+    def __init__(self, spot_mm: tuple[float, float]) -> None:
+        super().__init__(f"taken tilted, it would lean on the second layer: set down at "
+                         f"{_mm(spot_mm)} to be taken straight down")
+        self.spot_mm = spot_mm
 
 
 def _mm(xy: tuple[float, float]) -> str:

@@ -104,10 +104,12 @@ class TableView:
         pictures = [(self.camera.read().image, arm.read_joints_deg())
                     for _ in range(s.survey_frames)]
         # Things that are not blocks, for the fingers and pushes to keep off.
+        found = self.locator.locate_averaged(pictures)
         self.things = refine(self.things, self.locator.obstacles(
-            *pictures[-1], [(x, y, 2 * BIN_RADIUS_MM) for x, y in self.bins.values()]))
+            *pictures[-1], [(x, y, 2 * BIN_RADIUS_MM) for x, y in self.bins.values()],
+            found))
         self.obstacles = [Footprint(o.corners) for o in self.things]
-        return pictures[-1][0], self.locator.locate_averaged(pictures)
+        return pictures[-1][0], found
 
     def look_closer(self, target: Sighting, *, always: bool = False) -> Sighting | None:
         """The block as seen with the camera turned to face it, if the survey saw it more

@@ -601,9 +601,10 @@ class Arm:
         a grasp needs, to miss a neighbour); returns its position in pulses."""
         g = self.config.gripper
         target = g.open_pulses if gap_mm is None else g.pulses_for_gap_mm(gap_mm)
-        self._guarded(lambda: self._gripper_move(target, g.grip_time_s))
+        duration = self._gripper_travel_s(target)
+        self._guarded(lambda: self._gripper_move(target, duration))
         if wait:
-            return self._settle_gripper(target, g.grip_time_s)
+            return self._settle_gripper(target, duration)
         return target
 
     def grip(self, position_pulses: int | None = None) -> GripResult:
@@ -615,14 +616,20 @@ class Arm:
         g = self.config.gripper
         target = g.closed_pulses if position_pulses is None else position_pulses
         g.check_pulses(target)
-        travel = abs(target - self.read_gripper_pulses())
-        duration = max(0.05, g.grip_time_s * travel / abs(g.closed_pulses - g.open_pulses))
+        duration = self._gripper_travel_s(target)
         self._guarded(lambda: self._gripper_move(target, duration))
         final = self._settle_gripper(target, duration)
         holding = abs(target - final) > g.holding_margin_pulses
         return GripResult(final, holding, target)
 
     close_gripper = grip
+
+    def _gripper_travel_s(self, target: int) -> float:
+        """How long the gripper takes from where it is to ``target``: its full travel's
+        ``grip_time_s``, in proportion (a short opening is quick)."""
+        g = self.config.gripper
+        travel = abs(target - self.read_gripper_pulses())
+        return max(0.05, g.grip_time_s * travel / abs(g.closed_pulses - g.open_pulses))
 
     def _settle_gripper(self, target: int, duration_s: float) -> int:
         """Wait for the gripper to arrive or stop moving (blocked); its final position."""

@@ -172,12 +172,36 @@ class BlockLocator:
         return out + self._locate_single(single, cam2base, w, h)
 
     def obstacles(self, image: npt.NDArray[np.uint8], joints_deg: Sequence[float],
-                  bins: Sequence[tuple[float, float, float]] = ()) -> list[Obstacle]:
+                  bins: Sequence[tuple[float, float, float]] = (),
+                  blocks: Sequence[Sighting] = ()) -> list[Obstacle]:
         """Things in ``image`` that are not blocks (``busarm.robot.obstacles``), cast onto
-        the table; ``bins``: (x, y, side mm) of each tray."""
-        blocks = self.detector.detect(image)
-        return find_obstacles(image, blocks, self.intrinsics, self.cam2base(joints_deg),
-                              self.table_z_mm, bins)
+        the table; ``bins``: (x, y, side mm) of each tray; ``blocks``: the blocks located
+        in it, whose whole cubes (a side face in shade looks like no colour) are not
+        things."""
+        cam2base = self.cam2base(joints_deg)
+        outlines = [d.contour_px for d in self.detector.detect(image)]
+        for block in blocks:
+            outline = self._cube_outline_px(block.location, cam2base)
+            if outline is not None:
+                outlines.append(outline)
+        return find_obstacles(image, outlines, self.intrinsics, cam2base, self.table_z_mm,
+                              bins)
+
+    def _cube_outline_px(self, loc: BlockLocation, cam2base: FloatArray
+                         ) -> npt.NDArray[np.int32] | None:
+        """The picture's outline of the whole cube at ``loc`` (its corners' hull)."""
+        a, half = math.radians(loc.yaw_deg), self.block_size_mm / 2
+        corners = [(loc.x_mm + half * (su * math.cos(a) - sv * math.sin(a)),
+                    loc.y_mm + half * (su * math.sin(a) + sv * math.cos(a)), z)
+                   for su in (-1, 1) for sv in (-1, 1)
+                   for z in (self.table_z_mm, self.table_z_mm + self.block_size_mm)]
+        base2cam = np.linalg.inv(cam2base)
+        p_cam = np.array(corners) @ base2cam[:3, :3].T + base2cam[:3, 3]
+        try:
+            px = self.intrinsics.pixels_from_camera_points(p_cam)
+        except VisionError:
+            return None
+        return np.asarray(cv2.convexHull(px.astype(np.float32)).reshape(-1, 2), np.int32)
 
     def _locate_single(self, detections: list[Detection], cam2base: FloatArray, w: int,
                        h: int) -> list[Sighting]:

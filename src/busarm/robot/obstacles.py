@@ -22,7 +22,6 @@ import numpy.typing as npt
 
 from busarm.errors import VisionError
 from busarm.vision.calibration import CameraIntrinsics
-from busarm.vision.color import Detection
 from busarm.vision.localize import table_points_from_pixels
 
 FloatArray = npt.NDArray[np.float64]
@@ -63,13 +62,13 @@ class Obstacle:
         return float(c[0]), float(c[1])
 
 
-def find_obstacles(image: npt.NDArray[np.uint8], blocks: Sequence[Detection],
+def find_obstacles(image: npt.NDArray[np.uint8], blocks: Sequence[npt.NDArray[np.int32]],
                    intrinsics: CameraIntrinsics, cam2base: FloatArray, table_z_mm: float,
                    bins: Sequence[tuple[float, float, float]] = ()) -> list[Obstacle]:
     """Things in ``image`` (RGB) that are neither the table nor ``blocks`` (their
-    detections), cast onto the table; ``bins``: (x, y, side mm) of each tray, not
-    obstacles. Pieces of one thing (a lit top, a shaded side) cast close together are one
-    obstacle."""
+    outlines in the picture, N x 2 pixels), cast onto the table; ``bins``: (x, y, side
+    mm) of each tray, not obstacles. Pieces of one thing (a lit top, a shaded side) cast
+    close together are one obstacle."""
     found = _thing_blobs(image, blocks)
     if found is None:
         return []
@@ -121,7 +120,7 @@ def refine(seen: Sequence[Obstacle], new: Sequence[Obstacle]) -> list[Obstacle]:
     return out + [n for i, n in enumerate(new) if i not in used]
 
 
-def _thing_blobs(image: npt.NDArray[np.uint8], blocks: Sequence[Detection]
+def _thing_blobs(image: npt.NDArray[np.uint8], blocks: Sequence[npt.NDArray[np.int32]]
                  ) -> tuple[npt.NDArray[np.uint8], FloatArray, float] | None:
     """The mask of pixels that are neither table nor block, the brightness, and the
     table's brightness; None if the picture shows little table."""
@@ -133,10 +132,9 @@ def _thing_blobs(image: npt.NDArray[np.uint8], blocks: Sequence[Detection]
     table = float(np.median(val[plain]))
     mask = ((val < DARK * table) | ((val > BRIGHT * table) & (sat < WHITE_SATURATION)))
     mask_u8 = mask.astype(np.uint8)
-    for d in blocks:
-        cv2.drawContours(mask_u8, [d.contour_px.reshape(-1, 1, 2)], -1, 0, -1)
-        cv2.drawContours(mask_u8, [d.contour_px.reshape(-1, 1, 2)], -1, 0,
-                         2 * BLOCK_MARGIN_PX)
+    for outline in blocks:
+        cv2.drawContours(mask_u8, [outline.reshape(-1, 1, 2)], -1, 0, -1)
+        cv2.drawContours(mask_u8, [outline.reshape(-1, 1, 2)], -1, 0, 2 * BLOCK_MARGIN_PX)
     opened = cv2.morphologyEx(mask_u8, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
     return np.asarray(opened, np.uint8), val, table
 
