@@ -4,9 +4,10 @@ roll that sets it down square with the fingers clear of the blocks beside it."""
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
-from busarm.apps.grasp import GraspPlanner
+from busarm.apps.footprint import Footprint
+from busarm.apps.grasp import GraspPlan, GraspPlanner
 from busarm.errors import ConfigError, UnreachableError
 
 BIN_RADIUS_MM = 45.0
@@ -52,10 +53,12 @@ class BinPlaces:
         """The last place taken for ``color`` is free again (its block did not get there)."""
         self._placed[color] -= 1
 
-    def next_spot(self, color: str) -> tuple[float, float, int, float]:
+    def next_spot(self, color: str, things: Sequence[Footprint] = (), gap_mm: float = 0.0,
+                  release_z_mm: float = 0.0) -> tuple[float, float, int, float]:
         """Where in the bin the next block of ``color`` goes (``BIN_PLACES``): x, y, its
         layer (0, 1), and the wrist roll that squares it to the bin's walls with the
-        fingers clear of the blocks already beside it in that layer."""
+        fingers clear of the blocks already beside it in that layer, and, opened
+        ``gap_mm`` to let go at ``release_z_mm``, of ``things`` beside the bin."""
         bx, by = self.bins[color]
         k = self._placed.get(color, 0)
         if k >= self.capacity:
@@ -72,11 +75,19 @@ class BinPlaces:
             return max((abs(math.cos(axis) * (ox - dx) + math.sin(axis) * (oy - dy))
                         / math.hypot(ox - dx, oy - dy) for ox, oy in beside), default=0.0)
 
+        def on_a_thing(roll: float) -> bool:
+            if not things:
+                return False
+            at = (bx + dx, by + dy, release_z_mm)
+            pads = self.planner.pads(GraspPlan(-90.0, roll, at, at, at), gap_mm, tall=True)
+            return any(p.overlaps(t, self.planner.margin_mm) for p in pads for t in things)
+
         rolls = []
         for roll in (square, square + 90.0, square - 90.0):
             try:
-                rolls.append((round(along_neighbours(roll), 3), abs(roll), roll))
+                rolls.append((on_a_thing(roll), round(along_neighbours(roll), 3), abs(roll),
+                              roll))
             except UnreachableError:
                 continue
-        roll = min(rolls)[2] if rolls else square
+        roll = min(rolls)[-1] if rolls else square
         return bx + dx, by + dy, layer, roll

@@ -281,12 +281,13 @@ class PickSorter:
             if stage is not None:
                 self._set_down(stage, gap)
                 raise _Restaged(stage)
-        bx, by, layer, square = self.places.next_spot(target.color)
         # A second layer: carried higher over the first, set down just above it (a drop
         # from the first layer's height would bounce it off).
-        size = self.locator.block_size_mm
+        size, layer = self.locator.block_size_mm, self.places.next_layer(target.color)
         carry_z = z0 + s.carry_mm + layer * size
         release_z = z0 + (s.release_mm if layer == 0 else size + STACK_DROP_MM + size / 2)
+        bx, by, _, square = self.places.next_spot(target.color, self.view.obstacles, gap,
+                                                  release_z)
         if self._thing_on_the_way(plan.lift[:2], (bx, by)):
             # Something that is not a block (of a height not known) near the way: over it
             # at the height of the tallest cup a desk has.

@@ -60,6 +60,10 @@ MAX_SPLIT = 4
 SIDES_SHOWN = 0.7
 """A single block's blob with less than this much of its visible side faces in it is
 located by its top face's outline rather than by its whole silhouette."""
+BIN_WALL_MM = 15.0
+"""A tray's walls are this high at most (the twin's are 12 mm)."""
+BIN_MARGIN_MM = 5.0
+"""A tray is taken this much wider a side, not to see its rim's shadow as a thing."""
 MATCH_RADIUS_MM = 20.0
 """Sightings of one block in several pictures are closer than this."""
 
@@ -175,26 +179,29 @@ class BlockLocator:
                   bins: Sequence[tuple[float, float, float]] = (),
                   blocks: Sequence[Sighting] = ()) -> list[Obstacle]:
         """Things in ``image`` that are not blocks (``busarm.robot.obstacles``), cast onto
-        the table; ``bins``: (x, y, side mm) of each tray; ``blocks``: the blocks located
-        in it, whose whole cubes (a side face in shade looks like no colour) are not
-        things."""
+        the table; ``bins``: (x, y, side mm) of each tray, and ``blocks``: the blocks
+        located in it, are not things (a block's side face in shade looks like no colour).
+        """
         cam2base = self.cam2base(joints_deg)
         outlines = [d.contour_px for d in self.detector.detect(image)]
-        for block in blocks:
-            outline = self._cube_outline_px(block.location, cam2base)
+        boxes = [(b.location.x_mm, b.location.y_mm, self.block_size_mm, b.location.yaw_deg,
+                  self.block_size_mm) for b in blocks]
+        boxes += [(x, y, side + 2 * BIN_MARGIN_MM, 0.0, BIN_WALL_MM) for x, y, side in bins]
+        for box in boxes:
+            outline = self._box_outline_px(*box, cam2base)
             if outline is not None:
                 outlines.append(outline)
-        return find_obstacles(image, outlines, self.intrinsics, cam2base, self.table_z_mm,
-                              bins)
+        return find_obstacles(image, outlines, self.intrinsics, cam2base, self.table_z_mm)
 
-    def _cube_outline_px(self, loc: BlockLocation, cam2base: FloatArray
-                         ) -> npt.NDArray[np.int32] | None:
-        """The picture's outline of the whole cube at ``loc`` (its corners' hull)."""
-        a, half = math.radians(loc.yaw_deg), self.block_size_mm / 2
-        corners = [(loc.x_mm + half * (su * math.cos(a) - sv * math.sin(a)),
-                    loc.y_mm + half * (su * math.sin(a) + sv * math.cos(a)), z)
+    def _box_outline_px(self, x_mm: float, y_mm: float, side_mm: float, yaw_deg: float,
+                        height_mm: float, cam2base: FloatArray) -> npt.NDArray[np.int32] | None:
+        """The picture's outline of a square box standing on the table (its corners'
+        hull); None if part of it is behind the camera."""
+        a, half = math.radians(yaw_deg), side_mm / 2
+        corners = [(x_mm + half * (su * math.cos(a) - sv * math.sin(a)),
+                    y_mm + half * (su * math.sin(a) + sv * math.cos(a)), z)
                    for su in (-1, 1) for sv in (-1, 1)
-                   for z in (self.table_z_mm, self.table_z_mm + self.block_size_mm)]
+                   for z in (self.table_z_mm, self.table_z_mm + height_mm)]
         base2cam = np.linalg.inv(cam2base)
         p_cam = np.array(corners) @ base2cam[:3, :3].T + base2cam[:3, 3]
         try:

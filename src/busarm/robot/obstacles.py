@@ -4,10 +4,10 @@ camera sees them, cast onto the table, for the fingers and the pushes to keep of
 The table is what most of the picture's unsaturated pixels show; its brightness is their
 median. A pixel much darker than that (darker than a shadow: a lamp's share of the light
 is a third at most) or much brighter and unsaturated (a white thing under the same light)
-is something else. Blobs of such pixels, less the blocks' own blobs, the arm's own black
-parts, and what lies on the arm's base or a bin, are cast onto the table plane. A thing
-standing up casts further than its foot (its top is higher), so the cast covers at least
-what it stands on: its convex hull is kept off.
+is something else. Blobs of such pixels, less the blocks and trays (their outlines, from
+where they are known to be), the arm's own black parts and what lies on its base, are
+cast onto the table plane. A thing standing up casts further than its foot (its top is
+higher), so the cast covers at least what it stands on: its convex hull is kept off.
 """
 
 from __future__ import annotations
@@ -43,7 +43,6 @@ BLOCK_MARGIN_PX = 5
 """The blocks' own blobs, grown this much, are not obstacles (their dark edges)."""
 BASE_KEEP_OUT_MM = 80.0
 """What lies this close to the arm's axis is the arm's own base."""
-BIN_MARGIN_MM = 10.0
 PIECE_GAP_MM = 10.0
 """Casts this close are pieces of one thing (its lit top and a shaded side, say)."""
 
@@ -62,14 +61,13 @@ class Obstacle:
         return float(c[0]), float(c[1])
 
 
-def find_obstacles(image: npt.NDArray[np.uint8], blocks: Sequence[npt.NDArray[np.int32]],
-                   intrinsics: CameraIntrinsics, cam2base: FloatArray, table_z_mm: float,
-                   bins: Sequence[tuple[float, float, float]] = ()) -> list[Obstacle]:
-    """Things in ``image`` (RGB) that are neither the table nor ``blocks`` (their
-    outlines in the picture, N x 2 pixels), cast onto the table; ``bins``: (x, y, side
-    mm) of each tray, not obstacles. Pieces of one thing (a lit top, a shaded side) cast
-    close together are one obstacle."""
-    found = _thing_blobs(image, blocks)
+def find_obstacles(image: npt.NDArray[np.uint8], known: Sequence[npt.NDArray[np.int32]],
+                   intrinsics: CameraIntrinsics, cam2base: FloatArray, table_z_mm: float
+                   ) -> list[Obstacle]:
+    """Things in ``image`` (RGB) that are neither the table nor ``known`` (the outlines
+    of blocks and trays in the picture, N x 2 pixels), cast onto the table. Pieces of one
+    thing (a lit top, a shaded side) cast close together are one obstacle."""
+    found = _thing_blobs(image, known)
     if found is None:
         return []
     mask, val, table = found
@@ -89,11 +87,8 @@ def find_obstacles(image: npt.NDArray[np.uint8], blocks: Sequence[npt.NDArray[np
             cast = table_points_from_pixels(hull, intrinsics, cam2base, table_z_mm)[:, :2]
         except VisionError:
             continue  # part of it above the horizon: no thing on the table
-        centre = cast.mean(axis=0)
-        if math.hypot(*centre) < BASE_KEEP_OUT_MM or any(
-                abs(centre[0] - bx) < side / 2 + BIN_MARGIN_MM
-                and abs(centre[1] - by) < side / 2 + BIN_MARGIN_MM for bx, by, side in bins):
-            continue
+        if math.hypot(*cast.mean(axis=0)) < BASE_KEEP_OUT_MM:
+            continue  # the arm's own base
         whole = not (pts[:, 0].min() <= 0 or pts[:, 1].min() <= 0 or pts[:, 0].max() >= w - 1)
         out.append(Obstacle(_hull_mm(cast), whole))
     return _merged(out)
@@ -120,7 +115,7 @@ def refine(seen: Sequence[Obstacle], new: Sequence[Obstacle]) -> list[Obstacle]:
     return out + [n for i, n in enumerate(new) if i not in used]
 
 
-def _thing_blobs(image: npt.NDArray[np.uint8], blocks: Sequence[npt.NDArray[np.int32]]
+def _thing_blobs(image: npt.NDArray[np.uint8], known: Sequence[npt.NDArray[np.int32]]
                  ) -> tuple[npt.NDArray[np.uint8], FloatArray, float] | None:
     """The mask of pixels that are neither table nor block, the brightness, and the
     table's brightness; None if the picture shows little table."""
@@ -132,7 +127,7 @@ def _thing_blobs(image: npt.NDArray[np.uint8], blocks: Sequence[npt.NDArray[np.i
     table = float(np.median(val[plain]))
     mask = ((val < DARK * table) | ((val > BRIGHT * table) & (sat < WHITE_SATURATION)))
     mask_u8 = mask.astype(np.uint8)
-    for outline in blocks:
+    for outline in known:
         cv2.drawContours(mask_u8, [outline.reshape(-1, 1, 2)], -1, 0, -1)
         cv2.drawContours(mask_u8, [outline.reshape(-1, 1, 2)], -1, 0, 2 * BLOCK_MARGIN_PX)
     opened = cv2.morphologyEx(mask_u8, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
