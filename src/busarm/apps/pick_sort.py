@@ -43,7 +43,13 @@ from busarm.apps.grasp import GraspPlan, GraspPlanner, NoClearGrasp
 from busarm.apps.pick_outcomes import BlockOutcome, RunReport
 from busarm.apps.pick_settings import ORDERS, PickSortSettings
 from busarm.apps.push import Push, PushPlanner
-from busarm.apps.table_view import SAME_BLOCK_MM, TableView, off_mm, same_block
+from busarm.apps.table_view import (
+    OVER_THINGS_MM,
+    SAME_BLOCK_MM,
+    TableView,
+    off_mm,
+    same_block,
+)
 from busarm.errors import (
     BusArmError,
     ConfigError,
@@ -57,11 +63,6 @@ from busarm.robot.locate import Sighting
 
 FloatArray = npt.NDArray[np.float64]
 
-OVER_THINGS_MM = 100.0
-"""A carried block's bottom passes this high over things that are not blocks (a mug is
-about 95 mm tall)."""
-CARRY_CLEARANCE_MM = 25.0
-"""A carry passing this close to such a thing goes over it."""
 MAX_CYCLES = 150
 """Surveys a run makes at most (a cycle picks a block, or pushes one, or looks closer)."""
 STAGING_RADII_MM = (150.0, 170.0, 190.0, 210.0)
@@ -225,8 +226,6 @@ class PickSorter:
             # fingers held back by the block left the line's reach: up, and look again
             self.progress(f"the push stopped short ({exc}): backing off")
             self._retreat()
-        if self.view.obstacles:  # the way back to the survey could sweep into one
-            self._rise()
         self.on_step("nudge")
         return push
 
@@ -242,7 +241,7 @@ class PickSorter:
         gap = plan.gap_mm
         arm.open_gripper(wait=False, gap_mm=gap)
         tool = arm.read_pose()
-        if self._thing_on_the_way((tool.x_mm, tool.y_mm), plan.above[:2]):
+        if self.view.thing_on_the_way((tool.x_mm, tool.y_mm), plan.above[:2]):
             # Over the thing that is not a block first, then down to the approach.
             over = (*plan.above[:2], z0 + OVER_THINGS_MM + self.locator.block_size_mm)
             with contextlib.suppress(UnreachableError):
@@ -288,7 +287,7 @@ class PickSorter:
         release_z = z0 + (s.release_mm if layer == 0 else size + STACK_DROP_MM + size / 2)
         bx, by, _, square = self.places.next_spot(target.color, self.view.obstacles, gap,
                                                   release_z)
-        if self._thing_on_the_way(plan.lift[:2], (bx, by)):
+        if self.view.thing_on_the_way(plan.lift[:2], (bx, by)):
             # Something that is not a block (of a height not known) near the way: over it
             # at the height of the tallest cup a desk has.
             carry_z = max(carry_z, z0 + OVER_THINGS_MM + size / 2)
@@ -353,22 +352,6 @@ class PickSorter:
         self._holding = None
         arm.open_gripper(gap_mm=gap_mm)
         arm.move_line(*spot, z0 + s.carry_mm, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
-
-    def _thing_on_the_way(self, start: Sequence[float], end: Sequence[float]) -> bool:
-        """Whether a thing that is not a block lies near the carry from ``start`` to
-        ``end`` (x, y mm): the way taken as the base turns, bearing and radius changing
-        evenly."""
-        if not self.view.obstacles:
-            return False
-        (r0, a0), (r1, a1) = ((math.hypot(x, y), math.atan2(y, x)) for x, y in (start, end))
-        turn = (a1 - a0 + math.pi) % (2 * math.pi) - math.pi
-        size = self.locator.block_size_mm
-        for t in np.linspace(0.0, 1.0, 40):
-            r, a = r0 + (r1 - r0) * t, a0 + turn * t
-            here = Footprint.square(r * math.cos(a), r * math.sin(a), size, 0.0)
-            if any(here.overlaps(o, CARRY_CLEARANCE_MM) for o in self.view.obstacles):
-                return True
-        return False
 
     def verify_bins(self, report: RunReport) -> None:
         """Look into each bin a block was put in: a block reported sorted but not found

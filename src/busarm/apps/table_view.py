@@ -7,6 +7,7 @@ edge cut; ``look_closer`` turns the camera to face one block before it is taken.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Callable, Mapping, Sequence
 
@@ -17,13 +18,18 @@ from busarm.apps.bins import BIN_RADIUS_MM
 from busarm.apps.footprint import Footprint
 from busarm.apps.pick_settings import PickSortSettings
 from busarm.arm import Arm
-from busarm.errors import ConfigError
+from busarm.errors import ConfigError, UnreachableError
 from busarm.robot.locate import BlockLocator, Sighting
 from busarm.robot.obstacles import Obstacle, refine
 from busarm.vision.camera import CameraSource
 
 SAME_BLOCK_MM = 20.0
 """Two sightings this close are the same block."""
+OVER_THINGS_MM = 100.0
+"""A carried block's bottom passes this high over things that are not blocks (a mug is
+about 95 mm tall)."""
+CARRY_CLEARANCE_MM = 25.0
+"""A carry passing this close to such a thing goes over it."""
 MAX_EXTRA_LOOKS = 3
 """A survey looks this many more times at most, facing blocks cut by its pictures' edges."""
 
@@ -56,10 +62,10 @@ class TableView:
         bearing)."""
         seen: list[tuple[tuple[bool, float], Sighting]] = []
         self.last_survey = []
-        self.obstacles, self.things = [], []
         looked: list[float] = []
-        for pose in self.survey_poses:
-            self._merge(seen, pose)
+        for k, pose in enumerate(self.survey_poses):
+            # Things are seen afresh (the last ones still kept off on the way there).
+            self._merge(seen, pose, fresh=k == 0)
             looked.append(pose[0])
         for _ in range(MAX_EXTRA_LOOKS):
             cut = [v for _, v in seen if not v.whole and all(
@@ -79,9 +85,9 @@ class TableView:
         return self.seen
 
     def _merge(self, seen: list[tuple[tuple[bool, float], Sighting]],
-               pose: Sequence[float]) -> None:
+               pose: Sequence[float], *, fresh: bool = False) -> None:
         """Look from ``pose`` and merge what is found into ``seen`` (see ``survey``)."""
-        image, found = self.look(pose)
+        image, found = self.look(pose, fresh=fresh)
         self.last_survey.append((image, found))
         for new in found:
             rank = (not new.whole, abs(_bearing_deg(new) - pose[0]))
@@ -96,16 +102,52 @@ class TableView:
             else:
                 seen.append((rank, new))
 
-    def look(self, pose: Sequence[float]) -> tuple[npt.NDArray[np.uint8], list[Sighting]]:
-        """The blocks seen from ``pose`` (frames averaged), and the last picture."""
+    def thing_on_the_way(self, start: Sequence[float], end: Sequence[float]) -> bool:
+        """Whether a thing that is not a block lies near the way from ``start`` to ``end``
+        (x, y mm), taken as the base turns: bearing and radius changing evenly."""
+        if not self.obstacles:
+            return False
+        (r0, a0), (r1, a1) = ((math.hypot(x, y), math.atan2(y, x)) for x, y in (start, end))
+        turn = (a1 - a0 + math.pi) % (2 * math.pi) - math.pi
+        size = self.locator.block_size_mm
+        for t in np.linspace(0.0, 1.0, 40):
+            r, a = r0 + (r1 - r0) * t, a0 + turn * t
+            here = Footprint.square(r * math.cos(a), r * math.sin(a), size, 0.0)
+            if any(here.overlaps(o, CARRY_CLEARANCE_MM) for o in self.obstacles):
+                return True
+        return False
+
+    def rise_over_things(self, end: Sequence[float]) -> None:
+        """Straight up over the things that are not blocks first, if one lies on the way
+        from where the tool is to ``end`` (x, y mm) and the tool is lower than that."""
+        arm, s = self.arm, self.settings
+        tool = arm.read_pose()
+        over = self.locator.table_z_mm + OVER_THINGS_MM + self.locator.block_size_mm
+        if tool.z_mm >= over or not self.thing_on_the_way((tool.x_mm, tool.y_mm), end):
+            return
+        try:
+            arm.move_line(tool.x_mm, tool.y_mm, over, tool.pitch_deg, tool.roll_deg,
+                          speed_mm_s=s.line_speed_mm_s)
+        except UnreachableError:  # not straight up from here: nearly, joint by joint
+            with contextlib.suppress(UnreachableError):
+                arm.move_to(tool.x_mm, tool.y_mm, over, tool.pitch_deg, tool.roll_deg,
+                            speed_deg_s=s.joint_speed_deg_s)
+
+    def look(self, pose: Sequence[float], *, fresh: bool = False
+             ) -> tuple[npt.NDArray[np.uint8], list[Sighting]]:
+        """The blocks seen from ``pose`` (frames averaged), and the last picture; the
+        things that are not blocks seen there refine those seen before (``fresh``: replace
+        them)."""
         s, arm = self.settings, self.arm
+        seen_from = arm.kin.fk(pose)
+        self.rise_over_things((seen_from.x_mm, seen_from.y_mm))
         arm.move_joints(pose, speed_deg_s=s.joint_speed_deg_s)
         self.clock.sleep(s.settle_s)
         pictures = [(self.camera.read().image, arm.read_joints_deg())
                     for _ in range(s.survey_frames)]
         # Things that are not blocks, for the fingers and pushes to keep off.
         found = self.locator.locate_averaged(pictures)
-        self.things = refine(self.things, self.locator.obstacles(
+        self.things = refine([] if fresh else self.things, self.locator.obstacles(
             *pictures[-1], [(x, y, 2 * BIN_RADIUS_MM) for x, y in self.bins.values()],
             found))
         self.obstacles = [Footprint(o.corners) for o in self.things]
