@@ -38,6 +38,8 @@ PUSH_PITCHES_DEG = (-90.0, -75.0, -105.0, -60.0, -120.0)
 LIMIT_MARGIN_DEG = 3.0
 """A push keeps every joint this far inside its limits: pressing, the arm is off its line
 a little, and the line is planned again from where it is."""
+BEHIND_MM = 4.0
+"""Leaning, the pads go down this far behind the block's face before pushing it."""
 PRESS_MM = 3.0
 """Pushing, the closed fingers press this far into the block's top (friction drags it)."""
 
@@ -112,13 +114,8 @@ class PushPlanner:
         """The push to ``end`` at the first tool pitch (``PUSH_PITCHES_DEG``) and roll the
         arm reaches it all the way with, or None."""
         g = self.grasps
-        top = g.table_z_mm + g.block_mm
-        above = top + g.approach_mm / 2
-        path = ((x_mm, y_mm, above), (x_mm, y_mm, top - PRESS_MM),
-                (end[0], end[1], top - PRESS_MM), (end[0], end[1], above))
-        # The fingers may stay short of the press (it is not waited for): both heights.
-        alike = tuple((x, y, top) for x, y, _ in path[1:3])
         for pitch in PUSH_PITCHES_DEG:
+            path, alike = self._path(x_mm, y_mm, end, pitch)
             for roll in self._rolls(x_mm, y_mm, yaw_deg, pitch):
                 try:
                     g.check_path(path, pitch, roll, LIMIT_MARGIN_DEG)
@@ -126,7 +123,7 @@ class PushPlanner:
                 except UnreachableError:
                     continue
                 if self._pads_hit(path, pitch, roll, others, obstacles):
-                    continue  # leaning, the pads' backs would press on a neighbour
+                    continue  # the pads would press on a neighbour, or meet a thing
                 try:
                     g.plan(end[0], end[1], yaw_deg, others, gaps_mm, obstacles)
                     frees = True
@@ -135,21 +132,44 @@ class PushPlanner:
                 return Push((x_mm, y_mm), end, pitch, roll, path, frees)
         return None
 
+    def _path(self, x_mm: float, y_mm: float, end: tuple[float, float], pitch_deg: float
+              ) -> tuple[tuple[tuple[float, float, float], ...],
+                         tuple[tuple[float, float, float], ...]]:
+        """The tool's path for a push, and the points it may stay short of. Straight down
+        the closed pads press on the block's top and drag it (the fingers may stay short
+        of the press: that height too); leaning, a pad's edge drags poorly, so the pads
+        go down behind the block, to its half height, and push its face."""
+        g = self.grasps
+        top = g.table_z_mm + g.block_mm
+        above = top + g.approach_mm / 2
+        if pitch_deg == -90.0:
+            path = ((x_mm, y_mm, above), (x_mm, y_mm, top - PRESS_MM),
+                    (end[0], end[1], top - PRESS_MM), (end[0], end[1], above))
+            return path, tuple((x, y, top) for x, y, _ in path[1:3])
+        length = math.dist((x_mm, y_mm), end)
+        dx, dy = (end[0] - x_mm) / length, (end[1] - y_mm) / length
+        back = g.block_mm / 2 + max(g.pad_mm[0], g.pad_mm[1] / 2) + BEHIND_MM
+        bx, by = x_mm - dx * back, y_mm - dy * back
+        mid = g.table_z_mm + g.block_mm / 2
+        return ((bx, by, above), (bx, by, mid), (bx + dx * length, by + dy * length, mid),
+                (bx + dx * length, by + dy * length, above)), ()
+
     def _pads_hit(self, path: tuple[tuple[float, float, float], ...], pitch_deg: float,
                   roll_deg: float, others: Sequence[Footprint],
                   obstacles: Sequence[Footprint]) -> bool:
-        """Whether the closed pads, pressing at the push's start or end, would touch a
-        block other than the pushed one, or a thing that is not a block."""
+        """Whether the closed pads, anywhere from the push's start to its end, would
+        touch a block other than the pushed one, or a thing that is not a block."""
         g = self.grasps
-        for tip in path[1:3]:
-            pads = g.pads(GraspPlan(pitch_deg, roll_deg, path[0], tip, path[3]), 0.0)
-            if any(p.overlaps(o, g.margin_mm) for p in pads for o in others):
-                return True
-            tall = g.pads(GraspPlan(pitch_deg, roll_deg, path[0], tip, path[3]), 0.0,
-                          tall=True)
-            if any(p.overlaps(o, g.margin_mm) for p in tall for o in obstacles):
-                return True
-        return False
+
+        def swept(tall: bool) -> list[Footprint]:
+            """Each pad's footprint from the push's start to its end (the hull)."""
+            start, end = (g.pads(GraspPlan(pitch_deg, roll_deg, path[0], tip, path[3]), 0.0,
+                                 tall=tall) for tip in path[1:3])
+            return [Footprint.hull([*a.corners, *b.corners]) for a, b in zip(start, end,
+                                                                              strict=True)]
+
+        return (any(p.overlaps(o, g.margin_mm) for p in swept(False) for o in others)
+                or any(p.overlaps(o, g.margin_mm) for p in swept(True) for o in obstacles))
 
     def _rolls(self, x_mm: float, y_mm: float, yaw_deg: float, pitch_deg: float
                ) -> list[float]:
