@@ -6,6 +6,7 @@ adapter echoing and not echoing. Leaked threads fail the test that leaked them.
 
 from __future__ import annotations
 
+import gc
 import os
 import threading
 from collections.abc import Iterator
@@ -73,3 +74,17 @@ def _no_leaked_threads() -> Iterator[None]:
         t.join(timeout=2)
     still = [t.name for t in leaked if t.is_alive()]
     assert not still, f"test leaked threads: {still}"
+
+
+@pytest.fixture
+def no_gc_pauses() -> Iterator[None]:
+    """For tests that time a call against the driver's budget: a collection of the earlier
+    tests' objects (tens of ms, late in a full run) is not the driver's time."""
+    gc.collect()
+    gc.freeze()
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.enable()
+        gc.unfreeze()

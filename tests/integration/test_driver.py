@@ -34,6 +34,8 @@ from busarm.sim.pty import PtyServer
 from busarm.sim.servo import FULL_TURN_PULSES, ServoParams, SimServo
 from conftest import SimArm, make_sim_arm
 
+pytestmark = pytest.mark.usefixtures("no_gc_pauses")
+
 ArmFactory = Callable[..., SimArm]
 """``arm_with(ids, **bus_kwargs)``: a simulated bus with these servo IDs, the ``way`` given."""
 

@@ -26,6 +26,8 @@ from busarm.sim.pty import PtyServer
 from busarm.sim.transport import SimTransport
 from conftest import SimArm
 
+pytestmark = pytest.mark.usefixtures("no_gc_pauses")
+
 SLACK_S = 0.005
 """What a call may take beyond its own timeouts: scheduling on a busy 2-core machine."""
 VIN_REPLY_BYTES = 8

@@ -10,7 +10,6 @@ outlives its time budget.
 
 from __future__ import annotations
 
-import gc
 import random
 import time
 from collections import Counter
@@ -25,6 +24,8 @@ from busarm.protocol import Command
 from busarm.sim.servo import SimServo
 from busarm.sim.storage import record_from_servo, save_state
 
+pytestmark = pytest.mark.usefixtures("no_gc_pauses")
+
 SLACK_S = 0.005
 """What a call may take beyond its own timeouts: scheduling on a busy 2-core machine."""
 POSITIONS = {1: 137, 2: 268, 3: 409, 4: 555, 5: 702, 10: 861}
@@ -37,14 +38,9 @@ def soak(tmp_path: Path, reads: int, *, echo: bool, seed: int) -> None:
     faults = ["--drop", "0.01", "--corrupt", "0.01", "--seed", str(seed)]
     with SimServerProcess("--state", str(state), *faults, *(["--echo"] if echo else [])) as path:
         bus = ServoBus.open(path, echo="on" if echo else "off")
-        # The budget is the driver's: keep a collection of the earlier tests' objects
-        # (a pause of tens of ms, late in a full run) out of the timed calls.
-        gc.collect()
-        gc.freeze()
         try:
             _soak(bus, reads, random.Random(seed))
         finally:
-            gc.unfreeze()
             bus.close()
 
 
