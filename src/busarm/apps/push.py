@@ -114,8 +114,9 @@ class PushPlanner:
         """The push to ``end`` at the first tool pitch (``PUSH_PITCHES_DEG``) and roll the
         arm reaches it all the way with, or None."""
         g = self.grasps
-        for pitch in PUSH_PITCHES_DEG:
-            path, alike = self._path(x_mm, y_mm, end, pitch)
+        for pitch, face in ((p, f) for p in PUSH_PITCHES_DEG for f in (True, False)
+                            if p != -90.0 or not f):
+            path, alike = self._path(x_mm, y_mm, end, pitch, face=face)
             for roll in self._rolls(x_mm, y_mm, yaw_deg, pitch):
                 try:
                     g.check_path(path, pitch, roll, LIMIT_MARGIN_DEG)
@@ -132,17 +133,18 @@ class PushPlanner:
                 return Push((x_mm, y_mm), end, pitch, roll, path, frees)
         return None
 
-    def _path(self, x_mm: float, y_mm: float, end: tuple[float, float], pitch_deg: float
-              ) -> tuple[tuple[tuple[float, float, float], ...],
-                         tuple[tuple[float, float, float], ...]]:
-        """The tool's path for a push, and the points it may stay short of. Straight down
-        the closed pads press on the block's top and drag it (the fingers may stay short
-        of the press: that height too); leaning, a pad's edge drags poorly, so the pads
-        go down behind the block, to its half height, and push its face."""
+    def _path(self, x_mm: float, y_mm: float, end: tuple[float, float], pitch_deg: float,
+              *, face: bool) -> tuple[tuple[tuple[float, float, float], ...],
+                                      tuple[tuple[float, float, float], ...]]:
+        """The tool's path for a push, and the points it may stay short of. The closed
+        pads press on the block's top and drag it (the fingers may stay short of the
+        press: that height too); or (``face``) they go down behind the block, to its
+        half height, and push its face: leaning, a pad's edge drags poorly, so that is
+        tried first where the arm reaches behind the block."""
         g = self.grasps
         top = g.table_z_mm + g.block_mm
         above = top + g.approach_mm / 2
-        if pitch_deg == -90.0:
+        if not face:
             path = ((x_mm, y_mm, above), (x_mm, y_mm, top - PRESS_MM),
                     (end[0], end[1], top - PRESS_MM), (end[0], end[1], above))
             return path, tuple((x, y, top) for x, y, _ in path[1:3])
