@@ -15,11 +15,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from busarm.apps.footprint import Footprint
 from busarm.apps.grasp import (
     MAX_CLOSING_TILT_DEG,
     MAX_TILTED_TURN_DEG,
     GraspPlan,
     GraspPlanner,
+    NoClearGrasp,
 )
 from busarm.arm.config import load_arm_config
 from busarm.arm.kinematics import ArmKinematics
@@ -113,3 +115,42 @@ def test_bad_planner_arguments_are_refused() -> None:
         GraspPlanner(KIN, 0.0, 30.0, approach_mm=60.0, carry_mm=10.0)
     with pytest.raises(ConfigError, match="approach_mm"):
         GraspPlanner(KIN, 0.0, 30.0, approach_mm=math.nan, carry_mm=75.0)
+
+
+@PROPS
+@given(r=st.floats(275.0, 295.0), bearing=st.floats(-60.0, 60.0), yaw=st.floats(-90.0, 90.0))
+def test_a_tilted_grasp_blocked_on_one_face_pair_takes_the_other(
+    r: float, bearing: float, yaw: float
+) -> None:
+    # Far out only tilted grasps reach; a neighbour against the faces the first plan's
+    # fingers would close on leaves the other pair, squared as well as the wrist allows.
+    x, y = r * math.cos(math.radians(bearing)), r * math.sin(math.radians(bearing))
+    try:
+        first = PLANNER.plan(x, y, yaw)
+    except UnreachableError:
+        return
+    assert first.pitch_deg != -90.0
+    m = KIN.fk_matrix(KIN.ik_best(*first.grasp, first.pitch_deg, first.roll_deg))
+    axis = np.asarray(m[:2, 1]) / np.linalg.norm(m[:2, 1])
+    wall = [Footprint.rectangle(x + s * 32.0 * axis[0], y + s * 32.0 * axis[1], 4.0, 120.0,
+                                math.degrees(math.atan2(axis[1], axis[0])))
+            for s in (-1.0, 1.0)]
+    try:
+        other = PLANNER.plan(x, y, yaw, wall)
+    except NoClearGrasp:
+        return  # the other pair is too far off square to take tilted here
+    m2 = KIN.fk_matrix(KIN.ik_best(*other.grasp, other.pitch_deg, other.roll_deg))
+    turned = math.degrees(math.atan2(m2[1, 1], m2[0, 1]) - math.atan2(m[1, 1], m[0, 1]))
+    assert abs((turned + 90.0) % 180.0 - 90.0) > 45.0, (first, other)
+    _check(other, x, y, yaw)
+
+
+def test_far_blocks_can_be_taken_by_either_face_pair() -> None:
+    # Not only somewhere: at the far edge most blocks have both pairs within reach.
+    ways = []
+    for bearing in range(-50, 51, 10):
+        x, y = 285.0 * math.cos(math.radians(bearing)), 285.0 * math.sin(math.radians(bearing))
+        yaw = bearing + 90.0  # squared to the bearing: one pair radial, one across
+        rolls = {round(p.roll_deg) for p in PLANNER._reaching(x, y, yaw) if p.pitch_deg == -75.0}
+        ways.append(len(rolls))
+    assert sum(n >= 2 for n in ways) >= len(ways) - 2, ways

@@ -11,7 +11,8 @@ import pytest
 
 from busarm.apps.pick_sort import BIN_SLOTS_MM, IN_BIN_MM, PickSorter, RunReport
 from busarm.robot import Robot
-from busarm.twin.scene import DEFAULT_BINS, Block, Scene
+from busarm.twin.clutter import clutter_scene
+from busarm.twin.scene import DEFAULT_BINS, Block, Distractor, Scene
 from busarm.twin.twin import BlockState
 
 
@@ -68,6 +69,45 @@ def test_a_full_bin_leaves_the_rest_on_the_table_with_a_reason(
     left = [b for b in truth if b not in in_bin]
     assert len(left) == 2
     assert all(math.hypot(b.x_mm - bx, b.y_mm - by) > 100 for b in left)
+
+
+def test_a_block_set_down_to_be_taken_again_is_carried_over_a_cup(
+        calibration: tuple[Path, Path]) -> None:
+    # The far block is taken tilted once the first layer is full; it would lean on the
+    # second, so it is set down near the base first, and the cup stands on that way.
+    spots = [(150.0, -90.0), (150.0, -30.0), (150.0, 30.0), (150.0, 90.0), (290.0, -60.0)]
+    cup = Distractor("cylinder", "white", 205.0, -95.0, 40.0, 40.0, 70.0, 0.0, 80.0)
+    scene = Scene(blocks=tuple(Block("red", x, y, 0.0) for x, y in spots),
+                  bins=DEFAULT_BINS[:1], distractors=(cup,))
+    with Robot.open("twin", scene=scene, intrinsics=calibration[0],
+                    hand_eye=calibration[1]) as robot:
+        assert robot.twin is not None
+        before = robot.twin.distractor_positions_mm()[0]
+        said: list[str] = []
+        report = PickSorter(robot, colors=["red"], progress=said.append).run()
+        after = robot.twin.distractor_positions_mm()[0]
+        truth = robot.twin.blocks()
+        bx, by = robot.bins["red"]
+    assert any("set down at" in m for m in said), said  # the far one was restaged
+    assert report.totals()["sorted"] == len(spots), [b.to_dict() for b in report.blocks]
+    assert all(math.hypot(b.x_mm - bx, b.y_mm - by) < IN_BIN_MM for b in truth), truth
+    assert math.dist(before[:2], after[:2]) < 2.0, (before, after)
+
+
+def test_blocks_the_survey_cannot_make_out_are_looked_for_facing_them(
+        calibration: tuple[Path, Path]) -> None:
+    # Eight green blocks; once a 2 x 2 group has been pushed apart, the survey's picture
+    # shows six of them, turned two ways, as one blob it cannot split: facing them, they
+    # are seen one by one. Seven fit the bin, the eighth is left with "bin full".
+    scene = clutter_scene(1008, 9, ("red", "green", "blue"))
+    assert [b.color for b in scene.blocks].count("green") == 8
+    with Robot.open("twin", scene=scene, intrinsics=calibration[0],
+                    hand_eye=calibration[1]) as robot:
+        report = PickSorter(robot, colors=["red", "green", "blue"]).run()
+    outcomes = [(b.outcome, b.reason) for b in report.blocks]
+    assert [o for o, _ in outcomes].count("sorted") == 7, outcomes
+    assert [r for o, r in outcomes if o != "sorted"] == [
+        "bin full: the green bin holds 7 blocks"], outcomes
 
 
 Sorted = tuple[RunReport, list[BlockState], dict[str, tuple[float, float]]]

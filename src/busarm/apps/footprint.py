@@ -11,6 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from busarm.robot.obstacles import near_convex
+
 FloatArray = npt.NDArray[np.float64]
 
 TOUCH_MM = 1e-6
@@ -54,6 +56,17 @@ class Footprint:
             return out[:-1]
 
         return cls(np.array(half(pts) + half(pts[::-1])))
+
+    @property
+    def centre_mm(self) -> tuple[float, float]:
+        c = self.corners.mean(axis=0)
+        return float(c[0]), float(c[1])
+
+    def reaches(self, points_mm: FloatArray, margin_mm: float) -> bool:
+        """Whether any of ``points_mm`` (N x 2 or N x 3, mm) lies within ``margin_mm`` of
+        it, at any height (a thing of unknown height standing on it)."""
+        points = np.asarray(points_mm, dtype=np.float64)
+        return bool(near_convex(self.corners, points[:, :2], margin_mm).any())
 
     def overlaps(self, other: Footprint, margin_mm: float = 0.0) -> bool:
         """Whether the two come closer than ``margin_mm`` (separating axes; with no margin,

@@ -8,6 +8,7 @@ import itertools
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -38,6 +39,25 @@ LINE_CHECK_MM = 2.0
 """Points this far apart are checked for reach along each straight move of a grasp plan
 (more densely than ``Arm.move_line`` solves them, so a plan that passes does not fail on
 the way)."""
+
+
+SWEEP_SAMPLES = 5
+"""A pad's swept volume is checked against a thing at points about 4 mm apart (its width
+over 4): thinner than a pen with the margin on both sides."""
+
+
+class Thing(Protocol):
+    """Something that is not a block: what it stands on (``corners``, N x 2 mm, convex)
+    and whether it may come within a margin of points in space (a ``Footprint`` may be
+    any height; ``busarm.robot.obstacles.Obstacle`` knows its cameras' cones)."""
+
+    @property
+    def corners(self) -> FloatArray: ...
+
+    @property
+    def centre_mm(self) -> tuple[float, float]: ...
+
+    def reaches(self, points_mm: FloatArray, margin_mm: float) -> bool: ...
 
 
 @dataclass(frozen=True)
@@ -103,22 +123,22 @@ class GraspPlanner:
 
     def plan(self, x_mm: float, y_mm: float, yaw_deg: float,
              neighbours: Sequence[Footprint] = (),
-             gaps_mm: Sequence[float] = (), obstacles: Sequence[Footprint] = ()
+             gaps_mm: Sequence[float] = (), obstacles: Sequence[Thing] = ()
              ) -> GraspPlan:
         """The first grasp that reaches the block and keeps both fingers off its
         ``neighbours`` all the way down (with ``margin_mm``): straight down with the
         fingers squared to the block, along one face pair then the other; else tilted
         (``TILTED_PITCHES_DEG``), closing level, the approach along the tool's axis; for
         each, the fingers opened ``gaps_mm`` apart (widest first; default: the block and
-        10 mm a side). ``obstacles``: things of unknown height (not blocks), kept off
-        all the way from ``above``. Raises NoClearGrasp naming what is in the way if every
-        reaching grasp is blocked, UnreachableError saying why none reaches."""
+        10 mm a side). ``obstacles``: things that are not blocks (see ``Thing``), kept off
+        all the way from ``above``. Raises NoClearGrasp naming what is in the way if
+        every reaching grasp is blocked, UnreachableError saying why none reaches."""
         gaps = sorted(gaps_mm or (self.block_mm + 20.0,), reverse=True)
         blocked = ""
         for plan in self._reaching(x_mm, y_mm, yaw_deg):
             for gap in gaps:
-                hit = self._first_hit(plan, gap, neighbours) or self._first_hit(
-                    plan, gap, obstacles, tall=True)
+                hit = (self._first_hit(plan, gap, neighbours)
+                       or self._first_thing(plan, gap, obstacles))
                 if hit is None:
                     return replace(plan, gap_mm=gap)
                 blocked = blocked or (f"a finger would land on the {hit[2]} at "
@@ -145,23 +165,29 @@ class GraspPlanner:
                     continue
                 yield plan
         for pitch in TILTED_PITCHES_DEG:
-            level = self._best_level_roll(x_mm, y_mm, yaw_deg, pitch)
-            if level is None or level[1] > MAX_TILTED_TURN_DEG:
-                continue
-            roll, _, m = level
-            back = m[:3, 2] * self.approach_mm  # back along the tool's axis
-            above = (x_mm - back[0], y_mm - back[1], zg - back[2])
-            plan = GraspPlan(pitch, roll, above, grasp, lift)
-            try:
-                self._check_plan(plan)
-            except UnreachableError:
-                continue
-            yield plan
+            for roll, turn, m in self._level_rolls(x_mm, y_mm, yaw_deg, pitch):
+                if turn > MAX_TILTED_TURN_DEG:
+                    continue
+                back = m[:3, 2] * self.approach_mm  # back along the tool's axis
+                above = (x_mm - back[0], y_mm - back[1], zg - back[2])
+                plan = GraspPlan(pitch, roll, above, grasp, lift)
+                try:
+                    self._check_plan(plan)
+                except UnreachableError:
+                    continue
+                yield plan
 
     def pads(self, plan: GraspPlan, gap_mm: float, *, tall: bool = False) -> list[Footprint]:
         """What the two finger pads cover on the table on their way down to ``plan``'s
         grasp, opened ``gap_mm`` apart, while they are low enough to meet a block (or,
         ``tall``, anything: all the way from ``above``)."""
+        return [Footprint.hull(p[:, :2]) for p in self._pad_sweeps(plan, gap_mm, tall, 2)]
+
+    def _pad_sweeps(self, plan: GraspPlan, gap_mm: float, tall: bool, samples: int
+                    ) -> list[FloatArray]:
+        """Points (N x 3, mm) of each pad's volume swept on its way down (see ``pads``):
+        ``samples`` a side along its thickness and width, and about as densely along
+        its length and its slide."""
         t, w, length = self.pad_mm
         kin = self.kin
         m = kin.fk_matrix(kin.ik_best(*plan.grasp, plan.pitch_deg, plan.roll_deg))
@@ -174,25 +200,41 @@ class GraspPlanner:
         # pads slide along the tool's axis (straight down: they stay where they are).
         reach = min(length, low / rise) if rise > 1e-6 else length
         slide = min(self.approach_mm, low / rise) if rise > 1e-6 else self.approach_mm
-        out = []
-        for side in (-1.0, 1.0):
-            centre = tip + side * (gap_mm / 2 + t / 2) * y_axis
-            corners = [centre + a * t / 2 * y_axis + b * w / 2 * x_axis + c * back + d * back
-                       for a in (-1, 1) for b in (-1, 1) for c in (0.0, reach)
-                       for d in (0.0, slide)]
-            out.append(Footprint.hull(p[:2] for p in corners))
-        return out
+        step = max(w / max(samples - 1, 1), 1e-6)
+        a, b = np.linspace(-t / 2, t / 2, samples), np.linspace(-w / 2, w / 2, samples)
+        c = np.linspace(0.0, reach, max(2, math.ceil(reach / step) + 1))
+        d = np.linspace(0.0, slide, max(2, math.ceil(slide / step) + 1))
+        grid = np.stack(np.meshgrid(a, b, c, d, indexing="ij"), axis=-1).reshape(-1, 4)
+        offsets = (np.outer(grid[:, 0], y_axis) + np.outer(grid[:, 1], x_axis)
+                   + np.outer(grid[:, 2] + grid[:, 3], back))
+        return [tip + side * (gap_mm / 2 + t / 2) * y_axis + offsets for side in (-1.0, 1.0)]
 
-    def _first_hit(self, plan: GraspPlan, gap_mm: float, neighbours: Sequence[Footprint],
-                   *, tall: bool = False) -> tuple[float, float, str] | None:
-        """The centre of the first neighbour a pad would meet and what it is, or None."""
-        if not neighbours:
-            return None
-        for pad in self.pads(plan, gap_mm, tall=tall):
+    def _first_hit(self, plan: GraspPlan, gap_mm: float, neighbours: Sequence[Footprint]
+                   ) -> tuple[float, float, str] | None:
+        """The centre of the first neighbour a pad would meet, and "block", or None."""
+        for pad in self.pads(plan, gap_mm) if neighbours else ():
             for other in neighbours:
                 if pad.overlaps(other, self.margin_mm):
                     centre = other.corners.mean(axis=0)
-                    return float(centre[0]), float(centre[1]), "thing" if tall else "block"
+                    return float(centre[0]), float(centre[1]), "block"
+        return None
+
+    def _first_thing(self, plan: GraspPlan, gap_mm: float, things: Sequence[Thing]
+                     ) -> tuple[float, float, str] | None:
+        """The centre of the first thing (not a block) that may be in a pad's way all the
+        way down from ``above``, and "thing", or None: a pad's sweep over what the thing
+        stands on is checked point by point against where the thing may be."""
+        if not things:
+            return None
+        sweeps: list[FloatArray] | None = None
+        for pad, index in zip(self.pads(plan, gap_mm, tall=True), (0, 1), strict=True):
+            for thing in things:
+                if not pad.overlaps(Footprint(thing.corners), self.margin_mm):
+                    continue
+                sweeps = sweeps or self._pad_sweeps(plan, gap_mm, True, SWEEP_SAMPLES)
+                if thing.reaches(sweeps[index], self.margin_mm):
+                    x, y = thing.centre_mm
+                    return x, y, "thing"
         return None
 
     def _why_unreachable(self, x_mm: float, y_mm: float, yaw_deg: float) -> str:
@@ -209,19 +251,20 @@ class GraspPlanner:
             top_down_failure = str(exc)
         turned = ""
         for pitch in TILTED_PITCHES_DEG:
-            level = self._best_level_roll(x_mm, y_mm, yaw_deg, pitch)
+            level = next(iter(self._level_rolls(x_mm, y_mm, yaw_deg, pitch)), None)
             if level is not None and level[1] > MAX_TILTED_TURN_DEG:
                 turned = (f"; tilted, the fingers would meet it {level[1]:.0f} deg off "
                           f"square (at most {MAX_TILTED_TURN_DEG:g})")
         return f"no grasp reaches it: straight down {top_down_failure}{turned or '; nor tilted'}"
 
-    def _best_level_roll(self, x_mm: float, y_mm: float, yaw_deg: float, pitch_deg: float
-                    ) -> tuple[float, float, FloatArray] | None:
-        """At a tilted pitch: the roll that best squares the fingers to the block while
-        they close within ``MAX_CLOSING_TILT_DEG`` of level; (roll, degrees still off
-        square, the tool's pose), or None if the pitch does not reach."""
+    def _level_rolls(self, x_mm: float, y_mm: float, yaw_deg: float, pitch_deg: float
+                     ) -> list[tuple[float, float, FloatArray]]:
+        """At a tilted pitch, for each of the block's two face pairs: the roll that best
+        squares the fingers to it while they close within ``MAX_CLOSING_TILT_DEG`` of
+        level, as (roll, degrees still off square, the tool's pose), best first; empty
+        if the pitch does not reach."""
         kin = self.kin
-        best: tuple[float, float, FloatArray] | None = None
+        best: dict[int, tuple[float, float, FloatArray]] = {}
         for roll in np.arange(-90.0, 90.5, ROLL_STEP_DEG).tolist():
             try:
                 m = kin.fk_matrix(kin.ik_best(x_mm, y_mm, self.grasp_z_mm, pitch_deg, roll))
@@ -229,10 +272,11 @@ class GraspPlanner:
                 continue
             if math.degrees(math.asin(min(1.0, abs(m[2, 1])))) > MAX_CLOSING_TILT_DEG:
                 continue
-            turn = abs((yaw_deg - _finger_axis_deg(m) + 45.0) % 90.0 - 45.0)
-            if best is None or turn < best[1] - 1e-9:
-                best = (float(roll), turn, m)
-        return best
+            off = (_finger_axis_deg(m) - yaw_deg + 45.0) % 180.0 - 45.0  # -45..135
+            pair, turn = (0, abs(off)) if off < 45.0 else (1, abs(off - 90.0))
+            if pair not in best or turn < best[pair][1] - 1e-9:
+                best[pair] = (float(roll), turn, m)
+        return sorted(best.values(), key=lambda r: r[1])
 
     def _check_plan(self, plan: GraspPlan) -> None:
         """Every point of the plan's straight moves within reach (UnreachableError)."""

@@ -131,9 +131,9 @@ class PickSorter:
         """The last survey's (or closer look's) pictures and what was found in each."""
         return self.view.last_survey
 
-    def survey(self) -> list[Sighting]:
-        """Every block seen (``TableView.survey``)."""
-        return self.view.survey()
+    def survey(self, facing: Sequence[tuple[float, float]] = ()) -> list[Sighting]:
+        """Every block seen (``TableView.survey``; looking ``facing`` these points too)."""
+        return self.view.survey(facing)
 
     def look_closer(self, target: Sighting, *, always: bool = False) -> Sighting | None:
         """``target`` seen facing it (``TableView.look_closer``)."""
@@ -278,7 +278,7 @@ class PickSorter:
             # a first layer forgives that, a second does not. Put down to be taken again.
             stage = self._staging_spot(target)
             if stage is not None:
-                self._set_down(stage, gap)
+                self._set_down(plan, stage, gap)
                 raise _Restaged(stage)
         # A second layer: carried higher over the first, set down just above it (a drop
         # from the first layer's height would bounce it off).
@@ -287,15 +287,7 @@ class PickSorter:
         release_z = z0 + (s.release_mm if layer == 0 else size + STACK_DROP_MM + size / 2)
         bx, by, _, square = self.places.next_spot(target.color, self.view.obstacles, gap,
                                                   release_z)
-        if self.view.thing_on_the_way(plan.lift[:2], (bx, by)):
-            # Something that is not a block (of a height not known) near the way: over it
-            # at the height of the tallest cup a desk has.
-            carry_z = max(carry_z, z0 + OVER_THINGS_MM + size / 2)
-            # (Not straight up from here: it rises on the way over.)
-            with contextlib.suppress(UnreachableError):
-                arm.move_line(*plan.lift[:2], carry_z, pitch, roll,
-                              speed_mm_s=s.line_speed_mm_s)
-        arm.move_to(bx, by, carry_z, -90.0, square, speed_deg_s=s.joint_speed_deg_s)
+        carry_z = self._carry(plan, (bx, by), carry_z, square)
         self.on_step("carry")
         if not self._still_holding():
             self._holding = None
@@ -333,25 +325,42 @@ class PickSorter:
                     continue
                 try:
                     if self.planner.plan(x, y, 0.0, others, self._gaps(),
-                                         self.view.obstacles).pitch_deg == -90.0:
+                                         self.view.things).pitch_deg == -90.0:
                         return x, y
                 except UnreachableError:
                     continue
         return None
 
-    def _set_down(self, spot: tuple[float, float], gap_mm: float) -> None:
-        """Set the held block down at ``spot`` straight down, let go, and rise."""
+    def _carry(self, plan: GraspPlan, end: tuple[float, float], carry_z: float,
+               end_roll_deg: float) -> float:
+        """Carry the block held at ``plan``'s lift to over ``end`` (x, y mm), straight
+        down there at ``end_roll_deg``, at ``carry_z`` or, past a thing that is not a
+        block (of a height not known), over the tallest cup a desk has; the height used."""
+        arm, s = self.arm, self.settings
+        if self.view.thing_on_the_way(plan.lift[:2], end):
+            carry_z = max(carry_z, self.locator.table_z_mm + OVER_THINGS_MM
+                          + self.locator.block_size_mm / 2)
+            # (Not straight up from here: it rises on the way over.)
+            with contextlib.suppress(UnreachableError):
+                arm.move_line(*plan.lift[:2], carry_z, plan.pitch_deg, plan.roll_deg,
+                              speed_mm_s=s.line_speed_mm_s)
+        arm.move_to(*end, carry_z, -90.0, end_roll_deg, speed_deg_s=s.joint_speed_deg_s)
+        return carry_z
+
+    def _set_down(self, plan: GraspPlan, spot: tuple[float, float], gap_mm: float) -> None:
+        """Set the block held at ``plan``'s lift down at ``spot`` straight down, let go,
+        and rise."""
         arm, s = self.arm, self.settings
         z0 = self.locator.table_z_mm
         roll = self.planner.roll_squared_deg(*spot, 0.0)
-        arm.move_to(*spot, z0 + s.carry_mm, -90.0, roll, speed_deg_s=s.joint_speed_deg_s)
+        carry_z = self._carry(plan, spot, z0 + s.carry_mm, roll)
         try:
             arm.move_line(*spot, z0 + s.release_mm, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
         except MotionTimeoutError:  # it rests on something: let go there
             arm.stop()
         self._holding = None
         arm.open_gripper(gap_mm=gap_mm)
-        arm.move_line(*spot, z0 + s.carry_mm, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
+        arm.move_line(*spot, carry_z, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
 
     def verify_bins(self, report: RunReport) -> None:
         """Look into each bin a block was put in: a block reported sorted but not found
@@ -393,10 +402,18 @@ class PickSorter:
         self._holding = None
         try:
             why = f"not done when the run's {max_cycles} cycles were up"
+            looking_for: list[tuple[float, float]] = []
             for _ in range(max_cycles):
-                if not self._cycle(report):
+                if self._cycle(report, looking_for):
+                    looking_for = []
+                    continue
+                # Blocks seen before and not now (a cluster the survey's far picture does
+                # not make out, say): looked for once more, facing where they were.
+                missing = [o.found_mm for o in report.blocks if o.outcome == "pending"]
+                if looking_for or not missing:
                     why = "not seen again"
                     break
+                looking_for = missing
             for outcome in report.blocks:
                 if outcome.outcome == "pending":
                     outcome.outcome, outcome.reason = "failed", why
@@ -410,9 +427,10 @@ class PickSorter:
             report.seconds = self.clock.now() - start
         return report
 
-    def _cycle(self, report: RunReport) -> bool:
-        """Survey, then pick and place the next block; False if there is none to pick."""
-        seen = self.survey()
+    def _cycle(self, report: RunReport, facing: Sequence[tuple[float, float]] = ()) -> bool:
+        """Survey (facing these points too), then pick and place the next block; False if
+        there is none to pick."""
+        seen = self.survey(facing)
         for outcome in report.blocks:
             # Missed, and no longer where it was: someone moved it. It is looked for
             # afresh (a new record if it is seen elsewhere).
@@ -595,7 +613,7 @@ class PickSorter:
         """A grasp of ``target`` that keeps the fingers off every other block seen."""
         loc = target.location
         return self.planner.plan(loc.x_mm, loc.y_mm, loc.yaw_deg, self._neighbours(target),
-                                 self._gaps(), self.view.obstacles)
+                                 self._gaps(), self.view.things)
 
     def _neighbours(self, target: Sighting) -> list[Footprint]:
         """The footprints of every other block the last survey saw."""

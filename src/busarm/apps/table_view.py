@@ -54,12 +54,13 @@ class TableView:
         self.obstacles: list[Footprint] = []
         self.things: list[Obstacle] = []  # the same, as seen (refined by each look)
 
-    def survey(self) -> list[Sighting]:
+    def survey(self, facing: Sequence[tuple[float, float]] = ()) -> list[Sighting]:
         """Every block seen from the survey poses, merged (averaged per pose), then from
         poses turned to face what was cut by a picture's edge (the table may reach beyond
-        the survey's pictures). A block seen from several poses keeps its best sighting:
-        whole rather than cut, then the one nearest the middle of its picture (in
-        bearing)."""
+        the survey's pictures) and the points ``facing`` (x, y mm: where blocks were
+        that the survey may not make out, a cluster of several seen from afar). A block
+        seen from several poses keeps its best sighting: whole rather than cut, then the
+        one nearest the middle of its picture (in bearing)."""
         seen: list[tuple[tuple[bool, float], Sighting]] = []
         self.last_survey = []
         looked: list[float] = []
@@ -67,13 +68,14 @@ class TableView:
             # Things are seen afresh (the last ones still kept off on the way there).
             self._merge(seen, pose, fresh=k == 0)
             looked.append(pose[0])
+        wanted = [math.degrees(math.atan2(y, x)) for x, y in facing]
         for _ in range(MAX_EXTRA_LOOKS):
-            cut = [v for _, v in seen if not v.whole and all(
-                abs(_bearing_deg(v) - b) > self.settings.look_closer_beyond_deg
-                for b in looked)]
+            far = self.settings.look_closer_beyond_deg
+            cut = [_bearing_deg(v) for _, v in seen if not v.whole] + wanted
+            cut = [b for b in cut if all(abs(b - done) > far for done in looked)]
             if not cut:
                 break
-            bearing = _bearing_deg(cut[0])
+            bearing = cut[0]
             looked.append(bearing)
             try:
                 pose = self.arm.config.check_joints((bearing, *self.survey_poses[0][1:]))

@@ -85,8 +85,9 @@ class SceneResult:
 
 @dataclass
 class PickFailure:
-    """A scene where a block did not end in its bin, the run stopped, or the run's own
-    count of sorted blocks disagrees with the twin's truth."""
+    """A scene where a block did not end in its bin, the run stopped, the run's own count
+    of sorted blocks disagrees with the twin's truth, or a thing that is not a block was
+    moved."""
 
     scene_seed: int
     blocks: int
@@ -94,11 +95,14 @@ class PickFailure:
     """Why the run stopped (empty if it ran to the end)."""
     outcomes: list[BlockOutcome]
     not_in_bins: list[BlockState]
+    distractors_moved_mm: list[float] = field(default_factory=list)
+    """How far each thing that is not a block moved (mm)."""
 
     def to_dict(self) -> dict[str, object]:
         return {"scene_seed": self.scene_seed, "blocks": self.blocks, "error": self.error,
                 "outcomes": [b.to_dict() for b in self.outcomes],
-                "not_in_bins": [asdict(t) for t in self.not_in_bins]}
+                "not_in_bins": [asdict(t) for t in self.not_in_bins],
+                "distractors_moved_mm": [round(m, 1) for m in self.distractors_moved_mm]}
 
 
 @dataclass
@@ -263,11 +267,13 @@ def _score(results: list[SceneResult], calibration: CalibrationSummary, seconds:
         tilted += sum(b.outcome == "sorted" and b.grasp_pitch_deg not in (None, -90.0)
                       for b in r.outcomes)
         survey_errors += r.survey_errors_mm
-        if not all(placed) or r.error or sorted_here != sum(placed):
+        disturbed = any(m > DISTRACTOR_MOVED_MM for m in r.distractors_moved_mm)
+        if not all(placed) or r.error or sorted_here != sum(placed) or disturbed:
             failures.append(PickFailure(
                 scene_seed=r.task.scene_seed, blocks=r.task.blocks, error=r.error,
                 outcomes=r.outcomes,
-                not_in_bins=[t for t, ok in zip(r.truth, placed, strict=True) if not ok]))
+                not_in_bins=[t for t, ok in zip(r.truth, placed, strict=True) if not ok],
+                distractors_moved_mm=r.distractors_moved_mm))
     errors = np.asarray(survey_errors) if survey_errors else np.asarray([math.nan])
     sim_s = sum(r.sim_s for r in results)
     return PickBenchReport(

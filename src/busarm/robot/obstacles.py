@@ -8,13 +8,19 @@ is something else. Blobs of such pixels, less the blocks and trays (their outlin
 where they are known to be), the arm's own black parts and what lies on its base, are
 cast onto the table plane. A thing standing up casts further than its foot (its top is
 higher), so the cast covers at least what it stands on: its convex hull is kept off.
+
+How tall a thing is, no picture says; but it lies inside the cone from each camera that
+saw it whole through its cast (its visual hull), and, standing upright, in the column on
+what all its casts share. A point in space that one of them does not hold is not in the
+thing: a finger may pass over a pen (cast beyond the pen's cast by the camera, it is
+higher than the pen) that would block it were the pen as tall as a cup.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -48,17 +54,63 @@ PIECE_GAP_MM = 10.0
 
 
 @dataclass(frozen=True)
+class View:
+    """A thing seen whole from one place: its cast on the table at ``table_z_mm`` (N x 2,
+    mm, base frame, convex) and the camera's centre then (x, y, z mm, base frame)."""
+
+    cast: FloatArray
+    camera_mm: FloatArray
+    table_z_mm: float
+
+    def holds(self, points_mm: FloatArray, margin_mm: float) -> npt.NDArray[np.bool_]:
+        """Which points (N x 3, mm) lie within ``margin_mm`` of the cone from the camera
+        through the cast (the points cast onto the table from the camera fall in it)."""
+        cam = self.camera_mm
+        height = cam[2] - points_mm[:, 2]
+        ahead = height > 1e-6  # points level with the camera or above it are not in it
+        t = (cam[2] - self.table_z_mm) / np.where(ahead, height, 1.0)
+        cast = cam[:2] + (points_mm[:, :2] - cam[:2]) * t[:, None]
+        return np.asarray(ahead & near_convex(self.cast, cast, margin_mm))
+
+
+@dataclass(frozen=True)
 class Obstacle:
     """Something that is not a block: its outline cast onto the table (N x 2, mm, base
-    frame, convex, in order); ``whole``: not cut by the picture's edge."""
+    frame, convex, in order); ``whole``: not cut by the picture's edge; ``views``: each
+    whole sighting, whose cones hold the thing."""
 
     corners: FloatArray
     whole: bool = True
+    views: tuple[View, ...] = ()
 
     @property
     def centre_mm(self) -> tuple[float, float]:
         c = self.corners.mean(axis=0)
         return float(c[0]), float(c[1])
+
+    def reaches(self, points_mm: FloatArray, margin_mm: float) -> bool:
+        """Whether the thing may be within ``margin_mm`` of any of ``points_mm`` (N x 3,
+        mm, base frame): a point held by the column standing on ``corners`` (a thing
+        stands upright: no wider up than at its foot) and by every view's cone."""
+        points = np.asarray(points_mm, dtype=np.float64).reshape(-1, 3)
+        held = near_convex(self.corners, points[:, :2], margin_mm)
+        for view in self.views:
+            held &= view.holds(points, margin_mm)
+        return bool(held.any())
+
+
+def near_convex(corners: FloatArray, points: FloatArray, margin_mm: float
+                ) -> npt.NDArray[np.bool_]:
+    """Which ``points`` (N x 2) lie inside the convex polygon ``corners`` (M x 2, in
+    order, either way round) or within ``margin_mm`` of each of its edges' lines."""
+    poly = np.asarray(corners, dtype=np.float64)
+    edges = np.roll(poly, -1, axis=0) - poly
+    area = float(np.sum(poly[:, 0] * np.roll(poly[:, 1], -1) - np.roll(poly[:, 0], -1)
+                        * poly[:, 1]))
+    normals = np.stack([edges[:, 1], -edges[:, 0]], axis=1) * (1.0 if area > 0 else -1.0)
+    lengths = np.maximum(np.linalg.norm(normals, axis=1), 1e-12)
+    outward = np.einsum("nmk,mk->nm", points[:, None, :] - poly[None, :, :], normals) / lengths
+    return np.asarray(np.all(outward <= margin_mm, axis=1))
 
 
 def find_obstacles(image: npt.NDArray[np.uint8], known: Sequence[npt.NDArray[np.int32]],
@@ -91,7 +143,9 @@ def find_obstacles(image: npt.NDArray[np.uint8], known: Sequence[npt.NDArray[np.
             continue  # the arm's own base
         whole = not (pts[:, 0].min() <= 0 or pts[:, 1].min() <= 0 or pts[:, 0].max() >= w - 1)
         out.append(Obstacle(_hull_mm(cast), whole))
-    return _merged(out)
+    camera = np.asarray(cam2base[:3, 3], dtype=np.float64)
+    return [replace(o, views=(View(o.corners, camera, table_z_mm),)) if o.whole else o
+            for o in _merged(out)]
 
 
 def refine(seen: Sequence[Obstacle], new: Sequence[Obstacle]) -> list[Obstacle]:
@@ -111,7 +165,8 @@ def refine(seen: Sequence[Obstacle], new: Sequence[Obstacle]) -> list[Obstacle]:
         area, both = cv2.intersectConvexConvex(old.corners.astype(np.float32),
                                                other.astype(np.float32))
         kept = np.asarray(both, np.float64).reshape(-1, 2) if area > 1.0 else old.corners
-        out.append(Obstacle(_hull_mm(kept)))
+        views = old.views + tuple(v for i in same for v in new[i].views)
+        out.append(Obstacle(_hull_mm(kept), views=views))
     return out + [n for i, n in enumerate(new) if i not in used]
 
 
