@@ -17,6 +17,7 @@ def test_scenes_sorted_in_two_worker_processes_are_scored_in_scene_order() -> No
     assert 3 <= report.blocks <= 6
     assert report.in_their_bins == report.blocks == report.reported_sorted
     assert report.reported_sorted_but_not == 0 and report.failures == []
+    assert report.beyond_bins == 0 and report.fitting_sorted_fraction == 1.0
     assert len(report.cycles_s) == report.blocks
     assert report.median_cycle_s is not None and 2.0 < report.median_cycle_s < 6.0
     # Twin seconds, not wall ones: each scene's moves take seconds of twin time.

@@ -42,9 +42,10 @@ BRIGHT = 1.12
 WHITE_SATURATION = 60
 MIN_AREA_PX = 120.0
 """Smaller blobs are specks (or a block's edge)."""
-ARM_DARK = 0.25
+ARM_DARK = 0.18
 """A blob whose median brightness is under this share of the table's is black: the arm's
-own fingers and links in the picture (a brown or grey thing is lighter)."""
+own fingers and links in the picture (0.08-0.13 of the table); a brown or grey cup, its
+shaded side dark, is 0.24 or lighter."""
 BLOCK_MARGIN_PX = 5
 """The blocks' own blobs, grown this much, are not obstacles (their dark edges)."""
 BASE_KEEP_OUT_MM = 80.0
