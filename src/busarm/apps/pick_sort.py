@@ -43,6 +43,7 @@ from busarm.apps.grasp import GraspPlan, GraspPlanner, NoClearGrasp
 from busarm.apps.pick_outcomes import BlockOutcome, RunReport
 from busarm.apps.pick_settings import ORDERS, PickSortSettings
 from busarm.apps.push import Push, PushPlanner
+from busarm.apps.restage import Restaged, staging_spot
 from busarm.apps.table_view import (
     OVER_THINGS_MM,
     SAME_BLOCK_MM,
@@ -65,9 +66,6 @@ FloatArray = npt.NDArray[np.float64]
 
 MAX_CYCLES = 150
 """Surveys a run makes at most (a cycle picks a block, or pushes one, or looks closer)."""
-STAGING_RADII_MM = (150.0, 170.0, 190.0, 210.0)
-STAGING_BEARINGS_DEG = tuple(range(-40, 41, 10))
-"""Where a block taken tilted may be set down to be taken again straight down."""
 HOLD_SLACK_MM = 4.0
 """A gripper this little wider than a block, squeezing one, holds it (pads give a little)."""
 
@@ -279,7 +277,7 @@ class PickSorter:
             stage = self._staging_spot(target)
             if stage is not None:
                 self._set_down(plan, stage, gap)
-                raise _Restaged(stage)
+                raise Restaged(stage)
         # A second layer: carried higher over the first, set down just above it (a drop
         # from the first layer's height would bounce it off).
         size, layer = self.locator.block_size_mm, self.places.next_layer(target.color)
@@ -305,31 +303,16 @@ class PickSorter:
         return True, "", (bx, by), plan
 
     def _staging_spot(self, held: Sighting) -> tuple[float, float] | None:
-        """A free place on the table, nearest the base, where a block set down can be
-        taken straight down: clear of every other block, thing and bin by a finger's
-        room; None if there is none."""
+        """Where to set ``held`` down to take it again straight down (``staging_spot``)."""
         size = self.locator.block_size_mm
-        room = size + 2 * (self.planner.pad_mm[0] + self.settings.finger_clearance_mm)
         loc = held.location
         others = [Footprint.square(v.location.x_mm, v.location.y_mm, size,
                                    v.location.yaw_deg) for v in self.view.seen
                   if off_mm(v, loc.x_mm, loc.y_mm) > size / 2]
-        keep_off = [*others, *self.view.obstacles,
-                    *(Footprint.square(x, y, 2 * BIN_RADIUS_MM, 0.0)
-                      for x, y in self.bins.values())]
-        for radius in STAGING_RADII_MM:
-            for bearing in STAGING_BEARINGS_DEG:
-                x = radius * math.cos(math.radians(bearing))
-                y = radius * math.sin(math.radians(bearing))
-                if any(Footprint.square(x, y, room, 0.0).overlaps(k) for k in keep_off):
-                    continue
-                try:
-                    if self.planner.plan(x, y, 0.0, others, self._gaps(),
-                                         self.view.things).pitch_deg == -90.0:
-                        return x, y
-                except UnreachableError:
-                    continue
-        return None
+        bins = [Footprint.square(x, y, 2 * BIN_RADIUS_MM, 0.0) for x, y in self.bins.values()]
+        room = size + 2 * (self.planner.pad_mm[0] + self.settings.finger_clearance_mm)
+        return staging_spot(self.planner, others, [*self.view.obstacles, *bins],
+                            self.view.things, self._gaps(), room)
 
     def _carry(self, plan: GraspPlan, end: tuple[float, float], carry_z: float,
                end_roll_deg: float) -> float:
@@ -509,7 +492,7 @@ class PickSorter:
             try:
                 held, why, placed, plan = self.pick_and_place(closer)
                 outcome.grasp_pitch_deg = plan.pitch_deg
-            except _Restaged as exc:  # set down to be taken straight down: no attempt
+            except Restaged as exc:  # set down to be taken straight down: no attempt
                 held, why, placed = False, str(exc), None
                 outcome.attempts -= 1
                 restaged = exc.spot_mm
@@ -629,15 +612,6 @@ class PickSorter:
         return [size + 2 * c for c in (s.finger_clearance_mm,
                                        (s.finger_clearance_mm + s.min_finger_clearance_mm) / 2,
                                        s.min_finger_clearance_mm)]
-
-
-class _Restaged(Exception):
-    """A block taken tilted for a second layer was set down to be taken straight down."""
-
-    def __init__(self, spot_mm: tuple[float, float]) -> None:
-        super().__init__(f"taken tilted, it would lean on the second layer: set down at "
-                         f"{_mm(spot_mm)} to be taken straight down")
-        self.spot_mm = spot_mm
 
 
 def _mm(xy: tuple[float, float]) -> str:
