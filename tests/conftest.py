@@ -62,6 +62,24 @@ def arm(request: pytest.FixtureRequest) -> Iterator[SimArm]:
             server.stop()
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _private_runtime_dir(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """The tests' own runtime folder: a `busarm sim serve` the developer (or another test
+    run) has running must not become the default port of the commands under test."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("BUSARM_RUNTIME_DIR", str(tmp_path_factory.mktemp("busarm-run")))
+        yield
+
+
+@pytest.fixture(autouse=True)
+def _private_config_dir(tmp_path_factory: pytest.TempPathFactory,
+                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each test's own XDG config folder: kept camera calibrations
+    (busarm.robot.calibration_store) never come from, or go to, the real home folder,
+    nor from another test."""
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path_factory.mktemp("config")))
+
+
 @pytest.fixture(autouse=True)
 def _no_leaked_threads() -> Iterator[None]:
     before = set(threading.enumerate())

@@ -34,6 +34,11 @@ class ChecksumError(ProtocolError):
     """A frame whose checksum does not match its contents."""
 
 
+class EchoMismatchError(ProtocolError):
+    """Replies that show the echo setting is wrong: the servo's reply came with no copy of
+    our request before it, though echo is on (the adapter does not echo)."""
+
+
 class TransportError(BusArmError, OSError):
     """The port cannot be opened, or vanished while in use."""
 
@@ -142,6 +147,7 @@ __all__ = [
     "ChecksumError",
     "ConfigError",
     "ContactError",
+    "EchoMismatchError",
     "KinematicsError",
     "LimitError",
     "MotionError",

@@ -131,10 +131,13 @@ def parse_ids(text: str) -> list[int]:
             raise ConfigError(f"servo IDs {text!r}: {part!r} is not an ID or a range") from None
         if lo > hi:
             raise ConfigError(f"servo IDs {text!r}: range {part!r} is reversed")
+        if lo < 0 or hi > 253:
+            # Said once for the whole part: "1-300" is one mistake, not 47 bad IDs.
+            raise ConfigError(
+                f"servo IDs {text!r}: {part!r} is outside the servo IDs 0-253 "
+                "(254 is the broadcast ID)"
+            )
         ids.extend(range(lo, hi + 1))
-    for sid in ids:
-        if not 0 <= sid <= 253:
-            raise ConfigError(f"servo ID {sid} is out of range 0..253")
     if not ids:
         raise ConfigError(f"servo IDs {text!r}: no ID given")
     return ids

@@ -142,8 +142,10 @@ def test_decode_finds_every_frame_and_reports_garbage() -> None:
     assert lines[0] == "55 55 01 03 1c df  request SERVO_POS_READ to id 1"
     assert lines[1].startswith("55 55 01 05 1c f4 01 e8  reply SERVO_POS_READ from id 1:")
     assert "position_pulses=500" in lines[1]
-    assert lines[2] == "55 55 fe 03 0e f0  request SERVO_ID_READ to broadcast"
-    assert lines[3] == (
+    # The bad candidate in its place, with the checksum it should have.
+    assert lines[2].startswith("55 55 01 07 01 f4 01 e8 03 17  bad checksum 0x17, expected 0x16")
+    assert lines[3] == "55 55 fe 03 0e f0  request SERVO_ID_READ to broadcast"
+    assert lines[4] == (
         "3 frame(s) in 32 byte(s); 12 byte(s) skipped (not part of a valid frame); "
         "1 candidate frame(s) with a bad checksum"
     )
@@ -151,8 +153,9 @@ def test_decode_finds_every_frame_and_reports_garbage() -> None:
 
 def test_decode_of_bytes_without_frames() -> None:
     result = run("decode", "00", "11")
-    assert result.exit_code == 0
+    assert result.exit_code == 1  # nothing decoded is a failure, for scripts
     assert result.stdout.startswith("0 frame(s) in 2 byte(s)")
+    assert result.stderr.strip() == "error: no valid frame in 2 byte(s)"
 
 
 # ---------------------------------------------------------------------------- bad input
@@ -425,7 +428,9 @@ def test_sim_serve_and_monitor_as_subprocesses() -> None:
             assert monitor.poll() is None, monitor.communicate()
         code, _, err = _sigint_and_wait(monitor)
         assert code == 0, err
-        assert "interrupted: all servos stopped (holding position)" in err
+        # What the servos do, read back: these never moved, so they are limp.
+        assert "interrupted: all servos stopped (MOVE_STOP); servos 1, 10 limp (torque off)" \
+            in err
         assert "Traceback" not in err
     finally:
         code, _, err = _sigint_and_wait(server)
@@ -497,7 +502,8 @@ def test_monitor_ctrl_c_stops_the_arm(
     assert run("move", "1", "100", "--time", "5", port=path).exit_code == 0
     result = run("monitor", "--ids", "1", port=path)
     assert result.exit_code == 0, result.stderr
-    assert "interrupted: all servos stopped (holding position)" in result.stderr
+    assert ("interrupted: all servos stopped (MOVE_STOP); servo 1 holding position (torque on)"
+            in result.stderr)
     time.sleep(0.05)
     bus.servo(1).advance(time.monotonic())
     held = bus.servo(1).position_pulses
@@ -516,8 +522,9 @@ def test_ctrl_c_during_a_command_says_the_servos_stopped(
 
     monkeypatch.setattr(ServoBus, "wait_until_reached", interrupted)
     result = run("move", "1", "100", "--time", "5", "--wait", port=path)
-    message = assert_one_error(result, 130)
-    assert message == "error: interrupted: all servos stopped (holding position)"
+    assert result.exit_code == 130, result.stderr
+    assert result.stderr.strip() == ("interrupted: all servos stopped (MOVE_STOP); servo 1 "
+                                     "holding position (torque on)")
     time.sleep(0.05)
     bus.servo(1).advance(time.monotonic())
     held = bus.servo(1).position_pulses
@@ -530,7 +537,9 @@ def test_default_simulator_note() -> None:
     def invoke(*args: str, **env: str | None) -> Result:
         return CliRunner(mix_stderr=False).invoke(cli, list(args), env=env)
 
-    note = "note: no --port given: using the in-process simulated arm (sim)"
+    note = ("note: no --port given: using a simulated arm that lives for this one command (it "
+            "starts straight up every time); to keep one between commands, run `busarm sim "
+            "serve` in another terminal")
     result = invoke("stop", BUSARM_PORT=None)
     assert result.exit_code == 0 and result.stderr.strip() == note, result.stderr
     assert note not in invoke("--port", "sim", "stop", BUSARM_PORT=None).stderr

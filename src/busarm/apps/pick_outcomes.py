@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -43,10 +42,12 @@ class RunReport:
     """The gripper's state when it stopped that way, as read back."""
 
     def totals(self) -> dict[str, object]:
+        """Counts per outcome, the median cycle in s (None before a block is sorted: JSON
+        has no NaN) and the run's seconds."""
         done = [b for b in self.blocks if b.outcome == "sorted"]
-        cycle = float(np.median([b.seconds for b in done])) if done else math.nan
+        cycle = round(float(np.median([b.seconds for b in done])), 2) if done else None
         return {"sorted": len(done),
                 "failed": sum(b.outcome == "failed" for b in self.blocks),
                 "skipped": sum(b.outcome == "skipped" for b in self.blocks),
                 "moved": sum(b.outcome == "moved" for b in self.blocks),
-                "median_cycle_s": round(cycle, 2), "seconds": round(self.seconds, 1)}
+                "median_cycle_s": cycle, "seconds": round(self.seconds, 1)}

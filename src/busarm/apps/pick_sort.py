@@ -17,7 +17,7 @@ One cycle per block, the same code on the twin and on hardware:
 5. verify: the next survey must not see the block where it was picked; at the end each
    bin is looked into.
 
-Any exception or Ctrl+C stops the arm where it is, holding; ``PickSorter.report`` keeps
+Any exception or Ctrl+C stops the arm where it is (MOVE_STOP); ``PickSorter.report`` keeps
 what was done, why it stopped and what the gripper holds, as read back.
 """
 
@@ -296,8 +296,8 @@ class PickSorter:
             arm.move_line(bx, by, release_z, -90.0, square, speed_mm_s=s.line_speed_mm_s)
         except MotionTimeoutError:  # it rests on something in the bin: let go there
             arm.stop()
-        self._holding = None  # from the release on (an open gripper reads as open)
         arm.open_gripper(gap_mm=gap)
+        self._holding = None  # only once open: stopped while opening, it still holds it
         self.on_step("release")
         arm.move_line(bx, by, carry_z, -90.0, square, speed_mm_s=s.line_speed_mm_s)
         return True, "", (bx, by), plan
@@ -341,8 +341,8 @@ class PickSorter:
             arm.move_line(*spot, z0 + s.release_mm, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
         except MotionTimeoutError:  # it rests on something: let go there
             arm.stop()
-        self._holding = None
         arm.open_gripper(gap_mm=gap_mm)
+        self._holding = None  # only once open (see pick_and_place)
         arm.move_line(*spot, carry_z, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
 
     def verify_bins(self, report: RunReport) -> None:
@@ -377,8 +377,8 @@ class PickSorter:
         """Sort until the table shows no block that can be sorted (or ``max_cycles``
         surveys have been made); the whole report.
 
-        On an error or Ctrl+C the arm is stopped where it is, holding, ``self.report``
-        says why and what the gripper reads, and the exception goes on up.
+        On an error or Ctrl+C the arm is stopped where it is, ``self.report`` says why
+        and what the gripper holds, and the exception goes on up.
         """
         start = self.clock.now()
         self.report = report = RunReport()
@@ -404,6 +404,7 @@ class PickSorter:
         except BaseException as exc:
             report.stopped = ("interrupted (Ctrl+C)" if isinstance(exc, KeyboardInterrupt)
                               else f"{type(exc).__name__}: {exc}")
+            report.gripper = "not read back (interrupted again)"  # if a Ctrl+C cuts it short
             report.gripper = self._stop_and_read_gripper()
             raise
         finally:
@@ -503,8 +504,8 @@ class PickSorter:
             except MotionTimeoutError as exc:  # a move met something: back off, go on
                 self._retreat()
                 if self._holding is not None:  # let it go: it is looked for afresh
-                    self._holding = None
                     self.arm.open_gripper()
+                    self._holding = None
                 held, why, placed = False, f"a move met something ({exc}): backed off", None
         outcome.seconds += self.clock.now() - t0
         if restaged is not None:  # its record goes with it (after saying where from)
@@ -524,22 +525,26 @@ class PickSorter:
         return True
 
     def _stop_and_read_gripper(self) -> str:
-        """Stop and hold the arm (a Ctrl+C between moves has stopped nothing yet); what the
-        gripper holds, as read back."""
+        """Stop the arm (a Ctrl+C between moves has stopped nothing yet); what the gripper
+        holds, judged from its position read back and the block it last took."""
         g = self.arm.config.gripper
         try:
             self.arm.stop()
             pulses = self.arm.read_gripper_pulses()
-        except BusArmError as exc:
+        except (BusArmError, OSError) as exc:  # the port itself may be what failed
             return f"unknown: the bus did not answer ({exc})"
         gap_mm = g.gap_mm_at(pulses)
         said = f"{gap_mm:.0f} mm apart, {pulses} pulses"
         if abs(pulses - g.closed_pulses) <= g.holding_margin_pulses:
             lost = f", the {self._holding} block lost" if self._holding else ""
-            return f"closed, empty{lost} ({said})"
-        if self._holding and gap_mm <= self.locator.block_size_mm + HOLD_SLACK_MM:
+            return f"closed on nothing{lost} ({said})"
+        if gap_mm > self.locator.block_size_mm + HOLD_SLACK_MM:
+            return f"open ({said})"
+        # Fingers a block's width apart: the block it took (kept until the gripper has
+        # opened past it), or none it knows of.
+        if self._holding:
             return f"holding a {self._holding} block ({said})"
-        return f"open ({said})"
+        return f"nearly closed, on no block it took ({said})"
 
     def _outcome_for(self, sighting: Sighting, report: RunReport) -> BlockOutcome:
         """The record of this block: one already made where it was seen, or a new one."""

@@ -154,7 +154,8 @@ class Arm:
         self, exc_type: type[BaseException] | None, exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None:
-        # The bus's own exit: emergency stop (hold) on an exception, then close.
+        # The bus's own exit: on an exception, the emergency stop (if anything was written
+        # since the last one), then close.
         self.bus.__exit__(exc_type, exc, tb)
 
     # ------------------------------------------------------------------ checks
@@ -692,13 +693,14 @@ class Arm:
 
     def play(
         self, group: ActionGroup, *, stop_event: threading.Event | None = None,
-        speed_scale: float = 1.0,
+        speed_scale: float = 1.0, on_frame: Callable[[int], None] | None = None,
     ) -> int:
         """Play an action group frame by frame; returns how many frames were played.
 
         Each frame moves every servo over its time, then waits that time (the vendor's
         playback). Setting ``stop_event`` stops the arm and holds it between or during
-        frames. The whole group is checked before the first frame is sent.
+        frames. The whole group is checked before the first frame is sent. ``on_frame(n)``
+        is called as frame n (from 1) has been sent, so an interruption can say where.
         """
         check_range("speed_scale", speed_scale, 0.1, 10.0)
         frames = self.action_targets(group)
@@ -726,6 +728,8 @@ class Arm:
                     pulses[gid] = grip
                 self._send_pulses(pulses, duration)
                 played += 1
+                if on_frame is not None:
+                    on_frame(played)
                 if self.clock.wait(stop, duration):
                     break
             if stop.is_set():

@@ -24,7 +24,9 @@ from busarm.units import (
     CENTER_PULSES,
     DEG_PER_PULSE,
     MOVE_TIME_MAX_MS,
+    POSITION_MAX_DEG,
     POSITION_MAX_PULSES,
+    POSITION_MIN_DEG,
     POSITION_MIN_PULSES,
     check_int_range,
     check_range,
@@ -193,6 +195,20 @@ class ArmConfig:
     @property
     def limits_deg(self) -> tuple[tuple[float, float], ...]:
         return tuple((j.min_deg, j.max_deg) for j in self.joints)
+
+    def servo_range_deg(self, servo_id: int) -> tuple[str, float, float] | None:
+        """What this arm allows servo ``servo_id`` as a servo angle (deg from its mid-point,
+        uncalibrated): the part's name (a joint's, or ``gripper``) and min..max; None if the
+        servo is not one of the arm's."""
+        for j in self.joints:
+            if j.servo_id == servo_id:
+                a, b = j.servo_deg_from_angle_deg(j.min_deg), j.servo_deg_from_angle_deg(j.max_deg)
+                return (j.name, max(min(a, b), POSITION_MIN_DEG), min(max(a, b), POSITION_MAX_DEG))
+        g = self.gripper
+        if g.servo_id == servo_id:
+            return ("gripper", (g.min_pulses - CENTER_PULSES) * DEG_PER_PULSE,
+                    (g.max_pulses - CENTER_PULSES) * DEG_PER_PULSE)
+        return None
 
     def joint(self, name_or_index: str | int) -> JointConfig:
         """A joint by name or by 1-based number (1 = base yaw)."""

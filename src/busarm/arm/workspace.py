@@ -11,7 +11,8 @@ Two views of one arm:
   point is tested at the middle of every arc between its sorted roots.
 
 :func:`render_workspace_png` draws both (matplotlib, Agg, imported only when called) and
-writes the PNG atomically. Millimetres throughout.
+writes the picture atomically, in the format its file name says (``PICTURE_FORMATS``).
+Millimetres throughout.
 """
 
 from __future__ import annotations
@@ -153,7 +154,9 @@ def render_workspace_png(
     config: ArmConfig, path: Path | str, *, grasp_height_mm: float = 15.0,
     cell_mm: float = 2.0,
 ) -> WorkspaceSummary:
-    """Draw the top-down grasp area and the side reach envelope; write the PNG atomically.
+    """Draw the top-down grasp area and the side reach envelope; write the picture
+    atomically as PNG, JPEG, SVG or PDF by ``path``'s extension (``PICTURE_FORMATS``; any
+    other is refused, naming them, before anything is computed).
 
     The grasp is at ``config.table_z_mm + grasp_height_mm`` (the tool point above the
     table, e.g. half a block's height). An existing file at ``path`` is replaced only
@@ -176,6 +179,7 @@ def render_workspace_png(
         )
     if path.is_dir():
         raise ConfigError(f"cannot write workspace picture {path}: it is a directory")
+    fmt = picture_format(path)
     kin = ArmKinematics.from_config(config)
     grasp_z = config.table_z_mm + height
     xs, ys, top = workspace_grid(kin, grasp_z, cell)
@@ -189,8 +193,8 @@ def render_workspace_png(
         max_radius_mm=float(radii.max()) if radii.size else None,
         envelope_area_cm2=float(side.sum()) * cell * cell / 100.0,
     )
-    png = _draw(config, kin, summary, (xs, ys, top), (rs, zs, side))
-    write_bytes_atomic(path, png, "workspace picture")
+    picture = _draw(config, kin, summary, (xs, ys, top), (rs, zs, side), fmt)
+    write_bytes_atomic(path, picture, "workspace picture")
     return summary
 
 
@@ -276,6 +280,7 @@ def _exact_any_pitch(
 def _draw(
     config: ArmConfig, kin: ArmKinematics, summary: WorkspaceSummary,
     top: tuple[FloatArray, FloatArray, BoolArray], side: tuple[FloatArray, FloatArray, BoolArray],
+    fmt: str = "png",
 ) -> bytes:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -350,11 +355,24 @@ def _draw(
     ax_side.legend(loc="upper left", fontsize=8, framealpha=0.9)
     fig.suptitle(f"{config.name}: workspace (cells of {cell:g} mm)", fontsize=13)
     buf = io.BytesIO()
-    fig.savefig(buf, format="png")
+    fig.savefig(buf, format=fmt)
     return buf.getvalue()
 
 
 # ---------------------------------------------------------------------- checks
+
+PICTURE_FORMATS = {".png": "png", ".jpg": "jpeg", ".jpeg": "jpeg", ".svg": "svg", ".pdf": "pdf"}
+"""The picture's format by its file's extension (matplotlib's name for it)."""
+
+
+def picture_format(path: Path | str) -> str:
+    """The format ``path``'s extension names; ConfigError naming the allowed ones."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in PICTURE_FORMATS:
+        raise ConfigError(f"cannot write workspace picture {path}: extension "
+                          f"{suffix or '(none)'!r} is not one of {', '.join(PICTURE_FORMATS)}")
+    return PICTURE_FORMATS[suffix]
+
 
 
 def _finite(name: str, value: object) -> float:
@@ -383,7 +401,9 @@ def _check_size(cell: float, cells: int) -> None:
 
 __all__ = [
     "MAX_GRID_CELLS",
+    "PICTURE_FORMATS",
     "WorkspaceSummary",
+    "picture_format",
     "reachable_any_pitch",
     "render_workspace_png",
     "side_envelope",

@@ -14,8 +14,13 @@ from __future__ import annotations
 import concurrent.futures
 import math
 import multiprocessing
+import os
+import signal
 import tempfile
+import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -213,13 +218,36 @@ def _results(tasks: list[SceneTask], workers: int, progress: Progress) -> list[S
     # Spawned, not forked: each worker starts its own OpenGL context for the cameras.
     context = multiprocessing.get_context("spawn")
     results: dict[int, SceneResult] = {}
-    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
-        for future in concurrent.futures.as_completed(
-                [pool.submit(run_scene, task) for task in tasks]):
+    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context,
+                                                initializer=_quiet_on_ctrl_c) as pool:
+        with _sigint_ignored():  # the workers start here, and inherit it
+            futures = [pool.submit(run_scene, task) for task in tasks]
+        for future in concurrent.futures.as_completed(futures):
             r = future.result()
             results[r.task.index] = r
             report(len(results), r)
     return [results[i] for i in range(len(tasks))]
+
+
+@contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored for the block: processes started in it inherit that, so a Ctrl+C
+    (which a terminal sends to every process of the job) cannot interrupt a worker while
+    it loads (a traceback each) before ``_quiet_on_ctrl_c`` is in place."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _quiet_on_ctrl_c() -> None:
+    """A worker's start: a Ctrl+C ends it at once and quietly (the parent, interrupted
+    too, says so in one line); its scene's twin goes with it."""
+    signal.signal(signal.SIGINT, lambda signum, frame: os._exit(130))
 
 
 def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] | None = None,

@@ -14,6 +14,7 @@ from __future__ import annotations
 import enum
 import logging
 import threading
+import warnings
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from types import TracebackType
@@ -26,6 +27,7 @@ from busarm.errors import (
     BusTimeoutError,
     ChecksumError,
     ConfigError,
+    EchoMismatchError,
     LimitError,
     MotionTimeoutError,
     ProtocolError,
@@ -83,6 +85,7 @@ CONFLICT_PROBES = 3
 """Position reads that decide whether a garbled ID is two servos or line noise."""
 SCAN_MARGIN_S = 0.0012
 """Scans use a tighter margin: a late answer is still caught (see ``scan``)."""
+NO_ECHO_HINT = "the replies look like the adapter does not echo: try --echo off (or auto)"
 
 _HEADER = b"\x55\x55"
 _R = TypeVar("_R", bound=Reply)
@@ -128,7 +131,9 @@ class ServoBus:
     """LX bus servos on one serial line. Thread-safe; use as a context manager.
 
     Leaving the ``with`` block because of an exception (Ctrl+C included) sends
-    MOVE_STOP to every servo, which holds them where they are.
+    MOVE_STOP to every servo, which holds them where they are (those with torque on),
+    if anything was written since the last stop; a bus that only read, or wrote nothing
+    after its stop, leaves the servos as they are and sends nothing.
     """
 
     def __init__(
@@ -163,6 +168,14 @@ class ServoBus:
         # (servo ID, command) -> when a request of it last timed out: its reply may come late.
         self._late: dict[tuple[int, int], float] = {}
         self._move_ends: dict[int, float] = {}  # servo ID -> when its last move should end
+        self._echo_warned = False  # said that our own bytes come back with echo off
+        self.wrote = False
+        """Whether a write command (one that can move or change a servo) has gone out."""
+        self.written_ids: set[int] = set()
+        """The servos written to by ID (broadcast writes are not counted here)."""
+        self.stop_sent = False
+        """Whether the emergency stop has been sent."""
+        self._unstopped = False  # written since the last emergency stop
         for sid, (lo, hi) in (limits_deg or {}).items():
             self.set_limits_deg(sid, lo, hi)
         self.echo = echo_mode is EchoMode.ON
@@ -193,7 +206,7 @@ class ServoBus:
         tb: TracebackType | None,
     ) -> None:
         try:
-            if exc_type is not None:
+            if exc_type is not None and self._unstopped:
                 self.emergency_stop()
         finally:
             self.close()
@@ -211,9 +224,12 @@ class ServoBus:
         ]
         for frame in frames:
             try:
-                self._send(frame)
+                # Back to back, not waiting for echoes: a stop must not wait on the line
+                # (nor fail on a wrong echo setting); a later exchange discards the copies.
+                self._send(frame, await_echo=False)
             except Exception as exc:  # the bus may be what failed
                 log.warning("emergency stop: %s", exc)
+        self.stop_sent, self._unstopped = True, False
 
     # ------------------------------------------------------------------ timing
 
@@ -250,7 +266,12 @@ class ServoBus:
             raise ConfigError(
                 "refusing to broadcast ID_WRITE: it would renumber every servo on the bus"
             )
-        self._send(encode_request(servo_id, command, *args))
+        request = encode_request(servo_id, command, *args)
+        # Marked before sending: a write that fails half-way may have reached the servo.
+        self.wrote = self._unstopped = True
+        if servo_id != BROADCAST_ID:
+            self.written_ids.add(servo_id)
+        self._send(request)
 
     def query(self, servo_id: int, command: Command) -> Reply:
         """Send a read command and return the validated, typed reply (with retries)."""
@@ -291,7 +312,7 @@ class ServoBus:
         self._plans[(servo_id, command)] = plan
         return plan
 
-    def _send(self, request: bytes) -> None:
+    def _send(self, request: bytes, *, await_echo: bool = True) -> None:
         with self._lock:
             t = self.transport
             t.write(request)
@@ -299,7 +320,7 @@ class ServoBus:
             # request cannot start until they are, so its deadline must wait for them.
             now = self._now()
             self._line_free_at = max(now, self._line_free_at) + len(request) * self.byte_s
-            if self.echo:
+            if self.echo and await_echo:
                 self._await_echo(request, self.timeout_s(len(request), 0))
 
     def _await_echo(self, request: bytes, timeout_s: float) -> None:
@@ -405,42 +426,75 @@ class ServoBus:
         found: bytes | None = None
         chunk: bytes = first
         unexplained = 0  # bytes that were neither our echo nor a reply
+        frames_seen = 0
+        reply_first = False  # our reply, and nothing before it, while awaiting our echo
         while True:
             unexplained += len(chunk)
             for frame in parser.feed(chunk):
+                frames_seen += 1
+                is_reply = (
+                    frame.command == command and frame.length == want_length
+                    and (frame.servo_id == servo_id or servo_id == BROADCAST_ID)
+                )
                 if echo_pending:
                     if frame.to_bytes() == plan.request:
                         echo_pending = False
                         unexplained -= len(plan.request)
+                    elif is_reply and frames_seen == 1 and not parser.skipped_bytes:
+                        reply_first = True
                     continue
-                if (
-                    frame.command == command and frame.length == want_length
-                    and (frame.servo_id == servo_id or servo_id == BROADCAST_ID)
-                ):
+                if is_reply:
                     if not expect_late:
                         return frame.params
                     found = frame.params
                     unexplained -= want_length + 3
                     deadline = max(deadline, min(self._now() + follow_s, latest))
+                elif not self.echo and frame.to_bytes() == plan.request:
+                    self._warn_echo_off()
             remaining = deadline - self._now()
             chunk = self.transport.read(256, remaining) if remaining > 0 else b""
             if not chunk:
                 break
         if found is not None:
             return found
+        raise self._no_reply_error(plan, servo_id, command, parser, unexplained,
+                                   echo_pending, reply_first and echo_pending)
+
+    def _no_reply_error(
+        self, plan: _ReadPlan, servo_id: int, command: Command, parser: FrameParser,
+        unexplained: int, echo_pending: bool, reply_without_echo: bool,
+    ) -> BusTimeoutError | ProtocolError:
+        """What an attempt that found no reply saw: silence, garbage, or a wrong echo setting."""
         name = command.name
+        if reply_without_echo:
+            # A non-echoing adapter: the servo's reply is all that came back, and with echo
+            # on it is taken for a garbled echo on every read.
+            return EchoMismatchError(
+                f"servo {servo_id} answered {name}, but our own request did not come back "
+                f"before the reply: {NO_ECHO_HINT}", parser.pending,
+            )
         if parser.checksum_failures:
-            raise ChecksumError(f"servo {servo_id} {name}: garbled reply", parser.pending)
+            return ChecksumError(f"servo {servo_id} {name}: garbled reply", parser.pending)
         if unexplained > 0:
-            raise ProtocolError(
+            return ProtocolError(
                 f"servo {servo_id} {name}: {unexplained} byte(s) received, no valid reply"
                 + (" (and our echo did not come back intact)" if echo_pending else ""),
                 parser.pending,
             )
-        raise BusTimeoutError(
+        return BusTimeoutError(
             f"servo {servo_id} did not answer {name} within {plan.timeout_s * 1e3:.1f} ms",
             servo_id=servo_id, command=int(command), timeout_s=plan.timeout_s,
         )
+
+    def _warn_echo_off(self) -> None:
+        """Say once that our own request came back although echo is off (it still works:
+        the copy is skipped, but the echo setting is wrong)."""
+        if not self._echo_warned:
+            self._echo_warned = True
+            warnings.warn(
+                f"{self.transport.name}: the adapter echoes what it sends, but echo is set "
+                "off: use --echo on (or auto)", RuntimeWarning, stacklevel=2,
+            )
 
     def _detect_echo(self) -> bool:
         # A read to the broadcast ID that no servo answers (only ID_READ is answered):
@@ -839,13 +893,19 @@ class ServoBus:
                 probes.append(self._probe(sid))
             if "ok" in probes:
                 found.add(sid)
+            elif probes.count("no echo") == len(probes):
+                raise EchoMismatchError(
+                    f"servo {sid} answers, but every reply came without our request's echo "
+                    f"before it: {NO_ECHO_HINT}"
+                )
             elif probes.count("garbled") >= 2:
                 conflicts.add(sid)
         return ScanResult(sorted(found - conflicts), sorted(conflicts),
                           self._now() - started)
 
     def _probe(self, servo_id: int) -> str:
-        """One POS_READ attempt, no retry: "ok", "garbled" (bytes, no valid reply) or "silent"."""
+        """One POS_READ attempt, no retry: "ok", "garbled" (bytes, no valid reply), "no echo"
+        (a valid reply but not our echo before it, though echo is on) or "silent"."""
         plan = self._plans.get((servo_id, Command.POS_READ)) or self._plan(
             servo_id, Command.POS_READ
         )
@@ -856,6 +916,8 @@ class ServoBus:
                 self._scan_reply(plan, servo_id, Command.POS_READ, first, deadline, False)
             except BusTimeoutError:
                 return "silent"
+            except EchoMismatchError:
+                return "no echo"
             except ProtocolError:
                 return "garbled"
             return "ok"
@@ -880,6 +942,8 @@ class ServoBus:
         if new_id in result.found or new_id in result.conflicts:
             raise BusConflictError(f"ID {new_id} is already taken by another servo")
         self.send(old_id, Command.ID_WRITE, new_id)
+        self.written_ids.discard(old_id)  # it answers at its new ID from now on
+        self.written_ids.add(new_id)
         self._plans = {k: v for k, v in self._plans.items() if k[0] not in (old_id, new_id)}
         if self.read_id(new_id) != new_id:
             raise ProtocolError(f"servo did not take ID {new_id}")

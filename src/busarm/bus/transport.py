@@ -13,9 +13,11 @@ driver. ``open_transport`` picks one from a port string:
 
 from __future__ import annotations
 
+import errno
 import importlib
 import os
 import select
+import stat
 import termios
 import warnings
 from pathlib import Path
@@ -198,6 +200,48 @@ def _check_baudrate(baudrate: object) -> int:
     return baudrate
 
 
+_OPEN_ERRORS = {
+    errno.ENOTTY: "it is not a serial device (`busarm ports` lists the serial ports of this "
+                  "computer)",
+    errno.EACCES: "permission denied: add yourself to the group that owns it (often dialout: "
+                  "sudo usermod -aG dialout $USER, then log in again)",
+    errno.EBUSY: "it is busy: another program has it open",
+}
+"""What the OS's errors when opening a device mean for a person."""
+
+
+def _os_errno(exc: BaseException) -> int:
+    """The OS error number behind ``exc`` (pyserial wraps termios errors, which carry it
+    as their first argument, in a SerialException without one), or 0."""
+    seen: BaseException | None = exc
+    while seen is not None:
+        number = getattr(seen, "errno", None)
+        if number is None and seen.args and isinstance(seen.args[0], int):
+            number = seen.args[0]
+        if isinstance(number, int) and number:
+            return number
+        seen = seen.__cause__ or seen.__context__
+    return 0
+
+
+def _device_problem(path: str) -> str | None:
+    """Why ``path`` cannot be a serial device (it does not exist, it is a file...), or None.
+
+    Said before opening: the OS's own words ("Inappropriate ioctl for device") do not
+    tell a person what is wrong."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        return "it does not exist (is the adapter plugged in? its name may differ)"
+    except OSError:
+        return None  # permission and the like: pyserial's message says it
+    if stat.S_ISCHR(mode):
+        return None
+    kind = "a directory" if stat.S_ISDIR(mode) else (
+        "a regular file" if stat.S_ISREG(mode) else "not a character device")
+    return f"it is {kind}, not a serial device"
+
+
 def open_transport(port: str, *, baudrate: int = DEFAULT_BAUDRATE) -> Transport:
     """Open ``port``: a device path, a pyserial URL, or ``sim``/``sim://...``."""
     if not isinstance(port, str) or not port.strip():
@@ -212,6 +256,10 @@ def open_transport(port: str, *, baudrate: int = DEFAULT_BAUDRATE) -> Transport:
         return transport
     import serial  # pyserial; imported here so the protocol-only user never pays for it
 
+    problem = _device_problem(port) if "://" not in port and os.name == "posix" else None
+    if problem is not None:
+        raise TransportError(f"cannot open {port!r}: {problem}; `busarm ports` lists the "
+                             "serial ports of this computer")
     try:
         if "://" in port:
             ser = serial.serial_for_url(port, baudrate=baudrate, timeout=0, write_timeout=1.0)
@@ -220,5 +268,6 @@ def open_transport(port: str, *, baudrate: int = DEFAULT_BAUDRATE) -> Transport:
     except ValueError as exc:
         raise ConfigError(f"cannot open {port!r}: {exc}") from exc
     except (serial.SerialException, OSError) as exc:
-        raise TransportError(f"cannot open {port!r}: {exc}") from exc
+        why = _OPEN_ERRORS.get(_os_errno(exc), str(exc))
+        raise TransportError(f"cannot open {port!r}: {why}") from exc
     return SerialTransport(ser, port, use_fd="://" not in port and os.name == "posix")

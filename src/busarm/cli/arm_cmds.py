@@ -16,7 +16,8 @@ from typing import Any
 import click
 from rich.table import Table
 
-from busarm.arm.actions import ActionFrame, ActionGroup, read_d6a, write_d6a
+from busarm.arm.action_samples import read_group_or_sample
+from busarm.arm.actions import ActionFrame, ActionGroup, write_d6a
 from busarm.arm.arm import DEFAULT_SPEED_DEG_S, Arm
 from busarm.arm.calibration import (
     save_calibration,
@@ -25,14 +26,22 @@ from busarm.arm.calibration import (
 from busarm.arm.config import ArmConfig
 from busarm.arm.kinematics import ArmKinematics, Pose
 from busarm.arm.motion import PROFILES
+from busarm.arm.named_poses import check_savable_name, poses_file, save_pose
 from busarm.cli.common import (
     NUMBER_ARGS,
     ArmContext,
     RangeType,
     Settings,
     arm_options,
+    check_gap_mm,
+    check_writable,
+    gap_report,
+    joints_to_move,
+    parse_gripper_target,
     pass_arm,
     pass_settings,
+    robot_folder,
+    torque_text,
 )
 from busarm.errors import ConfigError
 from busarm.units import DEG_PER_PULSE
@@ -242,7 +251,8 @@ def urdf(ac: ArmContext, output: Path | None) -> None:
 
 @arm.command()
 @click.option("--png", "png", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="Picture to write (top view of the top-down grasp area, side reach).")
+              help="Picture to write (top view of the top-down grasp area, side reach): "
+                   ".png, .jpg, .svg or .pdf.")
 @click.option("--grasp-height", type=RangeType("height", 0.0, 300.0, "mm"), default=15.0,
               show_default=True, help="Tool point height above the table for the top view.")
 @click.option("--cell", type=RangeType("cell", 0.5, 20.0, "mm"), default=2.0, show_default=True,
@@ -261,13 +271,23 @@ def workspace(ac: ArmContext, png: Path, grasp_height: float, cell: float) -> No
 
 @arm.command()
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
+@click.option("--save", "save_name", metavar="NAME",
+              help="Also keep these joint angles as pose NAME (see `busarm arm poses`).")
 @pass_arm
-def pose(ac: ArmContext, as_json: bool) -> None:
+def pose(ac: ArmContext, as_json: bool, save_name: str | None) -> None:
     """The measured joint angles, the tool pose and the gripper position."""
+    if save_name is not None:
+        check_savable_name(ac.config, save_name)  # before the bus: a built-in name fails
     with ac.open() as a:
         q = a.read_joints_deg()
         p = a.kin.fk(q)
         grip = a.read_gripper_pulses()
+    if save_name is not None:
+        folder = robot_folder(ac.settings.port)
+        replaced = save_pose(folder, ac.config, save_name, q)
+        ac.settings.err.print(f"{'replaced' if replaced else 'saved'} pose {save_name!r} in "
+                              f"{poses_file(folder)}", highlight=False, markup=False,
+                              soft_wrap=True)
     data = {"joints_deg": _joints_dict(ac.config, q), "pose": _pose_dict(p),
             "gripper_pulses": grip}
     _emit(ac.settings, as_json, data,
@@ -313,16 +333,24 @@ def move_to(ac: ArmContext, x: float, y: float, z: float, pitch: float | None,
 
 
 @arm.command("move-joints", context_settings=NUMBER_ARGS)
-@click.argument("joints", nargs=5, type=DEG)
+@click.argument("joints", nargs=-1, type=DEG)
+@click.option("--pose", "pose_name", metavar="NAME",
+              help="A named pose instead of angles (`busarm arm poses` lists them).")
+@click.option("--json", "json_source", metavar="FILE|-",
+              help="The joints from JSON, as `busarm arm pose --json` prints it (- = stdin).")
 @_move_options
 @pass_arm
-def move_joints(ac: ArmContext, joints: tuple[float, ...], speed: float | None,
-                duration: float | None) -> None:
-    """Move to five joint angles (deg), all joints starting and arriving together."""
+def move_joints(ac: ArmContext, joints: tuple[float, ...], pose_name: str | None,
+                json_source: str | None, speed: float | None, duration: float | None) -> None:
+    """Move to five joint angles (deg), a named pose or JSON joints; all joints start and
+    arrive together. Everything is checked before anything moves."""
+    joints = joints_to_move(ac.config, ac.settings.port, joints, pose_name, json_source)
     with ac.open() as a:
         took = a.move_joints(joints, speed_deg_s=speed, duration_s=duration)
         q = a.read_joints_deg()
-    ac.settings.out.print(f"moved in {took:.2f} s: {_joints_text(ac.config, q)}", highlight=False)
+    to = f" to pose {pose_name!r}" if pose_name is not None else ""
+    ac.settings.out.print(f"moved{to} in {took:.2f} s: {_joints_text(ac.config, q)}",
+                          highlight=False)
 
 
 @arm.command()
@@ -336,11 +364,19 @@ def home(ac: ArmContext, speed: float | None, duration: float | None) -> None:
     ac.settings.out.print(f"home: {_pose_text(p)}", highlight=False)
 
 
-@arm.command()
-@click.argument("action", type=click.Choice(["open", "close"]))
+@arm.command(context_settings=NUMBER_ARGS)
+@click.argument("what", metavar="open|close|GAPmm")
 @pass_arm
-def gripper(ac: ArmContext, action: str) -> None:
-    """Open the gripper, or close it and tell whether it holds something."""
+def gripper(ac: ArmContext, what: str) -> None:
+    """Open the gripper, close it and tell whether it holds something, or open (or close)
+    it to a gap between the fingers in mm: `busarm arm gripper 25mm`."""
+    action = parse_gripper_target(what)
+    if isinstance(action, float):
+        gap_mm = check_gap_mm(ac.config, action)
+        with ac.open() as a:
+            pos = a.open_gripper(gap_mm=gap_mm)
+        ac.settings.out.print(gap_report(ac.config, gap_mm, pos), highlight=False, soft_wrap=True)
+        return
     with ac.open() as a:
         if action == "open":
             pos = a.open_gripper()
@@ -380,7 +416,9 @@ def calibrate(ac: ArmContext, out_path: Path, pose_name: str, software_only: boo
                 f"Torque is off. Move the arm by hand to the [bold]{pose_name}[/bold] pose "
                 f"({_joints_text(ac.config, reference)} deg), hold it still."
             )
-            click.confirm("Is the arm in that pose?", default=True, abort=True, err=True)
+            if not click.confirm("Is the arm in that pose?", default=True, err=True):
+                _declined(a, settings, out_path)
+                return
         measured = {}
         present = {}
         for j in ac.config.joints:
@@ -395,9 +433,10 @@ def calibrate(ac: ArmContext, out_path: Path, pose_name: str, software_only: boo
             table.add_row(j.name, str(j.servo_id), f"{measured[j.servo_id]:+.2f}",
                           f"{c.hardware_offset_deg:+.2f}", f"{c.software_offset_deg:+.3f}")
         settings.out.print(table)
-        if not yes:
-            click.confirm(f"Write the servo offsets and {out_path}?", default=True, abort=True,
-                          err=True)
+        if not yes and not click.confirm(f"Write the servo offsets and {out_path}?",
+                                         default=True, err=True):
+            _declined(a, settings, out_path)
+            return
         for c in cal.joints:
             if present[c.servo_id] != c.hardware_offset_pulses:
                 a.bus.adjust_offset_deg(c.servo_id, c.hardware_offset_deg)
@@ -422,6 +461,15 @@ def _hold(a: Arm, settings: Settings) -> None:
                            "(torque off); move them back by hand", highlight=False)
 
 
+def _declined(a: Arm, settings: Settings, out_path: Path) -> None:
+    """A "no" to a calibration prompt: nothing is written, and the arm (limp for the
+    measurement) holds where it stands again; said as read back."""
+    _hold(a, settings)
+    settings.out.print(f"calibration declined: nothing written (the servos' offsets and "
+                       f"{out_path} are unchanged); {torque_text(a.bus, a.config.servo_ids)}",
+                       highlight=False, markup=False, soft_wrap=True)
+
+
 # ---------------------------------------------------------------------- action groups
 
 
@@ -439,12 +487,13 @@ def _group_table(ac: ArmContext, group: ActionGroup) -> Table:
 
 
 @actions.command()
-@click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("file", metavar="FILE|SAMPLE")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
 @pass_arm
-def show(ac: ArmContext, file: Path, as_json: bool) -> None:
-    """Show the frames of a .d6a file (pulses, and joint angles in JSON). No bus needed."""
-    group = read_d6a(file)
+def show(ac: ArmContext, file: str, as_json: bool) -> None:
+    """Show the frames of a .d6a file or a sample (pulses; joint angles in JSON). No bus
+    needed."""
+    group, _ = read_group_or_sample(file)
     if as_json:
         columns = ac.config.action_columns
         frames = []
@@ -467,17 +516,32 @@ def show(ac: ArmContext, file: Path, as_json: bool) -> None:
 
 
 @actions.command()
-@click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("file", metavar="FILE|SAMPLE")
 @click.option("--speed-scale", type=RangeType("speed scale", 0.1, 10.0, "x"), default=1.0,
               show_default=True, help="Play faster (>1) or slower (<1).")
 @pass_arm
-def play(ac: ArmContext, file: Path, speed_scale: float) -> None:
-    """Play a .d6a action group; Ctrl+C stops the arm and holds it."""
-    group = read_d6a(file)
-    with ac.open() as a:
-        a.action_targets(group)  # every frame checked before the first moves
-        played = a.play(group, speed_scale=speed_scale)
-    ac.settings.out.print(f"played {played} of {len(group.frames)} frames", highlight=False)
+def play(ac: ArmContext, file: str, speed_scale: float) -> None:
+    """Play a .d6a action group, or a sample by name (`busarm actions list`).
+
+    Ctrl+C stops the arm and holds it, and says at which frame.
+    """
+    group, _ = read_group_or_sample(file)
+    total = len(group.frames)
+    reached = 0
+
+    def on_frame(n: int) -> None:
+        nonlocal reached
+        reached = n
+        ac.settings.err.print(f"frame {n} of {total}", highlight=False)
+
+    try:
+        with ac.open() as a:
+            a.action_targets(group)  # every frame checked before the first moves
+            played = a.play(group, speed_scale=speed_scale, on_frame=on_frame)
+    except KeyboardInterrupt as exc:
+        where = f"at frame {reached} of {total}" if reached else f"before frame 1 of {total}"
+        raise click.Abort(f"interrupted {where}") from exc
+    ac.settings.out.print(f"played {played} of {total} frames", highlight=False)
 
 
 @actions.command()
@@ -497,6 +561,7 @@ def record(ac: ArmContext, file: Path, interval: float | None, max_frames: int |
     the servos hold where they are and FILE is written (atomically).
     """
     settings = ac.settings
+    check_writable(file)  # before the teaching, not after it
     duration_ms = time_ms if time_ms is not None else (
         round(interval * 1000) if interval else 1000)
     frames: list[ActionFrame] = []

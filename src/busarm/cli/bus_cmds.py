@@ -10,14 +10,15 @@ from busarm.bus.driver import ServoBus
 from busarm.bus.transport import usb_latency_timer_ms
 from busarm.cli.common import (
     ID_LIST,
-    STOPPED,
     RangeType,
     Settings,
     pass_settings,
     scan_report,
     scan_with_progress,
     state_table,
+    stop_and_read_back,
 )
+from busarm.errors import BusTimeoutError
 from busarm.protocol import MAX_SERVO_ID
 
 # USB-serial chips found on LX servo adapters (BusLinker boards, one-wire adapters, HATs).
@@ -70,11 +71,20 @@ def ports(settings: Settings) -> None:
 def scan(settings: Settings, ids: list[int]) -> None:
     """Find the servos on the bus; show their position (deg), voltage (V), temperature (C).
 
-    IDs answered by more than one servo (duplicate IDs) are reported in red.
+    IDs answered by more than one servo (duplicate IDs) are reported in red. Exit code 1
+    when no servo answers at all.
     """
     with settings.open_bus() as bus:
         result = scan_with_progress(bus, ids, settings.err)
         scan_report(bus, result, settings.out, len(ids))
+        port = bus.transport.name
+    if not result.found and not result.conflicts:  # outside the bus: nothing to stop
+        raise BusTimeoutError(
+            f"no servo answered on {port} at {settings.baudrate} baud: check that the servos "
+            "are powered (their own supply: USB does not power them), the baud rate (--baud; "
+            "LX servos use 115200), the echo setting (--echo auto) and the port (--port; "
+            "`busarm ports` lists them)"
+        )
 
 
 @click.command()
@@ -91,8 +101,8 @@ def monitor(
     """Live table of position (deg), temperature (C), voltage (V) and torque per servo.
 
     Refreshes until Ctrl+C (exit code 0) or --count refreshes. Ctrl+C stops every
-    servo (MOVE_STOP: they hold position). When the output is not a terminal, every
-    refresh is printed.
+    servo (MOVE_STOP: those with torque on hold position) and says each one's torque.
+    When the output is not a terminal, every refresh is printed.
     """
     with settings.open_bus() as bus:
         try:
@@ -103,8 +113,8 @@ def monitor(
                     return
             _monitor_loop(settings, bus, ids, interval, count)
         except KeyboardInterrupt:  # the way to end a monitor: not an error, but stop the arm
-            bus.emergency_stop()
-            settings.err.print(f"interrupted: {STOPPED}", highlight=False)
+            settings.err.print(f"interrupted: {stop_and_read_back(bus, ids or ())}",
+                               highlight=False, markup=False, soft_wrap=True)
 
 
 def _monitor_loop(

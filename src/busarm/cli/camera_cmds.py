@@ -3,28 +3,32 @@
 On the twin (``--port twin``) both run without a person: the twin lays the board on
 its table and its camera takes the pictures. On hardware they ask before each picture
 (``--yes`` does not ask). ``camera calibrate --images DIR`` calibrates from pictures
-taken any other way, without an arm.
+taken any other way, without an arm. Without ``-o`` they write to the robot's kept
+calibration (busarm.robot.calibration_store), which ``pick-sort`` and ``vision locate``
+then use; each file records what it was made for.
 """
 
 from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from busarm.cli.common import (
-    DEFAULT_HAND_EYE_OUT,
-    DEFAULT_INTRINSICS_OUT,
     ArmContext,
     Settings,
     arm_options,
+    calibration_store,
     check_writable,
     pass_arm,
     pass_settings,
 )
-from busarm.errors import ConfigError
+from busarm.errors import CalibrationError, ConfigError
+
+if TYPE_CHECKING:
+    from busarm.robot.calibration_store import CalibrationStore, MadeFor
 
 INTRINSIC_BOARDS = ("chessboard", "charuco")
 
@@ -70,11 +74,14 @@ def _progress(settings: Settings) -> Any:
 
 
 def _take_pictures(ac: ArmContext, board: str, board_at: str, views: int, seed: int,
-                   camera_src: str | None, yes: bool, *, intrinsics: Any = None,
-                   intrinsics_file: Path | None = None) -> list[Any]:
+                   camera_src: str | None, yes: bool, store: CalibrationStore, *,
+                   intrinsics: Any = None, intrinsics_file: Path | None = None
+                   ) -> tuple[list[Any], MadeFor]:
     """Plan the views of ``board``, then move the arm through them taking pictures;
-    everything is checked before the arm moves, and it ends at home."""
+    everything is checked before the arm moves (kept ``intrinsics`` too: they must be
+    this camera's), and it ends at home. Also what the pictures' calibration is for."""
     from busarm.arm.camera_mount import CameraMount
+    from busarm.robot.calibration_store import MadeFor
     from busarm.robot.camera_calibration import calibration_views, capture_views
     from busarm.twin.boards import BOARD_SPECS, board2base, calibration_board
 
@@ -93,6 +100,10 @@ def _take_pictures(ac: ArmContext, board: str, board_at: str, views: int, seed: 
             settings.err.print(f"Lay the {spec.describe()} flat with its centre at "
                                f"({centre[0]:g}, {centre[1]:g}) mm, its long side across the "
                                "arm's front; it must not move.", highlight=False)
+        made_for = MadeFor.of(store.robot, (source.width_px, source.height_px), ac.config,
+                              robot.twin)
+        if intrinsics_file == store.intrinsics_path:
+            store.load_intrinsics(made_for)  # StaleCalibration saying why
         if intrinsics is not None and (source.width_px, source.height_px) != (
                 intrinsics.width_px, intrinsics.height_px):
             raise ConfigError(f"{intrinsics_file} is for {intrinsics.width_px}x"
@@ -101,7 +112,16 @@ def _take_pictures(ac: ArmContext, board: str, board_at: str, views: int, seed: 
         taken = capture_views(robot.arm, source, poses, spec, confirm=confirm,
                               progress=_progress(settings))
         robot.arm.move_joints(ac.config.pose("home"))
-    return taken
+    return taken, made_for
+
+
+def _output(given: Path | None, kept: Path, store: CalibrationStore) -> Path:
+    """Where to write: the file given, else the robot's kept one (its folder made)."""
+    if given is None:
+        store.make_folder()
+    output = given if given is not None else kept
+    check_writable(output)
+    return output
 
 
 @camera.command()
@@ -119,25 +139,28 @@ def _take_pictures(ac: ArmContext, board: str, board_at: str, views: int, seed: 
               help="Calibrate from the pictures in this folder instead (no arm).")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="Seed of the view plan.")
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
-              default=DEFAULT_INTRINSICS_OUT, show_default=True,
-              help="Where to write the intrinsics (JSON).")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Where to write the intrinsics (JSON; default: kept for this robot, "
+                   "~/.config/busarm/ROBOT/camera.json).")
 @click.option("--yes", is_flag=True, help="Do not ask before each picture (hardware).")
 @pass_arm
 def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, views: int,
-              board_at: str, images: Path | None, seed: int, output: Path, yes: bool) -> None:
+              board_at: str, images: Path | None, seed: int, output: Path | None,
+              yes: bool) -> None:
     """Find the camera's intrinsics and lens distortion from pictures of a board.
 
     The arm takes the camera through views of the board from many angles, then the
     calibration is written to OUTPUT (busarm.camera_intrinsics, version 1).
     """
+    from busarm.robot.calibration_store import MadeFor
     from busarm.robot.camera_calibration import intrinsics_from_views
     from busarm.twin.boards import BOARD_SPECS
     from busarm.vision.calibration import calibrate_intrinsics, find_board, save_intrinsics
     from busarm.vision.camera import EndOfFrames, open_camera
 
     spec = BOARD_SPECS[board]
-    check_writable(output)
+    store = calibration_store(ac.settings)
+    output = _output(output, store.intrinsics_path, store)
     if images is not None:
         with open_camera(str(images)) as source:
             observations, size = [], (source.width_px, source.height_px)
@@ -148,21 +171,27 @@ def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, vi
                     break
                 observations.append(find_board(frame.image, spec))
         result = calibrate_intrinsics(observations, size, model)
+        made_for = MadeFor.of(store.robot, size, ac.config)
     else:
-        taken = _take_pictures(ac, board, board_at, views, seed, camera_src, yes)
+        taken, made_for = _take_pictures(ac, board, board_at, views, seed, camera_src, yes,
+                                         store)
         result = intrinsics_from_views(taken, model)
-    save_intrinsics(output, result, board=spec.describe())
+    save_intrinsics(output, result, board=spec.describe(), made_for=made_for.intrinsics())
     i = result.intrinsics
     click.echo(
         f"wrote {output}: {i.model}, fx {i.fx:.2f} fy {i.fy:.2f} cx {i.cx:.2f} cy {i.cy:.2f} px, "
         f"distortion {[round(float(d), 5) for d in i.distortion]}; reprojection rms "
         f"{result.rms_px:.3f} px over {len(result.per_view_rms_px)} views")
+    if output == store.intrinsics_path:
+        ac.settings.err.print(f"next, where the camera sits: `{store.command('handeye')}`",
+                              highlight=False, soft_wrap=True)
 
 
 @camera.command()
 @click.option("--intrinsics", type=click.Path(dir_okay=False, exists=True, path_type=Path),
-              default=DEFAULT_INTRINSICS_OUT, show_default=True,
-              help="The camera's intrinsics, from `busarm camera calibrate`.")
+              default=None,
+              help="The camera's intrinsics, from `busarm camera calibrate` (default: the "
+                   "ones kept for this robot).")
 @click.option("--camera", "camera_src", default=None,
               help="Camera source (/dev/video0, twin...); default: the twin's.")
 @click.option("--views", type=click.IntRange(4, 60), default=16, show_default=True,
@@ -171,13 +200,13 @@ def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, vi
               help="Where the tag board's centre lies on the table, X,Y in mm.")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True,
               help="Seed of the view plan.")
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path),
-              default=DEFAULT_HAND_EYE_OUT, show_default=True,
-              help="Where to write the hand-eye calibration (JSON).")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Where to write the hand-eye calibration (JSON; default: kept for this "
+                   "robot, ~/.config/busarm/ROBOT/hand_eye.json).")
 @click.option("--yes", is_flag=True, help="Do not ask before each picture (hardware).")
 @pass_arm
-def handeye(ac: ArmContext, intrinsics: Path, camera_src: str | None, views: int,
-            board_at: str, seed: int, output: Path, yes: bool) -> None:
+def handeye(ac: ArmContext, intrinsics: Path | None, camera_src: str | None, views: int,
+            board_at: str, seed: int, output: Path | None, yes: bool) -> None:
     """Find where the camera sits on the wrist from pictures of a fixed AprilTag board.
 
     The arm looks at the board (tag36h11 grid) from many poses; the camera's pose on the
@@ -187,12 +216,25 @@ def handeye(ac: ArmContext, intrinsics: Path, camera_src: str | None, views: int
     from busarm.robot.camera_calibration import hand_eye_from_views
     from busarm.vision.calibration import load_intrinsics, save_hand_eye
 
-    check_writable(output)
-    intr = load_intrinsics(intrinsics)
-    taken = _take_pictures(ac, "tags", board_at, views, seed, camera_src, yes,
-                           intrinsics=intr, intrinsics_file=intrinsics)
+    store = calibration_store(ac.settings)
+    if intrinsics is None:
+        if not store.intrinsics_path.is_file():
+            raise ConfigError(f"no camera intrinsics are kept for robot {store.robot!r} "
+                              f"(looked for {store.intrinsics_path}): make them first with "
+                              f"`{store.command('calibrate')}`, or give --intrinsics FILE")
+        intrinsics = store.intrinsics_path
+    output = _output(output, store.hand_eye_path, store)
+    try:
+        intr = load_intrinsics(intrinsics)
+    except CalibrationError as exc:
+        if intrinsics != store.intrinsics_path:
+            raise
+        raise ConfigError(f"{exc}; make them again with `{store.command('calibrate')}`"
+                          ) from None
+    taken, made_for = _take_pictures(ac, "tags", board_at, views, seed, camera_src, yes, store,
+                                     intrinsics=intr, intrinsics_file=intrinsics)
     result = hand_eye_from_views(taken, intr)
-    save_hand_eye(output, result)
+    save_hand_eye(output, result, made_for=made_for.hand_eye())
     t = result.cam2link[:3, 3]
     click.echo(
         f"wrote {output}: camera at ({t[0]:.1f}, {t[1]:.1f}, {t[2]:.1f}) mm on the "

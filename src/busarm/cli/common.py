@@ -37,6 +37,22 @@ from busarm.arm.config import ArmConfig, load_arm_config
 from busarm.arm.kinematics import ArmKinematics
 from busarm.bus.driver import DEFAULT_RETRIES, DEFAULT_TIMEOUT_MARGIN_S, ScanResult, ServoBus
 from busarm.bus.transport import DEFAULT_BAUDRATE
+from busarm.cli.arm_inputs import (
+    check_gap_mm,
+    gap_report,
+    joints_to_move,
+    parse_gripper_target,
+    robot_folder,
+)
+from busarm.cli.sessions import Session, announced, find_session
+from busarm.cli.stopping import (
+    NOTHING_WRITTEN,
+    add_detail,
+    marking_the_stop,
+    report_line,
+    stop_and_read_back,
+    torque_text,
+)
 from busarm.errors import BusTimeoutError, ConfigError, ProtocolError
 from busarm.protocol import MAX_SERVO_ID, AlarmFlag, check_servo_id
 from busarm.twin.scene import MAX_BLOCKS, Scene
@@ -50,25 +66,24 @@ from busarm.units import (
 
 if TYPE_CHECKING:
     from busarm.robot import Robot
+    from busarm.robot.calibration_store import CalibrationStore
     from busarm.sim.pty import PtyServer
 
 T = TypeVar("T")
 
 NO_REPLY = "no reply"
+BAD_REPLY = "bad reply"
 
-SIM_NOTE = "note: no --port given: using the in-process simulated arm (sim)"
-STOPPED = "all servos stopped (holding position)"
-"""What the bus did on its way out of an error: MOVE_STOP to all (ServoBus.__exit__)."""
-
-
-def servos_stopped(exc: BaseException) -> bool:
-    """Whether ``exc`` (or what caused it) left a bus that sent the emergency stop."""
-    seen: BaseException | None = exc
-    while seen is not None:
-        if getattr(seen, "busarm_servos_stopped", False):
-            return True
-        seen = seen.__cause__ or seen.__context__
-    return False
+SIM_NOTE = ("note: no --port given: using a simulated arm that lives for this one command "
+            "(it starts straight up every time); to keep one between commands, run "
+            "`busarm sim serve` in another terminal")
+"""What a command without --port says when no `busarm sim serve`/`twin serve` runs."""
+# Names commands import from here that live elsewhere (mypy: explicit re-exports).
+__all__ = ["NOTHING_WRITTEN", "add_detail", "report_line", "stop_and_read_back",
+           "torque_text"]  # what the stop says (busarm.cli.stopping)
+__all__ += ["check_gap_mm", "gap_report", "joints_to_move", "parse_gripper_target",
+            "robot_folder"]  # what the arm commands take (busarm.cli.arm_inputs)
+__all__ += ["announced"]  # how `sim serve`/`twin serve` are found (busarm.cli.sessions)
 
 
 @dataclass
@@ -84,6 +99,22 @@ class Settings:
     err: Console = field(default_factory=lambda: Console(stderr=True))
     port_given: bool = True
     """False when neither --port nor BUSARM_PORT was given (the default simulator)."""
+    session: Session | None = field(default=None, init=False, repr=False)
+    """The running `sim serve`/`twin serve` the default port is (after default_port())."""
+    _default_resolved: bool = field(default=False, init=False, repr=False)
+
+    def default_port(self) -> str:
+        """The port of a command without --port: the newest running `busarm sim serve` or
+        `twin serve` (so that commands build on each other), else the in-process
+        simulator. Which one is said once, on stderr."""
+        if not self._default_resolved:
+            self._default_resolved = True
+            self.session = find_session()
+            note = SIM_NOTE if self.session is None else (
+                f"note: no --port given: using {self.session.describe()} "
+                "(--port sim for a fresh simulated arm)")
+            self.err.print(note, highlight=False, markup=False, soft_wrap=True)
+        return self.session.port if self.session is not None else self.port
 
     @contextmanager
     def open_bus(
@@ -94,13 +125,14 @@ class Settings:
 
         Each of ``check_ids`` must answer ``check(bus, sid)`` (default: ID_READ) before
         the body runs; if one does not (or ``check`` raises), the bus is closed with
-        nothing written. An exception leaving the body stops every servo
-        (ServoBus.__exit__), and is marked so that the error message says so.
+        nothing written. An exception leaving the body after a write stops every servo
+        and carries their torque, read back, for the message (``marking_the_stop``).
         """
-        if port is None and not self.port_given:
-            self.err.print(SIM_NOTE, highlight=False, markup=False)
+        check_ids = list(check_ids)
+        if port is None:
+            port = self.port if self.port_given else self.default_port()
         bus = ServoBus.open(
-            self.port if port is None else port,
+            port,
             baudrate=self.baudrate,
             echo=self.echo,
             timeout_margin_s=self.timeout_margin_ms / 1000.0,
@@ -115,33 +147,27 @@ class Settings:
         except BaseException:
             bus.close()  # nothing was written: no emergency stop
             raise
-        with _marking_the_stop(bus):
+        with marking_the_stop(bus, bus, check_ids):
             yield bus
 
     @contextmanager
     def open_robot(self, *, default: str = "sim", **options: Any) -> Iterator[Robot]:
-        """The robot on ``--port`` (``default`` when none was given): ``Robot.open`` with
-        the bus settings and ``options``. An exception leaving the body stops and holds
-        the arm (the error message says so)."""
+        """The robot on ``--port`` (``default`` when none was given; for ``sim``, the
+        running server of default_port(), with a twin's camera): ``Robot.open`` with
+        the bus settings and ``options``. An exception leaving the body after a write stops
+        the arm and carries each servo's torque, read back, for the message."""
         from busarm.robot import Robot  # MuJoCo and OpenCV load only for commands that use it
 
-        robot = Robot.open(self.port if self.port_given else default, baudrate=self.baudrate,
+        port = self.port
+        if not self.port_given:  # the default "sim" is a running server if there is one
+            port = self.default_port() if default == "sim" else default
+            if self.session is not None and options.get("camera") is None:
+                options["camera"] = self.session.camera
+        robot = Robot.open(port, baudrate=self.baudrate,
                            echo=self.echo, timeout_margin_s=self.timeout_margin_ms / 1000.0,
                            retries=self.retries, **options)
-        with _marking_the_stop(robot):
+        with marking_the_stop(robot, robot.arm.bus, robot.config.servo_ids):
             yield robot
-
-
-@contextmanager
-def _marking_the_stop(bus_or_robot: ServoBus | Robot) -> Iterator[None]:
-    """``with bus_or_robot`` (which stops every servo on an exception); an exception that
-    leaves is marked so, for the error message to say that the servos were stopped."""
-    with bus_or_robot:
-        try:
-            yield
-        except BaseException as exc:
-            exc.busarm_servos_stopped = True  # type: ignore[attr-defined]
-            raise
 
 
 def _ping(bus: ServoBus, sid: int) -> None:
@@ -277,7 +303,7 @@ def try_read(read: Callable[[], T]) -> T | str:
     except BusTimeoutError:
         return NO_REPLY
     except ProtocolError:
-        return "bad reply"
+        return BAD_REPLY
 
 
 def fmt(value: object, spec: str = "", unit: str = "") -> str:
@@ -373,6 +399,13 @@ class ArmContext:
         self._calibration_path = calibration
         self._config: ArmConfig | None = None
 
+    def override(self, config: str | None = None, calibration: str | None = None) -> None:
+        """Use these arm options instead (given after the subcommand, or before the group)."""
+        if config is not None:
+            self._config_name, self._config = config, None
+        if calibration is not None:
+            self._calibration_path = calibration
+
     @property
     def config(self) -> ArmConfig:
         if self._config is None:
@@ -391,7 +424,8 @@ class ArmContext:
     @contextmanager
     def open(self, *, check: bool = True, port: str | None = None) -> Iterator[Arm]:
         """The arm on ``port`` (default ``--port``): every servo must answer first (nothing
-        is written if one does not); an exception in the body stops and holds the arm."""
+        is written if one does not); an exception in the body after a write stops the arm
+        (see ``Settings.open_bus``)."""
         calibration = self.calibration()
         with self.settings.open_bus(port, check_ids=self.config.servo_ids) as bus:
             yield Arm(bus, self.config, calibration, check=check)
@@ -410,8 +444,14 @@ def arm_options(f: Callable[..., Any]) -> Callable[..., Any]:
                         show_default=True, show_envvar=True, help=_CONFIG_HELP)(f)
 
 
-DEFAULT_INTRINSICS_OUT = "camera.json"
-DEFAULT_HAND_EYE_OUT = "hand_eye.json"
+def calibration_store(settings: Settings, default: str = "sim") -> CalibrationStore:
+    """Where the robot that ``settings.open_robot(default=default)`` opens keeps its
+    camera calibration (busarm.robot.calibration_store)."""
+    from busarm.robot.calibration_store import CalibrationStore
+
+    port = settings.port if settings.port_given else (
+        settings.default_port() if default == "sim" else default)
+    return CalibrationStore.for_port(port)
 
 
 def check_writable(path: Path) -> None:

@@ -1,7 +1,8 @@
 """``vision locate``: where the blocks are on the table, in mm in the arm's base frame.
 
 Needs the arm (for the camera's pose: forward kinematics of the measured joints) and
-both camera calibrations (``busarm camera calibrate``, ``busarm camera handeye``).
+both camera calibrations (``busarm camera calibrate``, ``busarm camera handeye``): the
+files given, else the ones kept for the robot (busarm.robot.calibration_store).
 """
 
 from __future__ import annotations
@@ -12,11 +13,10 @@ from pathlib import Path
 import click
 
 from busarm.cli.common import (
-    DEFAULT_HAND_EYE_OUT,
-    DEFAULT_INTRINSICS_OUT,
     ArmContext,
     RangeType,
     Settings,
+    calibration_store,
     pass_settings,
 )
 
@@ -27,12 +27,14 @@ BLOCK = RangeType("block size", 10.0, 60.0, "mm")
 @click.option("--camera", "camera_src", default=None,
               help="Camera source (/dev/video0...); default: the twin's with --port twin.")
 @click.option("--intrinsics", type=click.Path(dir_okay=False, exists=True, path_type=Path),
-              default=DEFAULT_INTRINSICS_OUT, show_default=True,
-              help="Camera intrinsics from `busarm camera calibrate`.")
+              default=None,
+              help="Camera intrinsics from `busarm camera calibrate` (default: the ones kept "
+                   "for this robot, in ~/.config/busarm/ROBOT/).")
 @click.option("--hand-eye", "hand_eye", type=click.Path(dir_okay=False, exists=True,
                                                          path_type=Path),
-              default=DEFAULT_HAND_EYE_OUT, show_default=True,
-              help="Camera pose on the wrist from `busarm camera handeye`.")
+              default=None,
+              help="Camera pose on the wrist from `busarm camera handeye` (default: the one "
+                   "kept for this robot).")
 @click.option("--pose", default="look", show_default=True,
               help="Named pose of the arm config to look from.")
 @click.option("--here", is_flag=True, help="Look from where the arm is (do not move).")
@@ -49,7 +51,8 @@ BLOCK = RangeType("block size", 10.0, 60.0, "mm")
               help="Write the annotated picture to this folder.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object with every block.")
 @pass_settings
-def locate(settings: Settings, camera_src: str | None, intrinsics: Path, hand_eye: Path,
+def locate(settings: Settings, camera_src: str | None, intrinsics: Path | None,
+           hand_eye: Path | None,
            pose: str, here: bool, frames: int, thresholds: str | None, colors: str | None,
            block_mm: float, config: str, save: Path | None, as_json: bool) -> None:
     """Find the blocks and print where they are on the table (mm, base frame).
@@ -64,9 +67,12 @@ def locate(settings: Settings, camera_src: str | None, intrinsics: Path, hand_ey
     ac = ArmContext(settings, config, None)
     table = load_thresholds(thresholds) if thresholds else default_thresholds()
     names = parse_color_names(colors) if colors else None
+    store = calibration_store(settings) if intrinsics is None and hand_eye is None else None
     with settings.open_robot(camera=camera_src, config=ac.config, intrinsics=intrinsics,
-                             hand_eye=hand_eye, calibrate=False,
-                             needs=("camera", "camera_calibration")) as robot:
+                             hand_eye=hand_eye, calibrate=False, calibration_store=store,
+                             needs=("camera", "camera_calibration"),
+                             progress=lambda text: settings.err.print(
+                                 text, highlight=False, soft_wrap=True)) as robot:
         locator = robot.locator(names, table, block_mm)
         if not here:
             robot.arm.move_joints(ac.config.pose(pose))

@@ -2,12 +2,13 @@
 
 Every expected failure ends as one line on stderr, ``error: ...``, and an exit code:
 2 for bad input (usage errors, ConfigError), 1 for bus errors (timeouts, garbled
-replies, a port that cannot be opened), 130 when interrupted. No tracebacks.
+replies, a port that cannot be opened). Ctrl+C ends as one line ``interrupted: ...``
+and 130. Either line says what the servos were left doing, read back, if anything was
+written to them (``busarm.cli.stopping``). No tracebacks.
 """
 
 from __future__ import annotations
 
-import logging
 import sys
 import warnings
 from collections.abc import Sequence
@@ -25,15 +26,19 @@ from busarm.cli import (
     config_cmds,
     demo,
     locate_cmd,
+    motor_cmd,
+    option_places,
     pick_cmd,
+    poses_cmd,
     proto_cmds,
+    samples_cmd,
     servo_cmds,
     sim_cmds,
     twin_cmds,
     vision_cmds,
 )
 from busarm.cli.bench_cmd import bench
-from busarm.cli.common import STOPPED, Settings, servos_stopped
+from busarm.cli.common import NOTHING_WRITTEN, Settings, report_line
 from busarm.errors import BusArmError, ConfigError
 
 EXIT_BUS_ERROR = 1
@@ -42,10 +47,16 @@ EXIT_INTERRUPTED = 130
 
 
 def _fail(message: str, code: int, exc: BaseException | None = None) -> NoReturn:
-    if exc is not None and servos_stopped(exc):
-        message = f"{message}: {STOPPED}"
-    click.echo(f"error: {message}", err=True)
+    click.echo(f"error: {report_line(exc, message)}", err=True)
     sys.exit(code)
+
+
+def _interrupted(exc: BaseException, message: str = "interrupted") -> NoReturn:
+    """Ctrl+C: one line, what the servos were left doing, exit code 130."""
+    if sys.stderr.isatty():
+        click.echo(err=True)  # off the line where the terminal echoed ^C
+    click.echo(report_line(exc, message, unwritten=NOTHING_WRITTEN), err=True)
+    sys.exit(EXIT_INTERRUPTED)
 
 
 def _show_warning(
@@ -71,9 +82,11 @@ class BusArmGroup(click.Group):
             try:
                 rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
             except click.ClickException as exc:
-                _fail(exc.format_message(), exc.exit_code, exc)
+                _fail(option_places.explain(exc, self, sys.argv[1:] if args is None else args),
+                      exc.exit_code, exc)
             except click.Abort as exc:
-                _fail("interrupted", EXIT_INTERRUPTED, exc)
+                # A command may say where it was: Abort("interrupted at frame 3 of 7").
+                _interrupted(exc, str(exc) or "interrupted")
             except ConfigError as exc:
                 _fail(str(exc), EXIT_BAD_INPUT, exc)
             except BusArmError as exc:
@@ -84,14 +97,22 @@ class BusArmGroup(click.Group):
             return rv
         sys.exit(rv if isinstance(rv, int) else 0)
 
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt as exc:  # as click's Abort, without click's blank line
+            raise click.Abort from exc
+
 
 @click.group(cls=BusArmGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="busarm")
 @click.option(
     "--port", envvar="BUSARM_PORT", default="sim", show_default=True, show_envvar=True,
-    help="Serial port: a device path (/dev/ttyUSB0, COM3), a pyserial URL (socket://host:port, "
+    help="Serial port (here or after the command): a device path (/dev/ttyUSB0, COM3), a "
+         "pyserial URL (socket://host:port, "
          "loop://), the simulator: 'sim' or 'sim://?ids=1,2,3&echo=1&timing=0', or the "
-         "digital twin: 'twin' or 'twin://?seed=3&blocks=6'.",
+         "digital twin: 'twin' or 'twin://?seed=3&blocks=6'. Without it: the arm of a "
+         "running `busarm sim serve` or `twin serve`, else a simulated arm for one command.",
 )
 @click.option(
     "--baud", "baudrate", type=click.IntRange(1200, 4_000_000), default=DEFAULT_BAUDRATE,
@@ -123,7 +144,7 @@ def cli(
     voltages in volts, temperatures in deg C. Try `busarm demo` for a simulated arm.
     """
     if verbose:
-        logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
+        option_places.log_verbosely()
     ctx.obj = Settings(
         port=port, baudrate=baudrate, echo=echo, timeout_margin_ms=timeout_margin_ms,
         retries=retries,
@@ -133,7 +154,7 @@ def cli(
 
 for _module in (
     bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, twin_cmds, camera_cmds,
-    vision_cmds, pick_cmd, demo,
+    vision_cmds, pick_cmd, demo, motor_cmd,
 ):
     for _command in _module.COMMANDS:
         cli.add_command(_command)
@@ -141,11 +162,19 @@ for _module in (
 cli.add_command(bench)
 # `vision locate` needs the arm; the rest of `vision` does not.
 vision_cmds.vision.add_command(locate_cmd.locate)
+# `arm poses` and `actions list` are kept out of arm_cmds (which is long enough).
+arm_cmds.arm.add_command(poses_cmd.poses)
+arm_cmds.actions.add_command(samples_cmd.samples_list)
+# Last, once every command is in: `busarm arm pose --port twin`, `busarm --config X arm pose`.
+option_places.accept_everywhere(cli)
 
 
 def main() -> None:
     """Entry point of the ``busarm`` script."""
-    cli.main(prog_name="busarm")
+    try:
+        cli.main(prog_name="busarm")
+    except KeyboardInterrupt as exc:  # outside a command: starting up or ending
+        _interrupted(exc)
 
 
 if __name__ == "__main__":

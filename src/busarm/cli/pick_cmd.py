@@ -1,8 +1,10 @@
 """``pick-sort``: the main job. Look at the table, sort every block into its colour's bin.
 
-Without ``--port`` it runs on the twin (``--scene FILE`` or ``--seed N``), calibrating
-the twin's camera first unless calibration files are given; on hardware it needs the
-calibration files and ``--bins``.
+Without ``--port`` it runs on the twin (``--scene FILE`` or ``--seed N``), with the
+camera calibration kept for the robot (busarm.robot.calibration_store), made in the twin
+first if there is none or it is stale, unless calibration files are given; on hardware
+it needs the calibration (files, or kept by ``busarm camera calibrate|handeye``) and
+``--bins``.
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ from busarm.cli.common import (
     DEFAULT_COLORS,
     ArmContext,
     Settings,
+    add_detail,
+    calibration_store,
     check_writable,
     make_scene,
     parse_float_list,
@@ -75,10 +79,12 @@ def parse_survey(text: str, config: ArmConfig) -> list[tuple[float, ...]]:
 @click.option("--camera", "camera_src", default=None,
               help="Camera source; default: the twin's (on hardware: required).")
 @click.option("--intrinsics", type=click.Path(dir_okay=False, exists=True, path_type=Path),
-              default=None, help="Camera intrinsics (default on the twin: calibrate first).")
+              default=None, help="Camera intrinsics (default: the ones kept for this robot; "
+                                 "on the twin made first if there are none).")
 @click.option("--hand-eye", "hand_eye", type=click.Path(dir_okay=False, exists=True,
                                                          path_type=Path),
-              default=None, help="Hand-eye calibration (default on the twin: calibrate first).")
+              default=None, help="Hand-eye calibration (default: the one kept for this "
+                                 "robot; on the twin made first if there is none).")
 @click.option("--bins", "bins_text", default=None,
               help="Where each colour goes, COLOUR=X,Y;... in mm (default on the twin: its "
                    "trays).")
@@ -122,12 +128,15 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
     survey_poses = parse_survey(survey_text, ac.config)
     check_writable(report_dir / "report.json" if report_dir.is_dir() else report_dir)
     wall_start = time.monotonic()
+    store = calibration_store(settings, default="twin") if intrinsics is None and \
+        hand_eye is None else None
     with settings.open_robot(default="twin", camera=camera_src, config=ac.config,
                              intrinsics=intrinsics, hand_eye=hand_eye, bins=bins_given,
-                             scene=scene, calibration_dir=report_dir / "calibration",
+                             scene=scene, calibration_store=store,
                              needs=("camera", "camera_calibration", "bins"),
                              progress=lambda text: None if " view " in text else
-                             settings.err.print(text, highlight=False)) as robot:
+                             settings.err.print(text, highlight=False,
+                                                soft_wrap=True)) as robot:
         pictures = _Pictures(robot.camera)
         sorter = pictures.sorter = PickSorter(
             robot, colors=names, survey_poses=survey_poses,
@@ -137,7 +146,8 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
         overview = robot.cameras.get("overview")
         before = overview.read().image if overview is not None else None
         simulated = robot.clock.is_simulated
-        about = {"port": robot.port, "clock": "simulated" if simulated else "wall"}
+        about = {"port": robot.port, "clock": "simulated" if simulated else "wall",
+                 "camera_calibration": robot.require_camera_calibration().source}
         report = _run(settings, sorter, pictures, report_dir, about)
         robot.arm.move_joints(ac.config.pose("home"))
         after = overview.read().image if overview is not None else (
@@ -178,25 +188,23 @@ class _Pictures:
 
 def _run(settings: Settings, sorter: PickSorter, pictures: _Pictures, report_dir: Path,
          about: dict[str, str]) -> RunReport:
-    """The sorter's run; if it stops early (the sorter stopped and holds the arm), say so
-    and keep the report so far."""
+    """The sorter's run; if it stops early (the sorter has stopped the arm), keep the
+    report so far. What the gripper holds and where the report is join the one line
+    that reports the stop (with each servo's torque, read back: ``busarm.cli.main``)."""
     from busarm.apps.pick_report import write_report
 
     try:
         return sorter.run()
-    except BaseException:
+    except BaseException as exc:
         stopped = sorter.report
-        held = ("The bus did not answer: look at the arm" if
-                stopped.gripper.startswith("unknown") else "The arm holds where it is")
-        settings.err.print(f"pick-sort stopped: {stopped.stopped}. {held}; the gripper: "
-                           f"{stopped.gripper}. The report so far: {report_dir}/",
-                           highlight=False, soft_wrap=True)
+        if stopped.gripper:  # empty if it stopped before the run began
+            add_detail(exc, f"the gripper: {stopped.gripper}")
         try:
             write_report(report_dir, stopped, picks=pictures.picks,
                          camera_frames=pictures.frames, extra=about)
-        except (BusArmError, OSError) as exc:  # the stop's own error is the one to see
-            settings.err.print(f"(the report could not be written: {exc})",
-                               highlight=False, soft_wrap=True)
+            add_detail(exc, f"the report so far: {report_dir}/")
+        except (BusArmError, OSError) as write_error:  # the stop's own error is the one
+            add_detail(exc, f"the report could not be written: {write_error}")
         raise
 
 
@@ -209,10 +217,11 @@ def _print_summary(report: RunReport, simulated: bool, wall_s: float,
     t = report.totals()
     unit = "s of twin time" if simulated else "s"
     moved = f", moved {t['moved']}" if t["moved"] else ""
+    cycle = ("no block sorted to time a cycle" if t["median_cycle_s"] is None else
+             f"median cycle {t['median_cycle_s']} {unit} per block")
     click.echo(f"sorted {t['sorted']}, failed {t['failed']}, skipped {t['skipped']}{moved}; "
-               f"median cycle {t['median_cycle_s']} {unit} per block; {t['seconds']} {unit} "
-               f"in all ({wall_s:.0f} s on this computer, with the set-up). Report: "
-               f"{report_dir}/")
+               f"{cycle}; {t['seconds']} {unit} in all ({wall_s:.0f} s on this computer, "
+               f"with the set-up). Report: {report_dir}/")
 
 
 COMMANDS = [pick_sort]

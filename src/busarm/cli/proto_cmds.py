@@ -8,64 +8,130 @@ import click
 
 from busarm.cli.common import ServoIdType, parse_int
 from busarm.errors import ConfigError, ProtocolError
-from busarm.protocol import Command, FrameParser, decode_message, describe, encode_request
+from busarm.protocol import (
+    SPECS,
+    Command,
+    Frame,
+    FrameParser,
+    checksum,
+    decode_message,
+    describe,
+    encode_request,
+)
 
 _SEPARATORS = re.compile(r"\\x|(?<![0-9a-fA-F])0[xX]|[\s,:;]+")
 
 
 def parse_hex(texts: tuple[str, ...] | list[str]) -> bytes:
-    """Bytes from hex text: spaces, commas, colons and 0x or \\x prefixes are ignored.
+    """Bytes from hex text, each token on its own: ``1 3`` is 01 03, never 0x13.
 
-    Raises ConfigError naming the first bad character, or an odd digit count.
+    Tokens are separated by spaces, commas, colons or a 0x / \\x prefix. A token of one or
+    two digits is one byte; a longer one is a run of bytes, two digits each
+    (``5555010312``). Raises ConfigError naming the first bad character, or a token with
+    an odd digit count.
     """
-    digits = _SEPARATORS.sub("", " ".join(texts))
-    bad = re.search(r"[^0-9a-fA-F]", digits)
-    if bad:
-        raise ConfigError(f"not hex: {bad.group()!r} in {' '.join(texts)!r}")
-    if len(digits) % 2:
-        raise ConfigError(f"odd number of hex digits ({len(digits)}): bytes need two each")
-    return bytes.fromhex(digits)
+    out = bytearray()
+    for line in texts:
+        for token in _SEPARATORS.split(line):
+            if not token:
+                continue
+            bad = re.search(r"[^0-9a-fA-F]", token)
+            if bad:
+                raise ConfigError(f"not hex: {bad.group()!r} in {line!r}")
+            if len(token) == 1:
+                token = "0" + token
+            elif len(token) % 2:
+                raise ConfigError(
+                    f"{token!r} has an odd number of hex digits ({len(token)}): give each byte "
+                    "as two digits, or separate the bytes with spaces"
+                )
+            out += bytes.fromhex(token)
+    return bytes(out)
 
 
-def decode_lines(data: bytes) -> list[str]:
-    """One line per frame found in ``data``, then a summary of what was skipped."""
-    parser = FrameParser()
+def decode_lines(data: bytes) -> tuple[list[str], int]:
+    """One line per frame found in ``data`` and per candidate with a bad checksum (with the
+    checksum it should have), in the order they occur, then a summary; and the number of
+    valid frames."""
+    bad: list[bytes] = []
+    parser = FrameParser(on_bad_checksum=bad.append)
     frames = parser.feed(data) + parser.flush()
-    lines: list[str] = []
+    entries: list[tuple[int, str]] = []
+    at = 0
     for frame in frames:
-        try:
-            text = describe(decode_message(frame), frame.servo_id)
-        except ProtocolError as exc:
-            text = f"not a valid message: {exc}"
-        lines.append(f"{frame.hex()}  {text}")
+        raw = frame.to_bytes()
+        at = data.find(raw, at)
+        entries.append((at, f"{frame.hex()}  {_explain(frame)}"))
+        at += len(raw)
+    at = 0
+    for raw in bad:
+        at = data.find(raw, at)
+        entries.append((at, f"{raw.hex(' ')}  {_bad_checksum(raw)}"))
+        at += 1
     summary = f"{len(frames)} frame(s) in {len(data)} byte(s)"
     if parser.skipped_bytes:
         summary += f"; {parser.skipped_bytes} byte(s) skipped (not part of a valid frame)"
     if parser.checksum_failures:
         summary += f"; {parser.checksum_failures} candidate frame(s) with a bad checksum"
-    return [*lines, summary]
+    return [text for _, text in sorted(entries, key=lambda e: e[0])] + [summary], len(frames)
+
+
+def _explain(frame: Frame) -> str:
+    try:
+        return describe(decode_message(frame), frame.servo_id)
+    except ProtocolError as exc:
+        return f"not a valid message: {exc}"
+
+
+def _bad_checksum(raw: bytes) -> str:
+    """A candidate frame whose checksum fails: the checksum it has, the one it should
+    have, and what it would be with the right one."""
+    frame = Frame(raw[2], raw[4], raw[5:-1])
+    return (f"bad checksum {raw[-1]:#04x}, expected {checksum(raw[2:-1]):#04x} "
+            f"(with the right one: {_explain(frame)})")
 
 
 @click.command()
 @click.argument("hex_text", metavar="HEX...", nargs=-1, required=True)
 def decode(hex_text: tuple[str, ...]) -> None:
-    """Find and explain every frame in HEX (spaces, commas and 0x optional).
+    """Find and explain every frame in HEX, or in standard input with `-`.
 
-    Example: busarm decode 55 55 01 07 01 f4 01 e8 03 16. Garbage between frames
-    is skipped and counted, as are candidates with a bad checksum.
+    Each token is its own byte(s): `1 3` is 01 03; a run without spaces such as
+    5555010312 is two digits per byte; commas, colons and 0x are optional. Example:
+    busarm decode 55 55 01 07 01 f4 01 e8 03 16. Garbage between frames is skipped and
+    counted; a candidate with a bad checksum is shown with the checksum it should have.
+    Exit code 1 when no valid frame is found.
     """
-    for line in decode_lines(parse_hex(hex_text)):
+    if "-" in hex_text:
+        if len(hex_text) > 1:
+            raise click.UsageError("give the hex as arguments or `-` (standard input), not both")
+        hex_text = tuple(click.get_text_stream("stdin").read().splitlines())
+    data = parse_hex(hex_text)
+    lines, found = decode_lines(data)
+    for line in lines:
         click.echo(line)
+    if not found:
+        raise ProtocolError(f"no valid frame in {len(data)} byte(s)")
 
 
-@click.command(context_settings={"ignore_unknown_options": True})
+def _command_list() -> str:
+    """The commands and their ARGS, for `encode --help` (kept as lines by click's \\b)."""
+    lines = ["\b", "COMMAND (name or number) and its ARGS:"]
+    for c in Command:
+        args = ", ".join(f"{f.name} {f.lo}..{f.hi}" for f in SPECS[c].request if f.kind != "null")
+        lines.append(f"  {c.name + f' ({c.value})':<26}{args}".rstrip())
+    return "\n".join(lines)
+
+
+@click.command(context_settings={"ignore_unknown_options": True}, epilog=_command_list())
 @click.argument("command_name", metavar="COMMAND")
 @click.argument("servo_id", metavar="ID", type=ServoIdType(allow_broadcast=True))
 @click.argument("args", metavar="[ARGS]...", nargs=-1)
 def encode(command_name: str, servo_id: int, args: tuple[str, ...]) -> None:
     """Print the bytes of a request: COMMAND (name or number) to ID (0..254).
 
-    ARGS are in wire units (pulses, ms, mV), e.g. busarm encode MOVE_TIME_WRITE 1 500 1000.
+    ARGS are in wire units (pulses, ms, mV), e.g. busarm encode MOVE_TIME_WRITE 1 500 1000;
+    the commands and their ARGS are listed below.
     """
     command = Command.parse(command_name)
     values = [parse_int(a, f"{command.name} parameter") for a in args]

@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from functools import partial
 from typing import Any
 
 import click
 from rich.table import Table
 
+from busarm.arm.config import DEFAULT_ARM, ArmConfig, load_arm_config
 from busarm.bus.driver import ServoBus
 from busarm.cli.common import (
     ANGLE,
+    BAD_REPLY,
     MOVE_TIME,
     NO_REPLY,
     NUMBER_ARGS,
@@ -22,9 +23,17 @@ from busarm.cli.common import (
     alarm_names,
     pass_settings,
     scan_with_progress,
-    try_read,
+    torque_text,
 )
-from busarm.errors import BusConflictError, BusTimeoutError, ConfigError
+from busarm.errors import (
+    BusArmError,
+    BusConflictError,
+    BusTimeoutError,
+    ConfigError,
+    EchoMismatchError,
+    LimitError,
+    ProtocolError,
+)
 from busarm.protocol import (
     BROADCAST_ID,
     MAX_SERVO_ID,
@@ -65,32 +74,52 @@ INFO_FIELDS: list[tuple[str, Command, Callable[[Any], str]]] = [
 ]
 
 
-def info_rows(bus: ServoBus, sid: int) -> list[tuple[str, str]]:
-    """Every readable field of servo ``sid``, as (name, value) text; "no reply" per field."""
+def info_rows(
+    bus: ServoBus, sid: int, errors: list[BusTimeoutError | ProtocolError] | None = None,
+) -> list[tuple[str, str]]:
+    """Every readable field of servo ``sid``, as (name, value) text; "no reply" (or "bad
+    reply") per field that could not be read, whose error goes to ``errors`` if given."""
     rows: list[tuple[str, str]] = []
     for name, command, show in INFO_FIELDS:
-        reply = try_read(partial(bus.query, sid, command))
-        rows.append((name, reply if isinstance(reply, str) else show(reply)))
+        try:
+            rows.append((name, show(bus.query(sid, command))))
+        except (BusTimeoutError, ProtocolError) as exc:
+            rows.append((name, NO_REPLY if isinstance(exc, BusTimeoutError) else BAD_REPLY))
+            if errors is not None:
+                errors.append(exc)
     return rows
 
 
-@click.command()
+def _nothing_read(sid: int, errors: list[BusTimeoutError | ProtocolError]) -> BusArmError:
+    """The error of an ``info`` that read no field: why, as far as the replies tell."""
+    for exc in errors:
+        if isinstance(exc, EchoMismatchError):
+            return exc
+    garbled = [exc for exc in errors if isinstance(exc, ProtocolError)]
+    if garbled:
+        return ProtocolError(f"servo {sid}: no field could be read: {garbled[0]}")
+    return BusTimeoutError(f"servo {sid} does not answer", servo_id=sid)
+
+
+@click.command(context_settings=NUMBER_ARGS)
 @click.argument("servo_id", metavar="ID", type=SERVO_ID)
 @pass_settings
 def info(settings: Settings, servo_id: int) -> None:
     """Every readable field of servo ID (0..253): position, limits, offset, mode, LED...
 
-    A field the servo does not answer shows "no reply".
+    A field the servo does not answer shows "no reply" (a garbled answer "bad reply");
+    when no field can be read, the command fails (exit code 1) saying why.
     """
+    errors: list[BusTimeoutError | ProtocolError] = []
     with settings.open_bus() as bus:
-        rows = info_rows(bus, servo_id)
-    if all(value == NO_REPLY for _, value in rows):
-        raise BusTimeoutError(f"servo {servo_id} does not answer", servo_id=servo_id)
+        rows = info_rows(bus, servo_id, errors)
+    if len(errors) == len(rows):  # raised here, outside the bus: nothing to stop
+        raise _nothing_read(servo_id, errors)
     table = Table(title=f"servo {servo_id}", title_justify="left")
     table.add_column("field")
     table.add_column("value")
     for name, value in rows:
-        table.add_row(name, f"[red]{value}[/red]" if value == NO_REPLY else value)
+        table.add_row(name, f"[red]{value}[/red]" if value in (NO_REPLY, BAD_REPLY) else value)
     settings.out.print(table)
 
 
@@ -110,16 +139,28 @@ def info(settings: Settings, servo_id: int) -> None:
     help="Instead of --time: top speed in deg/s of the joint that moves furthest.",
 )
 @click.option("--wait", is_flag=True, help="Block until the servos are within 1 deg of the target.")
+@click.option(
+    "--config", "config_name", envvar="BUSARM_ARM", default=DEFAULT_ARM, show_default=True,
+    show_envvar=True, help="The arm whose joint limits apply: a shipped name or a TOML file.",
+)
+@click.option(
+    "--ignore-arm-limits", is_flag=True,
+    help="Move a servo of the arm past its joint's limits (it may hit the arm or the table).",
+)
 @pass_settings
 def move(
     settings: Settings, servo_id: int | None, angle_deg: float | None,
     pose: dict[int, float] | None,
-    duration: float | None, speed: float | None, wait: bool,
+    duration: float | None, speed: float | None, wait: bool, config_name: str,
+    ignore_arm_limits: bool,
 ) -> None:
     """Move servo ID to ANGLE_DEG (-120..120 from its mid-point), or several with --pose.
 
     Poses start together (MOVE_TIME_WAIT_WRITE to each, then one MOVE_START) and
     arrive together. Negative angles work as plain arguments: `busarm move 2 -30`.
+    A servo that is one of the arm's joints (or its gripper) is kept within that joint's
+    limits, as servo angles (uncalibrated; see `busarm arm` for joint angles), unless
+    --ignore-arm-limits.
     """
     if pose is not None and servo_id is not None:
         raise click.UsageError("give either ID ANGLE_DEG or --pose, not both")
@@ -129,6 +170,8 @@ def move(
         pose = {servo_id: angle_deg}
     if duration is not None and speed is not None:
         raise click.UsageError("give either --time or --speed, not both")
+    if not ignore_arm_limits:
+        _check_arm_limits(pose, load_arm_config(config_name))
     targets_by_id = pose
 
     def within_limits(bus: ServoBus, sid: int) -> None:
@@ -163,20 +206,41 @@ def move(
             )
 
 
-@click.command()
+def _check_arm_limits(pose: dict[int, float], config: ArmConfig) -> None:
+    """Refuse (LimitError, before anything is sent) a target outside the arm's limits for
+    a servo that is one of its joints or its gripper."""
+    for sid, target in pose.items():
+        part = config.servo_range_deg(sid)
+        if part is None:
+            continue
+        name, lo, hi = part
+        what = "the gripper" if name == "gripper" else f"joint {name}"
+        if not lo - 1e-6 <= target <= hi + 1e-6:
+            raise LimitError(
+                f"servo {sid} is {what} of the {config.name}: {target:+.1f} deg is "
+                f"outside its limits {lo:+.1f}..{hi:+.1f} deg (servo angle); "
+                "--ignore-arm-limits moves it anyway"
+            )
+
+
+@click.command(context_settings=NUMBER_ARGS)
 @click.argument("ids", nargs=-1, type=SERVO_ID)
 @pass_settings
 def stop(settings: Settings, ids: tuple[int, ...]) -> None:
-    """Stop moving now and hold position (MOVE_STOP); no ID = every servo (broadcast).
+    """Stop moving now (MOVE_STOP); no ID = every servo (broadcast). Servos with torque
+    on hold position; the torque of each servo given is read back and said.
 
     Servos in motor mode are not stopped by MOVE_STOP (set their speed to 0).
     """
     with settings.open_bus(check_ids=ids) as bus:
         bus.stop(ids or None)
-    settings.out.print(f"stopped {_which(ids)}: holding position")
+        # Torque off stays off: a limp servo is not holding anything.
+        said = (f"stopped (MOVE_STOP): {torque_text(bus, ids)}" if ids else
+                "stopped all servos (MOVE_STOP): those with torque on hold position")
+    settings.out.print(said, highlight=False)
 
 
-@click.command()
+@click.command(context_settings=NUMBER_ARGS)
 @click.argument("state", type=click.Choice(["on", "off"]))
 @click.argument("ids", nargs=-1, type=SERVO_ID)
 @pass_settings
@@ -192,7 +256,7 @@ def _which(ids: tuple[int, ...]) -> str:
     return "servo(s) " + ", ".join(map(str, ids)) if ids else "all servos"
 
 
-@click.command("set-id")
+@click.command("set-id", context_settings=NUMBER_ARGS)
 @click.argument("ids", metavar="[OLD] NEW", nargs=-1, type=SERVO_ID)
 @pass_settings
 def set_id(settings: Settings, ids: tuple[int, ...]) -> None:

@@ -12,7 +12,13 @@ from typing import TYPE_CHECKING
 
 import click
 
-from busarm.cli.common import CheckedType, Settings, pass_settings, serve_until_stopped
+from busarm.cli.common import (
+    CheckedType,
+    Settings,
+    announced,
+    pass_settings,
+    serve_until_stopped,
+)
 from busarm.units import parse_ids
 
 if TYPE_CHECKING:
@@ -80,17 +86,20 @@ def serve(
         bus.put_block_in_gripper()
     server = PtyServer(bus)
     path = server.open()
-    click.echo(path)
-    sys.stdout.flush()
-    servos = ", ".join(str(s.servo_id) for s in bus.servos)
-    timing = "no wire timing" if no_timing else f"{settings.baudrate} baud"
-    click.echo(
-        f"simulating servos {servos} on {path} ({timing}"
-        + (", echo" if echo else "") + (f", state {state}" if state else "")
-        + "); Ctrl+C or SIGTERM to stop",
-        err=True,
-    )
-    serve_until_stopped(server)
+    # Found by commands without --port while it runs; written before the path is shown,
+    # so that no client waits for it (the server answers only once it serves).
+    with announced("sim", path):
+        click.echo(path)
+        sys.stdout.flush()
+        servos = ", ".join(str(s.servo_id) for s in bus.servos)
+        timing = "no wire timing" if no_timing else f"{settings.baudrate} baud"
+        click.echo(
+            f"simulating servos {servos} on {path} ({timing}"
+            + (", echo" if echo else "") + (f", state {state}" if state else "")
+            + "); Ctrl+C or SIGTERM to stop; commands without --port use it",
+            err=True,
+        )
+        serve_until_stopped(server)
     click.echo("simulator stopped", err=True)
 
 

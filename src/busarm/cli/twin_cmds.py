@@ -6,11 +6,12 @@ MuJoCo is imported when a command runs, so the rest of the CLI never depends on 
 from __future__ import annotations
 
 import sys
+from datetime import datetime
 from pathlib import Path
 
 import click
 
-from busarm.cli.common import Settings, make_scene, pass_settings, scene_options
+from busarm.cli.common import Settings, announced, make_scene, pass_settings, scene_options
 from busarm.errors import ConfigError
 from busarm.twin.scene import MAX_BLOCKS
 
@@ -53,13 +54,18 @@ def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks:
         camera = CameraServer(tw, camera_port)
         server = PtyServer(tw.bus)
         path = server.open()
-        click.echo(path)
-        click.echo(camera.start())
-        sys.stdout.flush()
-        click.echo(f"twin: {len(scene.blocks)} blocks ({scene.source}), servos on {path}, "
-                   f"camera on {camera.url}; Ctrl+C or SIGTERM to stop", err=True)
+        url = camera.start()
         try:
-            serve_until_stopped(server)
+            # Found by commands without --port while it runs; written before the path is
+            # shown, so that no client waits for it.
+            with announced("twin", path, url):
+                click.echo(path)
+                click.echo(url)
+                sys.stdout.flush()
+                click.echo(f"twin: {len(scene.blocks)} blocks ({scene.source}), servos on "
+                           f"{path}, camera on {url}; Ctrl+C or SIGTERM to stop; commands "
+                           "without --port use it", err=True)
+                serve_until_stopped(server)
         finally:
             camera.stop()
     click.echo("twin stopped", err=True)
@@ -84,7 +90,12 @@ def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks:
 def snapshot(ctx: click.Context, scene_file: Path | None, seed: int | None, blocks: int | None,
              colors: str | None, png: Path, pose: str, joints: str | None, config: str,
              lens: str, view: str) -> None:
-    """Render the scene from the arm camera and from an overview camera, without a viewer."""
+    """Render the scene from the arm camera and from an overview camera, without a viewer.
+
+    The overview shows the base frame's origin and x/y axes (ticks every 50 mm) and each
+    bin in its colour; a caption under the picture says what it is (scene, seed, arm,
+    when). --view arm writes the camera frame alone, unmarked, as vision gets it.
+    """
     import cv2
     import numpy as np
 
@@ -92,8 +103,9 @@ def snapshot(ctx: click.Context, scene_file: Path | None, seed: int | None, bloc
     from busarm.arm.kinematics import ArmKinematics
     from busarm.cli.common import parse_float_list
     from busarm.twin.lens import lens_by_name
+    from busarm.twin.snapshot import marked_overview, titled, with_caption
     from busarm.twin.twin import Twin
-    from busarm.vision.annotate import save_image
+    from busarm.vision.annotate import IMAGE_EXTENSIONS, save_image
 
     cfg = load_arm_config(config)
     if joints is not None and ctx.get_parameter_source("pose") is not \
@@ -106,17 +118,31 @@ def snapshot(ctx: click.Context, scene_file: Path | None, seed: int | None, bloc
         raise ConfigError(f"those joints put the tool {cfg.table_z_mm - tool_z:.0f} mm into the "
                           "table; the arm cannot stand there")
     scene = make_scene(scene_file, seed, blocks, colors)
+    if png.suffix.lower() not in IMAGE_EXTENSIONS:  # before rendering anything
+        raise ConfigError(f"--png {png}: extension {png.suffix or '(none)'!r} is not one of "
+                          f"{', '.join(IMAGE_EXTENSIONS)}")
     with Twin(cfg, scene, lens=lens_by_name(lens), start_joints_deg=start,
               realtime=False) as tw:
         arm_view = tw.render_camera()
-        overview = tw.render_overview()
-    h = arm_view.shape[0]
-    scaled = np.asarray(cv2.resize(overview, (round(overview.shape[1] * h / overview.shape[0]), h)),
-                        dtype=np.uint8)
-    picture = {"arm": arm_view, "overview": overview, "both": np.hstack([arm_view, scaled])}[view]
+        overview = marked_overview(tw) if view != "arm" else None
+    if overview is None:  # a raw frame, for vision: no marks, no caption
+        picture, caption = arm_view, "arm camera frame, unmarked"
+    else:
+        at = f"joints {joints}" if joints is not None else f"pose {pose}"
+        arm_view = titled(arm_view, f"arm camera ({lens} lens), {at}")
+        h = arm_view.shape[0]
+        scaled = np.asarray(cv2.resize(overview, (round(overview.shape[1] * h /
+                                                        overview.shape[0]), h)), dtype=np.uint8)
+        seed_text = f", seed {scene.seed}" if scene.seed is not None and \
+            f"seed {scene.seed}" not in scene.source else ""
+        caption = (f"busarm twin snapshot: scene {scene.source}{seed_text} "
+                   f"({len(scene.blocks)} blocks, {len(scene.bins)} bins), {cfg.name}; "
+                   f"{datetime.now().astimezone():%Y-%m-%d %H:%M:%S %Z}")
+        picture = with_caption(overview if view == "overview" else
+                               np.hstack([arm_view, scaled]), [caption])
     save_image(png, picture)
     click.echo(f"wrote {png}: {'arm camera and overview' if view == 'both' else view} "
-               f"({picture.shape[1]}x{picture.shape[0]})")
+               f"({picture.shape[1]}x{picture.shape[0]}): {caption}")
 
 
 @twin.command()
@@ -127,11 +153,15 @@ def snapshot(ctx: click.Context, scene_file: Path | None, seed: int | None, bloc
 @click.option("--colors", default="red,green,blue", show_default=True,
               help="Block colours, comma separated.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="The scene file to write (TOML).")
+              help="The scene file to write: NAME.toml or NAME.json.")
 def scene(seed: int, blocks: int, colors: str, output: Path) -> None:
-    """Write a seeded random scene to a file, to edit and use with --scene."""
-    from busarm.twin.scene import save_scene
+    """Write a seeded random scene to a file (TOML or JSON by its extension), to edit and
+    use with --scene."""
+    from busarm.twin.scene import SCENE_WRITERS, save_scene
 
+    if output.suffix.lower() not in SCENE_WRITERS:  # before drawing the scene
+        raise ConfigError(f"-o {output}: a scene file is named .toml or .json, not "
+                          f"{output.suffix or '(no extension)'}")
     s = make_scene(None, seed, blocks, colors)
     save_scene(output, s)
     click.echo(f"wrote {output}: {len(s.blocks)} block(s), {len(s.bins)} bin(s)")

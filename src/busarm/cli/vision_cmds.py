@@ -27,8 +27,8 @@ DEFAULT_MIN_AREA_PX = 200.0
 AREA = RangeType("area", 0.0, 1e9, "px")
 
 _CAMERA_HELP = (
-    "Camera source: /dev/videoN or N (USB camera), a video file, a folder of images, or a "
-    "scheme (twin, twin://...)."
+    "Camera source: /dev/videoN or N (USB camera), a video file, a folder of images, a "
+    "network stream (rtsp://, http://, https:// URL) or a scheme (twin, twin://...)."
 )
 
 

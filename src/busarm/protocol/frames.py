@@ -56,8 +56,13 @@ class Frame:
 def check_servo_id(servo_id: object, *, allow_broadcast: bool = False) -> int:
     """Return ``servo_id`` if valid (0..253, or 254 if allowed), else raise ConfigError."""
     hi = BROADCAST_ID if allow_broadcast else MAX_SERVO_ID
-    if isinstance(servo_id, bool) or not isinstance(servo_id, int) or not 0 <= servo_id <= hi:
-        extra = " (254 = broadcast)" if allow_broadcast else ""
+    extra = " (254 = broadcast)" if allow_broadcast else ""
+    if isinstance(servo_id, bool) or not isinstance(servo_id, int):
+        raise ConfigError(
+            f"servo ID must be an integer 0..{hi}{extra}, got {servo_id!r} "
+            f"(a {type(servo_id).__name__})"
+        )
+    if not 0 <= servo_id <= hi:
         raise ConfigError(f"servo ID {servo_id!r} is out of range 0..{hi}{extra}")
     return servo_id
 

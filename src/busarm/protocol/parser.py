@@ -6,6 +6,8 @@ skipped; the parser resynchronises on the next header. It never raises.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from busarm.protocol.commands import BROADCAST_ID, HEADER, VALID_LENGTHS
 from busarm.protocol.frames import Frame, checksum
 
@@ -15,12 +17,17 @@ class FrameParser:
 
     ``lengths`` restricts the Length bytes taken as plausible (default: those of
     the manual, 3..7), which makes resynchronisation after garbage quick. Counters
-    tell how many bytes were skipped and how many candidates failed their checksum.
+    tell how many bytes were skipped and how many candidates failed their checksum;
+    ``on_bad_checksum``, if given, is called with each such candidate's bytes.
     """
 
-    def __init__(self, lengths: frozenset[int] = VALID_LENGTHS) -> None:
+    def __init__(
+        self, lengths: frozenset[int] = VALID_LENGTHS,
+        on_bad_checksum: Callable[[bytes], None] | None = None,
+    ) -> None:
         self._buf = bytearray()
         self._lengths = lengths
+        self._on_bad_checksum = on_bad_checksum
         self.skipped_bytes = 0
         self.checksum_failures = 0
 
@@ -61,6 +68,8 @@ class FrameParser:
                 return out
             if buf[end - 1] != checksum(memoryview(buf)[2 : end - 1]):
                 self.checksum_failures += 1
+                if self._on_bad_checksum is not None:
+                    self._on_bad_checksum(bytes(buf[:end]))
                 self._skip_one()
                 continue
             out.append(Frame(sid, buf[4], bytes(buf[5 : end - 1])))

@@ -7,7 +7,10 @@ when it is one. Every job, benchmark, test and interface builds on it.
 ``sim`` servo simulator, the pty of ``busarm twin serve``). On a twin the wrist camera
 is the twin's, the bins are its trays, and a camera calibration that was not given is
 made by our own flows in the twin (``calibrate-if-missing``); on hardware the camera,
-its calibration files and the bins come from the user.
+its calibration files and the bins come from the user. A ``calibration_store`` (the
+robot's folder in the user's configuration directory, busarm.robot.calibration_store)
+keeps a camera calibration between runs: used when no files are given, refused when
+stale, and on a twin made there when missing or stale.
 
 The twin is handed out (``robot.twin``) to whoever opened the robot: ground truth for
 benchmarks and tests, the overview camera for reports. Nothing else reaches for it.
@@ -33,6 +36,7 @@ from busarm.bus.transport import DEFAULT_BAUDRATE, Transport, open_transport
 from busarm.clock import Clock
 from busarm.errors import ConfigError
 from busarm.progress import Progress, quiet
+from busarm.robot.calibration_store import CalibrationStore, MadeFor, StaleCalibration
 from busarm.robot.locate import NOT_BLOCK_COLORS, BlockLocator
 from busarm.robot.twin_calibration import TwinCalibration, calibrate_twin_camera
 from busarm.twin.camera import TwinCamera
@@ -58,7 +62,7 @@ class CameraCalibration:
     intrinsics: CameraIntrinsics
     hand_eye: HandEyeResult
     source: str
-    """Where it came from: the files given, or "calibrated in the twin"."""
+    """Where it came from: the files given, "kept in FOLDER", or "calibrated in the twin"."""
     twin_run: TwinCalibration | None = None
     """When it was made in the twin: what that found (errors against the twin's truth)."""
 
@@ -80,8 +84,9 @@ def with_board(port: str, board: str) -> str:
 class Robot:
     """The arm and what it sees with; ``with Robot.open(port) as robot: ...``.
 
-    Leaving the ``with`` block by an exception (Ctrl+C included) stops and holds the arm
-    (MOVE_STOP to every servo), then closes the cameras, the bus and the twin.
+    Leaving the ``with`` block by an exception (Ctrl+C included) stops the arm (MOVE_STOP
+    to every servo: those with torque on hold) if anything was written to it since its
+    last stop, then closes the cameras, the bus and the twin.
     """
 
     def __init__(self, arm: Arm, *, camera: CameraSource | None = None,
@@ -111,7 +116,8 @@ class Robot:
              arm_calibration: Calibration | str | Path | None = None,
              intrinsics: Path | None = None, hand_eye: Path | None = None,
              bins: Bins | None = None, calibrate: bool = True,
-             calibration_dir: Path | None = None, board: str | None = None,
+             calibration_dir: Path | None = None,
+             calibration_store: CalibrationStore | None = None, board: str | None = None,
              scene: Scene | None = None, needs: Collection[str] = (),
              baudrate: int = DEFAULT_BAUDRATE, progress: Progress = quiet,
              **bus_options: Any) -> Robot:
@@ -120,7 +126,9 @@ class Robot:
         ``camera``: a camera source (default on a twin: its wrist camera; ``twin`` there
         means the same). ``intrinsics``/``hand_eye``: calibration files; on a twin,
         missing ones are made (``calibrate``), their files kept in ``calibration_dir``
-        if given. ``board``: on a twin, lay this calibration board on its table;
+        if given. ``calibration_store``: when neither file is given, the calibration
+        kept there (refused if stale; on a twin made into it when missing or stale).
+        ``board``: on a twin, lay this calibration board on its table;
         ``scene``: what stands on a twin's table (else the URL's). ``needs``: what the job
         cannot do without (``camera``, ``camera_calibration``, ``bins``), checked before
         the port is opened. ``bus_options`` go to ``ServoBus`` (echo, retries,
@@ -131,7 +139,11 @@ class Robot:
         if scene is not None and not on_twin:
             raise ConfigError(f"a scene is for the twin; {port} is not one (use --port twin, "
                               "or no --port)")
-        _check_needs(needs, port, on_twin, camera, intrinsics, hand_eye, bins)
+        if calibration_store is not None and calibration_dir is not None:
+            raise ConfigError("give a calibration_store or a calibration_dir, not both")
+        store = calibration_store if intrinsics is None and hand_eye is None else None
+        _check_needs(needs, port, on_twin, camera, intrinsics, hand_eye, bins, store,
+                     calibrate)
         given = config if isinstance(config, ArmConfig | None) else load_arm_config(config)
         cal = (arm_calibration if isinstance(arm_calibration, Calibration | None)
                else load_calibration(arm_calibration))
@@ -151,8 +163,10 @@ class Robot:
             source = _open_camera(camera, twin)
             if source is not None:
                 opened.append(source)
+            made_for = None if store is None or source is None else MadeFor.of(
+                store.robot, (source.width_px, source.height_px), cfg, twin)
             calibration = _camera_calibration(twin, intrinsics, hand_eye, calibrate,
-                                              calibration_dir, progress)
+                                              calibration_dir, progress, store, made_for)
             robot = cls(arm, camera=source, calibration=calibration, bins=bins, twin=twin)
             robot.port = port
             return robot
@@ -194,7 +208,7 @@ class Robot:
         if self.camera_calibration is None:
             raise ConfigError("this job needs the camera's calibration: --intrinsics FILE "
                               "(busarm camera calibrate) and --hand-eye FILE (busarm camera "
-                              "handeye)")
+                              "handeye), or a calibration_store that keeps them")
         return self.camera_calibration
 
     def locator(self, colors: Sequence[str] | None = None,
@@ -239,7 +253,8 @@ NEEDS = {"camera": "the wrist camera (--camera)",
 
 
 def _check_needs(needs: Collection[str], port: str, on_twin: bool, camera: str | None,
-                 intrinsics: Path | None, hand_eye: Path | None, bins: Bins | None) -> None:
+                 intrinsics: Path | None, hand_eye: Path | None, bins: Bins | None,
+                 store: CalibrationStore | None, calibrate: bool) -> None:
     unknown = set(needs) - set(NEEDS)
     if unknown:
         raise ConfigError(f"needs {sorted(unknown)}; allowed: {', '.join(NEEDS)}")
@@ -249,11 +264,18 @@ def _check_needs(needs: Collection[str], port: str, on_twin: bool, camera: str |
     if intrinsics is not None and hand_eye is None and not on_twin:
         raise ConfigError("give both camera calibration files: --intrinsics and --hand-eye "
                           "(only a twin can make the hand-eye one itself)")
-    if on_twin:
-        return  # the twin has them all (its camera, calibration made in it, its trays)
+    kept = store is not None and store.has_calibration()
+    if on_twin:  # the twin has them all (its camera, calibration made in it, its trays)
+        if "camera_calibration" in needs and not calibrate and intrinsics is None and not kept:
+            raise ConfigError(store.missing() if store is not None else
+                              "this job needs the camera's calibration: " + NEEDS[
+                                  "camera_calibration"])
+        return
     given = {"camera": camera is not None, "bins": bins is not None,
-             "camera_calibration": intrinsics is not None and hand_eye is not None}
-    missing = [NEEDS[n] for n in NEEDS if n in needs and not given[n]]
+             "camera_calibration": (intrinsics is not None and hand_eye is not None) or kept}
+    missing = [(f"the camera's calibration: {store.missing()}"
+                if n == "camera_calibration" and store is not None else NEEDS[n])
+               for n in NEEDS if n in needs and not given[n]]
     if missing:
         raise ConfigError(f"on {port} this job needs " + "; ".join(missing)
                           + " (only a twin, --port twin, has them all by default)")
@@ -274,20 +296,39 @@ def _check_size(camera: CameraSource, calibration: CameraCalibration) -> None:
 
 
 def _camera_calibration(twin: Twin | None, intrinsics: Path | None, hand_eye: Path | None,
-                        calibrate: bool, out_dir: Path | None,
-                        progress: Progress) -> CameraCalibration | None:
-    """The files given, else (on a twin) made there; None on hardware without files."""
+                        calibrate: bool, out_dir: Path | None, progress: Progress,
+                        store: CalibrationStore | None = None,
+                        made_for: MadeFor | None = None) -> CameraCalibration | None:
+    """The files given; else the calibration kept in ``store`` for ``made_for`` (stale:
+    refused, or on a twin made again); else on a twin made there (into ``store`` if
+    given); None on hardware without any."""
     if intrinsics is not None and hand_eye is not None:
         intr = load_intrinsics(intrinsics)
         return CameraCalibration(intr, load_hand_eye(hand_eye, intrinsics=intr),
                                  f"{intrinsics}, {hand_eye}")
+    making = twin is not None and calibrate
+    if store is not None and made_for is not None:
+        try:
+            kept = store.load(made_for)
+        except StaleCalibration as exc:
+            if not making:
+                raise
+            progress(f"{exc.why}: calibrating the twin's camera again")
+        else:
+            if kept is not None:
+                again = "; delete the folder to calibrate again" if making else ""
+                progress(f"using the camera calibration kept in {store.folder}/ (made "
+                         f"{kept[2]}{again})")
+                return CameraCalibration(kept[0], kept[1], f"kept in {store.folder}/")
+        out_dir = store.make_folder() if making else out_dir
     if twin is None or not calibrate:
         return None
     progress("calibrating the twin's camera (" + ("hand-eye" if intrinsics else
                                                   "intrinsics, then hand-eye") + ")...")
     with tempfile.TemporaryDirectory(prefix="busarm-twin-calibration-") as tmp:
         run = calibrate_twin_camera(twin, out_dir or Path(tmp), intrinsics=intrinsics,
-                                    progress=progress)
+                                    progress=progress, made_for=made_for)
         intr = load_intrinsics(run.intrinsics_path)
         he = load_hand_eye(run.hand_eye_path, intrinsics=intr)
-    return CameraCalibration(intr, he, "calibrated in the twin", run)
+    kept_in = f", kept in {store.folder}/" if store is not None else ""
+    return CameraCalibration(intr, he, "calibrated in the twin" + kept_in, run)

@@ -19,6 +19,7 @@ from busarm.arm.camera_mount import CameraMount
 from busarm.bus.driver import ServoBus
 from busarm.errors import ConfigError
 from busarm.progress import Progress, quiet
+from busarm.robot.calibration_store import MadeFor
 from busarm.robot.camera_calibration import (
     CalibrationView,
     calibration_views,
@@ -79,9 +80,13 @@ def calibrate_twin_camera(job: Twin, out_dir: Path, *,
                           intrinsics: Path | None = None,
                           intrinsics_views: int = INTRINSICS_VIEWS,
                           hand_eye_views: int = HAND_EYE_VIEWS, seed: int = 0,
-                          progress: Progress = quiet) -> TwinCalibration:
+                          progress: Progress = quiet,
+                          made_for: MadeFor | None = None) -> TwinCalibration:
     """Calibrate ``job``'s camera (intrinsics unless given, then hand-eye) into
-    ``out_dir``/camera.json and hand_eye.json."""
+    ``out_dir``/camera.json and hand_eye.json, each recording ``made_for`` (default: the
+    twin's camera, robot ``twin``; see busarm.robot.calibration_store)."""
+    if made_for is None:
+        made_for = MadeFor.of("twin", (job.lens.width_px, job.lens.height_px), job.config, job)
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -94,12 +99,12 @@ def calibrate_twin_camera(job: Twin, out_dir: Path, *,
         intrinsics = out_dir / "camera.json"
         views = _pictures(job, "chessboard", intrinsics_views, seed, progress, "intrinsics")
         result = intrinsics_from_views(views)
-        save_intrinsics(intrinsics, result)
+        save_intrinsics(intrinsics, result, made_for=made_for.intrinsics())
         rms, n_intr = result.rms_px, len(views)
     intr = load_intrinsics(intrinsics)
     views = _pictures(job, "tags", hand_eye_views, seed + 1, progress, "hand-eye")
     he = hand_eye_from_views(views, intr)
-    save_hand_eye(he_path, he)
+    save_hand_eye(he_path, he, made_for=made_for.hand_eye())
     delta = np.linalg.inv(job.mount.cam2link) @ he.cam2link
     cos = max(-1.0, min(1.0, (float(np.trace(delta[:3, :3])) - 1) / 2))
     return TwinCalibration(intrinsics, he_path, rms, n_intr, he.rms_px, len(he.views_used),

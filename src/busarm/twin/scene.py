@@ -1,7 +1,7 @@
 """What stands on the twin's table: blocks, bins, calibration boards and distractors (things
 that are not blocks), in millimetres, and how the room is lit.
 
-A scene is data (``Scene``), read from a TOML file or drawn from a seed
+A scene is data (``Scene``), read from a TOML or JSON file or drawn from a seed
 (``random_scene``; ``busarm.twin.clutter.clutter_scene`` for tables like real ones),
 always validated: a block off the table, interpenetrating another one, a bin or a
 distractor, or of an unknown colour is refused with the key and the allowed range.
@@ -12,11 +12,12 @@ cubes standing on the table, turned by ``yaw_deg`` about z.
 
 from __future__ import annotations
 
+import json
 import math
 import random
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -441,6 +442,23 @@ def scene_from_toml(text: str, source: str = "<string>") -> Scene:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"scene {source}: not valid TOML: {exc}") from None
+    return _scene_from_data(data, source)
+
+
+def scene_from_json(text: str, source: str = "<string>") -> Scene:
+    """Parse a scene file written as JSON: the same keys as the TOML file's, with
+    ``blocks``, ``bins``, ``boards`` and ``distractors`` as arrays of objects."""
+    try:
+        data = json.loads(text)
+    except ValueError as exc:
+        raise ConfigError(f"scene {source}: not valid JSON: {exc}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"scene {source}: expected a JSON object, got "
+                          f"{type(data).__name__}")
+    return _scene_from_data(data, source)
+
+
+def _scene_from_data(data: dict[str, Any], source: str) -> Scene:
     if data.get("format") != SCENE_FORMAT or data.get("version") != SCENE_VERSION:
         raise ConfigError(f"scene {source}: expected format = {SCENE_FORMAT!r} and version = "
                           f"{SCENE_VERSION}, got {data.get('format')!r} {data.get('version')!r}")
@@ -481,13 +499,15 @@ def scene_from_toml(text: str, source: str = "<string>") -> Scene:
 
 
 def load_scene(path: str | Path) -> Scene:
-    """Read and validate a scene file."""
+    """Read and validate a scene file: JSON if it is named ``.json``, else TOML."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"cannot read scene file {path}: {exc}") from None
-    return scene_from_toml(text, str(path))
+    if path.suffix.lower() == ".json":
+        return scene_from_json(text, str(path))
+    return scene_from_toml(text, str(path))  # .toml, and files named any other way
 
 
 def _toml_value(value: object) -> str:
@@ -517,6 +537,31 @@ def scene_to_toml(scene: Scene) -> str:
     return "\n".join(lines) + "\n"
 
 
+def scene_to_json(scene: Scene) -> str:
+    """The scene as JSON that ``scene_from_json`` reads back identically."""
+    data: dict[str, Any] = {"format": SCENE_FORMAT, "version": SCENE_VERSION}
+    if scene.seed is not None:
+        data["seed"] = scene.seed
+    data["table"] = asdict(scene.table)
+    if scene.lighting != Lighting():
+        data["lighting"] = asdict(scene.lighting)
+    for key, items in (("blocks", scene.blocks), ("bins", scene.bins), ("boards", scene.boards),
+                       ("distractors", scene.distractors)):
+        if items:
+            data[key] = [asdict(item) for item in items]
+    return json.dumps(data, indent=1) + "\n"
+
+
+SCENE_WRITERS = {".toml": scene_to_toml, ".json": scene_to_json}
+"""How a scene file is written, by its name's extension."""
+
+
 def save_scene(path: str | Path, scene: Scene) -> None:
-    """Write ``scene`` to ``path`` atomically."""
-    write_text_atomic(path, scene_to_toml(scene), "scene file")
+    """Write ``scene`` to ``path`` atomically, as TOML or JSON by its extension
+    (ConfigError for any other, naming the allowed ones)."""
+    suffix = Path(path).suffix.lower()
+    writer = SCENE_WRITERS.get(suffix)
+    if writer is None:
+        raise ConfigError(f"scene file {path}: extension {suffix or '(none)'!r} is not one of "
+                          f"{', '.join(SCENE_WRITERS)}")
+    write_text_atomic(path, writer(scene), "scene file")

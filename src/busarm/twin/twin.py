@@ -514,10 +514,11 @@ class Twin:
         return np.asarray(cv2.cvtColor(self.render_ideal("overview"), cv2.COLOR_RGB2BGR),
                           dtype=np.uint8)
 
-    def cam2base_from_mujoco(self) -> FloatArray:
-        """The arm camera's pose as MuJoCo has it, in OpenCV axes and mm (for tests)."""
+    def cam2base_from_mujoco(self, camera: str = "arm_camera") -> FloatArray:
+        """A camera's pose as MuJoCo has it, in OpenCV axes and mm (the arm camera's for
+        tests; the overview's to draw on its pictures)."""
         with self._lock:
-            cam = self.model.camera("arm_camera").id
+            cam = self.model.camera(camera).id
             out = np.eye(4)
             out[:3, :3] = self.data.cam_xmat[cam].reshape(3, 3) @ MJ_FROM_CV
             out[:3, 3] = self.data.cam_xpos[cam] / M_PER_MM

@@ -11,7 +11,9 @@ source from one string:
 - an existing folder: its images in (natural) sorted order;
 - an existing file: a video;
 - ``twin`` or ``twin://...``: a scheme from :data:`CAMERA_SCHEMES`, a
-  ``"module:callable"`` imported only when used, so this layer never imports the twin.
+  ``"module:callable"`` imported only when used, so this layer never imports the twin;
+- ``rtsp://``, ``http://``, ``https://`` URLs: a network stream (``busarm.vision.stream``),
+  with timeouts on opening and on every read.
 
 A scheme name wins over a file or folder of the same name (write ``./twin`` for those).
 """
@@ -41,9 +43,13 @@ from busarm.units import check_int_range, check_range
 
 UInt8Image = npt.NDArray[np.uint8]
 
+_URL_SCHEMES = ("rtsp", "rtsps", "http", "https")
+"""Network streams (busarm.vision.stream): IP cameras, MJPEG over HTTP. Messages do not
+list them among the "known" schemes: a URL needs no introduction."""
 # Scheme -> "module:callable(spec, **options) -> CameraSource", imported only when used.
 CAMERA_SCHEMES: dict[str, str] = {
     "twin": "busarm.twin.camera:open_twin_camera",
+    **dict.fromkeys(_URL_SCHEMES, "busarm.vision.stream:NetworkStream"),
 }
 
 DEFAULT_WIDTH_PX = 640
@@ -465,7 +471,7 @@ def open_camera(spec: str | int, **options: Any) -> CameraSource:
         return _construct(ImageFolderSource, spec, path, options)
     if path.is_file():
         return _construct(VideoFileSource, spec, path, options)
-    known = ", ".join(sorted(CAMERA_SCHEMES)) or "none"
+    known = ", ".join(sorted(set(CAMERA_SCHEMES) - set(_URL_SCHEMES))) or "none"
     raise CameraError(
         f"no camera at {spec}: not a device, file, folder or known scheme (known: {known})"
     )

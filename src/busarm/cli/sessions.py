@@ -1,0 +1,163 @@
+"""Running ``busarm sim serve`` / ``busarm twin serve`` servers, found through runtime files.
+
+A server writes one small JSON file while it runs (``sim-PID.json`` or ``twin-PID.json``)
+in the runtime folder: ``$BUSARM_RUNTIME_DIR``, else ``$XDG_RUNTIME_DIR/busarm``, else
+``<tmp>/busarm-UID``. The file is written atomically and removed when the server stops.
+A command without ``--port`` uses the newest running server, so that commands build on
+each other (``arm move-to`` then ``arm pose``). A file whose process is gone (a server
+killed with SIGKILL) or whose port vanished is stale: ignored and removed.
+
+File layout::
+
+    {"format": "busarm-session", "version": 1, "kind": "sim", "pid": 1234,
+     "port": "/dev/pts/7", "camera": null, "started": 1700000000.0}
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+import tempfile
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
+from dataclasses import dataclass
+from pathlib import Path
+
+from busarm.errors import ConfigError
+from busarm.fileio import write_text_atomic
+
+FORMAT_NAME = "busarm-session"
+FORMAT_VERSION = 1
+KINDS = ("sim", "twin")
+RUNTIME_DIR_ENV = "BUSARM_RUNTIME_DIR"
+
+
+@dataclass(frozen=True)
+class Session:
+    """One running server: what it serves (``sim`` or ``twin``) and where."""
+
+    kind: str
+    pid: int
+    port: str
+    """The servos' serial port (a pty path)."""
+    camera: str | None
+    """The camera source (``twin://127.0.0.1:PORT``) of a twin; None for the simulator."""
+    started: float
+    """When it started (seconds since the epoch)."""
+    path: Path
+    """Its runtime file."""
+
+    def describe(self) -> str:
+        """``the arm of `busarm sim serve` (pid 1234) on /dev/pts/7``."""
+        return f"the arm of `busarm {self.kind} serve` (pid {self.pid}) on {self.port}"
+
+
+def runtime_dir() -> Path:
+    """The folder of the runtime files (it may not exist yet)."""
+    given = os.environ.get(RUNTIME_DIR_ENV)
+    if given:
+        return Path(given)
+    xdg = os.environ.get("XDG_RUNTIME_DIR")
+    if xdg and Path(xdg).is_dir():
+        return Path(xdg) / "busarm"
+    user = os.getuid() if hasattr(os, "getuid") else os.environ.get("USERNAME", "user")
+    return Path(tempfile.gettempdir()) / f"busarm-{user}"
+
+
+def _own_dir(folder: Path, create: bool) -> bool:
+    """Whether ``folder`` is a directory of this user (made, private, if ``create``).
+
+    In a shared /tmp another user could make the folder first and plant files naming
+    their ports; a folder that is not ours is not trusted."""
+    if create:
+        with suppress(OSError):
+            folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+    try:
+        info = folder.lstat()
+    except OSError:
+        return False
+    if not stat.S_ISDIR(info.st_mode):
+        return False
+    return not hasattr(os, "getuid") or info.st_uid == os.getuid()
+
+
+@contextmanager
+def announced(kind: str, port: str, camera: str | None = None) -> Iterator[Path | None]:
+    """Write this process's runtime file for the body's duration (None: no folder for it).
+
+    The file is removed when the body ends, by an exception or SIGTERM too (the caller
+    turns SIGTERM into KeyboardInterrupt); a SIGKILL leaves it, and readers clean it."""
+    folder = runtime_dir()
+    if kind not in KINDS or not _own_dir(folder, create=True):
+        yield None
+        return
+    path = folder / f"{kind}-{os.getpid()}.json"
+    data = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "kind": kind,
+            "pid": os.getpid(), "port": port, "camera": camera, "started": time.time()}
+    try:
+        write_text_atomic(path, json.dumps(data) + "\n", "runtime file")
+    except ConfigError:  # the server runs all the same; commands just cannot find it
+        written = None
+    else:
+        written = path
+    try:
+        yield written
+    finally:
+        if written is not None:
+            written.unlink(missing_ok=True)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # it exists, run by someone else
+    except OSError:
+        return False
+    return True
+
+
+def _read(path: Path) -> Session | None:
+    """The session of a runtime file; None if the file is not one (or unreadable)."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        return None
+    if not isinstance(data, dict) or data.get("format") != FORMAT_NAME or \
+            data.get("version") != FORMAT_VERSION:
+        return None
+    kind, pid, port = data.get("kind"), data.get("pid"), data.get("port")
+    camera, started = data.get("camera"), data.get("started", 0.0)
+    if kind not in KINDS or not isinstance(pid, int) or not isinstance(port, str) or \
+            not (camera is None or isinstance(camera, str)) or \
+            not isinstance(started, int | float):
+        return None
+    return Session(kind, pid, port, camera, float(started), path)
+
+
+def running_sessions() -> list[Session]:
+    """The servers running now, newest first; stale runtime files are removed."""
+    folder = runtime_dir()
+    if not _own_dir(folder, create=False):
+        return []
+    found = []
+    for path in folder.glob("*.json"):
+        session = _read(path)
+        if session is None:
+            continue  # not ours to judge or remove
+        if not _alive(session.pid) or not Path(session.port).exists():
+            with suppress(OSError):
+                path.unlink()
+            continue
+        found.append(session)
+    return sorted(found, key=lambda s: s.started, reverse=True)
+
+
+def find_session() -> Session | None:
+    """The newest running server, or None."""
+    sessions = running_sessions()
+    return sessions[0] if sessions else None

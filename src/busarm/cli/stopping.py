@@ -1,0 +1,114 @@
+"""What a command that ends early says about the servos: only what is true, read back.
+
+A bus that wrote nothing leaves the servos as they were (``ServoBus`` then sends no
+stop on its way out), so the message says nothing about stopping. A bus that wrote
+something is stopped (MOVE_STOP), then each servo's torque is read back: with torque on
+it holds its position, with torque off it is limp (it was never holding), and one that
+does not answer is named as such.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from contextlib import AbstractContextManager, contextmanager
+
+from busarm.bus.driver import ServoBus
+from busarm.errors import BusArmError
+
+NOTHING_WRITTEN = "nothing was written to the servos"
+HOLDING = "holding position (torque on)"
+LIMP = "limp (torque off)"
+SILENT = "not answering (torque unknown)"
+STOP_SENT = "all servos stopped (MOVE_STOP)"
+
+_NOTE = "busarm_servos"
+_DETAILS = "busarm_details"
+
+
+def id_text(ids: Iterable[int]) -> str:
+    """``servo 3``, ``servos 1-5, 10``: IDs with runs of three or more as ranges."""
+    ordered = sorted(set(ids))
+    runs: list[list[int]] = []
+    for sid in ordered:
+        if runs and sid == runs[-1][-1] + 1:
+            runs[-1].append(sid)
+        else:
+            runs.append([sid])
+    parts = [f"{r[0]}-{r[-1]}" if len(r) >= 3 else ", ".join(map(str, r)) for r in runs]
+    return ("servo " if len(ordered) == 1 else "servos ") + ", ".join(parts)
+
+
+def torque_text(bus: ServoBus, ids: Iterable[int]) -> str:
+    """The torque of each servo as read back now, grouped: ``servos 1-4 holding position
+    (torque on); servo 10 limp (torque off)``."""
+    groups: dict[str, list[int]] = {}
+    for sid in sorted(set(ids)):
+        try:
+            state = HOLDING if bus.read_torque(sid) else LIMP
+        except BusArmError:  # a timeout, a garbled reply, a port that is gone
+            state = SILENT
+        groups.setdefault(state, []).append(sid)
+    return "; ".join(f"{id_text(group)} {state}" for state, group in groups.items())
+
+
+def stop_and_read_back(bus: ServoBus, ids: Iterable[int]) -> str:
+    """Send the emergency stop, then say what the servos ``ids`` (and any this bus wrote
+    to) do now."""
+    bus.emergency_stop()
+    known = set(ids) | bus.written_ids
+    return f"{STOP_SENT}; {torque_text(bus, known)}" if known else STOP_SENT
+
+
+@contextmanager
+def marking_the_stop(owner: AbstractContextManager[object], bus: ServoBus,
+                     ids: Iterable[int] = ()) -> Iterator[None]:
+    """``with owner`` (the bus, or the robot holding it); an exception that leaves is
+    marked with what the servos were left doing (``servos_note``), read back before the
+    bus closes. If nothing was written, nothing is sent and nothing is said."""
+    with owner:
+        try:
+            yield
+        except BaseException as exc:
+            if bus.wrote:
+                # Said if a second Ctrl+C cuts the read-back short (the bus's exit stops).
+                setattr(exc, _NOTE, f"{STOP_SENT}; torque not read back")
+                setattr(exc, _NOTE, stop_and_read_back(bus, ids))
+            raise
+
+
+def _chain(exc: BaseException) -> Iterator[BaseException]:
+    """``exc`` and what caused it (a Ctrl+C at a prompt arrives as click's Abort)."""
+    seen: BaseException | None = exc
+    met: set[int] = set()
+    while seen is not None and id(seen) not in met:
+        met.add(id(seen))
+        yield seen
+        seen = seen.__cause__ or seen.__context__
+
+
+def servos_note(exc: BaseException) -> str | None:
+    """What ``exc`` (or what caused it) left the servos doing; None if nothing was written."""
+    for seen in _chain(exc):
+        note = getattr(seen, _NOTE, None)
+        if isinstance(note, str):
+            return note
+    return None
+
+
+def add_detail(exc: BaseException, text: str) -> None:
+    """Add ``text`` to the one line that reports ``exc`` (after the servos' state)."""
+    setattr(exc, _DETAILS, [*getattr(exc, _DETAILS, []), text])
+
+
+def details(exc: BaseException) -> list[str]:
+    """What was added with ``add_detail`` to ``exc`` or what caused it."""
+    return [text for seen in _chain(exc) for text in getattr(seen, _DETAILS, [])]
+
+
+def report_line(exc: BaseException | None, message: str, *, unwritten: str = "") -> str:
+    """``message``, what the servos were left doing and the details, as one line; if
+    nothing was written to them, ``unwritten`` is said of them (if anything)."""
+    if exc is None:
+        return message
+    note = servos_note(exc) or unwritten
+    return "; ".join([f"{message}: {note}" if note else message, *details(exc)])

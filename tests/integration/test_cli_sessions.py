@@ -1,0 +1,369 @@
+"""Commands without --port use a running ``busarm sim serve`` / ``twin serve`` (found by
+its runtime file), and options are accepted where users put them (``busarm arm pose
+--port X``, ``busarm --config X arm pose``).
+
+The servers run as real subprocesses, each test with its own runtime folder
+(BUSARM_RUNTIME_DIR), so nothing here sees a server another test or a developer runs.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner, Result
+from rich.console import Console
+
+from busarm.cli import sessions
+from busarm.cli.common import SIM_NOTE, Settings
+from busarm.cli.main import cli
+from busarm.cli.option_places import walk
+from busarm.sim.bus import SimBus, WireTiming
+from busarm.sim.pty import PtyServer
+
+STRAIGHT_UP_Z_MM = 629.4
+"""The tool height of the simulator's power-on pose (every servo at 500 pulses)."""
+
+
+def busarm(*args: str, env: dict[str, str], timeout_s: float = 60.0
+           ) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "busarm", *args], capture_output=True,
+                          text=True, env=env, timeout=timeout_s)
+
+
+@pytest.fixture
+def env(tmp_path: Path) -> dict[str, str]:
+    """The environment of a user with no --port, BUSARM_PORT or arm options set, and a
+    runtime folder of this test's own."""
+    base = {k: v for k, v in os.environ.items()
+            if k not in ("BUSARM_PORT", "BUSARM_ARM", "BUSARM_CALIBRATION")}
+    return {**base, "BUSARM_RUNTIME_DIR": str(tmp_path / "run"), "COLUMNS": "200"}
+
+
+class Server:
+    """``busarm sim|twin serve`` in its own process; stop() sends SIGTERM."""
+
+    def __init__(self, args: list[str], env: dict[str, str]) -> None:
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "busarm", *args], stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE, text=True, env={**env, "PYTHONUNBUFFERED": "1"},
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+        assert self.proc.stdout is not None
+        self.path = self.proc.stdout.readline().strip()
+        assert self.path.startswith("/dev/"), self.proc.communicate(timeout=10)
+        self.runtime = Path(env["BUSARM_RUNTIME_DIR"])
+
+    def runtime_files(self) -> list[Path]:
+        return sorted(self.runtime.glob("*.json")) if self.runtime.is_dir() else []
+
+    def wait_announced(self) -> Path:
+        deadline = time.monotonic() + 10
+        while not self.runtime_files():
+            assert time.monotonic() < deadline and self.proc.poll() is None, "not announced"
+            time.sleep(0.02)
+        (path,) = self.runtime_files()
+        return path
+
+    def stop(self) -> str:
+        if self.proc.poll() is None:
+            self.proc.terminate()
+        _, err = self.proc.communicate(timeout=15)
+        assert self.proc.returncode == 0, err
+        assert "Traceback" not in err
+        return err
+
+
+@pytest.fixture
+def servers() -> Iterator[list[Server]]:
+    started: list[Server] = []
+    yield started
+    for server in started:
+        if server.proc.poll() is None:
+            server.proc.kill()
+            server.proc.communicate(timeout=10)
+
+
+def pose_of(result: subprocess.CompletedProcess[str]) -> dict[str, float]:
+    assert result.returncode == 0, result.stderr
+    pose: dict[str, float] = json.loads(result.stdout)["pose"]
+    return pose
+
+
+def notes(result: subprocess.CompletedProcess[str]) -> list[str]:
+    return [line for line in result.stderr.splitlines() if line.startswith("note:")]
+
+
+# ---------------------------------------------------------------------- sim serve
+
+
+def test_commands_without_port_build_on_a_running_sim_serve(
+        env: dict[str, str], servers: list[Server]) -> None:
+    server = Server(["sim", "serve", "--no-timing"], env)
+    servers.append(server)
+    runtime = server.wait_announced()
+    data = json.loads(runtime.read_text())
+    assert (data["kind"], data["port"], data["pid"]) == ("sim", server.path, server.proc.pid)
+    using = (f"note: no --port given: using the arm of `busarm sim serve` (pid "
+             f"{server.proc.pid}) on {server.path} (--port sim for a fresh simulated arm)")
+
+    moved = busarm("arm", "move-to", "200", "0", "40", "--pitch", "-90", env=env)
+    assert moved.returncode == 0, moved.stderr
+    assert notes(moved) == [using]  # said once, naming the server
+    after = busarm("arm", "pose", "--json", env=env)
+    assert notes(after) == [using]
+    pose = pose_of(after)
+    assert abs(pose["x_mm"] - 200) < 3 and abs(pose["z_mm"] - 40) < 3, pose
+    assert abs(pose["pitch_deg"] + 90) < 2, pose
+
+    # An explicit --port sim is a fresh in-process arm, server or not.
+    fresh = busarm("--port", "sim", "arm", "pose", "--json", env=env)
+    assert notes(fresh) == [] and pose_of(fresh)["z_mm"] == pytest.approx(STRAIGHT_UP_Z_MM, abs=1)
+
+    assert "simulator stopped" in server.stop()
+    assert not runtime.exists(), "the runtime file outlived its server"
+    alone = busarm("arm", "pose", "--json", env=env)
+    assert notes(alone) == [SIM_NOTE]
+    assert pose_of(alone)["z_mm"] == pytest.approx(STRAIGHT_UP_Z_MM, abs=1)
+
+
+def test_the_newest_of_two_servers_is_used(env: dict[str, str], servers: list[Server]) -> None:
+    first = Server(["sim", "serve", "--no-timing", "--ids", "1,2,3,4,5,10"], env)
+    servers.append(first)
+    first.wait_announced()
+    second = Server(["sim", "serve", "--no-timing"], env)
+    servers.append(second)
+    deadline = time.monotonic() + 10
+    while len(second.runtime_files()) < 2:
+        assert time.monotonic() < deadline, "second server not announced"
+        time.sleep(0.02)
+    result = busarm("stop", env=env)
+    assert result.returncode == 0, result.stderr
+    assert notes(result) == [f"note: no --port given: using the arm of `busarm sim serve` (pid "
+                             f"{second.proc.pid}) on {second.path} (--port sim for a fresh "
+                             "simulated arm)"]
+    second.stop()
+    first.stop()
+
+
+def test_a_killed_servers_file_is_ignored_and_removed(env: dict[str, str],
+                                                      servers: list[Server]) -> None:
+    server = Server(["sim", "serve", "--no-timing"], env)
+    servers.append(server)
+    runtime = server.wait_announced()
+    server.proc.kill()  # SIGKILL: no chance to remove its file
+    server.proc.communicate(timeout=10)
+    assert runtime.exists()
+    result = busarm("arm", "pose", "--json", env=env)
+    assert notes(result) == [SIM_NOTE]
+    assert pose_of(result)["z_mm"] == pytest.approx(STRAIGHT_UP_Z_MM, abs=1)
+    assert not runtime.exists(), "the stale runtime file was not cleaned"
+
+
+def test_runtime_files_that_do_not_name_a_live_server_are_stale(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(sessions.RUNTIME_DIR_ENV, str(tmp_path))
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    record = {"format": sessions.FORMAT_NAME, "version": sessions.FORMAT_VERSION,
+              "kind": "sim", "camera": None, "started": 1.0}
+    gone = tmp_path / "sim-dead.json"
+    gone.write_text(json.dumps({**record, "pid": dead.pid, "port": "/dev/null"}))
+    no_port = tmp_path / "sim-noport.json"
+    no_port.write_text(json.dumps({**record, "pid": os.getpid(), "port": "/dev/pts/nosuch"}))
+    other = tmp_path / "notes.json"  # not a runtime file: left alone
+    other.write_text("{}")
+    live = tmp_path / "twin-live.json"
+    live.write_text(json.dumps({**record, "kind": "twin", "pid": os.getpid(),
+                                "port": "/dev/null", "camera": "twin://127.0.0.1:1"}))
+    (found,) = sessions.running_sessions()
+    assert (found.kind, found.port, found.camera) == ("twin", "/dev/null", "twin://127.0.0.1:1")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.json", "twin-live.json"]
+
+
+def test_the_runtime_folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv(sessions.RUNTIME_DIR_ENV, raising=False)
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))
+    assert sessions.runtime_dir() == tmp_path / "busarm"
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path / "missing"))
+    assert sessions.runtime_dir().name == f"busarm-{os.getuid()}"
+    # The file exists while the body runs, private folder, and is gone after it.
+    monkeypatch.setenv(sessions.RUNTIME_DIR_ENV, str(tmp_path / "run"))
+    with sessions.announced("sim", "/dev/null") as path:
+        assert path is not None and path.parent == tmp_path / "run"
+        assert (path.parent.stat().st_mode & 0o777) == 0o700
+        assert sessions.find_session() is not None
+    assert not path.exists() and sessions.find_session() is None
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0,
+                    reason="needs root to give the folder to another user")
+def test_a_runtime_folder_of_another_user_is_not_trusted(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    folder = tmp_path / "run"
+    monkeypatch.setenv(sessions.RUNTIME_DIR_ENV, str(folder))
+    with sessions.announced("sim", "/dev/null"):
+        assert sessions.find_session() is not None
+        os.chown(folder, 12345, -1)  # as if another user had made it first in /tmp
+        assert sessions.find_session() is None
+        with sessions.announced("sim", "/dev/null") as planted:
+            assert planted is None
+
+
+def test_twin_serve_is_the_default_arm_with_its_camera(
+        env: dict[str, str], servers: list[Server], monkeypatch: pytest.MonkeyPatch) -> None:
+    server = Server(["twin", "serve", "--seed", "2", "--blocks", "1"], env)
+    servers.append(server)
+    assert server.proc.stdout is not None
+    camera = server.proc.stdout.readline().strip()
+    data = json.loads(server.wait_announced().read_text())
+    assert (data["kind"], data["port"], data["camera"]) == ("twin", server.path, camera)
+    result = busarm("arm", "gripper", "open", env=env)
+    assert result.returncode == 0, result.stderr
+    assert notes(result) == [f"note: no --port given: using the arm of `busarm twin serve` (pid "
+                             f"{server.proc.pid}) on {server.path} (--port sim for a fresh "
+                             "simulated arm)"]
+    # The robot commands (camera, vision locate) get its camera too.
+    monkeypatch.setenv(sessions.RUNTIME_DIR_ENV, env["BUSARM_RUNTIME_DIR"])
+    settings = Settings(port_given=False, err=Console(file=io.StringIO()))
+    with settings.open_robot(needs=("camera",)) as robot:
+        assert robot.port == server.path and robot.camera is not None
+        assert robot.camera.read().image.shape[:2] == (480, 640)
+    assert "twin stopped" in server.stop()
+    assert not server.runtime_files()
+
+
+# ---------------------------------------------------------------------- option places
+
+
+def invoke(*args: str, **env: str | None) -> Result:
+    return CliRunner(mix_stderr=False).invoke(
+        cli, list(args), env={"BUSARM_PORT": None, "BUSARM_ARM": None,
+                              "BUSARM_CALIBRATION": None, **env}, prog_name="busarm")
+
+
+def one_error(result: Result, code: int = 2) -> str:
+    assert result.exit_code == code, (result.stdout, result.stderr)
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
+    assert "Traceback" not in result.stderr
+    return lines[0]
+
+
+@pytest.fixture
+def pty_bus() -> Iterator[tuple[str, SimBus]]:
+    """The simulated arm on a pseudo-terminal, no wire timing: (path, its SimBus)."""
+    bus = SimBus.with_ids([1, 2, 3, 4, 5, 10], timing=WireTiming(enabled=False))
+    server = PtyServer(bus)
+    try:
+        yield server.start(), bus
+    finally:
+        server.stop()
+
+
+def test_global_options_after_the_command(pty_bus: tuple[str, SimBus]) -> None:
+    path, bus = pty_bus
+    result = invoke("arm", "move-joints", "30", "-90", "0", "-90", "0", "--duration", "0.2",
+                    "--port", path, "--echo", "off", "--baud", "115200", "--retries", "1",
+                    "--timeout-margin-ms", "20")
+    assert result.exit_code == 0, result.stderr
+    assert "note:" not in result.stderr  # --port was given, after the command
+    assert bus.frames_received > 0
+    # At the group too: the same arm, where the move left it.
+    pose = invoke("arm", "--port", path, "pose", "--json")
+    assert pose.exit_code == 0, pose.stderr
+    assert json.loads(pose.stdout)["joints_deg"]["base_yaw"] == pytest.approx(30, abs=1)
+    assert "cannot open" in one_error(invoke("arm", "pose", "--port", "/nonexistent/tty9"), 1)
+    assert "1200<=x<=4000000" in one_error(invoke("move", "1", "10", "--baud", "5"))
+    assert "'bogus' is not one of" in one_error(invoke("stop", "--echo", "bogus"))
+
+
+def test_every_command_takes_the_global_options_after_it() -> None:
+    # A command added after accept_everywhere() ran would not: this catches it.
+    commands = list(walk(cli))
+    assert len(commands) > 40
+    for path, command in commands:
+        options = {o for p in command.params for o in p.opts}
+        # (`sim serve` and `twin serve` keep their own --echo flag.)
+        assert {"--port", "--baud", "--echo", "--retries", "--timeout-margin-ms",
+                "-v"} <= options, path
+
+
+def test_verbose_after_the_command(env: dict[str, str]) -> None:
+    quiet = busarm("--port", "sim", "stop", env=env)
+    loud = busarm("stop", "--port", "sim", "-v", env=env)
+    assert quiet.returncode == loud.returncode == 0, loud.stderr
+    assert "busarm" not in quiet.stderr and "busarm.bus" in loud.stderr, loud.stderr
+
+
+def test_sim_serve_keeps_its_own_echo_flag() -> None:
+    text = invoke("sim", "serve", "--help").stdout
+    assert "--echo  " in text and "[on|off|auto]" not in text
+
+
+@pytest.mark.parametrize("where", ["root", "group", "leaf"])
+def test_arm_options_in_every_place(where: str, tmp_path: Path) -> None:
+    def args(option: str, value: str) -> list[str]:
+        return {"root": [option, value, "arm", "pose"],
+                "group": ["arm", option, value, "pose"],
+                "leaf": ["arm", "pose", option, value]}[where]
+
+    missing = str(tmp_path / "missing.json")
+    assert "arm config nosuch" in one_error(invoke("--port", "sim", *args("--config", "nosuch")))
+    assert f"calibration {missing}" in one_error(
+        invoke("--port", "sim", *args("--calibration", missing)))
+    ok = invoke("--port", "sim", *args("--config", "jetauto_pro"))
+    assert ok.exit_code == 0, ok.stderr
+
+
+def test_arm_option_precedence() -> None:
+    # The command line beats the environment, wherever on it; the nearest place wins.
+    assert invoke("--port", "sim", "--config", "jetauto_pro", "arm", "pose",
+                  BUSARM_ARM="nosuch").exit_code == 0
+    assert invoke("--port", "sim", "arm", "pose", "--config", "jetauto_pro",
+                  BUSARM_ARM="nosuch").exit_code == 0
+    assert invoke("--port", "sim", "--config", "jetauto_pro", "move", "1", "10",
+                  BUSARM_ARM="nosuch").exit_code == 0
+    assert "arm config nosuch" in one_error(invoke("--port", "sim", "move", "1", "10",
+                                                   BUSARM_ARM="nosuch"))
+    assert invoke("--port", "sim", "--config", "nosuch", "arm", "--config", "jetauto_pro",
+                  "pose").exit_code == 0
+    assert invoke("--port", "sim", "--config", "nosuch", "arm", "pose", "--config",
+                  "jetauto_pro").exit_code == 0
+    assert "arm config nosuch" in one_error(
+        invoke("--port", "sim", "arm", "--config", "jetauto_pro", "pose", "--config", "nosuch"))
+
+
+def test_config_before_a_command_that_takes_it_after() -> None:
+    # pick-sort, move and twin snapshot have their own --config: the one before the
+    # command is their default.
+    assert "arm config nosuch" in one_error(invoke("--config", "nosuch", "pick-sort"))
+    assert "arm config nosuch" in one_error(
+        invoke("--config", "nosuch", "--port", "sim", "move", "1", "10"))
+    assert "arm config nosuch" in one_error(
+        invoke("--config", "nosuch", "twin", "snapshot", "--png", "x.png"))
+
+
+def test_arm_options_for_a_command_that_takes_none_are_refused(tmp_path: Path) -> None:
+    calibration = str(tmp_path / "cal.json")
+    assert one_error(invoke("--calibration", calibration, "pick-sort")) == (
+        f"error: `busarm pick-sort` takes no --calibration (given {calibration!r})")
+    assert one_error(invoke("--config", "jetauto_pro", "decode", "55")) == (
+        "error: `busarm decode` takes no --config (given 'jetauto_pro')")
+    assert "takes no --config" in one_error(invoke("scan", "--config", "jetauto_pro"))
+
+
+def test_an_option_of_the_command_given_before_it_says_where_it_goes() -> None:
+    message = one_error(invoke("--seed", "3", "pick-sort"))
+    assert message == ("error: --seed is an option of `busarm pick-sort`, not of `busarm`: "
+                       "put it after the command (busarm pick-sort --seed ...)")
+    message = one_error(invoke("--json", "arm", "pose"))
+    assert "--json is an option of `busarm arm pose`" in message
+    assert "No such option: --nosuch" in one_error(invoke("--nosuch", "arm", "pose"))

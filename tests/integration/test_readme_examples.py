@@ -1,0 +1,213 @@
+"""Every command line in README.md's "Using it" section runs as written.
+
+The rules, applied to each ```sh code block of the section, in order:
+
+* A line is a shell line of the block; a line ending in ``\\`` continues on the next; a
+  line that is only a comment (``# ...``, the rest of the comment above it) is not one.
+  Every line must run ``.venv/bin/busarm`` (a pipe into it counts); anything else fails
+  the test, so that a new kind of line gets a rule here.
+* HARDWARE: a line naming ``/dev/ttyUSB0``, ``/dev/video0`` or ``COM3`` needs hardware
+  that a test machine lacks: skipped, and counted.
+* SERVERS: a ``sim serve`` or ``twin serve`` line is started in the background and
+  stopped with SIGTERM at the end of its block (it must exit 0, no traceback). The
+  placeholders of the lines after it, ``/dev/pts/N`` and ``twin://127.0.0.1:PORT``, are
+  what it printed.
+* SMALLER: the lines in ``SMALLER`` take minutes as written (many scenes, long timed
+  runs); they run as the same command with smaller counts, given there.
+* INTERACTIVE: the lines in ``INTERACTIVE`` get the answers a person gives ("y") on
+  stdin; every other line gets an empty stdin.
+* Every other line runs as written, with bash, in a fresh folder per block whose
+  ``.venv/bin/busarm`` runs this checkout's busarm, so that the files one line writes
+  (camera.json, ws.png) are there for the next. Each must exit 0 with no traceback and
+  no ``error:`` line. Nothing runs on the developer's files: the runtime folder (running
+  servers) and $XDG_CONFIG_HOME (kept calibrations, saved poses) are the test's own.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+README = Path(__file__).resolve().parents[2] / "README.md"
+BUSARM = ".venv/bin/busarm"
+HARDWARE = ("/dev/ttyUSB0", "/dev/video0", "COM3")
+SERVERS = ("sim serve", "twin serve")
+PTY = "/dev/pts/N"
+CAMERA = "twin://127.0.0.1:PORT"
+SMALLER = {
+    f"{BUSARM} bench": f"{BUSARM} bench --reads 300 --loops 20 --scans 1",
+    f"{BUSARM} bench pick --scenes 50 --workers 2":
+        f"{BUSARM} bench pick --scenes 1 --workers 2",
+    f"{BUSARM} bench pick --family clutter --workers 2":
+        f"{BUSARM} bench pick --family clutter --scenes 1 --workers 2",
+    f"{BUSARM} bench vision ; {BUSARM} bench locate":
+        f"{BUSARM} bench vision --pictures 2 --seconds 0.5 ; {BUSARM} bench locate "
+        "--placements 20",
+}
+"""README line (without its comment) -> the smaller run of the same commands."""
+INTERACTIVE = {f"{BUSARM} arm calibrate": "y\n" * 4}
+LINE_TIMEOUT_S = 120.0
+
+
+def _section(text: str, title: str = "## Using it") -> str:
+    start = text.index(f"\n{title}\n")
+    end = text.find("\n## ", start + 1)
+    return text[start:end if end >= 0 else None]
+
+
+def _command(line: str) -> str:
+    """The line without its trailing ``# comment``, whitespace squeezed."""
+    return " ".join(re.sub(r"\s#\s.*$", "", line).split())
+
+
+def readme_blocks() -> list[list[str]]:
+    """The shell lines of each ```sh block of "Using it", continuations joined."""
+    blocks = []
+    for body in re.findall(r"```sh\n(.*?)```", _section(README.read_text()), re.DOTALL):
+        lines: list[str] = []
+        pending = ""
+        for raw in body.splitlines():
+            if raw.rstrip().endswith("\\"):
+                pending += raw.rstrip()[:-1] + " "
+                continue
+            line = (pending + raw).strip()
+            pending = ""
+            if line and not line.startswith("#"):
+                lines.append(line)
+        blocks.append(lines)
+    return blocks
+
+
+BLOCKS = readme_blocks()
+
+
+@dataclass
+class Run:
+    """What a block's lines did: for the report, and the failures to show."""
+
+    ran: list[tuple[str, float]] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    smaller: list[str] = field(default_factory=list)
+    failures: list[str] = field(default_factory=list)
+
+    def check(self, line: str, code: int, out: str, err: str) -> None:
+        errors = [x for x in err.splitlines() if x.startswith("error:")]
+        if code != 0 or "Traceback" in out + err or errors:
+            self.failures.append(f"{line}\n  exit {code}\n  stderr: {err.strip()[-2000:]}")
+
+
+def _workdir(tmp_path: Path) -> tuple[Path, dict[str, str]]:
+    """A folder whose .venv/bin/busarm is this checkout's, and the environment to run in."""
+    script = tmp_path / ".venv" / "bin" / "busarm"
+    script.parent.mkdir(parents=True)
+    script.write_text(f'#!/bin/sh\nexec "{sys.executable}" -m busarm "$@"\n')
+    script.chmod(0o755)
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("BUSARM_PORT", "BUSARM_ARM", "BUSARM_CALIBRATION")}
+    env.update(BUSARM_RUNTIME_DIR=str(tmp_path / "run"), XDG_CONFIG_HOME=str(tmp_path / "config"),
+               COLUMNS="120", PYTHONUNBUFFERED="1")
+    return tmp_path, env
+
+
+def _start_server(line: str, cwd: Path, env: dict[str, str]) -> tuple[subprocess.Popen[str],
+                                                                      dict[str, str]]:
+    proc = subprocess.Popen(
+        ["bash", "-c", f"exec {line}"], cwd=cwd, env=env, text=True, stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    assert proc.stdout is not None
+    values = {PTY: proc.stdout.readline().strip()}
+    if "twin serve" in line:
+        values[CAMERA] = proc.stdout.readline().strip()
+    return proc, values
+
+
+def _stop_server(line: str, proc: subprocess.Popen[str], run: Run) -> None:
+    proc.terminate()
+    try:
+        out, err = proc.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+    run.check(f"{line} (stopped with SIGTERM)", proc.returncode, out, err)
+
+
+def run_block(lines: list[str], tmp_path: Path) -> Run:
+    """Run one block's lines by the rules above."""
+    cwd, env = _workdir(tmp_path)
+    run = Run()
+    servers: list[tuple[str, subprocess.Popen[str]]] = []
+    values: dict[str, str] = {}
+    try:
+        for line in lines:
+            command = _command(line)
+            if BUSARM not in command:
+                run.failures.append(f"{line}\n  not a busarm line: give it a rule")
+            elif any(device in command for device in HARDWARE):
+                run.skipped.append(line)
+            elif any(f"{BUSARM} {s}" in command for s in SERVERS):
+                proc, printed = _start_server(line, cwd, env)
+                servers.append((line, proc))
+                values.update(printed)
+            else:
+                _run_line(line, command, cwd, env, values, run)
+    finally:
+        for line, proc in servers:
+            _stop_server(line, proc, run)
+    return run
+
+
+def _run_line(line: str, command: str, cwd: Path, env: dict[str, str],
+              values: dict[str, str], run: Run) -> None:
+    if command in SMALLER:
+        line = SMALLER[command]
+        run.smaller.append(f"{command}  ->  {line}")
+    for placeholder, value in values.items():
+        line = line.replace(placeholder, value)
+    if PTY in line or CAMERA in line:
+        run.failures.append(f"{line}\n  names a server no line before it started")
+        return
+    start = time.monotonic()
+    try:
+        done = subprocess.run(["bash", "-c", line], cwd=cwd, env=env, text=True,
+                              input=INTERACTIVE.get(command, ""), capture_output=True,
+                              timeout=LINE_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        run.failures.append(f"{line}\n  still running after {LINE_TIMEOUT_S:g} s")
+        return
+    run.ran.append((line, time.monotonic() - start))
+    run.check(line, done.returncode, done.stdout, done.stderr)
+
+
+def test_the_using_it_section_has_examples_of_each_kind() -> None:
+    lines = [line for block in BLOCKS for line in block]
+    assert len(BLOCKS) >= 4 and len(lines) >= 25, BLOCKS
+    assert any(any(d in line for d in HARDWARE) for line in lines)
+    assert any(any(s in line for s in SERVERS) for line in lines)
+    stale = set(SMALLER) | set(INTERACTIVE)
+    stale -= {_command(line) for line in lines}
+    assert not stale, f"rules for lines the README no longer has: {sorted(stale)}"
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+@pytest.mark.parametrize("number", range(len(BLOCKS)), ids=lambda n: f"block{n + 1}")
+def test_readme_block_runs_as_written(number: int, tmp_path: Path) -> None:
+    start = time.monotonic()
+    run = run_block(BLOCKS[number], tmp_path)
+    took = time.monotonic() - start
+    report = [f"block {number + 1}: {len(run.ran)} run, {len(run.skipped)} skipped (hardware), "
+              f"{len(run.smaller)} smaller, {took:.1f} s"]
+    report += [f"  {seconds:5.1f} s  {line}" for line, seconds in run.ran]
+    report += [f"  skipped (hardware): {line}" for line in run.skipped]
+    report += [f"  smaller: {line}" for line in run.smaller]
+    print("\n".join(report))
+    assert not run.failures, "\n".join([*report, "failed:", *run.failures])
