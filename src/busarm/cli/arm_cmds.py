@@ -27,6 +27,7 @@ from busarm.arm.config import ArmConfig
 from busarm.arm.kinematics import ArmKinematics, Pose
 from busarm.arm.motion import PROFILES
 from busarm.arm.named_poses import check_savable_name, poses_file, save_pose
+from busarm.cli import text
 from busarm.cli.common import (
     NUMBER_ARGS,
     ArmContext,
@@ -83,22 +84,33 @@ def actions(ctx: click.Context, settings: Settings, config: str, calibration: st
 
 def _pose_dict(pose: Pose) -> dict[str, float]:
     return {
-        "x_mm": round(pose.x_mm, 4), "y_mm": round(pose.y_mm, 4), "z_mm": round(pose.z_mm, 4),
-        "pitch_deg": round(pose.pitch_deg, 4), "roll_deg": round(pose.roll_deg, 4),
+        "x_mm": _json_number(pose.x_mm), "y_mm": _json_number(pose.y_mm),
+        "z_mm": _json_number(pose.z_mm), "pitch_deg": _json_number(pose.pitch_deg),
+        "roll_deg": _json_number(pose.roll_deg),
     }
 
 
+def _json_number(value: float, digits: int = 4) -> float:
+    """``value`` rounded for JSON, never ``-0.0``."""
+    return round(value, digits) + 0.0
+
+
 def _joints_dict(config: ArmConfig, joints: Sequence[float]) -> dict[str, float]:
-    return {j.name: round(a, 4) for j, a in zip(config.joints, joints, strict=True)}
+    return {j.name: _json_number(a) for j, a in zip(config.joints, joints, strict=True)}
 
 
 def _pose_text(pose: Pose) -> str:
-    return (f"x {pose.x_mm:.1f}  y {pose.y_mm:.1f}  z {pose.z_mm:.1f} mm  "
-            f"pitch {pose.pitch_deg:.1f}  roll {pose.roll_deg:.1f} deg")
+    return text.pose(pose.x_mm, pose.y_mm, pose.z_mm, pose.pitch_deg, pose.roll_deg)
 
 
 def _joints_text(config: ArmConfig, joints: Sequence[float]) -> str:
-    return "  ".join(f"{j.name} {a:.2f}" for j, a in zip(config.joints, joints, strict=True))
+    return text.joints((j.name for j in config.joints), joints)
+
+
+def _gripper_text(config: ArmConfig, position_pulses: int) -> str:
+    """The gripper's opening in mm, with the servo's pulses for the wire-minded."""
+    gap_mm = config.gripper.gap_mm_at(position_pulses)
+    return f"{text.gripper(gap_mm)} ({position_pulses} pulses)"
 
 
 def _emit(settings: Settings, as_json: bool, data: object, text: str) -> None:
@@ -134,7 +146,7 @@ def fk(ac: ArmContext, joints: tuple[float, ...], as_json: bool, batch: bool,
     text = _pose_text(pose)
     if matrix:
         m = kin.fk_matrix(q)
-        data["tool2base"] = [[round(v, 6) for v in row] for row in m.tolist()]
+        data["tool2base"] = [[_json_number(v, 6) for v in row] for row in m.tolist()]
         text += "\n" + "\n".join("  ".join(f"{v:10.4f}" for v in row) for row in m.tolist())
     _emit(ac.settings, as_json, data, text)
 
@@ -169,7 +181,7 @@ def ik(ac: ArmContext, x: float, y: float, z: float, pitch: float | None, roll: 
     out = ac.settings.out
     for q in result["solutions"]:
         out.print(_joints_text(ac.config, q.values()), highlight=False)
-    out.print(f"pitch {result['pitch_deg']:.3f} deg"
+    out.print(f"pitch {text.quantity(result['pitch_deg'], 'deg')}"
               + ("" if pitch is not None else " (chosen: free pitch)"), highlight=False)
 
 
@@ -211,7 +223,7 @@ def _ik_item(config: ArmConfig, kin: ArmKinematics, item: object,
             sols = kin.ik(x, y, z, pitch, roll)
     return {
         "target": {"x_mm": x, "y_mm": y, "z_mm": z, "pitch_deg": pitch, "roll_deg": roll},
-        "pitch_deg": round(chosen, 6),
+        "pitch_deg": _json_number(chosen, 6),
         "solutions": [_joints_dict(config, q) for q in sols],
     }
 
@@ -262,8 +274,15 @@ def workspace(ac: ArmContext, png: Path, grasp_height: float, cell: float) -> No
     """A picture of where the arm reaches: the table for a top-down grasp, and the side."""
     from busarm.arm.workspace import render_workspace_png
 
-    summary = render_workspace_png(ac.config, png, grasp_height_mm=grasp_height, cell_mm=cell)
-    ac.settings.out.print(f"wrote {png}: {summary}", highlight=False)
+    s = render_workspace_png(ac.config, png, grasp_height_mm=grasp_height, cell_mm=cell)
+    reach = ("nowhere" if s.min_radius_mm is None or s.max_radius_mm is None else
+             f"{text.number(s.min_radius_mm, 0)}-{text.number(s.max_radius_mm, 0)} mm from "
+             f"the base axis, {text.quantity(s.top_down_area_cm2, 'cm2', 0)}")
+    ac.settings.out.print(
+        f"wrote {png}: straight down at {text.quantity(s.grasp_z_mm, 'mm', 0)} over the table "
+        f"the arm reaches {reach}; its side envelope covers "
+        f"{text.quantity(s.envelope_area_cm2, 'cm2', 0)} ({text.quantity(s.cell_mm, 'mm')} "
+        "cells)", highlight=False, soft_wrap=True)
 
 
 # ---------------------------------------------------------------------- on the bus
@@ -289,9 +308,11 @@ def pose(ac: ArmContext, as_json: bool, save_name: str | None) -> None:
                               f"{poses_file(folder)}", highlight=False, markup=False,
                               soft_wrap=True)
     data = {"joints_deg": _joints_dict(ac.config, q), "pose": _pose_dict(p),
-            "gripper_pulses": grip}
+            "gripper_pulses": grip,
+            "gripper_gap_mm": round(ac.config.gripper.gap_mm_at(grip), 1)}
     _emit(ac.settings, as_json, data,
-          f"{_joints_text(ac.config, q)}\n{_pose_text(p)}\ngripper {grip} pulses")
+          f"{_joints_text(ac.config, q)}\n{_pose_text(p)}\n"
+          f"gripper {_gripper_text(ac.config, grip)}")
 
 
 def _move_options(f: Callable[..., Any]) -> Callable[..., Any]:
@@ -380,13 +401,14 @@ def gripper(ac: ArmContext, what: str) -> None:
     with ac.open() as a:
         if action == "open":
             pos = a.open_gripper()
-            ac.settings.out.print(f"gripper open at {pos} pulses", highlight=False)
+            ac.settings.out.print(f"gripper {_gripper_text(ac.config, pos)}", highlight=False)
             return
         result = a.grip()
     state = "holding an object" if result.is_holding else "closed on nothing"
+    gap_mm = ac.config.gripper.gap_mm_at(result.position_pulses)
     ac.settings.out.print(
-        f"gripper {state}: stopped at {result.position_pulses} pulses "
-        f"({result.short_of_closed_pulses} short of closed)", highlight=False,
+        f"gripper {state}: {text.quantity(gap_mm, 'mm')} apart ({result.position_pulses} "
+        f"pulses, {result.short_of_closed_pulses} short of closed)", highlight=False,
     )
 
 
