@@ -270,7 +270,7 @@ def pty_bus() -> Iterator[tuple[str, SimBus]]:
 
 def test_global_options_after_the_command(pty_bus: tuple[str, SimBus]) -> None:
     path, bus = pty_bus
-    result = invoke("arm", "move-joints", "30", "-90", "0", "-90", "0", "--duration", "0.2",
+    result = invoke("arm", "move-joints", "30", "-90", "0", "-90", "0", "--time", "0.2",
                     "--port", path, "--echo", "off", "--baud", "115200", "--retries", "1",
                     "--timeout-margin-ms", "20")
     assert result.exit_code == 0, result.stderr

@@ -33,6 +33,7 @@ from busarm.cli.common import (
     ArmContext,
     RangeType,
     Settings,
+    angle_list,
     arm_options,
     check_gap_mm,
     check_writable,
@@ -124,7 +125,7 @@ def _emit(settings: Settings, as_json: bool, data: object, text: str) -> None:
 
 
 @arm.command(context_settings=NUMBER_ARGS)
-@click.argument("joints", nargs=-1, type=DEG)
+@click.argument("joints", nargs=-1, callback=angle_list(DEG))
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
 @click.option("--batch", is_flag=True,
               help="Read JSON lines from stdin, each [j1..j5] or {\"joints\": [...]}; "
@@ -163,7 +164,7 @@ def _fk_item(config: ArmConfig, kin: ArmKinematics, item: object) -> dict[str, A
 @click.argument("z", type=MM)
 @click.option("--pitch", type=DEG, help="Tool pitch in deg (-90 = straight down); "
               "without it the feasible pitch nearest the config's preferred one is chosen.")
-@click.option("--roll", type=DEG, help="Wrist roll in deg (default: 0).")
+@click.option("--roll", type=DEG, help="Wrist roll in deg  [default: 0]")
 @click.option("--all", "all_solutions", is_flag=True, help="Every solution, not just the first.")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
 @pass_arm
@@ -266,9 +267,9 @@ def urdf(ac: ArmContext, output: Path | None) -> None:
               help="Picture to write (top view of the top-down grasp area, side reach): "
                    ".png, .jpg, .svg or .pdf.")
 @click.option("--grasp-height", type=RangeType("height", 0.0, 300.0, "mm"), default=15.0,
-              show_default=True, help="Tool point height above the table for the top view.")
+              show_default=True, help="Tool point height above the table for the top view, in mm.")
 @click.option("--cell", type=RangeType("cell", 0.5, 20.0, "mm"), default=2.0, show_default=True,
-              help="Grid cell size.")
+              help="Grid cell size in mm.")
 @pass_arm
 def workspace(ac: ArmContext, png: Path, grasp_height: float, cell: float) -> None:
     """A picture of where the arm reaches: the table for a top-down grasp, and the side."""
@@ -316,10 +317,11 @@ def pose(ac: ArmContext, as_json: bool, save_name: str | None) -> None:
 
 
 def _move_options(f: Callable[..., Any]) -> Callable[..., Any]:
-    f = click.option("--duration", type=DURATION, help="Move time in s (all joints together).")(f)
+    f = click.option("--time", "duration", type=DURATION, metavar="S",
+                     help="Move time in s, all joints together (instead of --speed).")(f)
     return click.option(
-        "--speed", type=JOINT_SPEED,
-        help=f"Fastest joint speed in deg/s (default {DEFAULT_SPEED_DEG_S:g}).",
+        "--speed", type=JOINT_SPEED, metavar="DEG_S",
+        help=f"Fastest joint speed in deg/s  [default: {DEFAULT_SPEED_DEG_S:g}]",
     )(f)
 
 
@@ -327,8 +329,9 @@ def _move_options(f: Callable[..., Any]) -> Callable[..., Any]:
 @click.argument("x", type=MM)
 @click.argument("y", type=MM)
 @click.argument("z", type=MM)
-@click.option("--pitch", type=DEG, help="Tool pitch in deg; default: free pitch.")
-@click.option("--roll", type=DEG, help="Wrist roll in deg; default: keep the present roll.")
+@click.option("--pitch", type=DEG,
+              help="Tool pitch in deg  [default: free: the first that reaches]")
+@click.option("--roll", type=DEG, help="Wrist roll in deg  [default: the present roll]")
 @click.option("--line", is_flag=True, help="Straight tool line (streamed IK), not a joint move.")
 @click.option("--line-speed", type=LINE_SPEED, default=80.0, show_default=True,
               help="Peak tool speed of a --line move, mm/s.")
@@ -354,7 +357,7 @@ def move_to(ac: ArmContext, x: float, y: float, z: float, pitch: float | None,
 
 
 @arm.command("move-joints", context_settings=NUMBER_ARGS)
-@click.argument("joints", nargs=-1, type=DEG)
+@click.argument("joints", nargs=-1, callback=angle_list(DEG))
 @click.option("--pose", "pose_name", metavar="NAME",
               help="A named pose instead of angles (`busarm arm poses` lists them).")
 @click.option("--json", "json_source", metavar="FILE|-",
@@ -540,7 +543,8 @@ def show(ac: ArmContext, file: str, as_json: bool) -> None:
 @actions.command()
 @click.argument("file", metavar="FILE|SAMPLE")
 @click.option("--speed-scale", type=RangeType("speed scale", 0.1, 10.0, "x"), default=1.0,
-              show_default=True, help="Play faster (>1) or slower (<1).")
+              show_default=True, metavar="FACTOR",
+              help="Play faster (>1) or slower (<1): a factor of the recorded times.")
 @pass_arm
 def play(ac: ArmContext, file: str, speed_scale: float) -> None:
     """Play a .d6a action group, or a sample by name (`busarm actions list`).
@@ -569,14 +573,14 @@ def play(ac: ArmContext, file: str, speed_scale: float) -> None:
 @actions.command()
 @click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--interval", type=RangeType("interval", 0.05, 60.0, "s"),
-              help="Capture a frame every INTERVAL s (default: one per Enter key).")
+              help="Capture a frame every INTERVAL s  [default: one per Enter key]")
 @click.option("--frames", "max_frames", type=click.IntRange(1, 10000),
-              help="Stop after this many frames (default: Ctrl+C, or 'q' + Enter).")
-@click.option("--time-ms", type=click.IntRange(0, 30000),
-              help="Time of each frame in ms (default: the interval, or 1000).")
+              help="Stop after this many frames  [default: at Ctrl+C, or 'q' + Enter]")
+@click.option("--time", "time_s", type=RangeType("time", 0.0, 30.0, "s"), metavar="S",
+              help="Time of each frame in s  [default: the interval, or 1]")
 @pass_arm
 def record(ac: ArmContext, file: Path, interval: float | None, max_frames: int | None,
-           time_ms: int | None) -> None:
+           time_s: float | None) -> None:
     """Record an action group by teaching: torque off, move the arm by hand.
 
     Each Enter (or each --interval) captures the present pose as one frame. At the end
@@ -584,7 +588,7 @@ def record(ac: ArmContext, file: Path, interval: float | None, max_frames: int |
     """
     settings = ac.settings
     check_writable(file)  # before the teaching, not after it
-    duration_ms = time_ms if time_ms is not None else (
+    duration_ms = round(1000 * time_s) if time_s is not None else (
         round(interval * 1000) if interval else 1000)
     frames: list[ActionFrame] = []
     with ac.open() as a:

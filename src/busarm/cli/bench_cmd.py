@@ -102,7 +102,7 @@ def _print(settings: Settings, report: BusBenchReport) -> None:
 
 @bench.command("ik")
 @click.option("--n", "n", type=click.IntRange(10, 1_000_000), default=10_000, show_default=True,
-              help="Random targets for accuracy and single-call timing.")
+              help="How many random targets for accuracy and single-call timing.")
 @click.option("--batch-n", type=click.IntRange(10, 100_000_000), default=1_000_000,
               show_default=True, help="Rows for the ik_batch throughput run.")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
@@ -245,7 +245,7 @@ def _print_locate(settings: Settings, report: LocateBenchReport) -> None:
 @click.option("--pictures", type=click.IntRange(1, 1000), default=24, show_default=True,
               help="Twin pictures (640x480, 4-6 blocks) to cycle over.")
 @click.option("--seconds", type=click.FloatRange(0.5, 600.0), default=3.0, show_default=True,
-              help="Time per measured case.")
+              help="Time per measured case in s.")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="Seed of the twin scenes pictured.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")

@@ -88,10 +88,11 @@ def scan(settings: Settings, ids: list[int]) -> None:
 
 
 @click.command()
-@click.option("--ids", "ids", type=ID_LIST, help="IDs to watch, e.g. 1-5,10 (default: scan).")
+@click.option("--ids", "ids", type=ID_LIST,
+              help="IDs to watch, e.g. 1-5,10  [default: those a scan finds]")
 @click.option(
     "--interval", type=RangeType("interval", 0.0, 3600.0, "s"), metavar="S", default=0.5,
-    show_default=True, help="Seconds between refreshes.",
+    show_default=True, help="Time between refreshes in s.",
 )
 @click.option("--count", type=click.IntRange(min=1), help="Stop after this many refreshes.")
 @pass_settings

@@ -126,7 +126,7 @@ def _output(given: Path | None, kept: Path, store: CalibrationStore) -> Path:
 
 @camera.command()
 @click.option("--camera", "camera_src", default=None,
-              help="Camera source (/dev/video0, a folder, twin...); default: the twin's.")
+              help="Camera source (/dev/video0, a folder, twin...)  [default: the twin's]")
 @click.option("--board", type=click.Choice(INTRINSIC_BOARDS), default="chessboard",
               show_default=True, help="The printed board to look at.")
 @click.option("--model", type=click.Choice(["pinhole", "fisheye"]), default="pinhole",
@@ -140,8 +140,8 @@ def _output(given: Path | None, kept: Path, store: CalibrationStore) -> Path:
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="Seed of the view plan.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Where to write the intrinsics (JSON; default: kept for this robot, "
-                   "~/.config/busarm/ROBOT/camera.json).")
+              help="Where to write the intrinsics (JSON)  [default: kept for this robot, "
+                   "~/.config/busarm/ROBOT/camera.json]")
 @click.option("--yes", is_flag=True, help="Do not ask before each picture (hardware).")
 @pass_arm
 def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, views: int,
@@ -190,10 +190,10 @@ def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, vi
 @camera.command()
 @click.option("--intrinsics", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               default=None,
-              help="The camera's intrinsics, from `busarm camera calibrate` (default: the "
-                   "ones kept for this robot).")
+              help="The camera's intrinsics, from `busarm camera calibrate`  [default: the "
+                   "ones kept for this robot]")
 @click.option("--camera", "camera_src", default=None,
-              help="Camera source (/dev/video0, twin...); default: the twin's.")
+              help="Camera source (/dev/video0, twin...)  [default: the twin's]")
 @click.option("--views", type=click.IntRange(4, 60), default=16, show_default=True,
               help="Pictures to take.")
 @click.option("--board-at", "board_at", default="210,0", show_default=True,
@@ -201,8 +201,8 @@ def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, vi
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=1, show_default=True,
               help="Seed of the view plan.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Where to write the hand-eye calibration (JSON; default: kept for this "
-                   "robot, ~/.config/busarm/ROBOT/hand_eye.json).")
+              help="Where to write the hand-eye calibration (JSON)  [default: kept for this "
+                   "robot, ~/.config/busarm/ROBOT/hand_eye.json]")
 @click.option("--yes", is_flag=True, help="Do not ask before each picture (hardware).")
 @pass_arm
 def handeye(ac: ArmContext, intrinsics: Path | None, camera_src: str | None, views: int,

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import signal
 import threading
 from collections.abc import Callable, Iterable, Iterator, Sequence
@@ -203,8 +204,21 @@ def _number(text: str, what: str) -> float:
 
 
 def parse_float_list(text: str, what: str) -> list[float]:
-    """Comma-separated finite numbers; ConfigError naming ``what`` and the bad one."""
-    return [_number(t.strip(), what) for t in text.split(",")]
+    """Finite numbers separated by commas or spaces (``0,60,0`` or ``"0 60 0"``: lists are
+    written either way everywhere); ConfigError naming ``what`` and the bad one."""
+    return [_number(t, what) for t in re.split(r"[,\s]+", text.strip())]
+
+
+def angle_list(kind: RangeType) -> Callable[[click.Context, click.Parameter, tuple[str, ...]],
+                                            tuple[float, ...]]:
+    """A callback for an ``nargs=-1`` argument of angles: ``0 60 0`` or ``0,60,0``, each
+    checked as ``kind``."""
+    def convert(ctx: click.Context, param: click.Parameter,
+                values: tuple[str, ...]) -> tuple[float, ...]:
+        text = " ".join(values).strip()
+        return tuple(kind.parse(str(v)) for v in parse_float_list(text, kind.name)) if text \
+            else ()
+    return convert
 
 
 def parse_int(text: str, what: str) -> int:
@@ -251,6 +265,9 @@ class RangeType(CheckedType):
 
     def __init__(self, name: str, lo: float, hi: float, unit: str) -> None:
         self.name, self.lo, self.hi, self.unit = name, lo, hi, unit
+
+    def get_metavar(self, param: click.Parameter) -> str:
+        return self.name.upper().replace(" ", "_")  # one word: it is one argument
 
     def parse(self, text: str) -> float:
         value = _number(text, f"{self.name} in {self.unit}, {self.lo:g}..{self.hi:g}")
@@ -434,7 +451,7 @@ class ArmContext:
 pass_arm = click.make_pass_decorator(ArmContext)
 
 _CONFIG_HELP = "Arm description: a shipped name (jetauto_pro) or a TOML file."
-_CAL_HELP = "Calibration file from `busarm arm calibrate` (default: none, nominal zeros)."
+_CAL_HELP = "Calibration file from `busarm arm calibrate`  [default: none, nominal zeros]"
 
 
 def arm_options(f: Callable[..., Any]) -> Callable[..., Any]:
@@ -471,9 +488,9 @@ def scene_options(func: Callable[..., Any]) -> Callable[..., Any]:
                         help=f"Block colours of a random scene, comma separated "
                              f"[default: {DEFAULT_COLORS}].")(func)
     func = click.option("--blocks", type=click.IntRange(0, MAX_BLOCKS), default=None,
-                        help="How many blocks in a random scene [default: 5].")(func)
+                        help="How many blocks in a random scene  [default: 5]")(func)
     func = click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=None,
-                        help="Seed of a random scene (default 0).")(func)
+                        help="Seed of a random scene  [default: 0]")(func)
     func = click.option("--scene", "scene_file",
                         type=click.Path(dir_okay=False, path_type=Path),
                         help="A scene file (busarm twin scene writes one to edit).")(func)

@@ -25,16 +25,16 @@ BLOCK = RangeType("block size", 10.0, 60.0, "mm")
 
 @click.command()
 @click.option("--camera", "camera_src", default=None,
-              help="Camera source (/dev/video0...); default: the twin's with --port twin.")
+              help="Camera source (/dev/video0...)  [default: the twin's with --port twin]")
 @click.option("--intrinsics", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               default=None,
-              help="Camera intrinsics from `busarm camera calibrate` (default: the ones kept "
-                   "for this robot, in ~/.config/busarm/ROBOT/).")
+              help="Camera intrinsics from `busarm camera calibrate`  [default: the ones kept "
+                   "for this robot, in ~/.config/busarm/ROBOT/]")
 @click.option("--hand-eye", "hand_eye", type=click.Path(dir_okay=False, exists=True,
                                                          path_type=Path),
               default=None,
-              help="Camera pose on the wrist from `busarm camera handeye` (default: the one "
-                   "kept for this robot).")
+              help="Camera pose on the wrist from `busarm camera handeye`  [default: the one "
+                   "kept for this robot]")
 @click.option("--pose", default="look", show_default=True,
               help="Named pose of the arm config to look from.")
 @click.option("--here", is_flag=True, help="Look from where the arm is (do not move).")
@@ -44,7 +44,7 @@ BLOCK = RangeType("block size", 10.0, 60.0, "mm")
               help="Colour thresholds (our TOML or the vendor's lab_config.yaml).")
 @click.option("--colors", default=None, help="Only these colours, comma separated.")
 @click.option("--block-mm", "block_mm", type=BLOCK, default=30.0, show_default=True,
-              help="Side of the (cubic) blocks.")
+              help="Side of the (cubic) blocks in mm.")
 @click.option("--config", default="jetauto_pro", show_default=True,
               help="Arm description: a shipped name or a TOML file.")
 @click.option("--save", type=click.Path(file_okay=False, path_type=Path), default=None,

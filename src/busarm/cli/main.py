@@ -138,10 +138,12 @@ def cli(
     ctx: click.Context, port: str, baudrate: int, echo: str, timeout_margin_ms: float,
     retries: int, verbose: bool,
 ) -> None:
-    """Drive LX-protocol serial bus servos (a JetAuto Pro style arm: IDs 1-5 and 10).
+    """Drive a JetAuto Pro style arm of LX-protocol bus servos (IDs 1-5 and 10), on
+    hardware, the simulator or the digital twin.
 
-    Angles are in degrees from each servo's mid-point (-120..120), times in seconds,
-    voltages in volts, temperatures in deg C. Try `busarm demo` for a simulated arm.
+    The main job, on the twin: `busarm pick-sort --seed 3 --blocks 5` (what `make demo`
+    runs). A tour of the simulated arm: `busarm demo`. Angles are in degrees, lengths in
+    mm, times in seconds, voltages in volts, temperatures in deg C.
     """
     if verbose:
         option_places.log_verbosely()
@@ -167,6 +169,7 @@ arm_cmds.arm.add_command(poses_cmd.poses)
 arm_cmds.actions.add_command(samples_cmd.samples_list)
 # Last, once every command is in: `busarm arm pose --port twin`, `busarm --config X arm pose`.
 option_places.accept_everywhere(cli)
+option_places.name_numbers(cli)
 
 
 def main() -> None:

@@ -45,7 +45,7 @@ class MotorSpeedType(CheckedType):
 @click.argument("servo_id", metavar="ID", type=SERVO_ID)
 @click.argument("speed", metavar="SPEED|stop", type=MotorSpeedType())
 @click.option("--time", "duration_s", type=RangeType("time", 0.0, 86400.0, "s"), metavar="S",
-              help="Turn for S seconds, then stop (default: until Ctrl+C).")
+              help="Turn for S seconds, then stop  [default: until Ctrl+C]")
 @click.option("--keep-turning", is_flag=True,
               help="Leave the motor turning and exit; stop it later with `busarm motor ID stop`.")
 @pass_settings

@@ -52,6 +52,18 @@ def walk(group: click.Group, path: tuple[str, ...] = ()) -> Iterator[
             yield from walk(command, (*path, name))
 
 
+def name_numbers(group: click.Group) -> None:
+    """Give every number option without a metavar one word (``N``, ``NUMBER``) instead of
+    click's ``INTEGER RANGE``, which reads as two arguments; the help says the unit."""
+    for command in (group, *(c for _, c in walk(group))):
+        for param in command.params:
+            if isinstance(param, click.Option) and param.metavar is None:
+                if isinstance(param.type, click.IntRange):
+                    param.metavar = "N"
+                elif isinstance(param.type, click.FloatRange):
+                    param.metavar = "NUMBER"
+
+
 def _taken(command: click.Command) -> set[str]:
     return {o for p in command.params for o in (*p.opts, *p.secondary_opts)}
 

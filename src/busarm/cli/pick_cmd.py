@@ -77,17 +77,17 @@ def parse_survey(text: str, config: ArmConfig) -> list[tuple[float, ...]]:
 @click.command("pick-sort")
 @scene_options
 @click.option("--camera", "camera_src", default=None,
-              help="Camera source; default: the twin's (on hardware: required).")
+              help="Camera source (on hardware: required)  [default: the twin's]")
 @click.option("--intrinsics", type=click.Path(dir_okay=False, exists=True, path_type=Path),
-              default=None, help="Camera intrinsics (default: the ones kept for this robot; "
-                                 "on the twin made first if there are none).")
+              default=None, help="Camera intrinsics  [default: the ones kept for this robot; "
+                                 "on the twin made first if there are none]")
 @click.option("--hand-eye", "hand_eye", type=click.Path(dir_okay=False, exists=True,
                                                          path_type=Path),
-              default=None, help="Hand-eye calibration (default: the one kept for this "
-                                 "robot; on the twin made first if there is none).")
+              default=None, help="Hand-eye calibration  [default: the one kept for this "
+                                 "robot; on the twin made first if there is none]")
 @click.option("--bins", "bins_text", default=None,
-              help="Where each colour goes, COLOUR=X,Y;... in mm (default on the twin: its "
-                   "trays).")
+              help="Where each colour goes, COLOUR=X,Y;... in mm  [default on the twin: its "
+                   "trays]")
 @click.option("--survey", "survey_text", default="look", show_default=True,
               help="Where the camera looks from: poses of the arm config, comma separated; "
                    "NAME@BEARING turns the base to BEARING deg (e.g. look@-40,look,look@40).")

@@ -132,7 +132,7 @@ def info(settings: Settings, servo_id: int) -> None:
 )
 @click.option(
     "--time", "duration", type=MOVE_TIME, metavar="S",
-    help=f"Duration of the move in s, 0..30 (default {DEFAULT_MOVE_TIME_S:g}).",
+    help=f"Move time in s, 0..30  [default: {DEFAULT_MOVE_TIME_S:g}]",
 )
 @click.option(
     "--speed", type=SPEED, metavar="DEG_S",

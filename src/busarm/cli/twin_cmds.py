@@ -78,7 +78,7 @@ def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks:
 @click.option("--pose", default="look", show_default=True,
               help="Named pose of the arm config to render the arm in.")
 @click.option("--joints", "joints", default=None,
-              help="Joint angles in degrees, comma separated (instead of --pose).")
+              help="Joint angles in deg, e.g. 0,-60,0,-90,0 (instead of --pose).")
 @click.option("--config", default="jetauto_pro", show_default=True,
               help="Arm config name or TOML file.")
 @click.option("--lens", type=click.Choice(["wide", "vendor", "none"]), default="wide",

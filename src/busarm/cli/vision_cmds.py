@@ -103,12 +103,12 @@ def _frame_text(frame: CameraFrame, index: int, detections: list[Detection],
               help=_CAMERA_HELP)
 @click.option("--thresholds", type=click.Path(dir_okay=False),
               help="Colour thresholds: busarm TOML or the vendor's lab_config.yaml "
-                   "(default: the shipped red, green, blue, yellow).")
+                   " [default: the shipped red, green, blue, yellow]")
 @click.option("--vendor-yaml", type=click.Path(dir_okay=False),
               help="The vendor's lab_config.yaml (same as --thresholds FILE.yaml).")
 @click.option("--section", type=click.Choice(["Mono", "Stereo"]), default="Mono",
               show_default=True, help="Which camera's thresholds in the vendor's YAML.")
-@click.option("--colors", help="Comma-separated colours to look for (default: all defined).")
+@click.option("--colors", help="Comma-separated colours to look for  [default: all defined]")
 @click.option("--frames", "frame_count", type=click.IntRange(0, 10_000_000), default=1,
               show_default=True,
               help="Frames to read; 0 = until the video or folder ends (or Ctrl+C).")
