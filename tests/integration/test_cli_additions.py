@@ -189,7 +189,7 @@ def test_motor_turns_for_a_time_then_holds(pty_arm: tuple[str, SimBus]) -> None:
     path, sim = pty_arm
     sim.servo(1).advance(time.monotonic())
     before = sim.servo(1).position_pulses
-    out = ok(run("motor", "1", "500", "--time", "0.3", port=path))
+    out = ok(run("motor", "1", "500", "--time", "0.3", "--arm-servo", port=path))
     assert "servo 1 stopped: back in position mode, holding at" in out
     assert mode(path, 1) == (ServoMode.POSITION, 0)
     sim.servo(1).advance(time.monotonic())
@@ -203,15 +203,34 @@ def test_motor_keep_turning_then_stop_and_bad_speeds(pty_arm: tuple[str, SimBus]
     assert "'fast' is not an integer" in one_error(run("motor", "1", "fast", port=path), 2)
     assert mode(path, 1) == (ServoMode.POSITION, 0)  # nothing was sent
     assert "stop it with `busarm motor 1 stop`" in ok(
-        run("motor", "1", "-300", "--keep-turning", port=path))
+        run("motor", "1", "-300", "--keep-turning", "--arm-servo", port=path))
     assert mode(path, 1) == (ServoMode.MOTOR, -300)
     assert "back in position mode" in ok(run("motor", "1", "stop", port=path))
     assert mode(path, 1) == (ServoMode.POSITION, 0)
 
 
+def test_motor_refuses_a_servo_of_the_arm_unless_asked(pty_arm: tuple[str, SimBus]) -> None:
+    path, _ = pty_arm
+    line = one_error(run("motor", "2", "300", "--time", "0.2", port=path), 2)
+    assert "servo 2 is shoulder_pitch of the arm" in line and "--arm-servo" in line
+    assert mode(path, 2) == (ServoMode.POSITION, 0)  # nothing was sent
+
+
+def test_stop_stops_a_motor_left_turning_and_says_so(pty_arm: tuple[str, SimBus]) -> None:
+    path, _ = pty_arm
+    ok(run("motor", "1", "400", "--keep-turning", "--arm-servo", port=path))
+    assert mode(path, 1) == (ServoMode.MOTOR, 400)
+    out = " ".join(ok(run("stop", "1", port=path)).split())
+    assert "servo 1 turning in motor mode: stopped (speed 0, position mode)" in out, out
+    assert "servo 1 holding position (torque on)" in out, out
+    assert mode(path, 1) == (ServoMode.POSITION, 0)
+    # Without IDs MOVE_STOP goes to all, and it says what that does not stop.
+    assert "motor mode does not stop so" in " ".join(ok(run("stop", port=path)).split())
+
+
 def test_motor_ctrl_c_stops_it(pty_arm: tuple[str, SimBus]) -> None:
     path, sim = pty_arm
-    proc = busarm("--port", path, "motor", "2", "800")
+    proc = busarm("--port", path, "motor", "2", "800", "--arm-servo")
     try:
         wait_for_line(proc, "turning at speed 800")
         assert mode(path, 2) == (ServoMode.MOTOR, 800)

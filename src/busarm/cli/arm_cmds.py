@@ -439,7 +439,7 @@ def calibrate(ac: ArmContext, out_path: Path, pose_name: str, software_only: boo
         if not yes:
             settings.err.print(
                 f"Torque is off. Move the arm by hand to the [bold]{pose_name}[/bold] pose "
-                f"({_joints_text(ac.config, reference)} deg), hold it still."
+                f"({_joints_text(ac.config, reference)}), hold it still."
             )
             if not click.confirm("Is the arm in that pose?", default=True, err=True):
                 _declined(a, settings, out_path)

@@ -52,6 +52,7 @@ from busarm.cli.stopping import (
     marking_the_stop,
     report_line,
     stop_and_read_back,
+    stop_motors,
     torque_text,
 )
 from busarm.errors import BusTimeoutError, ConfigError, ProtocolError
@@ -81,7 +82,7 @@ SIM_NOTE = ("note: no --port given: using a simulated arm that lives for this on
 """What a command without --port says when no `busarm sim serve`/`twin serve` runs."""
 # Names commands import from here that live elsewhere (mypy: explicit re-exports).
 __all__ = ["NOTHING_WRITTEN", "add_detail", "report_line", "stop_and_read_back",
-           "torque_text"]  # what the stop says (busarm.cli.stopping)
+           "stop_motors", "torque_text"]  # what the stop says (busarm.cli.stopping)
 __all__ += ["check_gap_mm", "gap_report", "joints_to_move", "parse_gripper_target",
             "robot_folder"]  # what the arm commands take (busarm.cli.arm_inputs)
 __all__ += ["announced"]  # how `sim serve`/`twin serve` are found (busarm.cli.sessions)
@@ -266,7 +267,9 @@ class RangeType(CheckedType):
     def __init__(self, name: str, lo: float, hi: float, unit: str) -> None:
         self.name, self.lo, self.hi, self.unit = name, lo, hi, unit
 
-    def get_metavar(self, param: click.Parameter) -> str:
+    def get_metavar(self, param: click.Parameter) -> str | None:
+        if isinstance(param, click.Argument):
+            return None  # an argument is shown by its own name (X Y Z)
         return self.name.upper().replace(" ", "_")  # one word: it is one argument
 
     def parse(self, text: str) -> float:

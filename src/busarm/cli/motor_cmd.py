@@ -11,6 +11,7 @@ import contextlib
 
 import click
 
+from busarm.arm.config import DEFAULT_ARM, load_arm_config
 from busarm.bus.driver import ServoBus
 from busarm.cli.common import (
     NUMBER_ARGS,
@@ -21,6 +22,7 @@ from busarm.cli.common import (
     parse_int,
     pass_settings,
 )
+from busarm.errors import LimitError
 from busarm.units import MOTOR_SPEED_MAX, check_int_range
 
 POLL_S = 0.2
@@ -48,9 +50,14 @@ class MotorSpeedType(CheckedType):
               help="Turn for S seconds, then stop  [default: until Ctrl+C]")
 @click.option("--keep-turning", is_flag=True,
               help="Leave the motor turning and exit; stop it later with `busarm motor ID stop`.")
+@click.option("--config", "config_name", envvar="BUSARM_ARM", default=DEFAULT_ARM,
+              show_default=True, show_envvar=True,
+              help="The arm whose servos are refused: a shipped name or a TOML file.")
+@click.option("--arm-servo", "arm_servo", is_flag=True,
+              help="Turn a servo of the arm anyway (it turns past its joint's limits).")
 @pass_settings
 def motor(settings: Settings, servo_id: int, speed: int | str, duration_s: float | None,
-          keep_turning: bool) -> None:
+          keep_turning: bool, config_name: str, arm_servo: bool) -> None:
     """Turn servo ID continuously (motor mode) at SPEED, or `stop` it.
 
     SPEED is -1000..1000: the power the servo drives its motor with, not a rate (1000 =
@@ -64,6 +71,10 @@ def motor(settings: Settings, servo_id: int, speed: int | str, duration_s: float
         raise click.UsageError("`stop` takes neither --time nor --keep-turning")
     if keep_turning and duration_s is not None:
         raise click.UsageError("give --time or --keep-turning, not both")
+    part = load_arm_config(config_name).servo_range_deg(servo_id)
+    if isinstance(speed, int) and part is not None and not arm_servo:
+        raise LimitError(f"servo {servo_id} is {part[0]} of the arm: in motor mode it would "
+                         "turn past its joint's limits; --arm-servo turns it anyway")
     with settings.open_bus(check_ids=[servo_id]) as bus:
         if not isinstance(speed, int):  # stop
             settings.out.print(_stop(bus, servo_id), highlight=False, soft_wrap=True)

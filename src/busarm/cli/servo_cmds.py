@@ -23,6 +23,7 @@ from busarm.cli.common import (
     alarm_names,
     pass_settings,
     scan_with_progress,
+    stop_motors,
     torque_text,
 )
 from busarm.errors import (
@@ -230,13 +231,18 @@ def stop(settings: Settings, ids: tuple[int, ...]) -> None:
     """Stop moving now (MOVE_STOP); no ID = every servo (broadcast). Servos with torque
     on hold position; the torque of each servo given is read back and said.
 
-    Servos in motor mode are not stopped by MOVE_STOP (set their speed to 0).
+    A servo given by ID that turns in motor mode (which MOVE_STOP does not stop) is
+    stopped too: speed 0, back in position mode.
     """
     with settings.open_bus(check_ids=ids) as bus:
         bus.stop(ids or None)
         # Torque off stays off: a limp servo is not holding anything.
-        said = (f"stopped (MOVE_STOP): {torque_text(bus, ids)}" if ids else
-                "stopped all servos (MOVE_STOP): those with torque on hold position")
+        motors = stop_motors(bus, ids)
+        said = ("stopped (MOVE_STOP): " + "; ".join(t for t in (motors, torque_text(bus, ids))
+                                                     if t) if ids else
+                "stopped all servos (MOVE_STOP): those in position mode with torque on hold "
+                "position; one turning in motor mode does not stop so (give its ID, or "
+                "`busarm motor ID stop`)")
     settings.out.print(said, highlight=False)
 
 

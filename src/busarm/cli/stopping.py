@@ -14,6 +14,7 @@ from contextlib import AbstractContextManager, contextmanager
 
 from busarm.bus.driver import ServoBus
 from busarm.errors import BusArmError
+from busarm.protocol import ServoMode
 
 NOTHING_WRITTEN = "nothing was written to the servos"
 HOLDING = "holding position (torque on)"
@@ -51,12 +52,31 @@ def torque_text(bus: ServoBus, ids: Iterable[int]) -> str:
     return "; ".join(f"{id_text(group)} {state}" for state, group in groups.items())
 
 
+def stop_motors(bus: ServoBus, ids: Iterable[int]) -> str:
+    """Stop each of ``ids`` found turning in motor mode (MOVE_STOP does not: speed 0, then
+    position mode); what was done, or "" if none was turning."""
+    turning = []
+    for sid in sorted(set(ids)):
+        try:
+            if bus.read_mode(sid).mode == ServoMode.MOTOR:
+                bus.stop_motor(sid)
+                bus.set_position_mode(sid)
+                turning.append(sid)
+        except BusArmError:  # silent or garbled: the torque read-back says so
+            continue
+    return (f"{id_text(turning)} turning in motor mode: stopped (speed 0, position mode)"
+            if turning else "")
+
+
 def stop_and_read_back(bus: ServoBus, ids: Iterable[int]) -> str:
-    """Send the emergency stop, then say what the servos ``ids`` (and any this bus wrote
-    to) do now."""
+    """Send the emergency stop (and stop any motor turning), then say what the servos
+    ``ids`` (and any this bus wrote to) do now."""
     bus.emergency_stop()
     known = set(ids) | bus.written_ids
-    return f"{STOP_SENT}; {torque_text(bus, known)}" if known else STOP_SENT
+    if not known:
+        return STOP_SENT
+    motors = stop_motors(bus, known)
+    return "; ".join(t for t in (STOP_SENT, motors, torque_text(bus, known)) if t)
 
 
 @contextmanager

@@ -251,7 +251,7 @@ def clutter_scene(
     colors = list(colors)
     unknown = [c for c in colors if c not in COLORS]
     if not colors or unknown or len(set(colors)) != len(colors):
-        raise ConfigError(f"colors {unknown or colors!r}: give distinct colours of "
+        raise ConfigError(f"colors {', '.join(unknown or colors)}: give distinct colours of "
                           f"{', '.join(COLORS)}")
     lo, hi = (size_mm, size_mm) if isinstance(size_mm, int | float) else size_mm
     lo = check_range("size_mm", lo, *CLUTTER_BLOCK_MM, "mm")

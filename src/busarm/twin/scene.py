@@ -383,7 +383,7 @@ def random_scene(
     colors = list(colors)
     unknown = [c for c in colors if c not in COLORS]
     if not colors or unknown:
-        raise ConfigError(f"colors {unknown or colors!r}: allowed {', '.join(COLORS)}")
+        raise ConfigError(f"colors {', '.join(unknown or colors)}: allowed {', '.join(COLORS)}")
     r_lo, r_hi = radius_mm
     if not (math.isfinite(r_lo) and math.isfinite(r_hi) and 0 <= r_lo < r_hi <= 1000):
         raise ConfigError(f"radius_mm = {radius_mm!r}: give (near, far) with "
