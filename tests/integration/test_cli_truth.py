@@ -328,3 +328,20 @@ def test_pick_sort_error_mid_run_is_one_line_that_names_the_silent_servo(
     assert data["gripper"].startswith("holding a ") and data["stopped"].startswith(
         "BusTimeoutError: ")
     assert data["totals"]["median_cycle_s"] is None
+
+
+def test_a_stop_after_the_servos_were_let_go_does_not_say_nothing_was_written() -> None:
+    # A Ctrl+C as a finished job prints its summary comes after the bus closed: what was
+    # written must not be denied. (In a fresh interpreter: the record is per process.)
+    script = (
+        "from busarm.bus.driver import ServoBus\n"
+        "from busarm.cli.stopping import marking_the_stop, unwritten_text\n"
+        "print(unwritten_text())\n"
+        "bus = ServoBus.open('sim')\n"
+        "with marking_the_stop(bus, bus):\n"
+        "    bus.set_torque(1, True)\n"
+        "print(unwritten_text())\n")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         timeout=60, check=True).stdout.splitlines()
+    assert out[0] == "nothing was written to the servos"
+    assert out[1].startswith("after the command was done with the servos"), out

@@ -47,13 +47,13 @@ from busarm.cli.arm_inputs import (
 )
 from busarm.cli.sessions import Session, announced, find_session
 from busarm.cli.stopping import (
-    NOTHING_WRITTEN,
     add_detail,
     marking_the_stop,
     report_line,
     stop_and_read_back,
     stop_motors,
     torque_text,
+    unwritten_text,
 )
 from busarm.errors import BusTimeoutError, ConfigError, ProtocolError
 from busarm.protocol import MAX_SERVO_ID, AlarmFlag, check_servo_id
@@ -81,8 +81,9 @@ SIM_NOTE = ("note: no --port given: using a simulated arm that lives for this on
             "`busarm sim serve` in another terminal")
 """What a command without --port says when no `busarm sim serve`/`twin serve` runs."""
 # Names commands import from here that live elsewhere (mypy: explicit re-exports).
-__all__ = ["NOTHING_WRITTEN", "add_detail", "report_line", "stop_and_read_back",
-           "stop_motors", "torque_text"]  # what the stop says (busarm.cli.stopping)
+# What the stop says (busarm.cli.stopping).
+__all__ = ["add_detail", "report_line", "stop_and_read_back", "stop_motors", "torque_text",
+           "unwritten_text"]
 __all__ += ["check_gap_mm", "gap_report", "joints_to_move", "parse_gripper_target",
             "robot_folder"]  # what the arm commands take (busarm.cli.arm_inputs)
 __all__ += ["announced"]  # how `sim serve`/`twin serve` are found (busarm.cli.sessions)

@@ -38,7 +38,7 @@ from busarm.cli import (
     vision_cmds,
 )
 from busarm.cli.bench_cmd import bench
-from busarm.cli.common import NOTHING_WRITTEN, Settings, report_line
+from busarm.cli.common import Settings, report_line, unwritten_text
 from busarm.errors import BusArmError, ConfigError
 
 EXIT_BUS_ERROR = 1
@@ -55,7 +55,7 @@ def _interrupted(exc: BaseException, message: str = "interrupted") -> NoReturn:
     """Ctrl+C: one line, what the servos were left doing, exit code 130."""
     if sys.stderr.isatty():
         click.echo(err=True)  # off the line where the terminal echoed ^C
-    click.echo(report_line(exc, message, unwritten=NOTHING_WRITTEN), err=True)
+    click.echo(report_line(exc, message, unwritten=unwritten_text()), err=True)
     sys.exit(EXIT_INTERRUPTED)
 
 

@@ -17,6 +17,16 @@ from busarm.errors import BusArmError
 from busarm.protocol import ServoMode
 
 NOTHING_WRITTEN = "nothing was written to the servos"
+DONE_WITH_THEM = ("after the command was done with the servos (nothing was sent to them "
+                  "since; they do what it left them doing)")
+_wrote_before: list[bool] = []
+"""Holds True once a bus this process closed had written to its servos."""
+
+
+def unwritten_text() -> str:
+    """What a stop outside any bus says of the servos: nothing written, or nothing since
+    the command let them go (a Ctrl+C as a finished job prints its summary)."""
+    return DONE_WITH_THEM if _wrote_before else NOTHING_WRITTEN
 HOLDING = "holding position (torque on)"
 LIMP = "limp (torque off)"
 SILENT = "not answering (torque unknown)"
@@ -88,6 +98,8 @@ def marking_the_stop(owner: AbstractContextManager[object], bus: ServoBus,
     with owner:
         try:
             yield
+            if bus.wrote:
+                _wrote_before.append(True)
         except BaseException as exc:
             if bus.wrote:
                 # Said if a second Ctrl+C cuts the read-back short (the bus's exit stops).
