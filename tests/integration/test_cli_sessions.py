@@ -104,6 +104,20 @@ def notes(result: subprocess.CompletedProcess[str]) -> list[str]:
 # ---------------------------------------------------------------------- sim serve
 
 
+def test_a_served_arm_keeps_one_set_of_files_by_default_or_by_its_pty(
+        env: dict[str, str], servers: list[Server]) -> None:
+    server = Server(["sim", "serve", "--no-timing"], env)
+    servers.append(server)
+    server.wait_announced()
+    saved = busarm("arm", "pose", "--save", "over_bin", env=env)
+    assert saved.returncode == 0, saved.stderr
+    assert "/busarm/sim/poses.json" in saved.stderr
+    listed = busarm("--port", server.path, "arm", "poses", env=env)
+    assert listed.returncode == 0 and "over_bin" in listed.stdout, listed.stderr
+    moved = busarm("--port", server.path, "arm", "move-joints", "--pose", "over_bin", env=env)
+    assert moved.returncode == 0, moved.stderr
+
+
 def test_commands_without_port_build_on_a_running_sim_serve(
         env: dict[str, str], servers: list[Server]) -> None:
     server = Server(["sim", "serve", "--no-timing"], env)

@@ -303,7 +303,7 @@ def pose(ac: ArmContext, as_json: bool, save_name: str | None) -> None:
         p = a.kin.fk(q)
         grip = a.read_gripper_pulses()
     if save_name is not None:
-        folder = robot_folder(ac.settings.port)
+        folder = robot_folder(ac.settings.robot_port())
         replaced = save_pose(folder, ac.config, save_name, q)
         ac.settings.err.print(f"{'replaced' if replaced else 'saved'} pose {save_name!r} in "
                               f"{poses_file(folder)}", highlight=False, markup=False,
@@ -368,7 +368,7 @@ def move_joints(ac: ArmContext, joints: tuple[float, ...], pose_name: str | None
                 json_source: str | None, speed: float | None, duration: float | None) -> None:
     """Move to five joint angles (deg), a named pose or JSON joints; all joints start and
     arrive together. Everything is checked before anything moves."""
-    joints = joints_to_move(ac.config, ac.settings.port, joints, pose_name, json_source)
+    joints = joints_to_move(ac.config, ac.settings.robot_port(), joints, pose_name, json_source)
     with ac.open() as a:
         took = a.move_joints(joints, speed_deg_s=speed, duration_s=duration)
         q = a.read_joints_deg()

@@ -45,7 +45,7 @@ from busarm.cli.arm_inputs import (
     parse_gripper_target,
     robot_folder,
 )
-from busarm.cli.sessions import Session, announced, find_session
+from busarm.cli.sessions import Session, announced, find_session, running_sessions
 from busarm.cli.stopping import (
     add_detail,
     marking_the_stop,
@@ -118,6 +118,14 @@ class Settings:
                 "(--port sim for a fresh simulated arm)")
             self.err.print(note, highlight=False, markup=False, soft_wrap=True)
         return self.session.port if self.session is not None else self.port
+
+    def robot_port(self) -> str:
+        """The port the robot's kept files (poses, calibrations) are named after: a
+        running `sim serve`/`twin serve` is its kind (``sim``, ``twin``) whether it is
+        reached by default or by its pty, so that both find the same files."""
+        port = self.port if self.port_given else self.default_port()
+        served = next((s for s in running_sessions() if s.port == port), None)
+        return served.kind if served is not None else port
 
     @contextmanager
     def open_bus(
@@ -470,8 +478,7 @@ def calibration_store(settings: Settings, default: str = "sim") -> CalibrationSt
     camera calibration (busarm.robot.calibration_store)."""
     from busarm.robot.calibration_store import CalibrationStore
 
-    port = settings.port if settings.port_given else (
-        settings.default_port() if default == "sim" else default)
+    port = settings.robot_port() if settings.port_given or default == "sim" else default
     return CalibrationStore.for_port(port)
 
 
