@@ -70,3 +70,17 @@ def test_the_gripper_is_said_in_mm() -> None:
     assert re.search(r"gripper open [\d.]+ mm \(\d+ pulses\)", opened.stdout), opened.stdout
     closed = run("arm", "gripper", "close")
     assert re.search(r"closed on nothing: [\d.]+ mm apart", closed.stdout), closed.stdout
+
+
+def test_errors_and_moves_show_no_python_lists_or_minus_zero() -> None:
+    short = run("arm", "move-joints", "0", "-30", "45")
+    assert short.exit_code == 2 and "got 3: 0, -30, 45" in short.stderr, short.stderr
+    assert "[" not in short.stderr
+    odd = CliRunner(mix_stderr=False).invoke(
+        cli, ["--port", "sim", "arm", "move-joints", "--json", "-"],
+        input='{"joints_deg": {"base_yaw": 1}}')
+    assert odd.exit_code == 2 and "[" not in odd.stderr, odd.stderr
+    assert "joint names base_yaw are not this arm's base_yaw, shoulder_pitch" in odd.stderr
+    moved = run("move", "1", "-0.04", "--time", "0.2")
+    assert moved.exit_code == 0, moved.stderr
+    assert "moving 1 -> +0.0 deg" in moved.stdout and "-0.0" not in moved.stdout

@@ -134,7 +134,7 @@ def test_any_seed_gives_the_same_valid_scene_every_time(
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({"blocks": 13}, r"blocks = 13 is out of range 0\.\.12"),
     ({"size_mm": 20.0}, r"size_mm = 20\.0 mm is out of range 25\.\.40 mm"),
-    ({"colors": ["red", "pink"]}, r"colors \['pink'\]"),
+    ({"colors": ["red", "pink"]}, r"colors pink: give distinct colours"),
     ({"distractors": 5}, r"distractors = 5 is out of range 0\.\.4"),
 ])
 def test_bad_requests_are_refused_with_what_is_allowed(kwargs: dict[str, object],

@@ -278,8 +278,9 @@ def test_ctrl_c_leaves_the_arm_stopped_holding_and_the_gripper_known(
             assert bus.read_torque(sid), f"servo {sid} was left limp"
             assert abs(first[sid] - second[sid]) < 1.0, (sid, first, second)
         gripper = bus.read_position_pulses(10)
-    # What it said of the gripper is what the gripper reads, in words too.
-    assert abs(gripper - int(said.group(3))) <= 3, (message, gripper)
+    # What it said of the gripper is what the gripper reads, in words too (read as it came
+    # to rest from the stop: a few pulses, under a millimetre, may still have followed).
+    assert abs(gripper - int(said.group(3))) <= 8, (message, gripper)
     state, gap_mm = said.group(1), int(said.group(2))
     if state.startswith("holding"):
         assert 26 <= gap_mm <= 34, message

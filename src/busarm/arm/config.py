@@ -80,7 +80,9 @@ class JointConfig:
         """Raise LimitError naming the joint if ``angle_deg`` is outside its limits."""
         if isinstance(angle_deg, bool) or not isinstance(angle_deg, int | float):
             raise ConfigError(f"{self.name} angle must be a number of degrees, got {angle_deg!r}")
-        if not math.isfinite(angle_deg) or not (
+        if not math.isfinite(angle_deg):
+            raise ConfigError(f"{self.name} = {angle_deg} is not a finite number of degrees")
+        if not (
             self.min_deg - tolerance_deg <= angle_deg <= self.max_deg + tolerance_deg
         ):
             raise LimitError(
@@ -240,8 +242,10 @@ class ArmConfig:
             raise ConfigError(f"joint angles must be {JOINT_COUNT} numbers, got {angles_deg!r}")
         values = list(angles_deg)  # type: ignore[call-overload]
         if len(values) != len(self.joints):
+            shown = ", ".join(f"{v:g}" if isinstance(v, int | float) else repr(v)
+                              for v in values)
             raise ConfigError(
-                f"expected {len(self.joints)} joint angles, got {len(values)}: {values!r}"
+                f"expected {len(self.joints)} joint angles in deg, got {len(values)}: {shown}"
             )
         for j, v in zip(self.joints, values, strict=True):
             j.check_angle(v)

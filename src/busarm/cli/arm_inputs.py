@@ -96,8 +96,8 @@ def joints_from_json(source: str, config: ArmConfig) -> tuple[float, ...]:
     if isinstance(data, dict):
         names = [j.name for j in config.joints]
         if sorted(data) != sorted(names):
-            raise ConfigError(f"joints from {where}: joint names {sorted(data)} are not this "
-                              f"arm's {names}")
+            raise ConfigError(f"joints from {where}: joint names {', '.join(sorted(data))} "
+                              f"are not this arm's {', '.join(names)}")
         data = [data[n] for n in names]
     if not isinstance(data, list):
         raise ConfigError(f"joints from {where}: expected {{\"joints_deg\": ...}} as `busarm "

@@ -198,7 +198,8 @@ def move(
                 bus.move_deg(sid, target, duration)
             else:
                 duration = bus.sync_move_deg(pose, duration)
-        targets = ", ".join(f"{sid} -> {a:+.1f} deg" for sid, a in pose.items())
+        targets = ", ".join(f"{sid} -> {a + 0.0:+.1f} deg".replace("-0.0 ", "+0.0 ")
+                            for sid, a in pose.items())
         settings.out.print(f"moving {targets} over {duration:.2f} s")
         if wait:
             reached = bus.wait_until_reached(pose, timeout_s=duration + WAIT_SLACK_S)
