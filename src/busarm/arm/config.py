@@ -81,7 +81,7 @@ class JointConfig:
         if isinstance(angle_deg, bool) or not isinstance(angle_deg, int | float):
             raise ConfigError(f"{self.name} angle must be a number of degrees, got {angle_deg!r}")
         if not math.isfinite(angle_deg):
-            raise ConfigError(f"{self.name} = {angle_deg} is not a finite number of degrees")
+            raise LimitError(f"{self.name} = {angle_deg} is not a finite number of degrees")
         if not (
             self.min_deg - tolerance_deg <= angle_deg <= self.max_deg + tolerance_deg
         ):
