@@ -12,11 +12,13 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
 from busarm.errors import ConfigError
 
@@ -110,3 +112,49 @@ def read_versioned_json(path: Path | str, what: str, fmt: str, version: int,
         raise error(f"{where}: key 'version' is {data.get('version')!r}; this busarm reads "
                     f"version {version}")
     return data, where
+
+
+BY_ID = Path("/dev/serial/by-id")
+
+
+def config_home() -> Path:
+    """``$XDG_CONFIG_HOME`` if it is set to an absolute path (the XDG rule), else
+    ``~/.config``."""
+    given = os.environ.get("XDG_CONFIG_HOME", "")
+    return Path(given) if given and Path(given).is_absolute() else Path.home() / ".config"
+
+
+def _safe(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]+", "-", text).strip("-.")[:100] or "robot"
+
+
+def _by_id_name(device: Path) -> str | None:
+    """The /dev/serial/by-id name of ``device``, if the system gives it one."""
+    try:
+        target = device.resolve()
+        links = sorted(BY_ID.iterdir())
+    except OSError:
+        return None
+    for link in links:
+        try:
+            if link.resolve() == target:
+                return link.name
+        except OSError:
+            continue
+    return None
+
+
+def robot_key(port: str) -> str:
+    """The folder name of the robot on ``port`` for its kept files (calibrations, poses):
+    ``twin``, ``sim`` whatever their options; a serial device's /dev/serial/by-id name if
+    it has one (the same whichever ttyUSBn it got), else its path under /dev (``pts-7``)."""
+    if port == "twin" or (port.startswith("twin://") and not urlsplit(port).netloc):
+        return "twin"  # a twin in this process, whatever its table
+    if port == "sim" or port.startswith("sim://"):
+        return "sim"
+    if "://" in port:
+        return _safe(port)
+    path = Path(port)
+    name = _by_id_name(path) or (str(path)[len("/dev/"):] if str(path).startswith("/dev/")
+                                 else path.name)
+    return _safe(name.replace("/", "-"))

@@ -10,53 +10,16 @@ whose key rules are repeated here so that the arm commands do not load the twin.
 from __future__ import annotations
 
 import json
-import os
 import re
 import sys
 from pathlib import Path
 from typing import Any
-from urllib.parse import urlsplit
 
 from busarm.arm.config import ArmConfig
 from busarm.arm.named_poses import find_pose
 from busarm.errors import ConfigError
+from busarm.fileio import config_home, robot_key
 from busarm.units import check_range
-
-BY_ID = Path("/dev/serial/by-id")
-
-
-def config_home() -> Path:
-    """``$XDG_CONFIG_HOME`` if set to an absolute path (the XDG rule), else ``~/.config``."""
-    home = os.environ.get("XDG_CONFIG_HOME", "")
-    return Path(home) if os.path.isabs(home) else Path.home() / ".config"
-
-
-def _safe(name: str) -> str:
-    return re.sub(r"[^A-Za-z0-9._-]+", "-", name).strip("-.")[:100] or "robot"
-
-
-def robot_key(port: str) -> str:
-    """The robot's folder name (as busarm.robot.calibration_store names it): ``twin``,
-    ``sim`` whatever their options; a serial device's /dev/serial/by-id name if it has one
-    (the same whichever ttyUSBn it got), else its path under /dev (``pts-7``)."""
-    if port == "twin" or (port.startswith("twin://") and not urlsplit(port).netloc):
-        return "twin"
-    if port == "sim" or port.startswith("sim://"):
-        return "sim"
-    if "://" in port:
-        return _safe(port)
-    path = Path(port)
-    name = _by_id_name(path) or (port[len("/dev/"):] if port.startswith("/dev/") else path.name)
-    return _safe(name.replace("/", "-"))
-
-
-def _by_id_name(device: Path) -> str | None:
-    try:
-        target = device.resolve()
-        return next((link.name for link in sorted(BY_ID.iterdir()) if link.resolve() == target),
-                    None)
-    except OSError:
-        return None
 
 
 def robot_folder(port: str) -> Path:

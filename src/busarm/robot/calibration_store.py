@@ -25,8 +25,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import re
 import shlex
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -34,9 +32,8 @@ from typing import Any
 
 from busarm.arm.config import ArmConfig
 from busarm.errors import CalibrationError, ConfigError
-from busarm.fileio import read_versioned_json
+from busarm.fileio import config_home, read_versioned_json, robot_key
 from busarm.twin.lens import LENSES, LensSpec
-from busarm.twin.transport import is_twin_url
 from busarm.twin.twin import Twin
 from busarm.vision.calibration import (
     FORMAT_VERSION,
@@ -52,48 +49,6 @@ STORE_VERSION = 1
 """Bumped when what a kept calibration must match changes: older ones are then stale."""
 INTRINSICS_FILE = "camera.json"
 HAND_EYE_FILE = "hand_eye.json"
-BY_ID = Path("/dev/serial/by-id")
-
-
-def config_home() -> Path:
-    """``$XDG_CONFIG_HOME`` if it is set to an absolute path (the XDG rule), else
-    ``~/.config``."""
-    given = os.environ.get("XDG_CONFIG_HOME", "")
-    return Path(given) if given and Path(given).is_absolute() else Path.home() / ".config"
-
-
-def _safe(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9._-]+", "-", text).strip("-.")[:100] or "robot"
-
-
-def _by_id_name(device: Path) -> str | None:
-    """The /dev/serial/by-id name of ``device``, if the system gives it one."""
-    try:
-        target = device.resolve()
-        links = sorted(BY_ID.iterdir())
-    except OSError:
-        return None
-    for link in links:
-        try:
-            if link.resolve() == target:
-                return link.name
-        except OSError:
-            continue
-    return None
-
-
-def robot_key(port: str) -> str:
-    """The name of the robot on ``port`` in the store (see the module docstring)."""
-    if is_twin_url(port):
-        return "twin"
-    if port == "sim" or port.startswith("sim://"):
-        return "sim"
-    if "://" in port:
-        return _safe(port)
-    path = Path(port)
-    name = _by_id_name(path) or (str(path)[len("/dev/"):] if str(path).startswith("/dev/")
-                                 else path.name)
-    return _safe(name.replace("/", "-"))
 
 
 def _arm_record(config: ArmConfig) -> dict[str, str]:
