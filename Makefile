@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-$(shell cat pyproject.toml | cksum | cut -d' ' -f1)
 
-.PHONY: demo test lint bench bench-peers bench-ik gl clean
+.PHONY: demo test lint bench bench-peers bench-ik gl browser clean
 
 $(BIN)/python:
 	@$(PYTHON) -c 'import venv, ensurepip' 2>/dev/null || { \
@@ -31,13 +31,27 @@ ifneq ($(GL_OK),yes)
 	fi
 endif
 
+# The dashboard's browser tests (tests/browser) drive Debian's chromium through Playwright;
+# install it when it is missing and we are root, else say what to install. (Never
+# `playwright install`: it downloads a browser build of its own.)
+browser:
+	@if [ ! -x /usr/bin/chromium ]; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    echo "installing chromium for the dashboard's browser tests"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; \
+	  else \
+	    echo "the dashboard's browser tests need chromium: sudo apt-get install chromium" >&2; \
+	    exit 1; \
+	  fi; \
+	fi
+
 # The main job on the twin: calibrate its camera, then sort a seeded table of 5 blocks.
 demo: $(STAMP) gl
 	$(BIN)/busarm pick-sort --seed 3 --blocks 5 --report demo-report
 
 # lint-imports checks the layer contract in pyproject.toml ([tool.importlinter]); --no-cache:
 # the graph takes well under a second, and no .import_linter_cache/ is left in the tree.
-test: $(STAMP) gl
+test: $(STAMP) gl browser
 	$(BIN)/ruff check src tests
 	$(BIN)/mypy
 	$(BIN)/lint-imports --no-cache

@@ -105,6 +105,10 @@ class MotionError(BusArmError):
     """A move that did not go as commanded: a servo did not arrive, or the arm hit something."""
 
 
+class HaltedError(MotionError):
+    """The bus is halted (an e-stop): nothing moves until it is re-armed explicitly."""
+
+
 class MotionTimeoutError(MotionError, TimeoutError):
     """Servos did not reach their targets within the allowed time."""
 

@@ -158,3 +158,9 @@ def robot_key(port: str) -> str:
     name = _by_id_name(path) or (str(path)[len("/dev/"):] if str(path).startswith("/dev/")
                                  else path.name)
     return _safe(name.replace("/", "-"))
+
+
+def robot_folder(port: str) -> Path:
+    """The folder of the robot on ``port`` for its kept files (calibrations, saved poses,
+    recorded action groups): ``$XDG_CONFIG_HOME/busarm/ROBOT`` (``robot_key``)."""
+    return config_home() / "busarm" / robot_key(port)

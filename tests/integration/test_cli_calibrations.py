@@ -20,7 +20,8 @@ from typing import Any
 
 import pytest
 
-from busarm.robot.calibration_store import CalibrationStore, config_home, robot_key
+from busarm.fileio import config_home
+from busarm.robot.calibration_store import CalibrationStore, robot_key
 
 
 def busarm(*args: str, config: Path, timeout_s: float = 300.0

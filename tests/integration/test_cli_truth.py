@@ -262,14 +262,14 @@ def test_pick_sort_ctrl_c_as_the_gripper_opens_says_it_holds_the_block(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """Over the bin, about to let go: the block is still in the fingers, and so it says
     (it used to say "open", the fingers a block's width apart)."""
+    from busarm.apps import pick_job
     from busarm.arm.arm import Arm
-    from busarm.cli import pick_cmd
     from busarm.twin.twin import BlockState, Twin
 
     seen: dict[str, Any] = {}
-    on_step, open_gripper = pick_cmd._Pictures.on_step, Arm.open_gripper
+    on_step, open_gripper = pick_job._Pictures.on_step, Arm.open_gripper
 
-    def watch(self: pick_cmd._Pictures, step: str) -> None:
+    def watch(self: pick_job._Pictures, step: str) -> None:
         seen["twin"] = getattr(self.camera, "twin", None)
         seen["carried"] = step == "carry"
         on_step(self, step)
@@ -281,7 +281,7 @@ def test_pick_sort_ctrl_c_as_the_gripper_opens_says_it_holds_the_block(
             raise KeyboardInterrupt
         return open_gripper(self, **kwargs)
 
-    monkeypatch.setattr(pick_cmd._Pictures, "on_step", watch)
+    monkeypatch.setattr(pick_job._Pictures, "on_step", watch)
     monkeypatch.setattr(Arm, "open_gripper", opening)
     report = tmp_path / "report"
     line = one_line(pick_sort(twin_calibration, report), 130)
@@ -306,18 +306,18 @@ def test_pick_sort_error_mid_run_is_one_line_that_names_the_silent_servo(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """The elbow browns out while a block is lifted: one error line, the others holding,
     the elbow not answering, the gripper holding the block; the report is valid JSON."""
-    from busarm.cli import pick_cmd
+    from busarm.apps import pick_job
     from busarm.twin.camera import TwinCamera
 
-    on_step = pick_cmd._Pictures.on_step
+    on_step = pick_job._Pictures.on_step
 
-    def brown_out(self: pick_cmd._Pictures, step: str) -> None:
+    def brown_out(self: pick_job._Pictures, step: str) -> None:
         on_step(self, step)
         if step == "lift":
             twin = cast(TwinCamera, self.camera).twin
             twin.servos[2].supply_mv = 5000  # servo 3 goes silent (under 6 V)
 
-    monkeypatch.setattr(pick_cmd._Pictures, "on_step", brown_out)
+    monkeypatch.setattr(pick_job._Pictures, "on_step", brown_out)
     report = tmp_path / "report"
     line = one_line(pick_sort(twin_calibration, report), 1)
     assert line.startswith("error: ") and "servo 3" in line, line

@@ -319,6 +319,13 @@ class Arm:
                 )
         return duration_s
 
+    def command_joints(self, joints_deg: Sequence[float], duration_s: float) -> None:
+        """Send joint targets to arrive in ``duration_s``, reading nothing and not waiting
+        (a caller that streams small steps and knows where the arm is: a jog). Joint
+        limits are checked; the caller keeps each step within the joints' speeds."""
+        check_range("duration_s", duration_s, 0.0, MOVE_TIME_MAX_MS / 1000.0, "s")
+        self._send_pulses(self.servo_pulses(joints_deg), duration_s)
+
     def _send_pulses(self, pulses: Mapping[int, int], duration_s: float) -> None:
         targets = {sid: (p - CENTER_PULSES) * DEG_PER_PULSE for sid, p in pulses.items()}
         self.bus.sync_move_deg(targets, duration_s)

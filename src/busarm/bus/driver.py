@@ -28,6 +28,7 @@ from busarm.errors import (
     ChecksumError,
     ConfigError,
     EchoMismatchError,
+    HaltedError,
     LimitError,
     MotionTimeoutError,
     ProtocolError,
@@ -176,6 +177,7 @@ class ServoBus:
         self.stop_sent = False
         """Whether the emergency stop has been sent."""
         self._unstopped = False  # written since the last emergency stop
+        self._halted: str | None = None  # why the bus is halted (``halt``), until ``rearm``
         for sid, (lo, hi) in (limits_deg or {}).items():
             self.set_limits_deg(sid, lo, hi)
         self.echo = echo_mode is EchoMode.ON
@@ -231,6 +233,33 @@ class ServoBus:
                 log.warning("emergency stop: %s", exc)
         self.stop_sent, self._unstopped = True, False
 
+    def halt(self, why: str = "e-stop") -> None:
+        """Latch an emergency stop: MOVE_STOP now (``emergency_stop``), and every later
+        write but a stop raises HaltedError, from any thread, until ``rearm()``.
+
+        A move being sent by another thread is cut short: its remaining writes (and the
+        MOVE_START of a synchronised move) are refused, and a wait for a move to arrive
+        ends with HaltedError. Reads go on (a halted robot can still be watched).
+        """
+        self._halted = why  # first: a write racing the stop below is refused, or precedes it
+        self.emergency_stop()
+
+    def rearm(self) -> None:
+        """Allow writes again after ``halt`` (the servos still hold where they stopped)."""
+        self._halted = None
+
+    @property
+    def halted(self) -> str | None:
+        """Why the bus is halted (what ``halt`` was given), or None."""
+        return self._halted
+
+    def _check_not_halted(self, command: Command, args: tuple[int, ...]) -> None:
+        if self._halted is None or command is Command.MOVE_STOP or (
+                command is Command.OR_MOTOR_MODE_WRITE and args[-1:] == (0,)):
+            return
+        raise HaltedError(f"{command.name} refused: the robot is halted ({self._halted}); "
+                          "re-arm it first")
+
     # ------------------------------------------------------------------ timing
 
     def wire_time_s(self, tx_bytes: int, rx_bytes: int) -> float:
@@ -266,6 +295,7 @@ class ServoBus:
             raise ConfigError(
                 "refusing to broadcast ID_WRITE: it would renumber every servo on the bus"
             )
+        self._check_not_halted(command, args)
         request = encode_request(servo_id, command, *args)
         # Marked before sending: a write that fails half-way may have reached the servo.
         self.wrote = self._unstopped = True
@@ -636,6 +666,8 @@ class ServoBus:
             check_servo_id(sid)
         deadline = self._now() + timeout_s
         while True:
+            if self._halted is not None:  # the move was stopped: it will never arrive
+                raise HaltedError(f"the move was stopped: the robot is halted ({self._halted})")
             positions = self.read_positions_deg(targets_deg)
             off = {s: positions[s] - t for s, t in targets_deg.items()
                    if abs(positions[s] - t) > tolerance_deg}

@@ -18,13 +18,8 @@ from typing import Any
 from busarm.arm.config import ArmConfig
 from busarm.arm.named_poses import find_pose
 from busarm.errors import ConfigError
-from busarm.fileio import config_home, robot_key
+from busarm.fileio import robot_folder
 from busarm.units import check_range
-
-
-def robot_folder(port: str) -> Path:
-    """The folder of the robot on ``port``, where its saved poses are kept."""
-    return config_home() / "busarm" / robot_key(port)
 
 
 def joints_to_move(config: ArmConfig, port: str, joints: tuple[float, ...],

@@ -281,6 +281,39 @@ def _print_vision(settings: Settings, report: VisionBenchReport) -> None:
         f"{report.blocks_located} blocks located")
 
 
+@bench.command("dashboard")
+@click.option("--seconds", type=click.FloatRange(1.0, 600.0), default=10.0, show_default=True,
+              help="How long two pages and two camera streams are measured, in s.")
+@click.option("--tries", type=click.IntRange(1, 1000), default=50, show_default=True,
+              help="E-stops (and lost heartbeats) measured.")
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
+@pass_settings
+def bench_dashboard(settings: Settings, seconds: float, tries: int, as_json: bool) -> None:
+    """The dashboard on the twin in real time: state rate to two pages while two camera
+    streams run; e-stop (sent to MOVE_STOP at the servos) and lost-heartbeat stop times."""
+    from busarm.bench.dashboard import run_dashboard_bench
+
+    report = run_dashboard_bench(seconds=seconds, tries=tries, progress=lambda text: None
+                                 if " view " in text else settings.err.print(text))
+    if as_json:
+        click.echo(json.dumps(report.as_dict(), indent=2))
+        return
+    ok = {True: "[green]ok[/]", False: "[red]FAIL[/]"}
+    hz, fps = min(report.state_hz), min(report.camera_fps)
+    settings.out.print(
+        f"[bold]busarm bench dashboard[/] on the twin in real time ({report.machine['cpu']}, "
+        f"{report.machine['cores']} cores)\n"
+        f"state to two pages: {', '.join(f'{v:.1f}' for v in report.state_hz)} Hz "
+        f"({ok[hz >= 20]} >= 20) while two streams of the wrist camera ({report.camera_size}) "
+        f"ran at {', '.join(f'{v:.1f}' for v in report.camera_fps)} fps ({ok[fps >= 15]} "
+        f">= 15)\n"
+        f"e-stop sent -> MOVE_STOP at the servos, {report.tries} tries: p50 "
+        f"{report.estop_ms['p50']:.1f} ms, p99 {report.estop_ms['p99']:.1f} ms, max "
+        f"{report.estop_ms['max']:.1f} ms ({ok[report.estop_ms['p99'] <= 100]} p99 <= 100)\n"
+        f"heartbeat lost -> MOVE_STOP: p50 {report.deadman_ms['p50']:.0f} ms, max "
+        f"{report.deadman_ms['max']:.0f} ms ({ok[report.deadman_ms['max'] <= 400]} <= 400)")
+
+
 @bench.command("pick")
 @click.option("--scenes", type=click.IntRange(1, 10_000), default=50, show_default=True,
               help="Seeded twin scenes of 3-6 blocks to sort.")

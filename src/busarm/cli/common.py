@@ -43,7 +43,6 @@ from busarm.cli.arm_inputs import (
     gap_report,
     joints_to_move,
     parse_gripper_target,
-    robot_folder,
 )
 from busarm.cli.sessions import Session, announced, find_session, running_sessions
 from busarm.cli.stopping import (
@@ -56,6 +55,7 @@ from busarm.cli.stopping import (
     unwritten_text,
 )
 from busarm.errors import BusTimeoutError, ConfigError, ProtocolError
+from busarm.fileio import robot_folder
 from busarm.protocol import MAX_SERVO_ID, AlarmFlag, check_servo_id
 from busarm.twin.scene import MAX_BLOCKS, Scene
 from busarm.units import (

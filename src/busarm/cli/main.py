@@ -24,6 +24,7 @@ from busarm.cli import (
     bus_cmds,
     camera_cmds,
     config_cmds,
+    dashboard_cmd,
     demo,
     locate_cmd,
     motor_cmd,
@@ -156,7 +157,7 @@ def cli(
 
 for _module in (
     bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, twin_cmds, camera_cmds,
-    vision_cmds, pick_cmd, demo, motor_cmd,
+    vision_cmds, pick_cmd, demo, motor_cmd, dashboard_cmd,
 ):
     for _command in _module.COMMANDS:
         cli.add_command(_command)

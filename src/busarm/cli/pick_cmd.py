@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -30,17 +29,10 @@ from busarm.cli.common import (
     pass_settings,
     scene_options,
 )
-from busarm.errors import BusArmError, ConfigError
+from busarm.errors import ConfigError
 
 if TYPE_CHECKING:
-    import numpy as np
-    import numpy.typing as npt
-
-    from busarm.apps.pick_sort import PickSorter, RunReport
-    from busarm.robot.locate import Sighting
-    from busarm.vision.camera import CameraSource
-
-    Image = npt.NDArray[np.uint8]
+    from busarm.apps.pick_sort import RunReport
 
 DEFAULT_REPORT = "pick-sort-report"
 
@@ -111,8 +103,8 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
     Prints what happened to every block and the totals, and writes a report folder
     (JSON, the picture each pick started from, the table before and after, a GIF).
     """
-    from busarm.apps.pick_report import write_report
-    from busarm.apps.pick_sort import PickSorter, PickSortSettings
+    from busarm.apps.pick_job import PickJob
+    from busarm.apps.pick_settings import PickSortSettings
     from busarm.vision.color import parse_color_names
 
     names = parse_color_names(colors or DEFAULT_COLORS)
@@ -137,75 +129,22 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
                              progress=lambda text: None if " view " in text else
                              settings.err.print(text, highlight=False,
                                                 soft_wrap=True)) as robot:
-        pictures = _Pictures(robot.camera)
-        sorter = pictures.sorter = PickSorter(
-            robot, colors=names, survey_poses=survey_poses,
-            settings=PickSortSettings(order=order),
-            progress=lambda text: settings.err.print(text, highlight=False),
-            on_step=pictures.on_step, on_pick=pictures.on_pick)
-        overview = robot.cameras.get("overview")
-        before = overview.read().image if overview is not None else None
+        job = PickJob(robot, report_dir, colors=names, survey_poses=survey_poses,
+                      settings=PickSortSettings(order=order),
+                      progress=lambda text: settings.err.print(text, highlight=False))
         simulated = robot.clock.is_simulated
-        about = {"port": robot.port, "clock": "simulated" if simulated else "wall",
-                 "camera_calibration": robot.require_camera_calibration().source}
-        report = _run(settings, sorter, pictures, report_dir, about)
-        robot.arm.move_joints(ac.config.pose("home"))
-        after = overview.read().image if overview is not None else (
-            sorter.last_survey[0][0] if sorter.last_survey else None)
-    path = write_report(report_dir, report, before=before, after=after, picks=pictures.picks,
-                        camera_frames=pictures.frames,
-                        extra={**about, "wall_seconds":
-                               round(time.monotonic() - wall_start, 1)})
+        try:
+            report, path = job.run()
+        except BaseException as exc:
+            # What the gripper holds and where the report is join the one line that
+            # reports the stop (with each servo's torque, read back: busarm.cli.main).
+            for note in job.notes:
+                add_detail(exc, note)
+            raise
     if as_json:
         click.echo(json.dumps(json.loads(path.read_text()), indent=2))
         return
     _print_summary(report, simulated, time.monotonic() - wall_start, report_dir)
-
-
-@dataclass
-class _Pictures:
-    """What the report shows: the camera after each step, and the annotated picture each
-    pick started from."""
-
-    camera: CameraSource
-    sorter: PickSorter | None = None
-    frames: list[Image] = field(default_factory=list)
-    picks: list[tuple[str, Image]] = field(default_factory=list)
-
-    def on_step(self, step: str) -> None:
-        self.frames.append(self.camera.read().image)
-
-    def on_pick(self, target: Sighting) -> None:
-        from busarm.vision.annotate import annotate
-
-        assert self.sorter is not None
-        image, found = self.sorter.last_survey[0]
-        self.picks.append((target.color, annotate(
-            image, [s.detection for s in found if s.detection is not None],
-            text_lines=[f"next: {target.color} at ({target.location.x_mm:.0f}, "
-                        f"{target.location.y_mm:.0f}) mm"])))
-
-
-def _run(settings: Settings, sorter: PickSorter, pictures: _Pictures, report_dir: Path,
-         about: dict[str, str]) -> RunReport:
-    """The sorter's run; if it stops early (the sorter has stopped the arm), keep the
-    report so far. What the gripper holds and where the report is join the one line
-    that reports the stop (with each servo's torque, read back: ``busarm.cli.main``)."""
-    from busarm.apps.pick_report import write_report
-
-    try:
-        return sorter.run()
-    except BaseException as exc:
-        stopped = sorter.report
-        if stopped.gripper:  # empty if it stopped before the run began
-            add_detail(exc, f"the gripper: {stopped.gripper}")
-        try:
-            write_report(report_dir, stopped, picks=pictures.picks,
-                         camera_frames=pictures.frames, extra=about)
-            add_detail(exc, f"the report so far: {report_dir}/")
-        except (BusArmError, OSError) as write_error:  # the stop's own error is the one
-            add_detail(exc, f"the report could not be written: {write_error}")
-        raise
 
 
 def _print_summary(report: RunReport, simulated: bool, wall_s: float,

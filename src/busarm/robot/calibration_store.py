@@ -32,7 +32,7 @@ from typing import Any
 
 from busarm.arm.config import ArmConfig
 from busarm.errors import CalibrationError, ConfigError
-from busarm.fileio import config_home, read_versioned_json, robot_key
+from busarm.fileio import read_versioned_json, robot_folder, robot_key
 from busarm.twin.lens import LENSES, LensSpec
 from busarm.twin.twin import Twin
 from busarm.vision.calibration import (
@@ -170,7 +170,7 @@ class CalibrationStore:
     def for_port(cls, port: str) -> CalibrationStore:
         """The store of the robot on ``port``, in the user's configuration directory."""
         key = robot_key(port)
-        return cls(key, config_home() / "busarm" / key, port)
+        return cls(key, robot_folder(port), port)
 
     @property
     def intrinsics_path(self) -> Path:
@@ -256,4 +256,4 @@ class CalibrationStore:
 
 
 __all__ = ["HAND_EYE_FILE", "INTRINSICS_FILE", "STORE_VERSION", "CalibrationStore", "MadeFor",
-           "StaleCalibration", "config_home", "robot_key"]
+           "StaleCalibration", "robot_key"]

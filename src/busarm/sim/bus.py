@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import random
 import threading
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,6 +29,7 @@ from busarm.protocol import (
     Command,
     Frame,
     FrameParser,
+    Request,
     decode_request,
     encode_reply,
 )
@@ -142,6 +143,9 @@ class SimBus:
         self._pending_delay = 0.0
         self.frames_received = 0
         self.frames_rejected = 0
+        self.taps: list[Callable[[Request], None]] = []
+        """Called with every request the servos receive, as it arrives (a probe on the
+        line: tests and benchmarks time what reached the servos, and when)."""
 
     @classmethod
     def with_ids(
@@ -261,6 +265,8 @@ class SimBus:
             self.frames_rejected += 1
             return
         self.frames_received += 1
+        for tap in self.taps:
+            tap(request)
         targets = [
             s for s in self.servos
             if (request.servo_id == BROADCAST_ID or s.servo_id == request.servo_id)

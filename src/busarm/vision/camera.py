@@ -26,6 +26,7 @@ import math
 import os
 import re
 import sys
+import threading
 import time
 import warnings
 from collections.abc import Callable, Iterator
@@ -164,6 +165,9 @@ class CameraBase:
         self._height_px = height_px
         self._sequence = 0
         self._closed = False
+        # Several threads may read one camera (a job and the dashboard's stream): one
+        # grab at a time, each frame to one of them.
+        self._read_lock = threading.Lock()
 
     @property
     def name(self) -> str:
@@ -183,6 +187,10 @@ class CameraBase:
 
     def read(self) -> CameraFrame:
         """The next frame, stamped with ``time.monotonic()`` when it arrived."""
+        with self._read_lock:
+            return self._read()
+
+    def _read(self) -> CameraFrame:
         if self._closed:
             raise CameraError(f"camera {self._name} is closed")
         image = self._grab()

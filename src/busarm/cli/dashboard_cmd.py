@@ -1,0 +1,123 @@
+"""``busarm dashboard``: watch, drive and stop the robot from a web page.
+
+The server and the page are busarm.dashboard; this opens the robot (the twin in real
+time by default, so that a person watches it move as a real arm would), prints the
+page's address and serves until Ctrl+C, which stops the robot, holding.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from busarm.cli.common import (
+    Settings,
+    calibration_store,
+    make_scene,
+    pass_settings,
+    scene_options,
+)
+from busarm.errors import ConfigError
+
+DEFAULT_PORT = "twin://?realtime=1"
+
+
+def realtime_twin(port: str) -> str:
+    """A twin URL that follows the wall clock (a twin in this process otherwise runs as
+    fast as it computes, which no person can watch or stop in time)."""
+    from busarm.twin.transport import is_twin_url, twin_query
+
+    if not is_twin_url(port):
+        return port
+    query = twin_query(port)
+    if "pace" in query:
+        raise ConfigError(f"--port {port}: the dashboard runs the twin in real time; "
+                          "leave out pace=")
+    if query.get("realtime") == "1":
+        return port
+    base = "twin://?" if port == "twin" else port + ("&" if "?" in port else "?")
+    return base + "realtime=1"
+
+
+@click.command()
+@scene_options
+@click.option("--camera", "camera_src", default=None,
+              help="The wrist camera: a device, file or stream URL  [default: the twin's; "
+                   "on hardware none]")
+@click.option("--bind", default="127.0.0.1", show_default=True,
+              help="Address to listen on; any other than loopback needs a token.")
+@click.option("--http-port", type=click.IntRange(0, 65535), default=8000, show_default=True,
+              help="TCP port of the page (0: any free port).")
+@click.option("--token", default=None,
+              help="The token every request must carry  [default: none on loopback, "
+                   "else a new one, printed]")
+@click.option("--reports", "reports_dir", type=click.Path(file_okay=False, path_type=Path),
+              default=Path("dashboard-reports"), show_default=True,
+              help="Folder for pick-and-sort reports.")
+@click.option("--fps", type=click.FloatRange(1, 30), default=15, show_default=True,
+              help="Camera frames per second at most, per camera.")
+@click.option("--config", default="jetauto_pro", show_default=True,
+              help="Arm description: a shipped name or a TOML file.")
+@pass_settings
+def dashboard(settings: Settings, scene_file: Path | None, seed: int | None,
+              blocks: int | None, colors: str | None, camera_src: str | None, bind: str,
+              http_port: int, token: str | None, reports_dir: Path, fps: float,
+              config: str) -> None:
+    """Serve a web page that shows the robot live and drives it: joints, tool pose,
+    servos, gripper, cameras, jogging with a deadman, named poses, action groups,
+    pick-and-sort, and an e-stop (button or Escape) that holds every servo.
+
+    Without --port it runs the twin in real time (its camera calibration kept for the
+    robot, made first if there is none). Prints the page's address; Ctrl+C stops the
+    robot (holding) and the server.
+    """
+    from busarm.arm.config import load_arm_config
+    from busarm.dashboard.access import Access
+    from busarm.dashboard.feeds import Feed, block_boxes
+    from busarm.dashboard.server import bind_socket, serve
+    from busarm.dashboard.service import RobotService
+
+    access = Access.for_bind(bind, token)
+    sock = bind_socket(bind, http_port)  # a taken port is refused before the twin starts
+    on_twin = not settings.port_given or settings.port.startswith("twin")
+    scene = (make_scene(scene_file, seed, blocks, colors) if on_twin and (
+        scene_file or seed is not None or blocks is not None or not settings.port_given)
+        else None)
+    if settings.port_given:
+        settings.port = realtime_twin(settings.port)
+    store = calibration_store(settings, default="twin")
+
+    def say(text: str) -> None:
+        if " view " not in text:
+            settings.err.print(text, highlight=False, soft_wrap=True)
+
+    with settings.open_robot(default=DEFAULT_PORT, camera=camera_src,
+                             config=load_arm_config(config), scene=scene,
+                             calibration_store=store, progress=say) as robot:
+        service = RobotService(robot, reports=reports_dir).start()
+        feeds = {}
+        for name, source in robot.cameras.items():
+            twin = robot.twin
+            feeds[name] = Feed(name, source, fps=fps,
+                               draw=block_boxes(["red", "green", "blue", "yellow"])
+                               if name == "wrist" else None,
+                               on_thread_end=twin.release_renderers if twin else None)
+
+        def announce(link: str) -> None:
+            click.echo(link)
+            sys.stdout.flush()
+            where = "the twin (real time)" if robot.is_twin else robot.port
+            settings.err.print(
+                f"dashboard of the {robot.config.name} on {where}: open {link} in a browser"
+                + ("" if access.loopback else " (the token is in the link: keep it to "
+                                              "yourself)")
+                + "; Ctrl+C stops the robot and the server", highlight=False, soft_wrap=True)
+
+        serve(service, access, feeds, sock=sock, announce=announce)
+    click.echo("dashboard stopped: every servo was told to stop where it is (MOVE_STOP)",
+               err=True)
+
+
+COMMANDS = [dashboard]

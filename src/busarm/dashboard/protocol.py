@@ -1,0 +1,257 @@
+"""The dashboard's WebSocket messages: JSON objects with a ``type``, as dataclasses.
+
+Pure: no I/O. ``parse_request`` turns the text a page sent into one typed request, or
+raises RequestError naming the bad field and what is allowed; the server answers that
+with an ``error`` message and moves nothing. Ranges here are the message's own (a jog's
+speed fraction, a servo ID); the robot's limits are checked where the move is made,
+through the same checks as the command line.
+
+Page -> server (``type``: fields):
+
+============= =============================================================== ==========
+heartbeat     (none): sent every 100 ms; a jog stops when none came for 300 ms
+drive         take the driver's seat (``take_over``: true to take it from another page)
+release       leave it
+jog           ``joint`` (a joint name) or ``axis`` (x, y, z, pitch), ``direction``
+              (+1/-1), ``speed`` (0.05..1 of the jog speed): move while these keep
+              coming (a deadman: each one holds the jog for 300 ms more)
+jog_stop      stop a jog now (the key or button was released, the page lost focus)
+move_pose     ``name``: go to a named pose (the config's or saved ones)
+save_pose     ``name``: keep the present joints under that name
+gripper       ``action``: open, or close (until the fingers meet or hold something)
+torque        ``servo`` (an arm servo's ID) and ``on`` (bool)
+play          ``group``: an action group (a shipped sample or a recorded one) by name
+record        ``action``: start, frame (the present pose, ``duration_ms`` after the last),
+              save (``name``), or cancel
+pick_sort     ``colors`` (list), ``order`` (nearest, colors)
+stop          stop the job and any motion, holding (not latched)
+estop         halt: MOVE_STOP to every servo, cancel the job, latched until ``rearm``
+rearm         allow motion again after an e-stop
+============= =============================================================== ==========
+
+Server -> page: ``welcome`` (the robot's description and this page's role), ``state``
+(live values, about 20 times a second), ``log`` (what happened), ``error`` (a request
+refused, and why), ``role`` (this page drives or watches), ``job`` (a job's progress
+and end).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from busarm.errors import ConfigError
+
+MAX_MESSAGE_BYTES = 4096
+"""A request longer than this is refused unread (no request needs more)."""
+JOG_AXES = ("x", "y", "z", "pitch")
+GRIPPER_ACTIONS = ("open", "close")
+RECORD_ACTIONS = ("start", "frame", "save", "cancel")
+PICK_ORDERS = ("nearest", "colors")
+MIN_JOG_SPEED = 0.05
+NAME_CHARS = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-."
+
+
+class RequestError(ConfigError):
+    """A message from a page that is not a valid request (the text says why)."""
+
+
+@dataclass(frozen=True)
+class Request:
+    """Any request; ``type`` is its wire name."""
+
+    type: str
+
+
+@dataclass(frozen=True)
+class Drive(Request):
+    take_over: bool = False
+
+
+@dataclass(frozen=True)
+class Jog(Request):
+    joint: str | None
+    axis: str | None
+    direction: int
+    speed: float
+
+
+@dataclass(frozen=True)
+class Named(Request):
+    """``move_pose``, ``save_pose`` and ``play``: a request naming a thing."""
+
+    name: str
+
+
+@dataclass(frozen=True)
+class Gripper(Request):
+    action: str
+
+
+@dataclass(frozen=True)
+class Torque(Request):
+    servo: int
+    on: bool
+
+
+@dataclass(frozen=True)
+class Record(Request):
+    action: str
+    name: str | None = None
+    duration_ms: int = 1000
+
+
+@dataclass(frozen=True)
+class PickSort(Request):
+    colors: tuple[str, ...] = ("red", "green", "blue")
+    order: str = "nearest"
+
+
+_BARE = ("heartbeat", "release", "jog_stop", "stop", "estop", "rearm")
+
+
+def parse_request(text: str | bytes, joint_names: tuple[str, ...]) -> Request:
+    """One request from a page's message (``joint_names``: the arm's, for ``jog``)."""
+    if len(text) > MAX_MESSAGE_BYTES:
+        raise RequestError(f"message of {len(text)} bytes; at most {MAX_MESSAGE_BYTES}")
+    try:
+        message = json.loads(text)
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise RequestError(f"not JSON: {exc}") from None
+    if not isinstance(message, dict):
+        raise RequestError(f"expected a JSON object with a type, got {_show(message)}")
+    kind = message.get("type")
+    if not isinstance(kind, str) or kind not in _PARSERS:
+        raise RequestError(f"type {_show(kind)}: unknown; allowed: {', '.join(_PARSERS)}")
+    fields = {k: v for k, v in message.items() if k != "type"}
+    return _PARSERS[kind](kind, fields, joint_names)
+
+
+def _show(value: object) -> str:
+    text = json.dumps(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _take(fields: dict[str, Any], kind: str, allowed: tuple[str, ...]) -> dict[str, Any]:
+    extra = sorted(set(fields) - set(allowed))
+    if extra:
+        raise RequestError(f"{kind}: unknown field(s) {', '.join(extra)}; allowed: "
+                           f"{', '.join(allowed) or 'none'}")
+    return fields
+
+
+def _choice(kind: str, key: str, value: object, allowed: tuple[str, ...]) -> str:
+    if not isinstance(value, str) or value not in allowed:
+        raise RequestError(f"{kind}: {key} = {_show(value)}; allowed: {', '.join(allowed)}")
+    return value
+
+
+def _name(kind: str, value: object, key: str = "name") -> str:
+    if not (isinstance(value, str) and 0 < len(value) <= 64
+            and all(c in NAME_CHARS for c in value)):
+        raise RequestError(f"{kind}: {key} = {_show(value)}; expected 1..64 letters, digits, "
+                           "'_', '-' or '.'")
+    return value
+
+
+def _number(kind: str, key: str, value: object, lo: float, hi: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(
+            value) or not lo <= value <= hi:
+        raise RequestError(f"{kind}: {key} = {_show(value)}; allowed: a number {lo:g}..{hi:g}")
+    return float(value)
+
+
+def _bare(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request:
+    _take(fields, kind, ())
+    return Request(kind)
+
+
+def _drive(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request:
+    take_over = _take(fields, kind, ("take_over",)).get("take_over", False)
+    if not isinstance(take_over, bool):
+        raise RequestError(f"drive: take_over = {_show(take_over)}; allowed: true, false")
+    return Drive(kind, take_over)
+
+
+def _jog(kind: str, fields: dict[str, Any], joints: tuple[str, ...]) -> Request:
+    f = _take(fields, kind, ("joint", "axis", "direction", "speed"))
+    if ("joint" in f) == ("axis" in f):
+        raise RequestError("jog: give a joint (" + ", ".join(joints) + ") or an axis ("
+                           + ", ".join(JOG_AXES) + "), one of them")
+    joint = _choice(kind, "joint", f["joint"], joints) if "joint" in f else None
+    axis = _choice(kind, "axis", f["axis"], JOG_AXES) if "axis" in f else None
+    direction = f.get("direction")
+    if direction not in (1, -1) or isinstance(direction, bool):
+        raise RequestError(f"jog: direction = {_show(direction)}; allowed: 1, -1")
+    speed = _number(kind, "speed", f.get("speed", 1.0), MIN_JOG_SPEED, 1.0)
+    return Jog(kind, joint, axis, int(direction), speed)
+
+
+def _named(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request:
+    key = "group" if kind == "play" else "name"
+    f = _take(fields, kind, (key,))
+    return Named(kind, _name(kind, f.get(key), key))
+
+
+def _gripper(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request:
+    f = _take(fields, kind, ("action",))
+    return Gripper(kind, _choice(kind, "action", f.get("action"), GRIPPER_ACTIONS))
+
+
+def _torque(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request:
+    f = _take(fields, kind, ("servo", "on"))
+    servo = f.get("servo")
+    if isinstance(servo, bool) or not isinstance(servo, int) or not 0 <= servo <= 253:
+        raise RequestError(f"torque: servo = {_show(servo)}; allowed: a servo ID 0..253")
+    if not isinstance(f.get("on"), bool):
+        raise RequestError(f"torque: on = {_show(f.get('on'))}; allowed: true, false")
+    return Torque(kind, servo, f["on"])
+
+
+def _record(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request:
+    f = _take(fields, kind, ("action", "name", "duration_ms"))
+    action = _choice(kind, "action", f.get("action"), RECORD_ACTIONS)
+    name = _name(kind, f["name"]) if "name" in f else None
+    if action == "save" and name is None:
+        raise RequestError("record: save needs a name")
+    duration = _number(kind, "duration_ms", f.get("duration_ms", 1000), 20, 30000)
+    if not duration.is_integer():
+        raise RequestError(f"record: duration_ms = {_show(f['duration_ms'])}; allowed: a "
+                           "whole number 20..30000")
+    return Record(kind, action, name, int(duration))
+
+
+def _pick_sort(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request:
+    f = _take(fields, kind, ("colors", "order"))
+    colors = f.get("colors", ["red", "green", "blue"])
+    if not isinstance(colors, list) or not 0 < len(colors) <= 8:
+        raise RequestError(f"pick_sort: colors = {_show(colors)}; expected a list of 1..8 "
+                           "colour names")
+    names = tuple(_name(kind, c, "colors") for c in colors)
+    return PickSort(kind, names, _choice(kind, "order", f.get("order", "nearest"),
+                                         PICK_ORDERS))
+
+
+_PARSERS = {
+    **{kind: _bare for kind in _BARE},
+    "drive": _drive, "jog": _jog, "move_pose": _named, "save_pose": _named,
+    "gripper": _gripper, "torque": _torque, "play": _named, "record": _record,
+    "pick_sort": _pick_sort,
+}
+
+
+def message(kind: str, **fields: Any) -> str:
+    """A server message as JSON text (NaN and infinities become null: valid JSON)."""
+    return json.dumps({"type": kind, **_finite(fields)}, separators=(",", ":"))
+
+
+def _finite(value: Any) -> Any:
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    return value
