@@ -8,10 +8,10 @@ import threading
 import time
 
 import pytest
-from conftest import SimArm
 
 from busarm.errors import HaltedError
 from busarm.protocol import Command
+from conftest import SimArm
 
 
 def test_halt_refuses_writes_until_rearmed(arm: SimArm) -> None:

@@ -17,10 +17,10 @@ from busarm.sim import transport
 
 README = Path(__file__).resolve().parents[2] / "README.md"
 UNIT = re.compile(r"\b(mm|deg|deg/s|mm/s|s|ms|V|C|bit/s|pixels|px|cm2|%|0\.\.1|probability)\b"
-                  r"|\bfactor\b|seconds")
+                  r"|\bfactor\b|seconds|frames/s")
 COUNTS = {"--views", "--seed", "--scenes", "--workers", "--reads", "--scans", "--loops",
           "--frames", "--count", "--retries", "--blocks", "--pictures", "--placements", "--n",
-          "--batch-n", "--distractors", "--camera-port", "--baud"}
+          "--batch-n", "--distractors", "--camera-port", "--baud", "--http-port", "--tries"}
 """Number options that are counts, seeds or port numbers: no unit to give."""
 
 

@@ -8,8 +8,9 @@ The rules, applied to each ```sh code block of the section, in order:
   the test, so that a new kind of line gets a rule here.
 * HARDWARE: a line naming ``/dev/ttyUSB0``, ``/dev/video0`` or ``COM3`` needs hardware
   that a test machine lacks: skipped, and counted.
-* SERVERS: a ``sim serve`` or ``twin serve`` line is started in the background and
-  stopped with SIGTERM at the end of its block (it must exit 0, no traceback). The
+* SERVERS: a ``sim serve``, ``twin serve`` or ``dashboard`` line is started in the
+  background (the dashboard on any free port: ``SERVER_OPTIONS``) and stopped with
+  SIGTERM at the end of its block (it must exit 0, no traceback). The
   placeholders of the lines after it, ``/dev/pts/N`` and ``twin://127.0.0.1:PORT``, are
   what it printed.
 * SMALLER: the lines in ``SMALLER`` take minutes as written (many scenes, long timed
@@ -39,7 +40,9 @@ import pytest
 README = Path(__file__).resolve().parents[2] / "README.md"
 BUSARM = ".venv/bin/busarm"
 HARDWARE = ("/dev/ttyUSB0", "/dev/video0", "COM3")
-SERVERS = ("sim serve", "twin serve")
+SERVERS = ("sim serve", "twin serve", "dashboard")
+SERVER_OPTIONS = {"dashboard": " --http-port 0"}
+"""Added to a server's line: a test never takes a fixed TCP port (another may hold it)."""
 PTY = "/dev/pts/N"
 CAMERA = "twin://127.0.0.1:PORT"
 SMALLER = {
@@ -51,6 +54,7 @@ SMALLER = {
     f"{BUSARM} bench vision ; {BUSARM} bench locate":
         f"{BUSARM} bench vision --pictures 2 --seconds 0.5 ; {BUSARM} bench locate "
         "--placements 20",
+    f"{BUSARM} bench dashboard": f"{BUSARM} bench dashboard --seconds 2 --tries 3",
 }
 """README line (without its comment) -> the smaller run of the same commands."""
 INTERACTIVE = {f"{BUSARM} arm calibrate": "y\n" * 4}
@@ -119,12 +123,17 @@ def _workdir(tmp_path: Path) -> tuple[Path, dict[str, str]]:
 
 def _start_server(line: str, cwd: Path, env: dict[str, str]) -> tuple[subprocess.Popen[str],
                                                                       dict[str, str]]:
+    line = _command(line) + "".join(extra for name, extra in SERVER_OPTIONS.items()
+                                    if f"{BUSARM} {name}" in _command(line))
     proc = subprocess.Popen(
         ["bash", "-c", f"exec {line}"], cwd=cwd, env=env, text=True, stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE, stderr=subprocess.PIPE,
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     assert proc.stdout is not None
-    values = {PTY: proc.stdout.readline().strip()}
+    first = proc.stdout.readline().strip()
+    if "dashboard" in line:  # its first line is the page's address, once it serves
+        assert first.startswith("http://127.0.0.1:"), (line, first)
+    values = {PTY: first}
     if "twin serve" in line:
         values[CAMERA] = proc.stdout.readline().strip()
     return proc, values

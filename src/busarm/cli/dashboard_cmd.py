@@ -7,19 +7,25 @@ page's address and serves until Ctrl+C, which stops the robot, holding.
 
 from __future__ import annotations
 
+import socket
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from busarm.cli.common import (
     Settings,
     calibration_store,
+    interrupt_on_signals,
     make_scene,
     pass_settings,
     scene_options,
 )
 from busarm.errors import ConfigError
+
+if TYPE_CHECKING:
+    from busarm.dashboard.access import Access
 
 DEFAULT_PORT = "twin://?realtime=1"
 
@@ -57,7 +63,7 @@ def realtime_twin(port: str) -> str:
               default=Path("dashboard-reports"), show_default=True,
               help="Folder for pick-and-sort reports.")
 @click.option("--fps", type=click.FloatRange(1, 30), default=15, show_default=True,
-              help="Camera frames per second at most, per camera.")
+              help="Camera frames per second (frames/s) at most, per camera.")
 @click.option("--config", default="jetauto_pro", show_default=True,
               help="Arm description: a shipped name or a TOML file.")
 @pass_settings
@@ -73,14 +79,31 @@ def dashboard(settings: Settings, scene_file: Path | None, seed: int | None,
     robot, made first if there is none). Prints the page's address; Ctrl+C stops the
     robot (holding) and the server.
     """
-    from busarm.arm.config import load_arm_config
     from busarm.dashboard.access import Access
-    from busarm.dashboard.feeds import Feed, block_boxes
-    from busarm.dashboard.server import bind_socket, serve
-    from busarm.dashboard.service import RobotService
+    from busarm.dashboard.server import bind_socket
 
     access = Access.for_bind(bind, token)
     sock = bind_socket(bind, http_port)  # a taken port is refused before the twin starts
+    restore = interrupt_on_signals()  # SIGTERM while starting: stopped as by Ctrl+C
+    try:
+        _run(settings, sock, access, (scene_file, seed, blocks, colors), camera_src,
+             reports_dir, fps, config)
+    finally:
+        restore()
+        sock.close()
+    click.echo("dashboard stopped: every servo was told to stop where it is (MOVE_STOP)",
+               err=True)
+
+
+def _run(settings: Settings, sock: socket.socket, access: Access,
+         table: tuple[Path | None, int | None, int | None, str | None],
+         camera_src: str | None, reports_dir: Path, fps: float, config: str) -> None:
+    from busarm.arm.config import load_arm_config
+    from busarm.dashboard.feeds import Feed, block_boxes
+    from busarm.dashboard.server import serve
+    from busarm.dashboard.service import RobotService
+
+    scene_file, seed, blocks, colors = table
     on_twin = not settings.port_given or settings.port.startswith("twin")
     scene = (make_scene(scene_file, seed, blocks, colors) if on_twin and (
         scene_file or seed is not None or blocks is not None or not settings.port_given)
@@ -116,8 +139,6 @@ def dashboard(settings: Settings, scene_file: Path | None, seed: int | None,
                 + "; Ctrl+C stops the robot and the server", highlight=False, soft_wrap=True)
 
         serve(service, access, feeds, sock=sock, announce=announce)
-    click.echo("dashboard stopped: every servo was told to stop where it is (MOVE_STOP)",
-               err=True)
 
 
 COMMANDS = [dashboard]

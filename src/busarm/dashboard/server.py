@@ -229,6 +229,8 @@ def serve(service: RobotService, access: Access, feeds: dict[str, Feed], *,
     announce(f"http://{host}:{port}/" + (f"?token={access.token}" if access.token else ""))
     try:
         server.run(sockets=[sock])
+    except KeyboardInterrupt:
+        pass  # uvicorn stopped on the signal, then raised it again: the stop asked for
     finally:
         service.close()
         for feed in feeds.values():
