@@ -23,7 +23,7 @@ from websockets.sync.connection import Connection
 
 from busarm.bench.common import latency_percentiles_ms, machine_info
 from busarm.dashboard.access import Access
-from busarm.dashboard.feeds import Feed, block_boxes
+from busarm.dashboard.feeds import robot_feeds
 from busarm.dashboard.server import ServerThread
 from busarm.dashboard.service import RobotService
 from busarm.progress import Progress, quiet
@@ -149,9 +149,7 @@ def run_dashboard_bench(*, seconds: float = 10.0, tries: int = 50,
             lambda r: seen.append((time.monotonic(), r)) if r.command is Command.MOVE_STOP
             else None)
         service = RobotService(robot).start()
-        feeds = {"wrist": Feed("wrist", robot.camera, fps=15,
-                               draw=block_boxes(["red", "green", "blue", "yellow"]),
-                               on_thread_end=robot.twin.release_renderers)}
+        feeds = robot_feeds(robot, fps=15)
         http = ServerThread(service, Access.for_bind("127.0.0.1"), feeds).start()
         try:
             progress(f"two pages and two camera streams for {seconds:g} s...")

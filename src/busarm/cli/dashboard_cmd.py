@@ -99,7 +99,7 @@ def _run(settings: Settings, sock: socket.socket, access: Access,
          table: tuple[Path | None, int | None, int | None, str | None],
          camera_src: str | None, reports_dir: Path, fps: float, config: str) -> None:
     from busarm.arm.config import load_arm_config
-    from busarm.dashboard.feeds import Feed, block_boxes
+    from busarm.dashboard.feeds import robot_feeds
     from busarm.dashboard.server import serve
     from busarm.dashboard.service import RobotService
 
@@ -120,13 +120,7 @@ def _run(settings: Settings, sock: socket.socket, access: Access,
                              config=load_arm_config(config), scene=scene,
                              calibration_store=store, progress=say) as robot:
         service = RobotService(robot, reports=reports_dir).start()
-        feeds = {}
-        for name, source in robot.cameras.items():
-            twin = robot.twin
-            feeds[name] = Feed(name, source, fps=fps,
-                               draw=block_boxes(["red", "green", "blue", "yellow"])
-                               if name == "wrist" else None,
-                               on_thread_end=twin.release_renderers if twin else None)
+        feeds = robot_feeds(robot, fps)
 
         def announce(link: str) -> None:
             click.echo(link)

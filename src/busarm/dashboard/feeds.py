@@ -18,6 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from busarm.errors import BusArmError
+from busarm.robot import Robot
 from busarm.vision.annotate import annotate
 from busarm.vision.camera import CameraSource
 from busarm.vision.color import ColorDetector, default_thresholds
@@ -117,3 +118,23 @@ def _message_image(text: str, width: int = 640, height: int = 480) -> Image:
         cv2.putText(image, text[k:k + 60], (12, 40 + 28 * (k // 60)),
                     cv2.FONT_HERSHEY_SIMPLEX, 0.6, (230, 230, 230), 1, cv2.LINE_AA)
     return image
+
+
+def robot_feeds(robot: Robot, fps: float) -> dict[str, Feed]:
+    """A feed for each of the robot's cameras (``wrist`` with the blocks it sees drawn on).
+
+    A twin's cameras are rendered for the page without shadows (several times cheaper on
+    a CPU, which is what lets the page have 15 frames a second); the pictures vision and
+    jobs work on keep them.
+    """
+    from busarm.twin.camera import TwinCamera
+
+    twin = robot.twin
+    sources: dict[str, CameraSource] = dict(robot.cameras)
+    if twin is not None:
+        sources = {name: TwinCamera(twin, view="arm" if name == "wrist" else "overview",
+                                    shadows=False) for name in sources}
+    boxes = block_boxes(["red", "green", "blue", "yellow"])
+    return {name: Feed(name, source, fps=fps, draw=boxes if name == "wrist" else None,
+                       on_thread_end=twin.release_renderers if twin is not None else None)
+            for name, source in sources.items()}

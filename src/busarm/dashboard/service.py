@@ -59,6 +59,8 @@ CONTROL_PERIOD_S = 0.04
 """The control thread's period: state and jog steps at 25 Hz."""
 JOG_HOLD_S = 0.3
 """A jog goes on this long after the driver's last heartbeat or jog message."""
+WATCH_PERIOD_S = 0.01
+"""How often the deadman looks at the driver's last heartbeat."""
 JOB_STOP_WAIT_S = 5.0
 """How long a stop waits for a cancelled job's thread to end before saying so."""
 LOG_LINES = 200
@@ -104,11 +106,16 @@ class RobotService:
         self.state_count = 0
         self._closed = threading.Event()
         self._thread = threading.Thread(target=self._run, name="busarm-dashboard", daemon=True)
+        # The deadman has its own thread: a control period slowed by the bus or the CPU
+        # does not delay the stop of a jog whose heartbeat is gone.
+        self._watchdog = threading.Thread(target=self._watch, name="busarm-dashboard-deadman",
+                                          daemon=True)
 
     # ------------------------------------------------------------------ lifecycle
 
     def start(self) -> RobotService:
         self._thread.start()
+        self._watchdog.start()
         return self
 
     def close(self) -> None:
@@ -117,8 +124,9 @@ class RobotService:
             return
         self.stop("the dashboard is closing", who=None)
         self._closed.set()
-        if self._thread.is_alive():
-            self._thread.join(timeout=2)
+        for thread in (self._thread, self._watchdog):
+            if thread.is_alive():
+                thread.join(timeout=2)
 
     # ------------------------------------------------------------------ pages
 
@@ -308,14 +316,19 @@ class RobotService:
         what = jog.joint or f"tool {jog.axis}"
         self.log(f"jog {what} stopped ({why}); the joints hold")
 
+    def _watch(self) -> None:
+        """The deadman: a jog stops when the driver has not been heard for JOG_HOLD_S."""
+        while not self._closed.wait(WATCH_PERIOD_S):
+            with self._lock:
+                lost = self._jog is not None and time.monotonic() - self._heard > JOG_HOLD_S
+            if lost:
+                self._stop_jog(f"no heartbeat from the driver for {JOG_HOLD_S * 1000:.0f} ms")
+
     def _jog_tick(self, joints: tuple[float, ...]) -> None:
         with self._lock:
             jog, heard = self._jog, self._heard
-        if jog is None:
-            return
-        if time.monotonic() - heard > JOG_HOLD_S:
-            self._stop_jog(f"no heartbeat from the driver for {JOG_HOLD_S * 1000:.0f} ms")
-            return
+        if jog is None or time.monotonic() - heard > JOG_HOLD_S:
+            return  # the deadman stops it (``_watch``)
         target = self._jog_target or joints
         step = jog.step(target, joints, self.period_s)
         if step.joints_deg is None:
@@ -430,6 +443,12 @@ class RobotService:
                                          "servo holds")
         else:
             self._end_job(job, "done", outcome)
+        finally:
+            # A twin renders in the thread that asks (pick-sort's camera): free this
+            # thread's GL contexts here, or they are freed at exit from another thread,
+            # which EGL refuses (EGL_BAD_ACCESS, a traceback on Ctrl+C).
+            if self.robot.twin is not None:
+                self.robot.twin.release_renderers()
 
     def _end_job(self, job: _Job, state: str, text: str) -> None:
         with self._lock:

@@ -488,31 +488,34 @@ class Twin:
             self._renderers.append(cache[key])
         return cache[key]
 
-    def render_ideal(self, camera: str = "arm_camera") -> ImageArray:
-        """The ideal pinhole render (RGB) of a camera: no lens (``overview`` is 640x480)."""
+    def render_ideal(self, camera: str = "arm_camera", *, shadows: bool = True) -> ImageArray:
+        """The ideal pinhole render (RGB) of a camera: no lens (``overview`` is 640x480).
+        ``shadows=False``: a live view for a person (on a CPU, shadows are most of a
+        frame's cost); what vision works on keeps them."""
         size = self._render_size if camera == "arm_camera" else (640, 480)
         renderer = self._renderer(*size)
         if self.realtime:
             self.sync()
         with self._lock:
             renderer.update_scene(self.data, camera=camera)
+        renderer.scene.flags[self.mujoco.mjtRndFlag.mjRND_SHADOW] = shadows
         image: ImageArray = renderer.render()
         return image
 
-    def render_camera(self) -> ImageArray:
+    def render_camera(self, *, shadows: bool = True) -> ImageArray:
         """The arm camera's image as the vision layer gets it: BGR, through the lens."""
         import cv2
 
-        bgr = np.asarray(cv2.cvtColor(self.render_ideal("arm_camera"), cv2.COLOR_RGB2BGR),
-                         dtype=np.uint8)
+        bgr = np.asarray(cv2.cvtColor(self.render_ideal("arm_camera", shadows=shadows),
+                                      cv2.COLOR_RGB2BGR), dtype=np.uint8)
         return self.lens.apply(bgr)
 
-    def render_overview(self) -> ImageArray:
+    def render_overview(self, *, shadows: bool = True) -> ImageArray:
         """The overview camera (BGR, 640x480, no lens): the whole table from above the front."""
         import cv2
 
-        return np.asarray(cv2.cvtColor(self.render_ideal("overview"), cv2.COLOR_RGB2BGR),
-                          dtype=np.uint8)
+        return np.asarray(cv2.cvtColor(self.render_ideal("overview", shadows=shadows),
+                                       cv2.COLOR_RGB2BGR), dtype=np.uint8)
 
     def cam2base_from_mujoco(self, camera: str = "arm_camera") -> FloatArray:
         """A camera's pose as MuJoCo has it, in OpenCV axes and mm (the arm camera's for

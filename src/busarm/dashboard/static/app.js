@@ -148,6 +148,9 @@
     },
     role(msg) { driver = msg.driver; renderRole(); },
     error(msg) {
+      // A request refused unparsed comes back as "?": its text starts with its type.
+      const named = /^([a-z_]+):/.exec(msg.text || '');
+      if ((!msg.request || msg.request === '?') && named) msg.request = named[1];
       // A jog_stop refused because this page watches: its jog never ran; say nothing loud.
       if (msg.request === 'jog_stop' && driver !== me) return;
       if (msg.request === 'jog' && jog) jog.refused = true;
@@ -678,11 +681,12 @@
     const link = $('report-link');
     link.href = withToken(`${base}report.json`);
     link.textContent = `${name}/report.json`;
-    for (const which of ['before', 'after']) {
+    for (const [which, file] of [['before', 'before.png'], ['after', 'after.png'],
+      ['camera', 'camera.gif']]) {
       const img = $(`report-${which}`);
       img.hidden = false;
-      img.onerror = () => { img.hidden = true; };
-      img.src = withToken(`${base}${which}.png`);
+      img.onerror = () => { img.hidden = true; };  // not in this report (a stopped run)
+      img.src = withToken(`${base}${file}`, { n: String(Date.now()) });
     }
   }
 
