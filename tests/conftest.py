@@ -11,6 +11,7 @@ import os
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
+from pathlib import Path
 
 import pytest
 from hypothesis import settings
@@ -106,3 +107,15 @@ def no_gc_pauses() -> Iterator[None]:
     finally:
         gc.enable()
         gc.unfreeze()
+
+
+@pytest.fixture(scope="session")
+def twin_calibration(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """The twin's camera calibration files (intrinsics, hand-eye), made once per test run
+    by our own flows (a few seconds), for the tests that need a calibrated twin."""
+    from busarm.robot import Robot
+
+    folder = tmp_path_factory.mktemp("twin-calibration")
+    with Robot.open("twin", calibration_dir=folder):
+        pass
+    return folder / "camera.json", folder / "hand_eye.json"

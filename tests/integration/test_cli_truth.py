@@ -232,17 +232,6 @@ def test_a_ctrl_c_at_any_moment_is_one_line_and_130(after_s: float) -> None:
 # ---------------------------------------------------------------------- pick-sort
 
 
-@pytest.fixture(scope="module")
-def twin_calibration(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    """The twin's camera calibration files, made once by our own flows."""
-    from busarm.robot import Robot
-
-    folder = tmp_path_factory.mktemp("twin-calibration")
-    with Robot.open("twin", calibration_dir=folder):
-        pass
-    return folder / "camera.json", folder / "hand_eye.json"
-
-
 def pick_sort(calibration: tuple[Path, Path], report: Path) -> Result:
     return run("pick-sort", "--seed", "3", "--blocks", "5", "--intrinsics",
                str(calibration[0]), "--hand-eye", str(calibration[1]), "--report", str(report),

@@ -56,10 +56,8 @@ def pick_sort(robot: Robot, request: PickSort, folder: Path,
     try:
         report, _ = job.run()
     except BusArmError as exc:
-        if not job.notes:
-            raise
-        kind = HaltedError if isinstance(exc, HaltedError) else BusArmError
-        raise kind("; ".join([str(exc), *job.notes])) from exc
+        exc.notes = job.notes  # type: ignore[attr-defined]  # for the message about the stop
+        raise
     t = report.totals()
     return f"sorted {t['sorted']}, failed {t['failed']}, skipped {t['skipped']}"
 

@@ -431,11 +431,13 @@ class RobotService:
     def _run_job(self, job: _Job, run: Callable[[_Job], str]) -> None:
         try:
             outcome = run(job)
-        except HaltedError:
-            self._end_job(job, "stopped", f"{job.name}: stopped ({self.arm.bus.halted or 'stop'})")
+        except HaltedError as exc:
+            self._end_job(job, "stopped", f"{job.name}: stopped ({self.arm.bus.halted or 'stop'})"
+                          + "".join(f"; {note}" for note in getattr(exc, "notes", [])))
         except BusArmError as exc:
             self.arm.bus.emergency_stop()
-            self._end_job(job, "failed", f"{job.name}: {exc}; every servo holds")
+            self._end_job(job, "failed", f"{job.name}: {exc}; every servo holds"
+                          + "".join(f"; {note}" for note in getattr(exc, "notes", [])))
         except Exception as exc:  # a bug must not leave the arm moving nor kill the server
             log.exception("job %s", job.name)
             self.arm.bus.emergency_stop()
