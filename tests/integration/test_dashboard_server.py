@@ -17,17 +17,22 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import cv2
+import numpy as np
+import numpy.typing as npt
 import pytest
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 
 from busarm.dashboard.access import Access
+from busarm.dashboard.feeds import Feed
 from busarm.dashboard.server import ServerThread
 from busarm.dashboard.service import JOG_HOLD_S, RobotService
 from busarm.protocol import Command, Request
 from busarm.robot import Robot
 from busarm.sim.transport import SimTransport
 from busarm.units import DEG_PER_PULSE
+from busarm.vision.camera import CameraBase
 
 TOKEN = "a-token-of-thirty-two-characters"
 
@@ -158,6 +163,20 @@ def test_bad_requests_are_refused_and_nothing_moves(server: Server, text: str,
     assert len(moves(server)) == before
 
 
+def test_binary_and_flooded_messages_are_refused_and_the_server_goes_on(server: Server) -> None:
+    with server.ws() as ws:
+        receive(ws, "welcome")
+        ws.send(b"\x55\x55\x01\x03\x0c\xef")  # bytes, not a request
+        assert "binary messages are not requests" in receive(ws, "error")["text"]
+        for _ in range(200):  # a page gone wrong: every one answered, none moves the arm
+            ws.send('{"type": "jog", "joint": "base_yaw", "direction": 0}')
+        for _ in range(200):
+            assert "direction = 0" in receive(ws, "error")["text"]
+    assert moves(server) == []
+    with server.ws() as ws:
+        assert receive(ws, "welcome")["role"] == "driver"
+
+
 def test_a_second_page_watches_and_takes_over_only_explicitly(server: Server) -> None:
     with server.ws() as driver, server.ws() as watcher:
         first, second = receive(driver, "welcome"), receive(watcher, "welcome")
@@ -285,3 +304,46 @@ def test_pages_of_other_sites_and_rebound_hosts_are_refused(server: Server) -> N
     assert refused.value.code == 403
     with server.ws(origin=server.url.rstrip("/")) as ws:  # type: ignore[arg-type]
         assert receive(ws, "welcome")["role"] == "driver"
+
+
+class SlowCamera(CameraBase):
+    """A camera whose first frame takes longer than a viewer's wait (a twin's first render
+    under load), then 20 frames a second."""
+
+    def __init__(self) -> None:
+        super().__init__("slow", 64, 48)
+        self.first = True
+
+    def _grab(self) -> npt.NDArray[np.uint8]:
+        time.sleep(2.5 if self.first else 0.05)
+        self.first = False
+        return np.full((48, 64, 3), 90, np.uint8)
+
+    def _release(self) -> None:
+        pass
+
+
+def test_a_camera_streams_as_mjpeg_even_when_its_first_frame_is_slow(tmp_path: Path) -> None:
+    robot = Robot.open("sim")
+    service = RobotService(robot, folder=tmp_path / "robot").start()
+    feed = Feed("wrist", SlowCamera(), fps=20)
+    http = ServerThread(service, Access.for_bind("127.0.0.1"), {"wrist": feed}).start()
+    try:
+        with urllib.request.urlopen(http.url + "camera/wrist.mjpg", timeout=10) as stream:
+            assert stream.headers["content-type"].startswith("multipart/x-mixed-replace")
+            data = b""
+            while data.count(b"Content-Type: image/jpeg") < 4:
+                chunk = stream.read1(65536)
+                assert chunk, f"the stream ended after {data.count(b'image/jpeg')} frames"
+                data += chunk
+        jpeg = data[data.index(b"\r\n\r\n") + 4:]
+        image = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
+        assert image is not None and image.shape == (48, 64, 3)
+        with pytest.raises(urllib.error.HTTPError) as missing:
+            urllib.request.urlopen(http.url + "camera/overview.mjpg", timeout=5)
+        assert missing.value.code == 404 and b"cameras: wrist" in missing.value.read()
+    finally:
+        http.stop()
+        feed.close()
+        service.close()
+        robot.close()

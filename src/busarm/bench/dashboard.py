@@ -1,8 +1,9 @@
 """``busarm bench dashboard``: the dashboard's rates and stopping times, on the twin in real
 time, through the real server on 127.0.0.1.
 
-- Rates: two pages' WebSocket clients count state messages while two MJPEG readers take
-  the wrist camera (640x480), all at once, for ``seconds``.
+- Rates: two headless Chromium pages show the dashboard (state, the wrist camera at
+  640x480 with the blocks drawn, the overview camera) for ``seconds``; the server counts
+  what it delivered to each (``/api/delivered``).
 - E-stop: a driver jogs, then sends ``estop``; the time from sending it to the first
   MOVE_STOP the servos receive (a probe on the twin's simulated bus, which the server
   never reads), ``tries`` times.
@@ -13,7 +14,6 @@ time, through the real server on 127.0.0.1.
 from __future__ import annotations
 
 import json
-import threading
 import time
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -26,10 +26,14 @@ from busarm.dashboard.access import Access
 from busarm.dashboard.feeds import robot_feeds
 from busarm.dashboard.server import ServerThread
 from busarm.dashboard.service import RobotService
+from busarm.errors import ConfigError
 from busarm.progress import Progress, quiet
 from busarm.protocol import Command, Request
 from busarm.robot import Robot
 from busarm.robot.calibration_store import CalibrationStore
+
+WARM_UP_S = 3.0
+"""The pages load, open their streams and the feeds start, before the count begins."""
 
 
 @dataclass
@@ -38,6 +42,7 @@ class DashboardBenchReport:
     seconds: float
     state_hz: list[float] = field(default_factory=list)
     camera_fps: list[float] = field(default_factory=list)
+    overview_fps: list[float] = field(default_factory=list)
     camera_size: str = ""
     estop_ms: dict[str, float] = field(default_factory=dict)
     deadman_ms: dict[str, float] = field(default_factory=dict)
@@ -53,49 +58,57 @@ def _ws(url: str) -> ClientConnection:
                    max_queue=None)
 
 
-def _count_states(url: str, seconds: float, out: list[float]) -> None:
-    with _ws(url) as ws:
-        n, end = 0, time.monotonic() + seconds
-        start = time.monotonic()
-        while time.monotonic() < end:
-            if json.loads(ws.recv(timeout=5))["type"] == "state":
-                n += 1
-        out.append(n / (time.monotonic() - start))
+CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu",
+                  "--disable-background-networking", "--disable-component-update",
+                  "--no-first-run"]
 
 
-def _count_frames(url: str, seconds: float, out: list[float], size: list[str]) -> None:
+def _get(url: str) -> dict[str, Any]:
     import urllib.request
 
-    import cv2
-    import numpy as np
-
-    with urllib.request.urlopen(url + "camera/wrist.mjpg", timeout=10) as stream:
-        n, buf, start = 0, b"", time.monotonic()
-        while time.monotonic() - start < seconds:
-            buf += stream.read1(65536)
-            while (end := buf.find(b"\r\n--frame", 1)) > 0:
-                part, buf = buf[:end], buf[end + 2:]
-                jpeg = part[part.find(b"\r\n\r\n") + 4:]
-                if n == 0:
-                    image = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
-                    size.append("not a JPEG" if image is None else
-                                f"{image.shape[1]}x{image.shape[0]}")
-                n += 1
-        out.append(n / (time.monotonic() - start))
+    with urllib.request.urlopen(url, timeout=10) as reply:
+        return dict(json.loads(reply.read()))
 
 
-def _rates(url: str, seconds: float, report: DashboardBenchReport) -> None:
-    size: list[str] = []
-    workers = [threading.Thread(target=_count_states, args=(url, seconds, report.state_hz))
-               for _ in range(2)]
-    workers += [threading.Thread(target=_count_frames,
-                                 args=(url, seconds, report.camera_fps, size))
-                for _ in range(2)]
-    for w in workers:
-        w.start()
-    for w in workers:
-        w.join()
-    report.camera_size = size[0] if size else "no frame"
+def _rates(url: str, seconds: float, report: DashboardBenchReport,
+           progress: Progress) -> None:
+    """Two headless Chromium pages on the dashboard (each showing the cameras); what the
+    server delivered to them over ``seconds``, after a warm-up."""
+    import shutil
+    import tempfile
+
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        raise ConfigError("bench dashboard drives two browsers: it needs Playwright "
+                          "(pip install -e '.[dev]')") from None
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    if chromium is None:
+        raise ConfigError("bench dashboard drives two browsers: it needs Chromium "
+                          "(make browser, or apt-get install chromium)")
+    with sync_playwright() as playwright, tempfile.TemporaryDirectory() as tmp:
+        contexts = [playwright.chromium.launch_persistent_context(
+            f"{tmp}/{k}", executable_path=chromium, headless=True, args=CHROMIUM_FLAGS,
+            viewport={"width": 1280, "height": 800}) for k in range(2)]
+        try:
+            for context in contexts:
+                context.pages[0].goto(url)
+            time.sleep(WARM_UP_S)
+            progress(f"two browsers on the page for {seconds:g} s...")
+            before, start = _get(url + "api/delivered"), time.monotonic()
+            time.sleep(seconds)
+            after, took = _get(url + "api/delivered"), time.monotonic() - start
+        finally:
+            for context in contexts:
+                context.close()
+    report.state_hz = [round((n - before["states"].get(c, 0)) / took, 1)
+                       for c, n in after["states"].items() if c in before["states"]]
+    report.camera_fps = [round((n - before["frames"].get(k, 0)) / took, 1)
+                         for k, n in after["frames"].items()
+                         if k.startswith("wrist") and k in before["frames"]]
+    report.overview_fps = [round((n - before["frames"].get(k, 0)) / took, 1)
+                           for k, n in after["frames"].items()
+                           if k.startswith("overview") and k in before["frames"]]
 
 
 def _stops_after(seen: list[tuple[float, Request]], t0: float, timeout_s: float = 2.0) -> float:
@@ -150,10 +163,10 @@ def run_dashboard_bench(*, seconds: float = 10.0, tries: int = 50,
             else None)
         service = RobotService(robot).start()
         feeds = robot_feeds(robot, fps=15)
+        report.camera_size = f"{robot.camera.width_px}x{robot.camera.height_px}"
         http = ServerThread(service, Access.for_bind("127.0.0.1"), feeds).start()
         try:
-            progress(f"two pages and two camera streams for {seconds:g} s...")
-            _rates(http.url, seconds, report)
+            _rates(http.url, seconds, report, progress)
             _stops(http.url, seen, tries, report, progress)
         finally:
             http.stop()

@@ -11,6 +11,7 @@ from rich.table import Table
 
 from busarm.bench.bus import BusBenchReport, run_bench, sim_pty_server
 from busarm.cli.common import IdListType, RangeType, Settings, pass_settings
+from busarm.units import listing
 
 if TYPE_CHECKING:
     from busarm.bench.ik import IkBenchReport
@@ -54,7 +55,8 @@ def bench(
     if click.get_current_context().invoked_subcommand is not None:
         return
     kwargs = dict(servo_ids=servo_ids, reads=reads, loops=loops, scans=scans,
-                  turnaround_ms=turnaround_ms, echo=settings.echo)
+                  turnaround_ms=turnaround_ms, echo=settings.echo,
+                  progress=lambda text: settings.err.print(f"bench {text}", highlight=False))
     if settings.port == "sim":
         ids = ",".join(map(str, servo_ids))
         with sim_pty_server(turnaround_ms, ids, echo=sim_echo) as path:
@@ -96,7 +98,8 @@ def _print(settings: Settings, report: BusBenchReport) -> None:
     assert scan is not None
     settings.out.print(
         f"scan: best {scan.best_s} s, median {scan.median_s} s "
-        f"(target <= {TARGET_SCAN_S} s), found {scan.found}"
+        f"(target <= {TARGET_SCAN_S} s), found {len(scan.found)} servo(s)"
+        + (f": {listing(scan.found)}" if scan.found else "")
     )
 
 
@@ -224,18 +227,20 @@ def bench_locate(settings: Settings, placements: int, seed: int, keep: Path | No
 
 def _print_locate(settings: Settings, report: LocateBenchReport) -> None:
     from busarm.bench.locate import TARGET_MEDIAN_MM, TARGET_P95_MM
+    from busarm.vision.calibration import distortion_text
 
     intr, he, a = report.calibration.intrinsics, report.calibration.hand_eye, report.accuracy
     ok_median = a.median_mm <= TARGET_MEDIAN_MM
     ok_p95 = a.p95_mm <= TARGET_P95_MM
     settings.out.print(
-        f"[bold]busarm bench locate[/] (twin, lens distortion {report.twin_lens_distortion})\n"
+        f"[bold]busarm bench locate[/] (twin, lens distortion "
+        f"{distortion_text(report.twin_lens_distortion)})\n"
         f"intrinsics: rms {intr.rms_px:.3f} px over {intr.views} views; hand-eye: rms "
         f"{he.rms_px:.3f} px over {he.views} views, {he.error_vs_truth_mm:.2f} mm / "
         f"{he.error_vs_truth_deg:.3f} deg from the truth\n"
         f"placements {a.placements}: located {a.located}, missed {a.missed}, wrong "
         f"colour {a.wrong_color}, in {a.pictures} pictures\n"
-        f"error: median {a.median_mm:.2f} mm "
+        f"location error: median {a.median_mm:.2f} mm "
         f"({'[green]ok[/]' if ok_median else '[red]FAIL[/]'} <= {TARGET_MEDIAN_MM:g}), "
         f"p95 {a.p95_mm:.2f} mm ({'[green]ok[/]' if ok_p95 else '[red]FAIL[/]'} "
         f"<= {TARGET_P95_MM:g}), max {a.max_mm:.2f} mm")
@@ -299,14 +304,14 @@ def bench_dashboard(settings: Settings, seconds: float, tries: int, as_json: boo
         click.echo(json.dumps(report.as_dict(), indent=2))
         return
     ok = {True: "[green]ok[/]", False: "[red]FAIL[/]"}
-    hz, fps = min(report.state_hz), min(report.camera_fps)
+    hz, fps = min(report.state_hz, default=0.0), min(report.camera_fps, default=0.0)
     settings.out.print(
         f"[bold]busarm bench dashboard[/] on the twin in real time ({report.machine['cpu']}, "
         f"{report.machine['cores']} cores)\n"
-        f"state to two pages: {', '.join(f'{v:.1f}' for v in report.state_hz)} Hz "
-        f"({ok[hz >= 20]} >= 20) while two streams of the wrist camera ({report.camera_size}) "
-        f"ran at {', '.join(f'{v:.1f}' for v in report.camera_fps)} fps ({ok[fps >= 15]} "
-        f">= 15)\n"
+        f"two browsers: state {', '.join(f'{v:.1f}' for v in report.state_hz)} Hz "
+        f"({ok[hz >= 20]} >= 20) while the wrist camera ({report.camera_size}) streamed to "
+        f"them at {', '.join(f'{v:.1f}' for v in report.camera_fps)} fps ({ok[fps >= 15]} "
+        f">= 15; the overview at {', '.join(f'{v:.1f}' for v in report.overview_fps)})\n"
         f"e-stop sent -> MOVE_STOP at the servos, {report.tries} tries: p50 "
         f"{report.estop_ms['p50']:.1f} ms, p99 {report.estop_ms['p99']:.1f} ms, max "
         f"{report.estop_ms['max']:.1f} ms ({ok[report.estop_ms['p99'] <= 100]} p99 <= 100)\n"

@@ -53,6 +53,7 @@ class Feed:
         self._jpeg = b""
         self._sequence = 0
         self._wanted_at = 0.0
+        self._waiting = 0  # viewers waiting for a frame now (a slow first one, say)
         self._thread: threading.Thread | None = None
         self._closed = False
         self.error: str | None = None
@@ -64,12 +65,21 @@ class Feed:
         ``timeout_s`` (then the newest one, maybe old); starts the thread if idle."""
         with self._cond:
             self._wanted_at = time.monotonic()
+            self._waiting += 1
             if not self._closed and (self._thread is None or not self._thread.is_alive()):
                 self._thread = threading.Thread(target=self._run, daemon=True,
                                                 name=f"busarm-feed-{self.name}")
                 self._thread.start()
-            self._cond.wait_for(lambda: self._sequence > after or self._closed, timeout_s)
-            return self._sequence, self._jpeg
+            try:
+                self._cond.wait_for(lambda: self._sequence > after or self._closed, timeout_s)
+                return self._sequence, self._jpeg
+            finally:
+                self._waiting -= 1
+                self._wanted_at = time.monotonic()
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
 
     def close(self) -> None:
         with self._cond:
@@ -82,7 +92,8 @@ class Feed:
     def _run(self) -> None:
         period = 1.0 / self.fps
         try:
-            while not self._closed and time.monotonic() - self._wanted_at < IDLE_STOP_S:
+            while not self._closed and (
+                    self._waiting or time.monotonic() - self._wanted_at < IDLE_STOP_S):
                 start = time.monotonic()
                 self._publish(self._encode())
                 time.sleep(max(0.0, period - (time.monotonic() - start)))
@@ -120,8 +131,13 @@ def _message_image(text: str, width: int = 640, height: int = 480) -> Image:
     return image
 
 
+OVERVIEW_FPS = 5.0
+"""The twin's overview camera (context, not control) at most this often: CPU for the rest."""
+
+
 def robot_feeds(robot: Robot, fps: float) -> dict[str, Feed]:
-    """A feed for each of the robot's cameras (``wrist`` with the blocks it sees drawn on).
+    """A feed for each of the robot's cameras (``wrist`` with the blocks it sees drawn on,
+    ``fps`` a second; the twin's ``overview`` at most OVERVIEW_FPS).
 
     A twin's cameras are rendered for the page without shadows (several times cheaper on
     a CPU, which is what lets the page have 15 frames a second); the pictures vision and
@@ -135,6 +151,7 @@ def robot_feeds(robot: Robot, fps: float) -> dict[str, Feed]:
         sources = {name: TwinCamera(twin, view="arm" if name == "wrist" else "overview",
                                     shadows=False) for name in sources}
     boxes = block_boxes(["red", "green", "blue", "yellow"])
-    return {name: Feed(name, source, fps=fps, draw=boxes if name == "wrist" else None,
+    return {name: Feed(name, source, fps=fps if name == "wrist" else min(fps, OVERVIEW_FPS),
+                       draw=boxes if name == "wrist" else None,
                        on_thread_end=twin.release_renderers if twin is not None else None)
             for name, source in sources.items()}

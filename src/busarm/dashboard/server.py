@@ -48,9 +48,25 @@ OUTBOX = 64
 _ids = itertools.count(1)
 
 
+class Delivered:
+    """What the server has sent: state messages per page, frames per camera stream (for
+    the benchmark: ``GET /api/delivered``)."""
+
+    def __init__(self) -> None:
+        self.states: dict[str, int] = {}
+        self.frames: dict[str, int] = {}
+        self._streams = itertools.count(1)
+
+    def stream(self, camera: str) -> str:
+        key = f"{camera}-{next(self._streams)}"
+        self.frames[key] = 0
+        return key
+
+
 def make_app(service: RobotService, access: Access, feeds: dict[str, Feed]) -> FastAPI:
     """The application: routes for the page, its WebSocket, cameras and reports."""
     app = FastAPI(title="busarm dashboard", docs_url=None, redoc_url=None, openapi_url=None)
+    delivered = Delivered()
 
     class Guard(BaseHTTPMiddleware):
         async def dispatch(self, request: Request,
@@ -79,6 +95,10 @@ def make_app(service: RobotService, access: Access, feeds: dict[str, Feed]) -> F
     async def state() -> JSONResponse:
         return JSONResponse(json.loads(message("state", **service.last_state)))
 
+    @app.get("/api/delivered")
+    async def counts() -> JSONResponse:
+        return JSONResponse({"states": delivered.states, "frames": delivered.frames})
+
     @app.get("/api/robot")
     async def robot() -> JSONResponse:
         return JSONResponse(service.describe())
@@ -89,7 +109,7 @@ def make_app(service: RobotService, access: Access, feeds: dict[str, Feed]) -> F
         if feed is None:
             return JSONResponse({"error": f"no camera {name!r}; cameras: "
                                           f"{', '.join(feeds) or 'none'}"}, status_code=404)
-        return StreamingResponse(_mjpeg(feed),
+        return StreamingResponse(_mjpeg(feed, delivered, delivered.stream(name)),
                                  media_type="multipart/x-mixed-replace; boundary=frame")
 
     @app.get("/reports/{name}/{file:path}")
@@ -108,7 +128,7 @@ def make_app(service: RobotService, access: Access, feeds: dict[str, Feed]) -> F
             await socket.close(code=1008, reason=why[:120])
             return
         await socket.accept()
-        await _session(socket, service)
+        await _session(socket, service, delivered)
 
     return app
 
@@ -122,17 +142,20 @@ def _static(name: str) -> Response:
                     headers={"Cache-Control": "no-cache"})
 
 
-async def _mjpeg(feed: Feed) -> AsyncIterator[bytes]:
+async def _mjpeg(feed: Feed, delivered: Delivered, key: str) -> AsyncIterator[bytes]:
     sequence = 0
     while True:
         sequence, jpeg = await asyncio.to_thread(feed.next_jpeg, sequence)
-        if not jpeg:
+        if feed.closed:
             return
+        if not jpeg:  # none yet (a first frame can take seconds): wait on
+            continue
+        delivered.frames[key] += 1
         yield (b"--frame\r\nContent-Type: image/jpeg\r\nContent-Length: "
                + str(len(jpeg)).encode() + b"\r\n\r\n" + jpeg + b"\r\n")
 
 
-async def _session(socket: WebSocket, service: RobotService) -> None:
+async def _session(socket: WebSocket, service: RobotService, delivered: Delivered) -> None:
     """One page: its messages in (each request carried out off the event loop), and
     everything the service says out, through a bounded outbox."""
     client = f"p{next(_ids)}"
@@ -143,10 +166,18 @@ async def _session(socket: WebSocket, service: RobotService) -> None:
         loop.call_soon_threadsafe(_offer, outbox, text)
 
     welcome = service.subscribe(client, put)
-    sender = asyncio.create_task(_send_all(socket, outbox, welcome))
+    delivered.states[client] = 0
+    sender = asyncio.create_task(_send_all(socket, outbox, welcome, delivered, client))
     try:
         while True:
-            text = await socket.receive_text()
+            received = await socket.receive()
+            if received["type"] == "websocket.disconnect":
+                break
+            text = received.get("text")
+            if text is None:  # a binary frame
+                await socket.send_text(message("error", request="?", text="binary messages "
+                                               "are not requests: send JSON text"))
+                continue
             await _answer(socket, service, client, text)
     except (WebSocketDisconnect, RuntimeError):
         pass
@@ -170,11 +201,15 @@ def _drain(outbox: asyncio.Queue[str]) -> list[str]:
     return out
 
 
-async def _send_all(socket: WebSocket, outbox: asyncio.Queue[str], first: str) -> None:
+async def _send_all(socket: WebSocket, outbox: asyncio.Queue[str], first: str,
+                    delivered: Delivered, client: str) -> None:
     try:
         await socket.send_text(first)
         while True:
-            await socket.send_text(await outbox.get())
+            text = await outbox.get()
+            await socket.send_text(text)
+            if text.startswith('{"type":"state"'):
+                delivered.states[client] += 1
     except (WebSocketDisconnect, RuntimeError):
         pass
 
