@@ -22,6 +22,7 @@ from busarm.cli.common import (
     pass_settings,
     scene_options,
 )
+from busarm.cli.sessions import find_session
 from busarm.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -104,19 +105,25 @@ def _run(settings: Settings, sock: socket.socket, access: Access,
     from busarm.dashboard.service import RobotService
 
     scene_file, seed, blocks, colors = table
-    on_twin = not settings.port_given or settings.port.startswith("twin")
+    table_given = scene_file is not None or seed is not None or blocks is not None or (
+        colors is not None)
+    # Without --port: the arm of a running `sim serve`/`twin serve` (watch what other
+    # commands do to it), unless a table was asked for; else a twin of its own.
+    default = "sim" if not settings.port_given and not table_given and (
+        find_session() is not None) else DEFAULT_PORT
+    on_twin = default == DEFAULT_PORT if not settings.port_given else (
+        settings.port.startswith("twin"))
     scene = (make_scene(scene_file, seed, blocks, colors) if on_twin and (
-        scene_file or seed is not None or blocks is not None or not settings.port_given)
-        else None)
+        table_given or not settings.port_given) else None)
     if settings.port_given:
         settings.port = realtime_twin(settings.port)
-    store = calibration_store(settings, default="twin")
+    store = calibration_store(settings, default=default if default == "sim" else "twin")
 
     def say(text: str) -> None:
         if " view " not in text:
             settings.err.print(text, highlight=False, soft_wrap=True)
 
-    with settings.open_robot(default=DEFAULT_PORT, camera=camera_src,
+    with settings.open_robot(default=default, camera=camera_src,
                              config=load_arm_config(config), scene=scene,
                              calibration_store=store, progress=say) as robot:
         service = RobotService(robot, reports=reports_dir).start()
@@ -125,7 +132,8 @@ def _run(settings: Settings, sock: socket.socket, access: Access,
         def announce(link: str) -> None:
             click.echo(link)
             sys.stdout.flush()
-            where = "the twin (real time)" if robot.is_twin else robot.port
+            where = "the twin (real time)" if robot.is_twin else (
+                settings.session.describe() if settings.session is not None else robot.port)
             settings.err.print(
                 f"dashboard of the {robot.config.name} on {where}: open {link} in a browser"
                 + ("" if access.loopback else " (the token is in the link: keep it to "
