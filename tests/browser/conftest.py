@@ -30,10 +30,11 @@ import sys
 import threading
 import urllib.request
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-from urllib.parse import urlsplit
+from urllib.parse import parse_qs, urlsplit
 
 import pytest
 from playwright.sync_api import (
@@ -155,42 +156,43 @@ twin's camera, about 8 s on a free machine)."""
 
 @dataclass(frozen=True)
 class Dashboard:
-    """A `busarm dashboard` subprocess on the twin: its page's link and reports folder."""
+    """A `busarm dashboard` subprocess on the twin: its page's link (as printed: with
+    ``?token=`` when it has one) and reports folder."""
 
     url: str
     reports: Path
     process: subprocess.Popen[bytes]
 
+    @property
+    def base(self) -> str:
+        """The link without its query: ``http://127.0.0.1:PORT/``."""
+        return self.url.split("?")[0]
+
+    @property
+    def token(self) -> str | None:
+        return parse_qs(urlsplit(self.url).query).get("token", [None])[0]
+
     def api(self, what: str) -> dict[str, Any]:
-        """GET /api/WHAT (state, robot) as JSON."""
-        base = self.url.split("?")[0]
-        with urllib.request.urlopen(f"{base}api/{what}", timeout=5) as reply:
+        """GET /api/WHAT (state, robot) as JSON (with the token, if any)."""
+        headers = {"Authorization": f"Bearer {self.token}"} if self.token else {}
+        request = urllib.request.Request(f"{self.base}api/{what}", headers=headers)
+        with urllib.request.urlopen(request, timeout=5) as reply:
             data: dict[str, Any] = json.load(reply)
         return data
 
 
-@pytest.fixture(scope="session")
-def dashboard_config_home(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """One XDG config folder for every dashboard of the session: the twin's camera
-    calibration is made once, then kept there."""
-    return tmp_path_factory.mktemp("dashboard-config")
-
-
-@pytest.fixture(scope="module")
-def dashboard(
-    dashboard_config_home: Path, tmp_path_factory: pytest.TempPathFactory
-) -> Iterator[Dashboard]:
-    """`busarm dashboard --http-port 0` on the twin (real time), one per test module.
-    Stopped with SIGINT (a Ctrl+C) at the end: it must exit 0 or 130 and print no
-    traceback."""
-    folder = tmp_path_factory.mktemp("dashboard")
+@contextmanager
+def running_dashboard(config_home: Path, folder: Path, *args: str) -> Iterator[Dashboard]:
+    """`busarm dashboard --http-port 0 ARGS` on the twin (real time), config in
+    ``config_home``, reports and stderr in ``folder``. Stopped with SIGINT (a Ctrl+C) at
+    the end: it must exit 0 or 130 and print no traceback."""
     reports = folder / "reports"
-    env = {**os.environ, "XDG_CONFIG_HOME": str(dashboard_config_home)}
+    env = {**os.environ, "XDG_CONFIG_HOME": str(config_home)}
     stderr_path = folder / "stderr.txt"
     with stderr_path.open("wb") as stderr:
         process = subprocess.Popen(
             [sys.executable, "-m", "busarm", "dashboard", "--http-port", "0",
-             "--reports", str(reports)],
+             "--reports", str(reports), *args],
             stdout=subprocess.PIPE, stderr=stderr, env=env,
         )
     lines: queue.Queue[bytes] = queue.Queue()
@@ -227,3 +229,19 @@ def dashboard(
     err = stderr_path.read_text()
     assert process.returncode in (0, 130), f"exit code {process.returncode}; stderr:\n{err}"
     assert "Traceback" not in err, err
+
+
+@pytest.fixture(scope="session")
+def dashboard_config_home(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One XDG config folder for every dashboard of the session: the twin's camera
+    calibration is made once, then kept there."""
+    return tmp_path_factory.mktemp("dashboard-config")
+
+
+@pytest.fixture(scope="module")
+def dashboard(
+    dashboard_config_home: Path, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[Dashboard]:
+    """`busarm dashboard --http-port 0` on the twin (real time), one per test module."""
+    with running_dashboard(dashboard_config_home, tmp_path_factory.mktemp("dashboard")) as d:
+        yield d

@@ -13,22 +13,41 @@ from __future__ import annotations
 import os
 import re
 import time
+from collections.abc import Iterator
 from pathlib import Path
+from urllib.parse import urlencode, urlsplit
 
 import pytest
-from playwright.sync_api import Page, expect
+from playwright.sync_api import Page, WebSocketRoute, expect
 
-from browser.conftest import Dashboard
+from browser.conftest import Dashboard, running_dashboard
 
 DOCS_PICTURE = Path(__file__).resolve().parents[2] / "docs" / "dashboard.png"
 JOINT = "base_yaw"
 STILL_DEG = 0.5
 
 
-def open_page(page: Page, dashboard: Dashboard, query: str = "cameras=off") -> None:
-    """Open the page (cameras off unless asked: they cost the twin renders), wait for the
-    live state, take the driver's seat and make sure the robot is not stopped."""
-    page.goto(f"{dashboard.url}?{query}")
+@pytest.fixture(autouse=True)
+def no_script_errors(page: Page) -> Iterator[list[str]]:
+    """Every test fails on an uncaught error in the page's script (pages a test opens
+    itself add theirs to this list)."""
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    yield errors
+    assert not errors, errors
+
+
+def page_url(dashboard: Dashboard, cameras: bool = False) -> str:
+    """The page's link, with the dashboard's token if it has one; cameras off unless
+    asked (each costs the twin a render 15 times a second)."""
+    query = {"token": dashboard.token} if dashboard.token else {}
+    return f"{dashboard.base}?{urlencode({**query, **({} if cameras else {'cameras': 'off'})})}"
+
+
+def open_page(page: Page, dashboard: Dashboard, cameras: bool = False) -> None:
+    """Open the page, wait for the live state, take the driver's seat and make sure the
+    robot is not stopped."""
+    page.goto(page_url(dashboard, cameras))
     expect(page.locator("#conn")).to_have_attribute("data-state", "connected")
     expect(page.locator("#state-count")).not_to_have_text("0")
     role = page.locator("#role")
@@ -148,6 +167,19 @@ def test_holding_a_key_jogs_and_releasing_it_stops(page: Page, dashboard: Dashbo
     assert before - after >= 5, f"{JOINT} {before:.1f} -> {after:.1f} deg for 1 s held"
 
 
+def test_losing_focus_stops_a_held_key(page: Page, dashboard: Dashboard) -> None:
+    open_page(page, dashboard)
+    before = still_deg(dashboard)
+    page.keyboard.down("q")  # base_yaw +
+    try:
+        page.wait_for_timeout(600)
+        page.evaluate("window.dispatchEvent(new Event('blur'))")  # another window's turn
+        moved = still_deg(dashboard)  # stopped, the key still down
+    finally:
+        page.keyboard.up("q")
+    assert moved - before >= 3, f"{JOINT} {before:.1f} -> {moved:.1f} deg"
+
+
 def test_estop_button_halts_and_jogs_are_refused_until_rearmed(
     page: Page, dashboard: Dashboard
 ) -> None:
@@ -170,12 +202,13 @@ def test_estop_button_halts_and_jogs_are_refused_until_rearmed(
 
 
 def test_a_second_page_watches_and_takes_over_explicitly(
-    page: Page, dashboard: Dashboard
+    page: Page, dashboard: Dashboard, no_script_errors: list[str]
 ) -> None:
     open_page(page, dashboard)
     watcher = page.context.new_page()
+    watcher.on("pageerror", lambda exc: no_script_errors.append(str(exc)))
     try:
-        watcher.goto(f"{dashboard.url}?cameras=off")
+        watcher.goto(page_url(dashboard))
         expect(watcher.locator("#conn")).to_have_attribute("data-state", "connected")
         driver_id = dashboard.api("state")["driver"]
         expect(watcher.locator("#role")).to_have_text(f"watching (page {driver_id} drives)")
@@ -204,6 +237,46 @@ def test_a_second_page_watches_and_takes_over_explicitly(
         watcher.close()
 
 
+def test_poses_groups_gripper_and_torque_controls(page: Page, dashboard: Dashboard) -> None:
+    open_page(page, dashboard)
+    # A pose saved from the page comes back as a button (the server's `robot` message).
+    page.locator("#pose-name").fill("browser_pose")
+    page.locator("#save-pose").click()
+    expect(page.locator('[data-pose="browser_pose"]')).to_be_visible()
+    # An action group recorded from the page: start, one frame, save; it can be chosen.
+    page.locator("#rec-start").click()
+    expect(page.locator("#rec-frames")).to_have_text("recording: 0 frames")
+    page.locator("#rec-duration").fill("500")
+    page.locator("#rec-frame").click()
+    expect(page.locator("#rec-frames")).to_have_text("recording: 1 frame")
+    page.locator("#rec-name").fill("browser_group")
+    page.locator("#rec-save").click()
+    expect(page.locator("#rec-frames")).to_have_text("not recording")
+    expect(page.locator('#group-select option[value="browser_group"]')).to_have_count(1)
+    # A bad name is refused by the server, and the page says so.
+    page.locator("#rec-start").click()
+    page.locator("#rec-name").fill("no spaces")
+    page.locator("#rec-save").click()
+    expect(page.locator('[data-testid="error-toast"][data-request="record"]').first
+           ).to_contain_text("expected 1..64 letters")
+    page.locator("#rec-cancel").click()
+    # The gripper: a job, shown while it runs and when it is done.
+    page.locator("#grip-close").click()
+    expect(page.locator("#job-last")).to_contain_text("gripper close done", timeout=15_000)
+    expect(page.locator("#gripper-state")).to_have_text(re.compile("closed|holding"))
+    page.locator("#grip-open").click()
+    expect(page.locator("#job-last")).to_contain_text("gripper open done", timeout=15_000)
+    expect(page.locator("#gripper-state")).to_have_text("open")
+    # Torque of the gripper's servo: off (limp), then on again, as read back.
+    gripper = dashboard.api("robot")["gripper_id"]
+    torque = page.locator(f'[data-torque="{gripper}"]')
+    expect(torque).to_have_text("on")
+    torque.click()
+    expect(torque).to_have_text("off")
+    torque.click()
+    expect(torque).to_have_text("on")
+
+
 def test_escape_key_is_the_estop(page: Page, dashboard: Dashboard) -> None:
     open_page(page, dashboard)
     page.locator("#pose-name").click()  # even while typing in a field
@@ -215,17 +288,74 @@ def test_escape_key_is_the_estop(page: Page, dashboard: Dashboard) -> None:
     expect(page.locator("#halted-banner")).to_be_hidden()
 
 
+def test_pick_sort_runs_stops_and_links_its_report(page: Page, dashboard: Dashboard) -> None:
+    open_page(page, dashboard)
+    page.locator('#pick-colors input[data-color="blue"]').uncheck()
+    page.locator("#pick-run").click()
+    expect(page.locator("#job")).to_contain_text("pick-sort: ", timeout=20_000)
+    page.locator("#job-stop").click()
+    expect(page.locator("#job-last")).to_contain_text("pick-sort stopped", timeout=15_000)
+    link = page.locator("#report-link")
+    expect(link).to_be_visible()
+    href = link.get_attribute("href")
+    assert href is not None and href.endswith("/report.json")
+    name = href.split("/")[2]
+    assert (dashboard.reports / name / "report.json").is_file()
+    report = page.request.get(f"{dashboard.base.rstrip('/')}{href}")
+    assert report.ok and report.json()["stopped"], report.text()
+    page.locator('[data-pose="look"]').click()  # where it started, the blocks in view
+    expect(page.locator("#job-last")).to_contain_text("move to look done", timeout=15_000)
+
+
+def test_page_reconnects_after_a_lost_connection(page: Page, dashboard: Dashboard) -> None:
+    sockets: list[tuple[WebSocketRoute, WebSocketRoute]] = []
+
+    def through(ws: WebSocketRoute) -> None:  # the page's socket, passed on to the server
+        sockets.append((ws, ws.connect_to_server()))
+
+    page.route_web_socket(lambda url: urlsplit(url).path == "/ws", through)
+    open_page(page, dashboard)
+    to_page, to_server = sockets[-1]
+    to_server.close(code=1000)  # the connection is lost, at both ends
+    to_page.close(code=1011, reason="cut by the test")
+    conn = page.locator("#conn")
+    expect(conn).to_contain_text("connection lost (cut by the test): retrying")
+    expect(page.locator("#role")).to_have_text("not connected")
+    expect(conn).to_have_attribute("data-state", "connected")
+    assert len(sockets) == 2
+    expect(page.locator("#role")).to_have_text("you drive")  # the seat was free again
+    count = int(page.locator("#state-count").inner_text())
+    expect(page.locator("#state-count")).not_to_have_text(str(count))
+
+
+def test_the_token_goes_on_to_the_socket_and_the_cameras(
+    page: Page, dashboard_config_home: Path, tmp_path: Path
+) -> None:
+    token = "a-token-for-the-browser-test"
+    with running_dashboard(dashboard_config_home, tmp_path, "--token", token) as dashboard:
+        assert dashboard.token == token
+        sockets: list[str] = []
+        page.on("websocket", lambda ws: sockets.append(ws.url))
+        with page.expect_response(
+                lambda r: urlsplit(r.url).path == "/camera/wrist.mjpg") as camera:
+            open_page(page, dashboard, cameras=True)
+        page.locator("#cameras-toggle").uncheck()  # no renders for the rest of the test
+        assert sockets and all(f"token={token}" in url for url in sockets), sockets
+        assert f"token={token}" in camera.value.url
+        assert camera.value.status == 200  # the stream began: the token was accepted
+
+
 def test_page_with_cameras_at_1280x800(
     page: Page, dashboard: Dashboard, tmp_path: Path
 ) -> None:
     page.set_viewport_size({"width": 1280, "height": 800})
-    open_page(page, dashboard, query="")
+    open_page(page, dashboard, cameras=True)
     for camera in dashboard.api("robot")["cameras"]:
         img = page.locator(f"#cam-{camera}")
         expect(img).to_be_visible()
         page.wait_for_function(
             "sel => document.querySelector(sel).naturalWidth > 0", arg=f"#cam-{camera}",
-            timeout=20_000)
+            timeout=30_000)  # a first frame can take seconds
     page.wait_for_timeout(500)
     picture = page.screenshot()
     assert picture.startswith(b"\x89PNG")

@@ -13,8 +13,8 @@ heartbeat     (none): sent every 100 ms; a jog stops when none came for 300 ms
 drive         take the driver's seat (``take_over``: true to take it from another page)
 release       leave it
 jog           ``joint`` (a joint name) or ``axis`` (x, y, z, pitch), ``direction``
-              (+1/-1), ``speed`` (0.05..1 of the jog speed): move while these keep
-              coming (a deadman: each one holds the jog for 300 ms more)
+              (+1/-1), ``speed`` (0.05..1 of the jog speed): move until ``jog_stop``,
+              or until the driver falls silent (no message for 300 ms: the deadman)
 jog_stop      stop a jog now (the key or button was released, the page lost focus)
 move_pose     ``name``: go to a named pose (the config's or saved ones)
 save_pose     ``name``: keep the present joints under that name
@@ -127,6 +127,15 @@ def parse_request(text: str | bytes, joint_names: tuple[str, ...]) -> Request:
         raise RequestError(f"type {_show(kind)}: unknown; allowed: {', '.join(_PARSERS)}")
     fields = {k: v for k, v in message.items() if k != "type"}
     return _PARSERS[kind](kind, fields, joint_names)
+
+
+def request_type(text: str | bytes) -> str:
+    """The ``type`` a message names, if it is readable at all (for naming a refusal)."""
+    try:
+        kind = json.loads(text).get("type") if len(text) <= MAX_MESSAGE_BYTES else None
+    except (ValueError, UnicodeDecodeError, AttributeError):
+        return "?"
+    return kind if isinstance(kind, str) and kind in _PARSERS else "?"
 
 
 def _show(value: object) -> str:

@@ -34,7 +34,7 @@ from starlette.middleware.base import BaseHTTPMiddleware, RequestResponseEndpoin
 
 from busarm.dashboard.access import COOKIE, Access
 from busarm.dashboard.feeds import Feed
-from busarm.dashboard.protocol import message, parse_request
+from busarm.dashboard.protocol import message, parse_request, request_type
 from busarm.dashboard.service import RobotService
 from busarm.errors import BusArmError, ConfigError
 
@@ -216,7 +216,7 @@ async def _send_all(socket: WebSocket, outbox: asyncio.Queue[str], first: str,
 
 async def _answer(socket: WebSocket, service: RobotService, client: str, text: str) -> None:
     """Carry out one request; a refusal goes back to this page alone."""
-    kind = "?"
+    kind = request_type(text)
     try:
         request = parse_request(text, service.names)
         kind = request.type

@@ -134,10 +134,10 @@ class RobotService:
         """Add a page (``publish`` gets every message as JSON text); its welcome message.
         The first page becomes the driver if there is none."""
         with self._lock:
-            self._subscribers[client] = publish
             if self.driver is None:
                 self.driver, self._heard = client, time.monotonic()
-                self.log(f"page {client} drives")
+                self.log(f"page {client} drives")  # before it listens: in its welcome's log
+            self._subscribers[client] = publish
             return message("welcome", client=client, role=self._role(client),
                            robot=self.describe(), log=list(self.log_lines))
 

@@ -416,8 +416,8 @@
           const e = P(r, 0);
           g.strokeStyle = r % 200 ? '#262b35' : '#323846';
           g.beginPath(); g.arc(c[0], c[1], Math.abs(e[0] - c[0]), 0, Math.PI * 2); g.stroke();
-          const at = P(0, r);
-          g.fillText(`${r}`, at[0] + 3, at[1] + 10);
+          const at = P(0.5 * r, 0.87 * r);  // labelled front right, clear of the x axis
+          g.fillText(`${r}`, at[0] + 2, at[1] - 2);
         }
         axes(g, P, [0, 80], 'x', [80, 0], 'y');
         chain(g, points.map((p) => P(-p[1], p[0])));
