@@ -56,6 +56,11 @@ class BusTimeoutError(BusArmError, TimeoutError):
         self.timeout_s = timeout_s
 
 
+class UnreliableLineError(BusTimeoutError):
+    """No reply by the deadline from a servo that may well be there: it answered on this
+    bus before, or the line has lately delivered replies late or damaged."""
+
+
 class ServoFaultError(BusArmError):
     """A servo reports (or its readings show) a fault: over-temperature, voltage, stall."""
 
@@ -73,10 +78,11 @@ class KinematicsError(BusArmError, ValueError):
 
 
 class UnreachableError(KinematicsError):
-    """A target outside the workspace: beyond reach, below the table, or past a joint limit.
+    """A target outside the workspace: beyond reach, below the table, inside the arm's
+    base, or past a joint limit.
 
-    ``reason`` is ``"reach"``, ``"table"`` or ``"joint_limit"``; ``joint`` names the joint
-    for a joint limit.
+    ``reason`` is ``"reach"``, ``"table"``, ``"base"`` or ``"joint_limit"``; ``joint``
+    names the joint for a joint limit.
     """
 
     def __init__(self, message: str, reason: str = "reach", joint: str | None = None) -> None:
@@ -161,5 +167,6 @@ __all__ = [
     "TransportError",
     "TwinError",
     "UnreachableError",
+    "UnreliableLineError",
     "VisionError",
 ]

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Iterable
+from decimal import Decimal
 
 from busarm.errors import ConfigError
 
@@ -40,11 +42,11 @@ def check_range(
     """
     if (isinstance(value, bool) or not isinstance(value, numbers.Real)
             or not math.isfinite(value)):
-        raise error(f"{name} must be a number, got {value!r}")
+        raise error(f"{name} must be a number, got {shown(value)}")
     number = float(value)
     if not lo <= number <= hi:
         u = f" {unit}" if unit else ""
-        raise error(f"{name} = {value!r}{u} is out of range {_range(lo, hi, unit)}")
+        raise error(f"{name} = {shown(value)}{u} is out of range {range_text(lo, hi, unit)}")
     return number
 
 
@@ -55,21 +57,72 @@ def check_int_range(
     """``value`` as an int if it is an integer (not a bool) within lo..hi, else ``error``
     as ``check_range`` words it (``"ids must be an integer 0..253, got 1.5"``)."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise error(f"{name} must be an integer {_range(lo, hi, unit)}, got {value!r}")
+        raise error(f"{name} must be an integer {range_text(lo, hi, unit)}, got {shown(value)}")
     number = int(value)
     if not lo <= number <= hi:
         u = f" {unit}" if unit else ""
-        raise error(f"{name} = {number}{u} is out of range {_range(lo, hi, unit)}")
+        raise error(f"{name} = {number}{u} is out of range {range_text(lo, hi, unit)}")
     return number
 
 
-def _range(lo: float, hi: float, unit: str) -> str:
-    """``"lo..hi unit"`` as the messages show it: ``0..30 s``, not ``0.0..30.0 s``."""
-    return f"{_bound(lo)}..{_bound(hi)}{f' {unit}' if unit else ''}"
+def range_text(lo: float, hi: float, unit: str = "") -> str:
+    """``"lo..hi unit"`` as the messages show it: ``0..30 s``, not ``0.0..30.0 s``, and
+    ``0..1000000000 px``, not ``0..1e+09 px``."""
+    return f"{plain_number(lo)}..{plain_number(hi)}{f' {unit}' if unit else ''}"
 
 
-def _bound(x: float) -> str:
-    return str(x) if isinstance(x, int) else f"{x:g}"
+def plain_number(x: float) -> str:
+    """A number as a person writes it: every digit it has, no exponent, no ``.0`` on a
+    whole number, no ``-0`` (``2.0`` -> ``2``, ``1e9`` -> ``1000000000``, ``1e-05`` ->
+    ``0.00001``)."""
+    if isinstance(x, bool) or not math.isfinite(x):
+        return str(x)
+    text = format(Decimal(repr(float(x))), "f")  # the shortest digits of this float
+    if "." in text:
+        text = text.rstrip("0").rstrip(".")
+    return "0" if text == "-0" else text
+
+
+def fixed_number(value: float, digits: int = 1) -> str:
+    """``value`` with ``digits`` decimals as every printed measurement of busarm: never
+    ``-0`` or ``-0.0`` (a value that rounds to zero has no sign), ``unknown`` for nan."""
+    if math.isnan(value):
+        return "unknown"
+    text = f"{value:.{digits}f}"
+    return text[1:] if text.startswith("-") and float(text) == 0.0 else text
+
+
+def place_text(coordinates_mm: Iterable[float]) -> str:
+    """``(172, -14) mm``: a place (x, y[, z]) as every message says it, whole millimetres
+    (the survey knows it to about a millimetre), never ``-0``."""
+    return f"({', '.join(fixed_number(float(c), 0) for c in coordinates_mm)}) mm"
+
+
+def shown(value: object) -> str:
+    """A value as a message quotes it to a person: a number as given (``2.5``, ``120.0``,
+    ``1000000000.0``: no exponent), text in quotes, nothing as ``nothing``, true and false
+    as TOML and JSON write them, a list or an object by its items (never Python's
+    ``None``, ``True``, ``[...]`` or ``{...}``)."""
+    if value is None:
+        return "nothing"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, numbers.Integral):
+        return str(int(value))
+    if isinstance(value, numbers.Real):
+        text = repr(float(value))
+        return plain_number(float(value)) if "e" in text and math.isfinite(value) else text
+    if isinstance(value, dict):
+        return "an object with " + (f"keys {listing(value)}" if value else "no keys")
+    if isinstance(value, list | tuple | set | frozenset):
+        return f"a list of {len(value)}: {listing(value)}" if value else "an empty list"
+    return repr(value)
+
+
+def listing(items: Iterable[object]) -> str:
+    """``a, b, c``: names or values as a message lists them (text as it is, the rest as
+    ``shown``); not a Python list's brackets and quotes."""
+    return ", ".join(i if isinstance(i, str) else shown(i) for i in items)
 
 
 def deg_from_pulses(position_pulses: float) -> float:

@@ -183,7 +183,7 @@ def test_ignore_arm_limits_moves_anyway_and_is_documented(pty_bus: tuple[str, Si
 def test_decode_takes_each_token_as_its_own_byte() -> None:
     result = run("decode", "55", "55", "1", "3", "1c", "df")  # 1 3 is 01 03, not 0x13
     assert result.exit_code == 0, result.stderr
-    assert result.stdout.splitlines()[0] == "55 55 01 03 1c df  request SERVO_POS_READ to id 1"
+    assert result.stdout.splitlines()[0] == "55 55 01 03 1c df  request POS_READ to id 1"
     joined = run("decode", "1 3")
     assert one_error(joined, 1) == "error: no valid frame in 2 byte(s)"
     assert joined.stdout.startswith("0 frame(s) in 2 byte(s)")
@@ -193,7 +193,7 @@ def test_decode_still_takes_one_run_without_spaces() -> None:
     result = run("decode", "555501031cdf")
     assert result.exit_code == 0, result.stderr
     assert result.stdout.splitlines() == [
-        "55 55 01 03 1c df  request SERVO_POS_READ to id 1", "1 frame(s) in 6 byte(s)"]
+        "55 55 01 03 1c df  request POS_READ to id 1", "1 frame(s) in 6 byte(s)"]
     assert "odd number of hex digits (3)" in one_error(run("decode", "55", "555"), 2)
 
 
@@ -201,10 +201,10 @@ def test_decode_shows_the_checksum_a_bad_frame_should_have() -> None:
     result = run("decode", "55 55 fe 03 0e f0 55 55 01 07 01 f4 01 e8 03 17")
     assert result.exit_code == 0, result.stderr
     lines = result.stdout.splitlines()
-    assert lines[0] == "55 55 fe 03 0e f0  request SERVO_ID_READ to broadcast"
+    assert lines[0] == "55 55 fe 03 0e f0  request ID_READ to broadcast"
     assert lines[1].startswith(
         "55 55 01 07 01 f4 01 e8 03 17  bad checksum 0x17, expected 0x16 (with the right "
-        "one: request SERVO_MOVE_TIME_WRITE to id 1: position_pulses=500 time_ms=1000)")
+        "one: request MOVE_TIME_WRITE to id 1: position_pulses=500 time_ms=1000)")
     bad_only = run("decode", "55 55 01 07 01 f4 01 e8 03 17")
     assert one_error(bad_only, 1) == "error: no valid frame in 10 byte(s)"
     assert "expected 0x16" in bad_only.stdout
@@ -221,8 +221,8 @@ def test_decode_reads_standard_input_given_as_dash() -> None:
     )
     assert decoded.returncode == 0, decoded.stderr
     assert decoded.stdout.splitlines() == [
-        "55 55 01 03 1c df  request SERVO_POS_READ to id 1",
-        "55 55 fe 03 0e f0  request SERVO_ID_READ to broadcast",
+        "55 55 01 03 1c df  request POS_READ to id 1",
+        "55 55 fe 03 0e f0  request ID_READ to broadcast",
         "2 frame(s) in 12 byte(s)",
     ]
     assert one_error(run("decode", "-", stdin="00 11\n"), 1).endswith("in 2 byte(s)")

@@ -33,7 +33,9 @@ def test_pose_says_joints_pose_and_gripper_with_units() -> None:
     joints = " ".join(result.stdout.split()).split(" x ", 1)[0]
     assert joints.endswith(" deg"), result.stdout
     assert re.search(r"x 0\.0  y 0\.0  z [\d.]+ mm  pitch [-\d.]+  roll 0\.0 deg", result.stdout)
-    assert re.search(r"gripper open [\d.]+ mm \(\d+ pulses\)", result.stdout), result.stdout
+    # A fresh simulated servo is limp (the manual's power-on state): said so.
+    assert re.search(r"gripper open [\d.]+ mm \(\d+ pulses, torque off\)", result.stdout), \
+        result.stdout
     data = json.loads(run("arm", "pose", "--json").stdout)
     assert data["gripper_gap_mm"] == pytest.approx(37.5, abs=0.1)
 

@@ -184,18 +184,19 @@ def test_an_error_while_the_arm_is_limp_says_limp(
     assert not any(sim.servo(sid).is_loaded for sid in ARM_IDS)
 
 
-def test_monitor_ctrl_c_says_each_servos_torque(pty_arm: tuple[str, ListeningSim]) -> None:
+def test_monitor_ctrl_c_sends_and_says_nothing_of_stopping(
+        pty_arm: tuple[str, ListeningSim]) -> None:
     path, sim = pty_arm
     hold(path, 2)  # servo 1 stays limp, as the simulated servos start
+    sim.heard.clear()
     monitor = busarm("--port", path, "monitor", "--ids", "1,2", "--interval", "0.05")
     assert monitor.stdout is not None
     while "refresh 2" not in monitor.stdout.readline():
         assert monitor.poll() is None, monitor.communicate()
     code, _, err = ctrl_c(monitor)
-    assert code == 0, err  # Ctrl+C is how a monitor ends
-    assert err.strip().splitlines() == [
-        "interrupted: all servos stopped (MOVE_STOP); servo 1 limp (torque off); servo 2 "
-        "holding position (torque on)"]
+    assert code == 130, err  # Ctrl+C is how a monitor ends, and an interruption
+    assert err.strip().splitlines() == ["interrupted: nothing was written to the servos"]
+    assert sim.writes() == []  # it only read: not even a stop
     assert not sim.servo(1).is_loaded and sim.servo(2).is_loaded
 
 

@@ -89,7 +89,7 @@ def test_the_pick_sort_command_refuses_bad_input(tmp_path: Path) -> None:
     runner = CliRunner(mix_stderr=False)
     for args, expected in (
         (["--port", "/dev/ttyUSB9", "pick-sort", "--seed", "2"], "for the twin"),
-        (["--port", "/dev/ttyUSB9", "pick-sort"], "needs the wrist camera (--camera)"),
+        (["--port", "socket://127.0.0.1:9", "pick-sort"], "needs the wrist camera (--camera)"),
         (["pick-sort", "--colors", "red,mauve"], "mauve"),
         (["pick-sort", "--bins", "red:1,2"], "COLOUR=X,Y"),
         (["pick-sort", "--survey", "nowhere"], "no pose named 'nowhere'"),

@@ -16,7 +16,7 @@ import numpy.typing as npt
 from busarm.apps.footprint import Footprint
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import UnreachableError
-from busarm.units import check_range
+from busarm.units import check_range, place_text
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -142,10 +142,45 @@ class GraspPlanner:
                 if hit is None:
                     return replace(plan, gap_mm=gap)
                 blocked = blocked or (f"a finger would land on the {hit[2]} at "
-                                      f"({hit[0]:.0f}, {hit[1]:.0f}) mm")
+                                      f"{place_text(hit[:2])}")
         if blocked:
             raise NoClearGrasp(f"no grasp clears its neighbours: {blocked}")
         raise UnreachableError(self._why_unreachable(x_mm, y_mm, yaw_deg))
+
+    def out_of_reach(self, x_mm: float, y_mm: float, yaw_deg: float,
+                     beyond_mm: float = 0.0) -> str:
+        """"out of reach (D mm from the base; reach R mm)" if the block at (x, y), or as
+        much as ``beyond_mm`` farther out (where one seen only in part may be), is beyond
+        the farthest grasp on its bearing; "" if not."""
+        dist_mm = math.hypot(x_mm, y_mm)
+        reach = self.reach_mm(x_mm, y_mm, yaw_deg)
+        if reach is None or dist_mm + beyond_mm <= reach:
+            return ""
+        where = f"{dist_mm:.0f} mm from the base" + (
+            "" if dist_mm > reach else f" as seen, up to {dist_mm + beyond_mm:.0f} mm")
+        return f"out of reach ({where}; reach {reach:.0f} mm)"
+
+    def reach_mm(self, x_mm: float, y_mm: float, yaw_deg: float) -> float | None:
+        """How far from the base, on the bearing of (x, y), a grasp reaches a block at
+        ``yaw_deg`` (the farthest one, to 1 mm); None if none does on that bearing."""
+        dist_mm = math.hypot(x_mm, y_mm)
+        if dist_mm < 1.0:
+            return None
+        ux, uy = x_mm / dist_mm, y_mm / dist_mm
+
+        def reaches(r_mm: float) -> bool:
+            return next(self._reaching(ux * r_mm, uy * r_mm, yaw_deg), None) is not None
+
+        lo_mm = self.kin.max_reach_mm  # inwards to a grasp that reaches, then halve the gap
+        while lo_mm > 0.0 and not reaches(lo_mm):
+            lo_mm -= 10.0
+        if lo_mm <= 0.0:
+            return None
+        hi_mm = lo_mm + 10.0
+        while hi_mm - lo_mm > 1.0:
+            mid_mm = (lo_mm + hi_mm) / 2
+            lo_mm, hi_mm = (mid_mm, hi_mm) if reaches(mid_mm) else (lo_mm, mid_mm)
+        return lo_mm
 
     def _reaching(self, x_mm: float, y_mm: float, yaw_deg: float) -> Iterator[GraspPlan]:
         """Every grasp that reaches, best first: straight down (both face pairs), then

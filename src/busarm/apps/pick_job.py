@@ -22,6 +22,7 @@ from busarm.apps.pick_sort import PickSorter, RunReport
 from busarm.errors import BusArmError
 from busarm.robot import Robot
 from busarm.robot.locate import Sighting
+from busarm.units import place_text
 from busarm.vision.camera import CameraSource
 
 Image = npt.NDArray[np.uint8]
@@ -47,8 +48,8 @@ class _Pictures:
         image, found = self.sorter.last_survey[0]
         self.picks.append((target.color, annotate(
             image, [s.detection for s in found if s.detection is not None],
-            text_lines=[f"next: {target.color} at ({target.location.x_mm:.0f}, "
-                        f"{target.location.y_mm:.0f}) mm"])))
+            text_lines=[f"next: {target.color} at "
+                        f"{place_text((target.location.x_mm, target.location.y_mm))}"])))
 
 
 class PickJob:

@@ -61,6 +61,7 @@ from busarm.errors import (
 )
 from busarm.robot import Robot
 from busarm.robot.locate import Sighting
+from busarm.units import place_text
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -258,7 +259,7 @@ class PickSorter:
                 raise  # stopped and holding where it touched: not for a retry
             arm.open_gripper(wait=False, gap_mm=gap)
             x, y, z = exc.tool_mm
-            return (False, f"blocked on the way down at ({x:.0f}, {y:.0f}, {z:.0f}) mm "
+            return (False, f"blocked on the way down at {place_text((x, y, z))} "
                            f"({exc.joint} stopped short): backed off", None, plan)
         self._holding = target.color  # from the squeeze on: the reading says if it holds
         grip = arm.grip()
@@ -473,7 +474,9 @@ class PickSorter:
         self.check_servos()
         t0 = self.clock.now()
         closer = self.look_closer(target)
-        reason = self._why_not(closer) if closer is not None else ""
+        loc = target.location  # seen in part, even facing it: it may be farther out
+        reason = self._why_not(closer) if closer is not None else self.planner.out_of_reach(
+            loc.x_mm, loc.y_mm, loc.yaw_deg, self.locator.block_size_mm / 2)
         if reason:  # seen better, it is out of reach after all
             outcome.outcome, outcome.reason = "skipped", reason
             self.progress(f"skip {target.color} at {_mm(outcome.found_mm)}: {reason}")
@@ -621,7 +624,7 @@ class PickSorter:
 
 def _mm(xy: tuple[float, float]) -> str:
     """A place on the table as the progress lines say it: ``(208, -124) mm``."""
-    return f"({xy[0]:.0f}, {xy[1]:.0f}) mm"
+    return place_text(xy)
 
 
 __all__ = ["BIN_PLACES", "BIN_SLOTS_MM", "IN_BIN_MM", "ORDERS", "BlockOutcome", "PickSortSettings",

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 from busarm.apps.footprint import Footprint
 from busarm.apps.grasp import GraspPlanner, Thing
 from busarm.errors import UnreachableError
+from busarm.units import place_text
 
 STAGING_RADII_MM = (150.0, 170.0, 190.0, 210.0)
 STAGING_BEARINGS_DEG = tuple(range(-40, 41, 10))
@@ -22,7 +23,7 @@ class Restaged(Exception):
 
     def __init__(self, spot_mm: tuple[float, float]) -> None:
         super().__init__(f"taken tilted, it would lean on the second layer: set down at "
-                         f"({spot_mm[0]:.0f}, {spot_mm[1]:.0f}) mm to be taken straight down")
+                         f"{place_text(spot_mm)} to be taken straight down")
         self.spot_mm = spot_mm
 
 

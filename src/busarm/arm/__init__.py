@@ -18,6 +18,7 @@ if TYPE_CHECKING:  # the same names, eagerly, for mypy and the layer contract
     from busarm.arm.arm import Arm, GripResult, MotionRecord
     from busarm.arm.calibration import Calibration, load_calibration, save_calibration
     from busarm.arm.config import ArmConfig, load_arm_config
+    from busarm.arm.gripper import GripperState, gripper_state
     from busarm.arm.kinematics import ArmKinematics, Pose
 
 __all__ = [
@@ -28,8 +29,10 @@ __all__ = [
     "ArmKinematics",
     "Calibration",
     "GripResult",
+    "GripperState",
     "MotionRecord",
     "Pose",
+    "gripper_state",
     "load_arm_config",
     "load_calibration",
     "read_d6a",
@@ -50,6 +53,8 @@ _SOURCES: dict[str, str] = {
     "save_calibration": "calibration",
     "ArmConfig": "config",
     "load_arm_config": "config",
+    "GripperState": "gripper",
+    "gripper_state": "gripper",
     "ArmKinematics": "kinematics",
     "Pose": "kinematics",
 }

@@ -38,6 +38,7 @@ from busarm.units import (
     POSITION_MAX_PULSES,
     POSITION_MIN_PULSES,
     check_int_range,
+    listing,
 )
 
 TABLE_NAME = "ActionGroup"
@@ -152,14 +153,16 @@ def _check_servo_ids(servo_ids: Sequence[int], servo_count: int | None) -> tuple
     ids = tuple(servo_ids)
     if servo_count is not None and len(ids) != servo_count:
         raise ConfigError(
-            f"{len(ids)} servo IDs {ids} for {servo_count} columns (Servo1..Servo{servo_count}): "
+            f"{len(ids)} servo IDs {listing(ids)} for {servo_count} columns "
+            f"(Servo1..Servo{servo_count}): "
             "give one servo ID per column"
         )
     for servo_id in ids:
         check_servo_id(servo_id)
     duplicates = sorted({i for i in ids if ids.count(i) > 1})
     if duplicates:
-        raise ConfigError(f"servo IDs {ids} repeat {duplicates}: each column needs its own servo")
+        raise ConfigError(f"servo IDs {listing(ids)} repeat {listing(duplicates)}: each column "
+                          "needs its own servo")
     return ids
 
 
@@ -184,9 +187,10 @@ def frame_from_targets(
     extra = sorted(set(targets) - set(ids))
     if missing or extra:
         raise ConfigError(
-            f"targets for servos {sorted(targets)} do not match the columns' servo IDs {ids}"
-            + (f"; missing {missing}" if missing else "")
-            + (f"; not a column {extra}" if extra else "")
+            f"targets for servos {listing(sorted(targets))} do not match the columns' servo "
+            f"IDs {listing(ids)}"
+            + (f"; missing {listing(missing)}" if missing else "")
+            + (f"; not a column {listing(extra)}" if extra else "")
         )
     return ActionFrame(duration_ms, tuple(targets[i] for i in ids))
 

@@ -20,6 +20,7 @@ from types import TracebackType
 from busarm.arm.actions import ActionFrame, ActionGroup
 from busarm.arm.calibration import Calibration, load_calibration
 from busarm.arm.config import ArmConfig, JointConfig, load_arm_config
+from busarm.arm.gripper import GripperState, gripper_state
 from busarm.arm.guard import GuardedMove, GuardSettings, LineGuard
 from busarm.arm.kinematics import ArmKinematics, Joints, Pose
 from busarm.arm.motion import (
@@ -37,6 +38,7 @@ from busarm.errors import (
     ConfigError,
     LimitError,
     UnreachableError,
+    UnreliableLineError,
 )
 from busarm.units import (
     CENTER_PULSES,
@@ -45,6 +47,7 @@ from busarm.units import (
     POSITION_MAX_PULSES,
     POSITION_MIN_PULSES,
     check_range,
+    listing,
 )
 
 log = logging.getLogger(__name__)
@@ -54,6 +57,9 @@ DEFAULT_SPEED_DEG_S = 60.0
 DEFAULT_LINE_SPEED_MM_S = 80.0
 DEFAULT_RATE_HZ = 50.0
 MAX_RATE_HZ = 100.0
+SETTLE_TIMEOUT_S = 1.0
+"""How long settled_joints_deg waits for the servos to stand still after a move's end."""
+SETTLE_POLL_S = 0.1
 DEFAULT_TOLERANCE_DEG = 1.5
 """Position feedback is whole pulses (0.24 deg), and a loaded servo settles a pulse or two
 short; a wait within this counts as arrived."""
@@ -179,6 +185,8 @@ class Arm:
             try:
                 offset_deg = self.bus.read_offset_deg(j.servo_id)
                 lo_deg, hi_deg = self.bus.read_angle_limits_deg(j.servo_id)
+            except UnreliableLineError:
+                raise  # not "does not answer": it may, late (the driver's words)
             except BusTimeoutError as exc:
                 raise BusTimeoutError(
                     f"{j.name} (servo {j.servo_id}) does not answer: check the cable, the "
@@ -195,6 +203,8 @@ class Arm:
         g = self.config.gripper
         try:
             lo_deg, hi_deg = self.bus.read_angle_limits_deg(g.servo_id)
+        except UnreliableLineError:
+            raise
         except BusTimeoutError as exc:
             raise BusTimeoutError(
                 f"the gripper (servo {g.servo_id}) does not answer",
@@ -266,6 +276,14 @@ class Arm:
 
     def read_gripper_pulses(self) -> int:
         return self.bus.read_position_pulses(self.config.gripper.servo_id)
+
+    def read_gripper_state(self) -> GripperState:
+        """Open, closed or holding (``busarm.arm.gripper``), from the gripper's position,
+        the position it was last told and its torque, read back."""
+        sid = self.config.gripper.servo_id
+        position = self.bus.read_position_pulses(sid)
+        target = self.bus.read_move_time(sid).position_pulses
+        return gripper_state(self.config.gripper, position, target, self.bus.read_torque(sid))
 
     # ------------------------------------------------------------------ joint moves
 
@@ -354,6 +372,23 @@ class Arm:
         return self.joints_from_pulses(
             {sid: deg / DEG_PER_PULSE + CENTER_PULSES for sid, deg in positions.items()}
         )
+
+    def settled_joints_deg(self, *, timeout_s: float = SETTLE_TIMEOUT_S) -> Joints:
+        """The measured joints once the last commanded move has ended and the servos
+        stand still (two reads SETTLE_POLL_S apart within a pulse), or ``timeout_s`` after
+        its end: where the arm stays, as a later read finds it. A ``wait`` returns within
+        tolerance, while the servos may still be closing the last degree or two."""
+        end_s = self.bus.move_end_s(j.servo_id for j in self.config.joints)
+        self.clock.sleep(max(end_s - self.clock.now(), 0.0))
+        deadline = self.clock.now() + timeout_s
+        last = self.read_joints_deg()
+        while self.clock.now() < deadline:
+            self.clock.sleep(SETTLE_POLL_S)
+            now = self.read_joints_deg()
+            if max(abs(a - b) for a, b in zip(now, last, strict=True)) <= DEG_PER_PULSE:
+                return now
+            last = now
+        return last
 
     def home(self, **kwargs: float) -> float:
         """Go to the config's ``home`` pose."""
@@ -627,7 +662,8 @@ class Arm:
         duration = self._gripper_travel_s(target)
         self._guarded(lambda: self._gripper_move(target, duration))
         final = self._settle_gripper(target, duration)
-        holding = abs(target - final) > g.holding_margin_pulses
+        # The one rule of busarm.arm.gripper: stalled short of where it was told = holding.
+        holding = gripper_state(g, final, target).is_holding
         return GripResult(final, holding, target)
 
     close_gripper = grip
@@ -675,7 +711,7 @@ class Arm:
         if group.servo_count != len(columns):
             raise ConfigError(
                 f"the action group has {group.servo_count} servo columns; this arm maps "
-                f"{len(columns)} ({list(columns)})"
+                f"{len(columns)} (servos {listing(columns)})"
             )
         out = []
         gid = self.config.gripper.servo_id

@@ -43,6 +43,10 @@ FORMAT_NAME = "busarm.calibration"
 FORMAT_VERSION = 1
 SOFTWARE_OFFSET_MAX_DEG = 90.0
 """A larger error means the horn sits on the wrong spline tooth or the wrong joint."""
+PLAUSIBLE_ERROR_DEG = 20.0
+"""The largest error a horn's mounting plausibly has: a few degrees, or one spline tooth
+off (about 14 deg on a 25-tooth spline) and a few more. A joint reading farther from the
+reference pose is most likely not in it; ``far_from_reference`` names such joints."""
 
 
 @dataclass(frozen=True)
@@ -181,6 +185,22 @@ def solve_calibration(
     return Calibration(config.name, tuple(joints), reference, created)
 
 
+def far_from_reference(
+    config: ArmConfig, calibration: Calibration, threshold_deg: float = PLAUSIBLE_ERROR_DEG,
+) -> list[str]:
+    """Each joint whose correction in ``calibration`` exceeds ``threshold_deg``, as text:
+    the joint, the angle its servo reads (with no offset), the reference angle."""
+    out = []
+    reference = calibration.reference_pose_deg
+    for j, c, ref in zip(config.joints, calibration.joints, reference, strict=True):
+        error_deg = c.hardware_offset_deg + c.software_offset_deg  # in servo degrees
+        if abs(error_deg) > threshold_deg:
+            read_deg = ref + j.direction * error_deg  # the joint angle the servo reads
+            out.append(f"{j.name} (servo {j.servo_id}) reads {read_deg:.1f} deg, the "
+                       f"reference pose has {ref:g} deg: {abs(error_deg):.1f} deg off")
+    return out
+
+
 def _is_int(value: object) -> TypeGuard[int]:
     return isinstance(value, int) and not isinstance(value, bool)
 
@@ -188,8 +208,10 @@ def _is_int(value: object) -> TypeGuard[int]:
 __all__ = [
     "FORMAT_NAME",
     "FORMAT_VERSION",
+    "PLAUSIBLE_ERROR_DEG",
     "Calibration",
     "JointCalibration",
+    "far_from_reference",
     "load_calibration",
     "save_calibration",
     "solve_calibration",

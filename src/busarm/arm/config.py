@@ -30,6 +30,10 @@ from busarm.units import (
     POSITION_MIN_PULSES,
     check_int_range,
     check_range,
+    listing,
+    plain_number,
+    range_text,
+    shown,
 )
 
 if sys.version_info >= (3, 11):
@@ -43,6 +47,11 @@ JOINT_COUNT = 5
 JOINT_ROLES = ("base yaw", "shoulder pitch", "elbow pitch", "wrist pitch", "wrist roll")
 SHIPPED = ("jetauto_pro",)
 DEFAULT_ARM = "jetauto_pro"
+BASE_KEEPOUT_RADIUS_MM = 70.0
+"""Default radius of the keep-out round the base axis (``[workspace]``
+``base_keepout_radius_mm``): the twin's base disc is 45 mm across the axis, plus 25 mm
+for the finger pads beside the tool point. Blocks stand 90 mm or more from the axis (the
+twin's scene rule), so every block the arm can take stays outside it."""
 
 
 CAMERA_JOINT_INDEX = 3
@@ -79,7 +88,8 @@ class JointConfig:
     def check_angle(self, angle_deg: float, tolerance_deg: float = 1e-9) -> None:
         """Raise LimitError naming the joint if ``angle_deg`` is outside its limits."""
         if isinstance(angle_deg, bool) or not isinstance(angle_deg, int | float):
-            raise ConfigError(f"{self.name} angle must be a number of degrees, got {angle_deg!r}")
+            raise ConfigError(f"{self.name} angle must be a number of degrees, got "
+                              f"{shown(angle_deg)}")
         if not math.isfinite(angle_deg):
             raise LimitError(f"{self.name} = {angle_deg} is not a finite number of degrees")
         if not (
@@ -87,7 +97,7 @@ class JointConfig:
         ):
             raise LimitError(
                 f"{self.name} = {angle_deg:.3f} deg is outside its limits "
-                f"{self.min_deg:g}..{self.max_deg:g} deg"
+                f"{range_text(self.min_deg, self.max_deg, 'deg')}"
             )
 
 
@@ -127,6 +137,11 @@ class GripperConfig:
         """How far apart the fingers are at ``position_pulses`` (0 at closed or beyond)."""
         sign = 1.0 if self.closed_pulses >= self.open_pulses else -1.0
         return max(0.0, sign * (self.closed_pulses - position_pulses) * self.gap_mm_per_pulse)
+
+    @property
+    def widest_gap_mm(self) -> float:
+        """The fingers' gap at ``open_pulses``: as wide as the gripper is told to open."""
+        return self.gap_mm_at(self.open_pulses)
 
     def check_pulses(self, position_pulses: int) -> None:
         """Raise LimitError if a gripper position is outside open..closed."""
@@ -179,6 +194,12 @@ class ArmConfig:
     gripper: GripperConfig
     table_z_mm: float = 0.0
     preferred_pitch_deg: float = -90.0
+    base_keepout_radius_mm: float = BASE_KEEPOUT_RADIUS_MM
+    """The tool point keeps at least this far from the base axis below
+    ``base_keepout_top_z_mm``: the base, its column and the shoulder servo stand there."""
+    base_keepout_top_z_mm: float | None = None
+    """The top of that keep-out cylinder in the base frame; None: the shoulder axis
+    (``geometry.base_height_mm``)."""
     poses_deg: dict[str, tuple[float, ...]] = field(default_factory=dict)
     action_columns: tuple[int, ...] = ()
     source: str = "<memory>"
@@ -188,6 +209,13 @@ class ArmConfig:
     @property
     def joint_ids(self) -> tuple[int, ...]:
         return tuple(j.servo_id for j in self.joints)
+
+    @property
+    def base_keepout_mm(self) -> tuple[float, float]:
+        """(radius, top z) of the cylinder round the base axis the tool point keeps out of."""
+        top = self.base_keepout_top_z_mm
+        return (self.base_keepout_radius_mm,
+                self.geometry.base_height_mm if top is None else top)
 
     @property
     def servo_ids(self) -> tuple[int, ...]:
@@ -239,14 +267,14 @@ class ArmConfig:
     def check_joints(self, angles_deg: object) -> tuple[float, ...]:
         """Return five joint angles as floats, or raise naming the first bad one."""
         if isinstance(angles_deg, str | bytes) or not hasattr(angles_deg, "__len__"):
-            raise ConfigError(f"joint angles must be {JOINT_COUNT} numbers, got {angles_deg!r}")
+            raise ConfigError(f"joint angles must be {JOINT_COUNT} numbers, got "
+                              f"{shown(angles_deg)}")
         values = list(angles_deg)  # type: ignore[call-overload]
         if len(values) != len(self.joints):
-            shown = ", ".join(f"{v:g}" if isinstance(v, int | float) else repr(v)
+            given = ", ".join(plain_number(v) if isinstance(v, int | float) else shown(v)
                               for v in values)
-            raise ConfigError(
-                f"expected {len(self.joints)} joint angles in deg, got {len(values)}: {shown}"
-            )
+            raise ConfigError(f"expected {len(self.joints)} joint angles in deg, got "
+                              f"{len(values)}: {given}")
         for j, v in zip(self.joints, values, strict=True):
             j.check_angle(v)
         return tuple(float(v) for v in values)
@@ -318,13 +346,14 @@ class _Reader:
         if value is None:
             raise self.fail(name, "missing")
         if isinstance(value, bool) or not isinstance(value, int):  # named without the range
-            raise self.fail(name, f"must be an integer, got {value!r}")
+            raise self.fail(name, f"must be an integer, got {shown(value)}")
         return check_int_range(f"arm config {self.source}: {name}", value, lo, hi)
 
     def unknown(self, data: dict[str, Any], where: str, known: set[str]) -> None:
         extra = sorted(set(data) - known)
         if extra:
-            raise self.fail(where, f"unknown key(s) {extra}; known: {sorted(known)}")
+            raise self.fail(where, f"unknown key(s) {listing(extra)}; known: "
+                                  f"{listing(sorted(known))}")
 
     def arm(self, data: dict[str, Any]) -> ArmConfig:
         self.unknown(
@@ -345,9 +374,15 @@ class _Reader:
         workspace = data.get("workspace", {})
         if not isinstance(workspace, dict):
             raise self.fail("workspace", "must be a table")
-        self.unknown(workspace, "workspace", {"table_z_mm", "preferred_pitch_deg"})
+        self.unknown(workspace, "workspace", {"table_z_mm", "preferred_pitch_deg",
+                                              "base_keepout_radius_mm", "base_keepout_top_z_mm"})
         table_z = self.number(workspace, "table_z_mm", "workspace", -1000, 1000, 0.0)
         preferred = self.number(workspace, "preferred_pitch_deg", "workspace", -180, 180, -90.0)
+        # An older config without these keeps the default cylinder (up to the shoulder axis).
+        keepout_r = self.number(workspace, "base_keepout_radius_mm", "workspace", 0, 500,
+                                BASE_KEEPOUT_RADIUS_MM)
+        keepout_top = (self.number(workspace, "base_keepout_top_z_mm", "workspace", -1000, 1000)
+                       if "base_keepout_top_z_mm" in workspace else None)
         joints = self.joints(data.get("joints"))
         gripper = self.gripper(self.table(data, "gripper"))
         ids = [j.servo_id for j in joints] + [gripper.servo_id]
@@ -366,6 +401,7 @@ class _Reader:
         return ArmConfig(
             name=name.strip(), geometry=geometry, joints=tuple(joints), gripper=gripper,
             table_z_mm=table_z, preferred_pitch_deg=preferred, poses_deg=poses,
+            base_keepout_radius_mm=keepout_r, base_keepout_top_z_mm=keepout_top,
             action_columns=columns, source=self.source, camera=camera,
         )
 
@@ -416,7 +452,7 @@ class _Reader:
             names.add(name)
             direction = raw.get("direction")
             if direction not in (1, -1) or isinstance(direction, bool):
-                raise self.fail(f"{where}.direction", f"must be 1 or -1, got {direction!r}")
+                raise self.fail(f"{where}.direction", f"must be 1 or -1, got {shown(direction)}")
             joint = JointConfig(
                 name=name,
                 servo_id=self.integer(raw, "servo_id", where, 0, 253),

@@ -27,7 +27,8 @@ Poses are ``(x_mm, y_mm, z_mm, pitch_deg, roll_deg)`` of the tool point:
 
 Every target has up to four solutions: facing the target or reaching over the back
 (q1 + 180, pitch mirrored, q5 + 180), each elbow up (q3 > 0) or down. ``ik`` returns all
-that respect the joint limits and keep the tool point and the wrist above the table.
+that respect the joint limits and keep the tool point and the wrist above the table and
+the tool point out of the base (a cylinder round the base axis, from the arm config).
 
 The free-pitch solver finds, for each of the four branches, the pitches at which a
 constraint becomes active (reach, each joint limit, the table): each is a root of
@@ -119,8 +120,9 @@ class _Failure:
 class ArmKinematics:
     """FK and closed-form IK of one arm geometry with its joint limits.
 
-    ``table_z_mm`` None switches the table check off (pure geometry); degrees and
-    millimetres in and out.
+    ``table_z_mm`` None switches the table check off (pure geometry); ``base_keepout_mm``
+    (radius, top z) is the cylinder round the base axis the tool point keeps out of (None:
+    none). Degrees and millimetres in and out.
     """
 
     def __init__(
@@ -129,6 +131,7 @@ class ArmKinematics:
         limits_deg: Sequence[tuple[float, float]],
         *,
         table_z_mm: float | None = 0.0,
+        base_keepout_mm: tuple[float, float] | None = None,
         joint_names: Sequence[str] = ("joint1", "joint2", "joint3", "joint4", "joint5"),
     ) -> None:
         if len(limits_deg) != 5 or len(joint_names) != 5:
@@ -147,17 +150,26 @@ class ArmKinematics:
         self._lo = np.radians(np.array([lo for lo, _ in self.limits_deg]))
         self._hi = np.radians(np.array([hi for _, hi in self.limits_deg]))
         self._table = -math.inf if table_z_mm is None else float(table_z_mm)
+        self.base_keepout_mm = base_keepout_mm
+        self._keep_r, self._keep_top = (0.0, -math.inf) if base_keepout_mm is None else (
+            float(base_keepout_mm[0]), float(base_keepout_mm[1]))
         a2, a3 = self._a2, self._a3
         self.max_reach_mm = a2 + a3 + self._L
         """Farthest tool point from the shoulder axis (any pitch)."""
 
     @classmethod
     def from_config(cls, config: ArmConfig, *, check_table: bool = True) -> ArmKinematics:
+        """The arm of ``config``; ``check_table`` False: pure geometry (no table, no base)."""
         return cls(
             config.geometry, config.limits_deg,
             table_z_mm=config.table_z_mm if check_table else None,
+            base_keepout_mm=config.base_keepout_mm if check_table else None,
             joint_names=[j.name for j in config.joints],
         )
+
+    def in_base(self, x_mm: float, y_mm: float, z_mm: float) -> bool:
+        """Whether a tool point lies inside the keep-out cylinder round the base axis."""
+        return z_mm < self._keep_top and math.hypot(x_mm, y_mm) < self._keep_r - 1e-9
 
     # ------------------------------------------------------------------ forward
 
@@ -302,6 +314,8 @@ class ArmKinematics:
         if z - L * math.sin(p) < self._table - 1e-9:
             return [], [_Failure("wrist_table", value=z - L * math.sin(p))]
         r = math.hypot(x, y)
+        if self.in_base(x, y, z):
+            return [], [_Failure("base", value=r)]
         # On the base axis the target has no bearing: keep the current one.
         psi = math.atan2(y, x) if r >= AXIS_EPS_MM else (current[0] if current else 0.0)
         zeta = z - self._h
@@ -392,6 +406,13 @@ class ArmKinematics:
             return UnreachableError(
                 f"target {where} would put the wrist below the table (wrist z {f.value:.1f} mm "
                 f"< {self._table:g} mm): raise the target or tilt the tool up", "table",
+            )
+        if "base" in kinds:
+            f = next(f for f in failures if f.reason == "base")
+            return UnreachableError(
+                f"target {where} is inside the arm's base: {f.value:.1f} mm from its axis; "
+                f"below z {self._keep_top:g} mm the tool point must stay {self._keep_r:g} mm "
+                "or more from the axis", "base",
             )
         # Shoulder, elbow and wrist limits are met only after the reach check passed, so
         # they are the real reason; base yaw and roll fail before reach is known.
@@ -494,7 +515,7 @@ class ArmKinematics:
     ) -> list[tuple[bool, float, tuple[float, float]]]:
         """(back, elbow sign, world-pitch arc) for every feasible arc of every branch."""
         L, a2, a3, h = self._L, self._a2, self._a3, self._h
-        if z < self._table - 1e-9:
+        if z < self._table - 1e-9 or self.in_base(x, y, z):
             return []
         r = math.hypot(x, y)
         zeta = z - h
@@ -601,6 +622,7 @@ class ArmKinematics:
         zeta = z - self._h
         sp, cp = np.sin(p), np.cos(p)
         above = (z >= self._table - 1e-9) & (z - L * sp >= self._table - 1e-9)
+        above &= (z >= self._keep_top) | (r >= self._keep_r - 1e-9)  # outside the base
         finite = np.isfinite(t[:, :4]).all(axis=1)
         lo, hi = self._lo, self._hi
         best = np.full((5, n), np.nan)  # joint-major: each column write is contiguous

@@ -23,6 +23,7 @@ from dataclasses import asdict, dataclass, field
 from busarm.bench.common import latency_percentiles_ms, machine_info
 from busarm.bus.driver import ServoBus
 from busarm.errors import BusArmError, ConfigError, TransportError
+from busarm.progress import Progress, quiet
 from busarm.protocol import SPECS, Command, encode_request
 
 WARM_UP_READS = 200
@@ -62,6 +63,7 @@ class BusBenchResult:
         del d["scan"]
         d["extra"] = asdict(self.scan) if self.scan is not None else {}
         d["ratio"] = round(self.ratio, 4)
+        d["rate"], d["wire_limit"] = round(self.rate, 1), round(self.wire_limit, 1)
         return d
 
 
@@ -258,8 +260,10 @@ def run_bench(
     scans: int = 3,
     turnaround_ms: float = 0.5,
     echo: str = "auto",
+    progress: Progress = quiet,
 ) -> BusBenchReport:
-    """Run the three measurements on ``port`` (whose servos must include ``servo_ids``)."""
+    """Run the three measurements on ``port`` (whose servos must include ``servo_ids``);
+    ``progress`` hears of each stage as it starts."""
     if not servo_ids:
         raise ConfigError("bench needs at least one servo ID")
     with ServoBus.open(port, echo=echo, turnaround_s=turnaround_ms / 1000.0) as bus:
@@ -269,12 +273,17 @@ def run_bench(
                               "sim) or `busarm twin serve`'s pty instead")
         for _ in range(WARM_UP_READS):  # fails fast if nobody is there
             bus.read_position_pulses(servo_ids[0])
-        results = [
-            bench_position_reads(bus, servo_ids[0], reads),
-            bench_state_loop(bus, servo_ids, loops),
-            bench_scan(bus, scans),
-        ]
-        floor = bench_os_floor(bus, servo_ids[0], reads)
+        sid = servo_ids[0]
+        stages = 3 if getattr(bus.transport, "fd", None) is None else 4  # 4: the OS floor
+        progress(f"1/{stages}: {reads} position reads of servo {sid}")
+        results = [bench_position_reads(bus, sid, reads)]
+        progress(f"2/{stages}: {loops} state loops of {len(servo_ids)} servo(s)")
+        results.append(bench_state_loop(bus, servo_ids, loops))
+        progress(f"3/{stages}: {scans} ID scan(s) 0..253")
+        results.append(bench_scan(bus, scans))
+        if stages == 4:
+            progress(f"4/{stages}: {reads} position reads by bare syscalls (the OS floor)")
+        floor = bench_os_floor(bus, sid, reads)
         if floor is not None:
             results.insert(1, floor)
         return BusBenchReport(

@@ -175,9 +175,12 @@ def localisation_accuracy(
         table_z = arm.config.table_z_mm
         pictures_per_pose = math.ceil(placements / per_picture / len(SURVEY_BEARINGS_DEG))
         for bearing in SURVEY_BEARINGS_DEG:
+            if len(report.errors_mm) + report.missed >= placements:
+                break  # placed them all: the other bearings would add nothing
             arm.move_joints((bearing, *look[1:]), speed_deg_s=120.0)
             robot.clock.sleep(0.3)
             cam2base = twin.cam2base()  # truth: only to choose placements the camera sees
+            located, missed, pictures = len(report.errors_mm), report.missed, report.pictures
             for _ in range(pictures_per_pose):
                 if len(report.errors_mm) + report.missed >= placements:
                     break
@@ -192,8 +195,10 @@ def localisation_accuracy(
                 sightings = locator.locate(frame.image, arm.read_joints_deg())
                 report.pictures += 1
                 _score(report, sightings, twin.blocks()[: len(spots)])
-                progress(f"bearing {bearing:+.0f}: {len(report.errors_mm)} located, "
-                         f"{report.missed} missed")
+            # This bearing's own counts (the report's are totals over every bearing).
+            progress(f"bearing {bearing:+.0f} deg: {len(report.errors_mm) - located} located, "
+                     f"{report.missed - missed} missed in {report.pictures - pictures} "
+                     "picture(s)")
     report.seconds = time.monotonic() - start
     return report
 

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from types import TracebackType
 from typing import TypeVar
 
+from busarm.bus.no_reply import LineSighting, final_error, unexplained_error
 from busarm.bus.transport import DEFAULT_BAUDRATE, Transport, open_transport
 from busarm.clock import Clock
 from busarm.errors import (
@@ -168,6 +169,8 @@ class ServoBus:
         self._spinning: set[int] = set()  # servos this bus set turning in motor mode
         # (servo ID, command) -> when a request of it last timed out: its reply may come late.
         self._late: dict[tuple[int, int], float] = {}
+        self._trouble: LineSighting | None = None  # the last reply seen late or damaged
+        self._answered: set[int] = set()  # servos that gave a valid reply on this bus
         self._move_ends: dict[int, float] = {}  # servo ID -> when its last move should end
         self._echo_warned = False  # said that our own bytes come back with echo off
         self.wrote = False
@@ -391,6 +394,7 @@ class ServoBus:
                 len(data) == n and plan.prefix and not self.echo
                 and data.startswith(plan.prefix) and data[n - 1] == (~sum(data[2 : n - 1])) & 0xFF
             ):
+                self._answered.add(servo_id)
                 return data, 5
             return self._finish(plan, servo_id, command, data, now + timeout_s)
 
@@ -400,7 +404,7 @@ class ServoBus:
     ) -> tuple[bytes, int]:
         """The general case (lock held): keep reading this attempt, then retry."""
         key = (servo_id, int(command))
-        error: BusTimeoutError | ProtocolError | None = None
+        errors: list[BusTimeoutError | ProtocolError] = []
         for attempt in range(self.retries + 1):
             if attempt:
                 self.stats["retries"] += 1
@@ -412,20 +416,24 @@ class ServoBus:
                 params = self._scan_reply(plan, servo_id, command, first, deadline,
                                           self._expect_late(key))
                 self._late.pop(key, None)
+                self._answered.add(servo_id)
                 return params, 0
             except BusTimeoutError as exc:
                 self.stats["timeouts"] += 1
                 if servo_id != BROADCAST_ID:
                     self._late[key] = self._now()
-                error = exc
+                errors.append(exc)
             except ProtocolError as exc:
                 self.stats["bad_replies"] += 1
-                error = exc
+                errors.append(exc)
+                self._trouble = LineSighting(self._now(), servo_id, int(command), late=False)
             first = None
-        assert error is not None
-        if self.retries:
-            error.args = (f"{error.args[0]} (after {self.retries + 1} attempts)",)
-        raise error
+        # Said by what came back: nothing, damaged replies, or nothing on a bad line.
+        seen = self._trouble
+        if seen is not None and self._now() - seen.at_s > STALE_REPLY_S:
+            seen = None
+        raise final_error(errors, servo_id=servo_id, command_name=command.name, seen=seen,
+                          answered_before=servo_id in self._answered)
 
     def _expect_late(self, key: tuple[int, int]) -> bool:
         """Whether a late reply to an earlier, timed-out request of ``key`` may still come."""
@@ -476,11 +484,16 @@ class ServoBus:
                 if is_reply:
                     if not expect_late:
                         return frame.params
+                    if found is not None:  # the one before answered an earlier request
+                        self._saw_late(frame)
                     found = frame.params
                     unexplained -= want_length + 3
                     deadline = max(deadline, min(self._now() + follow_s, latest))
                 elif not self.echo and frame.to_bytes() == plan.request:
                     self._warn_echo_off()
+                else:  # a reply to an earlier request, which had given up on it: late
+                    self._saw_late(frame)
+                    unexplained -= frame.length + 3
             remaining = deadline - self._now()
             chunk = self.transport.read(256, remaining) if remaining > 0 else b""
             if not chunk:
@@ -506,15 +519,14 @@ class ServoBus:
         if parser.checksum_failures:
             return ChecksumError(f"servo {servo_id} {name}: garbled reply", parser.pending)
         if unexplained > 0:
-            return ProtocolError(
-                f"servo {servo_id} {name}: {unexplained} byte(s) received, no valid reply"
-                + (" (and our echo did not come back intact)" if echo_pending else ""),
-                parser.pending,
-            )
+            return unexplained_error(servo_id, name, unexplained, parser.pending, echo_pending)
         return BusTimeoutError(
             f"servo {servo_id} did not answer {name} within {plan.timeout_s * 1e3:.1f} ms",
             servo_id=servo_id, command=int(command), timeout_s=plan.timeout_s,
         )
+
+    def _saw_late(self, frame: Frame) -> None:
+        self._trouble = LineSighting(self._now(), frame.servo_id, frame.command, late=True)
 
     def _warn_echo_off(self) -> None:
         """Say once that our own request came back although echo is off (it still works:
@@ -657,9 +669,7 @@ class ServoBus:
         """
         check_range("tolerance_deg", tolerance_deg, 0.0, 240.0, "deg")
         if timeout_s is None:
-            ends = [self._move_ends.get(sid, 0.0) for sid in targets_deg]
-            timeout_s = max([0.0, *ends]) - self._now()
-            timeout_s = max(timeout_s, 0.0) + WAIT_SLACK_S
+            timeout_s = max(self.move_end_s(targets_deg) - self._now(), 0.0) + WAIT_SLACK_S
         check_range("timeout_s", timeout_s, 0.0, 3600.0, "s")
         check_range("poll_s", poll_s, 0.0, 10.0, "s")
         for sid in targets_deg:
@@ -684,6 +694,11 @@ class ServoBus:
                     f"not within {tolerance_deg:g} deg after {timeout_s:.1f} s: {detail}"
                 )
             self.clock.sleep(poll_s)
+
+    def move_end_s(self, servo_ids: Iterable[int]) -> float:
+        """When (on the bus's clock) the last move this bus commanded to any of
+        ``servo_ids`` should end; 0.0 if it commanded none."""
+        return max([0.0, *(self._move_ends.get(sid, 0.0) for sid in servo_ids)])
 
     def _is_loaded(self, servo_id: int) -> bool:
         try:

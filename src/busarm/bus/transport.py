@@ -242,6 +242,18 @@ def _device_problem(path: str) -> str | None:
     return f"it is {kind}, not a serial device"
 
 
+def check_device(port: str) -> None:
+    """TransportError if ``port`` is a device path that cannot be a serial port (missing,
+    not a device, no permission), without opening it; URLs and ``sim`` pass."""
+    scheme = port.split("://", 1)[0] if "://" in port else port
+    if "://" in port or scheme in TRANSPORT_SCHEMES or os.name != "posix":
+        return
+    problem = _device_problem(port)
+    if problem is not None:
+        raise TransportError(f"cannot open {port!r}: {problem}; `busarm ports` lists the "
+                             "serial ports of this computer")
+
+
 def open_transport(port: str, *, baudrate: int = DEFAULT_BAUDRATE) -> Transport:
     """Open ``port``: a device path, a pyserial URL, or ``sim``/``sim://...``."""
     if not isinstance(port, str) or not port.strip():
@@ -256,10 +268,7 @@ def open_transport(port: str, *, baudrate: int = DEFAULT_BAUDRATE) -> Transport:
         return transport
     import serial  # pyserial; imported here so the protocol-only user never pays for it
 
-    problem = _device_problem(port) if "://" not in port and os.name == "posix" else None
-    if problem is not None:
-        raise TransportError(f"cannot open {port!r}: {problem}; `busarm ports` lists the "
-                             "serial ports of this computer")
+    check_device(port)
     try:
         if "://" in port:
             ser = serial.serial_for_url(port, baudrate=baudrate, timeout=0, write_timeout=1.0)

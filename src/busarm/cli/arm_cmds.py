@@ -20,6 +20,9 @@ from busarm.arm.action_samples import read_group_or_sample
 from busarm.arm.actions import ActionFrame, ActionGroup, write_d6a
 from busarm.arm.arm import DEFAULT_SPEED_DEG_S, Arm
 from busarm.arm.calibration import (
+    PLAUSIBLE_ERROR_DEG,
+    Calibration,
+    far_from_reference,
     save_calibration,
     solve_calibration,
 )
@@ -38,14 +41,16 @@ from busarm.cli.common import (
     check_gap_mm,
     check_writable,
     gap_report,
+    joints_in,
     joints_to_move,
     parse_gripper_target,
     pass_arm,
     pass_settings,
     robot_folder,
+    target_in,
     torque_text,
 )
-from busarm.errors import ConfigError
+from busarm.errors import CalibrationError, ConfigError
 from busarm.units import DEG_PER_PULSE
 
 MM = RangeType("coordinate", -2000.0, 2000.0, "mm")
@@ -91,8 +96,8 @@ def _pose_dict(pose: Pose) -> dict[str, float]:
     }
 
 
-def _json_number(value: float, digits: int = 4) -> float:
-    """``value`` rounded for JSON, never ``-0.0``."""
+def _json_number(value: float, digits: int = 3) -> float:
+    """``value`` rounded for JSON (mm and deg to 3 decimals), never ``-0.0``."""
     return round(value, digits) + 0.0
 
 
@@ -106,12 +111,6 @@ def _pose_text(pose: Pose) -> str:
 
 def _joints_text(config: ArmConfig, joints: Sequence[float]) -> str:
     return text.joints((j.name for j in config.joints), joints)
-
-
-def _gripper_text(config: ArmConfig, position_pulses: int) -> str:
-    """The gripper's opening in mm, with the servo's pulses for the wire-minded."""
-    gap_mm = config.gripper.gap_mm_at(position_pulses)
-    return f"{text.gripper(gap_mm)} ({position_pulses} pulses)"
 
 
 def _emit(settings: Settings, as_json: bool, data: object, text: str) -> None:
@@ -128,8 +127,8 @@ def _emit(settings: Settings, as_json: bool, data: object, text: str) -> None:
 @click.argument("joints", nargs=-1, callback=angle_list(DEG))
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
 @click.option("--batch", is_flag=True,
-              help="Read JSON lines from stdin, each [j1..j5] or {\"joints\": [...]}; "
-                   "print one JSON line each.")
+              help="Read JSON lines from stdin, each [j1..j5] or {\"joints_deg\": ...} as "
+                   "`arm pose --json` prints it; print one JSON line each.")
 @click.option("--matrix", is_flag=True, help="Also print the 4x4 tool2base transform (mm).")
 @pass_arm
 def fk(ac: ArmContext, joints: tuple[float, ...], as_json: bool, batch: bool,
@@ -143,19 +142,22 @@ def fk(ac: ArmContext, joints: tuple[float, ...], as_json: bool, batch: bool,
         return
     q = ac.config.check_joints(joints)
     pose = kin.fk(q)
-    data: dict[str, Any] = {"joints_deg": list(q), "pose": _pose_dict(pose)}
-    text = _pose_text(pose)
+    data: dict[str, Any] = {"joints_deg": _joints_list(q), "pose": _pose_dict(pose)}
+    lines = [_pose_text(pose)]
     if matrix:
         m = kin.fk_matrix(q)
         data["tool2base"] = [[_json_number(v, 6) for v in row] for row in m.tolist()]
-        text += "\n" + "\n".join("  ".join(f"{v:10.4f}" for v in row) for row in m.tolist())
-    _emit(ac.settings, as_json, data, text)
+        lines += ["  ".join(f"{text.number(v, 4):>10}" for v in row) for row in m.tolist()]
+    _emit(ac.settings, as_json, data, "\n".join(lines))
 
 
 def _fk_item(config: ArmConfig, kin: ArmKinematics, item: object) -> dict[str, Any]:
-    raw = item.get("joints") if isinstance(item, dict) else item
-    q = config.check_joints(raw)
-    return {"joints_deg": list(q), "pose": _pose_dict(kin.fk(q))}
+    q = joints_in(item, config)
+    return {"joints_deg": _joints_list(q), "pose": _pose_dict(kin.fk(q))}
+
+
+def _joints_list(joints: Sequence[float]) -> list[float]:
+    return [_json_number(a) for a in joints]
 
 
 @arm.command(context_settings=NUMBER_ARGS)
@@ -192,8 +194,9 @@ def ik(ac: ArmContext, x: float, y: float, z: float, pitch: float | None, roll: 
 def ik_batch(ac: ArmContext, all_solutions: bool) -> None:
     """IK for JSON lines on stdin: {"x":..,"y":..,"z":..[,"pitch":..][,"roll":..]}.
 
-    One JSON line out per line in: the solution(s), or {"error": ...} for that target
-    (the exit code is then 3). No bus needed.
+    Also takes x_mm ... roll_deg, or the lines `arm fk --json` prints. One JSON line out
+    per line in: the solution(s), or {"error": ...} for that target (the exit code is
+    then 3). No bus needed.
     """
     kin = ac.kin
     _batch(lambda item: _ik_item(ac.config, kin, item, all_solutions))
@@ -201,15 +204,7 @@ def ik_batch(ac: ArmContext, all_solutions: bool) -> None:
 
 def _ik_item(config: ArmConfig, kin: ArmKinematics, item: object,
              all_solutions: bool) -> dict[str, Any]:
-    if isinstance(item, list) and 3 <= len(item) <= 5:
-        item = dict(zip(("x", "y", "z", "pitch", "roll"), item, strict=False))
-    if not isinstance(item, dict):
-        raise ConfigError(f"expected {{\"x\", \"y\", \"z\"[, \"pitch\", \"roll\"]}}, got {item!r}")
-    unknown = set(item) - {"x", "y", "z", "pitch", "roll"}
-    if unknown or not {"x", "y", "z"} <= set(item):
-        raise ConfigError(f"target needs x, y, z (mm) and may have pitch, roll (deg): {item!r}")
-    x, y, z = item["x"], item["y"], item["z"]
-    pitch, roll = item.get("pitch"), item.get("roll")
+    x, y, z, pitch, roll = target_in(item)
     if pitch is None:
         q, chosen = kin.ik_free_pitch(
             x, y, z, roll, preferred_pitch_deg=config.preferred_pitch_deg
@@ -223,8 +218,10 @@ def _ik_item(config: ArmConfig, kin: ArmKinematics, item: object,
         if all_solutions:
             sols = kin.ik(x, y, z, pitch, roll)
     return {
-        "target": {"x_mm": x, "y_mm": y, "z_mm": z, "pitch_deg": pitch, "roll_deg": roll},
-        "pitch_deg": _json_number(chosen, 6),
+        "target": {"x_mm": _json_number(x), "y_mm": _json_number(y), "z_mm": _json_number(z),
+                   "pitch_deg": None if pitch is None else _json_number(pitch),
+                   "roll_deg": None if roll is None else _json_number(roll)},
+        "pitch_deg": _json_number(chosen),
         "solutions": [_joints_dict(config, q) for q in sols],
     }
 
@@ -236,9 +233,12 @@ def _batch(solve: Callable[[object], dict[str, Any]]) -> None:
         if not line.strip():
             continue
         try:
-            item = json.loads(line)
+            try:
+                item = json.loads(line)
+            except ValueError:  # the decoder's "Expecting value: ..." is for programmers
+                raise ConfigError(f"line {n} is not JSON") from None
             click.echo(json.dumps(solve(item)))
-        except (ValueError, ConfigError) as exc:  # JSONDecodeError is a ValueError
+        except (ValueError, ConfigError) as exc:  # KinematicsError is a ValueError
             failed += 1
             reason = getattr(exc, "reason", None)
             click.echo(json.dumps({"line": n, "error": str(exc), "reason": reason}))
@@ -301,7 +301,7 @@ def pose(ac: ArmContext, as_json: bool, save_name: str | None) -> None:
     with ac.open() as a:
         q = a.read_joints_deg()
         p = a.kin.fk(q)
-        grip = a.read_gripper_pulses()
+        grip = a.read_gripper_state()
     if save_name is not None:
         folder = robot_folder(ac.settings.robot_port())
         replaced = save_pose(folder, ac.config, save_name, q)
@@ -309,11 +309,11 @@ def pose(ac: ArmContext, as_json: bool, save_name: str | None) -> None:
                               f"{poses_file(folder)}", highlight=False, markup=False,
                               soft_wrap=True)
     data = {"joints_deg": _joints_dict(ac.config, q), "pose": _pose_dict(p),
-            "gripper_pulses": grip,
-            "gripper_gap_mm": round(ac.config.gripper.gap_mm_at(grip), 1)}
+            "gripper_pulses": grip.position_pulses,
+            "gripper_gap_mm": _json_number(grip.gap_mm), "gripper_state": grip.state}
     _emit(ac.settings, as_json, data,
           f"{_joints_text(ac.config, q)}\n{_pose_text(p)}\n"
-          f"gripper {_gripper_text(ac.config, grip)}")
+          f"gripper {text.gripper(grip)}")
 
 
 def _move_options(f: Callable[..., Any]) -> Callable[..., Any]:
@@ -323,6 +323,12 @@ def _move_options(f: Callable[..., Any]) -> Callable[..., Any]:
         "--speed", type=JOINT_SPEED, metavar="DEG_S",
         help=f"Fastest joint speed in deg/s  [default: {DEFAULT_SPEED_DEG_S:g}]",
     )(f)
+
+
+def _check_pace(speed: float | None, duration: float | None) -> None:
+    """--speed and --time both set how long a move takes: one of them, before the bus."""
+    if speed is not None and duration is not None:
+        raise click.UsageError("give --time or --speed, not both")
 
 
 @arm.command("move-to", context_settings=NUMBER_ARGS)
@@ -343,6 +349,7 @@ def move_to(ac: ArmContext, x: float, y: float, z: float, pitch: float | None,
             roll: float | None, line: bool, line_speed: float, profile: str,
             speed: float | None, duration: float | None) -> None:
     """Move the tool point to X Y Z mm (checked in full before anything moves)."""
+    _check_pace(speed, duration)
     with ac.open() as a:
         start = a.read_joints_deg()
         # Plan first: an unreachable target fails here, with the arm untouched.
@@ -352,7 +359,7 @@ def move_to(ac: ArmContext, x: float, y: float, z: float, pitch: float | None,
                         profile=profile)
         else:
             a.move_joints(target, speed_deg_s=speed, duration_s=duration)
-        q = a.read_joints_deg()
+        q = a.settled_joints_deg()  # where it stays, not where the wait let go
     ac.settings.out.print(f"at {_pose_text(a.kin.fk(q))}", highlight=False)
 
 
@@ -368,10 +375,11 @@ def move_joints(ac: ArmContext, joints: tuple[float, ...], pose_name: str | None
                 json_source: str | None, speed: float | None, duration: float | None) -> None:
     """Move to five joint angles (deg), a named pose or JSON joints; all joints start and
     arrive together. Everything is checked before anything moves."""
+    _check_pace(speed, duration)
     joints = joints_to_move(ac.config, ac.settings.robot_port(), joints, pose_name, json_source)
     with ac.open() as a:
         took = a.move_joints(joints, speed_deg_s=speed, duration_s=duration)
-        q = a.read_joints_deg()
+        q = a.settled_joints_deg()
     to = f" to pose {pose_name!r}" if pose_name is not None else ""
     ac.settings.out.print(f"moved{to} in {took:.2f} s: {_joints_text(ac.config, q)}",
                           highlight=False)
@@ -382,9 +390,10 @@ def move_joints(ac: ArmContext, joints: tuple[float, ...], pose_name: str | None
 @pass_arm
 def home(ac: ArmContext, speed: float | None, duration: float | None) -> None:
     """Go to the config's home pose."""
+    _check_pace(speed, duration)
     with ac.open() as a:
         a.move_joints(ac.config.pose("home"), speed_deg_s=speed, duration_s=duration)
-        p = a.read_pose()
+        p = a.kin.fk(a.settled_joints_deg())
     ac.settings.out.print(f"home: {_pose_text(p)}", highlight=False)
 
 
@@ -393,7 +402,7 @@ def home(ac: ArmContext, speed: float | None, duration: float | None) -> None:
 @pass_arm
 def gripper(ac: ArmContext, what: str) -> None:
     """Open the gripper, close it and tell whether it holds something, or open (or close)
-    it to a gap between the fingers in mm: `busarm arm gripper 25mm`."""
+    it to a gap between the fingers in mm: `busarm arm gripper 25` (or 25mm)."""
     action = parse_gripper_target(what)
     if isinstance(action, float):
         gap_mm = check_gap_mm(ac.config, action)
@@ -403,8 +412,9 @@ def gripper(ac: ArmContext, what: str) -> None:
         return
     with ac.open() as a:
         if action == "open":
-            pos = a.open_gripper()
-            ac.settings.out.print(f"gripper {_gripper_text(ac.config, pos)}", highlight=False)
+            a.open_gripper()
+            ac.settings.out.print(f"gripper {text.gripper(a.read_gripper_state())}",
+                                  highlight=False)
             return
         result = a.grip()
     state = "holding an object" if result.is_holding else "closed on nothing"
@@ -419,14 +429,18 @@ def gripper(ac: ArmContext, what: str) -> None:
 @click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path),
               default=DEFAULT_CALIBRATION_OUT, show_default=True, help="Calibration file to write.")
 @click.option("--pose", "pose_name", default="upright", show_default=True,
+              metavar="NAME",
               help="Reference pose (a pose of the config) the arm is put in.")
 @click.option("--software-only", is_flag=True,
               help="Do not write the servos' offsets; keep every correction in the file.")
 @click.option("--yes", is_flag=True,
               help="Non-interactive: the arm is already in the reference pose; no questions.")
+@click.option("--force", is_flag=True,
+              help=f"Write even if a joint reads more than {PLAUSIBLE_ERROR_DEG:g} deg from "
+                   "the reference pose (else --yes refuses, and a person is asked).")
 @pass_arm
 def calibrate(ac: ArmContext, out_path: Path, pose_name: str, software_only: bool,
-              yes: bool) -> None:
+              yes: bool, force: bool) -> None:
     """Measure each joint's zero: torque off, put the arm in the reference pose, confirm.
 
     Errors within +-30 deg go into the servo's own offset (saved in the servo);
@@ -458,6 +472,9 @@ def calibrate(ac: ArmContext, out_path: Path, pose_name: str, software_only: boo
             table.add_row(j.name, str(j.servo_id), f"{measured[j.servo_id]:+.2f}",
                           f"{c.hardware_offset_deg:+.2f}", f"{c.software_offset_deg:+.3f}")
         settings.out.print(table)
+        if not force and not _plausible(a, settings, cal, pose_name, yes):
+            _declined(a, settings, out_path)
+            return
         if not yes and not click.confirm(f"Write the servo offsets and {out_path}?",
                                          default=True, err=True):
             _declined(a, settings, out_path)
@@ -477,6 +494,24 @@ def calibrate(ac: ArmContext, out_path: Path, pose_name: str, software_only: boo
         _hold(a, settings)
     settings.out.print(f"wrote {out_path}; use it with `busarm arm --calibration {out_path} ...`"
                        f" or BUSARM_CALIBRATION={out_path}", highlight=False)
+
+
+def _plausible(a: Arm, settings: Settings, cal: Calibration, pose_name: str,
+               yes: bool) -> bool:
+    """Whether to go on with a calibration some joint of which reads farther from the
+    reference pose than a horn's mounting can be off: --yes refuses (CalibrationError,
+    the arm holding where it stands), a person is asked (default no)."""
+    far = far_from_reference(a.config, cal)
+    if not far:
+        return True
+    what = (f"{'; '.join(far)}: more than {PLAUSIBLE_ERROR_DEG:g} deg, so the arm is likely "
+            f"not in the {pose_name} pose")
+    if yes:
+        _hold(a, settings)
+        raise CalibrationError(f"calibration not written: {what}; put it in that pose, or "
+                               "give --force if it is")
+    settings.err.print(f"warning: {what}", highlight=False, markup=False, soft_wrap=True)
+    return click.confirm("Write it anyway?", default=False, err=True)
 
 
 def _hold(a: Arm, settings: Settings) -> None:
@@ -573,7 +608,7 @@ def play(ac: ArmContext, file: str, speed_scale: float) -> None:
 @actions.command()
 @click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--interval", type=RangeType("interval", 0.05, 60.0, "s"),
-              help="Capture a frame every INTERVAL s  [default: one per Enter key]")
+              help="Capture a frame every S seconds  [default: one per Enter key]")
 @click.option("--frames", "max_frames", type=click.IntRange(1, 10000),
               help="Stop after this many frames  [default: at Ctrl+C, or 'q' + Enter]")
 @click.option("--time", "time_s", type=RangeType("time", 0.0, 30.0, "s"), metavar="S",
@@ -584,18 +619,20 @@ def record(ac: ArmContext, file: Path, interval: float | None, max_frames: int |
     """Record an action group by teaching: torque off, move the arm by hand.
 
     Each Enter (or each --interval) captures the present pose as one frame. At the end
-    the servos hold where they are and FILE is written (atomically).
+    the servos hold where they are and FILE is written (atomically). A Ctrl+C ends it
+    too: the frames so far are written, and the exit code is 130.
     """
     settings = ac.settings
     check_writable(file)  # before the teaching, not after it
     duration_ms = round(1000 * time_s) if time_s is not None else (
         round(interval * 1000) if interval else 1000)
     frames: list[ActionFrame] = []
+    stopped_by: KeyboardInterrupt | None = None
     with ac.open() as a:
         a.set_torque(False)
-        settings.err.print("torque off: move the arm by hand; "
-                           + ("Ctrl+C ends" if interval else "Enter captures, q + Enter ends"))
-        try:
+        try:  # from the torque off: a Ctrl+C at once still leaves the arm holding
+            settings.err.print("torque off: move the arm by hand; " + (
+                "Ctrl+C ends" if interval else "Enter captures, q + Enter ends"))
             while max_frames is None or len(frames) < max_frames:
                 if interval:
                     a.clock.sleep(interval if frames else 0.0)
@@ -606,14 +643,18 @@ def record(ac: ArmContext, file: Path, interval: float | None, max_frames: int |
                 frames.append(a.record_frame(duration_ms))
                 settings.err.print(f"frame {len(frames)}: "
                                    f"{' '.join(str(p) for p in frames[-1].positions_pulses)}")
-        except KeyboardInterrupt:
-            pass  # the end of an --interval recording
+        except KeyboardInterrupt as exc:  # what was taught is kept; exit code 130
+            stopped_by = exc
         finally:
             _hold(a, settings)
+        if frames:
+            write_d6a(file, ActionGroup(tuple(frames)))
+            settings.out.print(f"wrote {len(frames)} frames to {file}", highlight=False)
+        if stopped_by is not None:  # inside the bus: the line says what the servos do
+            raise click.Abort(f"interrupted after frame {len(frames)}" if frames else
+                              "interrupted before any frame: nothing written") from stopped_by
     if not frames:
         raise ConfigError("no frame recorded: nothing written")
-    write_d6a(file, ActionGroup(tuple(frames)))
-    settings.out.print(f"wrote {len(frames)} frames to {file}", highlight=False)
 
 
 COMMANDS = [arm, actions]

@@ -2,18 +2,24 @@
 
 from __future__ import annotations
 
+import io
 import json
+from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import click
+from rich.console import Console
 from rich.table import Table
 
 from busarm.bench.bus import BusBenchReport, run_bench, sim_pty_server
-from busarm.cli.common import IdListType, RangeType, Settings, pass_settings
+from busarm.cli.common import IdListType, RangeType, Settings, no_servos, pass_settings
+from busarm.cli.exits import JobNotDone
 from busarm.units import listing
 
 if TYPE_CHECKING:
+    from busarm.bench.dashboard import DashboardBenchReport
     from busarm.bench.ik import IkBenchReport
     from busarm.bench.locate import LocateBenchReport
     from busarm.bench.pick import PickBenchReport
@@ -114,6 +120,7 @@ def _print(settings: Settings, report: BusBenchReport) -> None:
               help="Also time Robotics Toolbox and ikpy on the same targets (make bench-ik).")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @pass_settings
+@no_servos
 def bench_ik(
     settings: Settings, n: int, batch_n: int, seed: int, peers: bool, as_json: bool,
 ) -> None:
@@ -121,14 +128,31 @@ def bench_ik(
     from busarm.bench.ik import run_ik_bench  # numpy only when asked for
 
     report = run_ik_bench(n=n, batch_n=batch_n, seed=seed, peers=peers)
-    if as_json:
-        click.echo(json.dumps(report.to_dict(), indent=2))
-    else:
-        _print_ik(settings, report)
+    _judged(settings, as_json, report.to_dict(), lambda shown: _print_ik(shown, report))
+
+
+_MISSED = "busarm.bench.missed"
+"""ctx.meta key: how many targets the report just judged missed."""
 
 
 def _verdict(good: bool) -> str:
+    """ok or FAIL, as the report shows it; a FAIL is counted (``_judged``)."""
+    if not good:
+        meta = click.get_current_context().meta
+        meta[_MISSED] = meta.get(_MISSED, 0) + 1
     return "[green]ok[/]" if good else "[red]FAIL[/]"
+
+
+def _judged(settings: Settings, as_json: bool, data: dict[str, Any],
+            show: Callable[[Settings], None]) -> None:
+    """Print the report, as text (``show``) or JSON, and judge it by the targets the text
+    gives: a target missed (FAIL) makes the exit code 1, after the whole report."""
+    show(replace(settings, out=Console(file=io.StringIO())) if as_json else settings)
+    if as_json:
+        click.echo(json.dumps(data, indent=2))
+    missed = click.get_current_context().meta.get(_MISSED, 0)
+    if missed:
+        raise JobNotDone(f"{missed} target(s) missed: FAIL in the report")
 
 
 def _ik_table(report: IkBenchReport) -> Table:
@@ -206,6 +230,7 @@ def _print_ik(settings: Settings, report: IkBenchReport) -> None:
               help="Keep the calibration files the run makes in this folder.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @pass_settings
+@no_servos
 def bench_locate(settings: Settings, placements: int, seed: int, keep: Path | None,
                  as_json: bool) -> None:
     """Localisation accuracy on the twin, with calibrations made by our own flows.
@@ -219,10 +244,7 @@ def bench_locate(settings: Settings, placements: int, seed: int, keep: Path | No
     report = run_locate_bench(
         placements=placements, seed=seed, work_dir=keep,
         progress=lambda text: settings.err.print(text, highlight=False))
-    if as_json:
-        click.echo(json.dumps(report.to_dict(), indent=2))
-    else:
-        _print_locate(settings, report)
+    _judged(settings, as_json, report.to_dict(), lambda shown: _print_locate(shown, report))
 
 
 def _print_locate(settings: Settings, report: LocateBenchReport) -> None:
@@ -241,8 +263,8 @@ def _print_locate(settings: Settings, report: LocateBenchReport) -> None:
         f"placements {a.placements}: located {a.located}, missed {a.missed}, wrong "
         f"colour {a.wrong_color}, in {a.pictures} pictures\n"
         f"location error: median {a.median_mm:.2f} mm "
-        f"({'[green]ok[/]' if ok_median else '[red]FAIL[/]'} <= {TARGET_MEDIAN_MM:g}), "
-        f"p95 {a.p95_mm:.2f} mm ({'[green]ok[/]' if ok_p95 else '[red]FAIL[/]'} "
+        f"({_verdict(ok_median)} <= {TARGET_MEDIAN_MM:g}), "
+        f"p95 {a.p95_mm:.2f} mm ({_verdict(ok_p95)} "
         f"<= {TARGET_P95_MM:g}), max {a.max_mm:.2f} mm")
 
 
@@ -255,6 +277,7 @@ def _print_locate(settings: Settings, report: LocateBenchReport) -> None:
               help="Seed of the twin scenes pictured.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @pass_settings
+@no_servos
 def bench_vision(settings: Settings, pictures: int, seconds: float, seed: int,
                  as_json: bool) -> None:
     """Colour detection beside the vendor-style pipeline, and full detect + localise, on
@@ -262,10 +285,7 @@ def bench_vision(settings: Settings, pictures: int, seconds: float, seed: int,
     from busarm.bench.vision import run_vision_bench
 
     report = run_vision_bench(pictures=pictures, seed=seed, seconds_per_case=seconds)
-    if as_json:
-        click.echo(json.dumps(report.to_dict(), indent=2))
-    else:
-        _print_vision(settings, report)
+    _judged(settings, as_json, report.to_dict(), lambda shown: _print_vision(shown, report))
 
 
 def _print_vision(settings: Settings, report: VisionBenchReport) -> None:
@@ -278,11 +298,11 @@ def _print_vision(settings: Settings, report: VisionBenchReport) -> None:
         f"[bold]busarm bench vision[/]: {report.pictures} twin pictures "
         f"{d.width_px}x{d.height_px}, one core\n"
         f"vendor-style pipeline {d.vendor_fps:.0f} frames/s, ours {d.ours_fps:.0f} "
-        f"frames/s: {d.speedup:.2f}x ({'[green]ok[/]' if ok_speed else '[red]FAIL[/]'} "
+        f"frames/s: {d.speedup:.2f}x ({_verdict(ok_speed)} "
         f">= {TARGET_SPEEDUP:g}x); same blocks in {d.agreement.same_counts_frames}/{d.frames} "
         f"pictures\n"
         f"detect + localise: {report.detect_and_locate_fps:.0f} frames/s "
-        f"({'[green]ok[/]' if ok_loc else '[red]FAIL[/]'} >= {TARGET_LOCATE_FPS:g}), "
+        f"({_verdict(ok_loc)} >= {TARGET_LOCATE_FPS:g}), "
         f"{report.blocks_located} blocks located")
 
 
@@ -293,6 +313,7 @@ def _print_vision(settings: Settings, report: VisionBenchReport) -> None:
               help="E-stops (and lost heartbeats) measured.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @pass_settings
+@no_servos
 def bench_dashboard(settings: Settings, seconds: float, tries: int, as_json: bool) -> None:
     """The dashboard on the twin in real time: state rate to two pages while two camera
     streams run; e-stop (sent to MOVE_STOP at the servos) and lost-heartbeat stop times."""
@@ -300,23 +321,24 @@ def bench_dashboard(settings: Settings, seconds: float, tries: int, as_json: boo
 
     report = run_dashboard_bench(seconds=seconds, tries=tries, progress=lambda text: None
                                  if " view " in text else settings.err.print(text))
-    if as_json:
-        click.echo(json.dumps(report.as_dict(), indent=2))
-        return
-    ok = {True: "[green]ok[/]", False: "[red]FAIL[/]"}
+    _judged(settings, as_json, report.as_dict(), lambda shown: _print_dashboard(shown, report))
+
+
+def _print_dashboard(settings: Settings, report: DashboardBenchReport) -> None:
+    ok = _verdict
     hz, fps = min(report.state_hz, default=0.0), min(report.camera_fps, default=0.0)
     settings.out.print(
         f"[bold]busarm bench dashboard[/] on the twin in real time ({report.machine['cpu']}, "
         f"{report.machine['cores']} cores)\n"
         f"two browsers: state {', '.join(f'{v:.1f}' for v in report.state_hz)} Hz "
-        f"({ok[hz >= 20]} >= 20) while the wrist camera ({report.camera_size}) streamed to "
-        f"them at {', '.join(f'{v:.1f}' for v in report.camera_fps)} fps ({ok[fps >= 15]} "
+        f"({ok(hz >= 20)} >= 20) while the wrist camera ({report.camera_size}) streamed to "
+        f"them at {', '.join(f'{v:.1f}' for v in report.camera_fps)} fps ({ok(fps >= 15)} "
         f">= 15; the overview at {', '.join(f'{v:.1f}' for v in report.overview_fps)})\n"
         f"e-stop sent -> MOVE_STOP at the servos, {report.tries} tries: p50 "
         f"{report.estop_ms['p50']:.1f} ms, p99 {report.estop_ms['p99']:.1f} ms, max "
-        f"{report.estop_ms['max']:.1f} ms ({ok[report.estop_ms['p99'] <= 100]} p99 <= 100)\n"
+        f"{report.estop_ms['max']:.1f} ms ({ok(report.estop_ms['p99'] <= 100)} p99 <= 100)\n"
         f"heartbeat lost -> MOVE_STOP: p50 {report.deadman_ms['p50']:.0f} ms, max "
-        f"{report.deadman_ms['max']:.0f} ms ({ok[report.deadman_ms['max'] <= 400]} <= 400)")
+        f"{report.deadman_ms['max']:.0f} ms ({ok(report.deadman_ms['max'] <= 400)} <= 400)")
 
 
 @bench.command("pick")
@@ -335,6 +357,7 @@ def bench_dashboard(settings: Settings, seconds: float, tries: int, as_json: boo
                    "fast as the CPU allows: to compare the two.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @pass_settings
+@no_servos
 def bench_pick(settings: Settings, scenes: int, seed: int, workers: int, family: str,
                realtime: bool, as_json: bool) -> None:
     """Pick-and-sort success rate, cycle time and localisation error over twin scenes.
@@ -349,10 +372,7 @@ def bench_pick(settings: Settings, scenes: int, seed: int, workers: int, family:
     report = run_pick_bench(scenes=scenes, seed=seed, workers=workers, realtime=realtime,
                             family=family,
                             progress=lambda text: settings.err.print(text, highlight=False))
-    if as_json:
-        click.echo(json.dumps(report.to_dict(), indent=2))
-    else:
-        _print_pick(settings, report)
+    _judged(settings, as_json, report.to_dict(), lambda shown: _print_pick(shown, report))
 
 
 def _print_pick(settings: Settings, report: PickBenchReport) -> None:
@@ -368,10 +388,10 @@ def _print_pick(settings: Settings, report: PickBenchReport) -> None:
         + (f"; {report.beyond_bins} more than their bins hold (left with \"bin full\"): "
            f"{report.in_their_bins} of the {report.blocks - report.beyond_bins} that fit "
            f"({report.fitting_sorted_fraction:.1%})" if report.beyond_bins else "")
-        + f" {'[green]ok[/]' if ok_sorted else '[red]FAIL[/]'} >= {TARGET_SORTED:.0%}; "
+        + f" {_verdict(ok_sorted)} >= {TARGET_SORTED:.0%}; "
         f"reported sorted but not: {report.reported_sorted_but_not}\n"
         f"cycle per block (twin time): median {cycle} s "
-        f"({'[green]ok[/]' if ok_cycle else '[red]FAIL[/]'} <= {TARGET_CYCLE_S:g}; the vendor's "
+        f"({_verdict(ok_cycle)} <= {TARGET_CYCLE_S:g}; the vendor's "
         f"fixed grasp sequence alone takes about 5 s), "
         f"p95 {report.p95_cycle_s} s"
         + ("" if report.clock != "wall" else
@@ -384,5 +404,5 @@ def _print_pick(settings: Settings, report: PickBenchReport) -> None:
         f"({report.calibration_seconds} s of it calibrating), {report.workers} worker(s), "
         f"{report.clock} clock: {report.speedup:.1f}x real time"
         + ("" if report.clock == "wall" else
-           f" ({'[green]ok[/]' if report.speedup >= TARGET_SPEEDUP else '[red]FAIL[/]'} "
+           f" ({_verdict(report.speedup >= TARGET_SPEEDUP)} "
            f">= {TARGET_SPEEDUP:g}x)"))

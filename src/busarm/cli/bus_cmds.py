@@ -16,7 +16,6 @@ from busarm.cli.common import (
     scan_report,
     scan_with_progress,
     state_table,
-    stop_and_read_back,
 )
 from busarm.errors import BusTimeoutError
 from busarm.protocol import MAX_SERVO_ID
@@ -101,21 +100,17 @@ def monitor(
 ) -> None:
     """Live table of position (deg), temperature (C), voltage (V) and torque per servo.
 
-    Refreshes until Ctrl+C (exit code 0) or --count refreshes. Ctrl+C stops every
-    servo (MOVE_STOP: those with torque on hold position) and says each one's torque.
-    When the output is not a terminal, every refresh is printed.
+    Refreshes until Ctrl+C (exit code 130) or --count refreshes (exit code 0). It only
+    reads: it sends no stop, and the servos go on doing what they do (a move of
+    another program goes on). When the output is not a terminal, every refresh is printed.
     """
     with settings.open_bus() as bus:
-        try:
-            if ids is None:
-                ids = scan_with_progress(bus, range(MAX_SERVO_ID + 1), settings.err).found
-                if not ids:
-                    settings.out.print("no servos found")
-                    return
-            _monitor_loop(settings, bus, ids, interval, count)
-        except KeyboardInterrupt:  # the way to end a monitor: not an error, but stop the arm
-            settings.err.print(f"interrupted: {stop_and_read_back(bus, ids or ())}",
-                               highlight=False, markup=False, soft_wrap=True)
+        if ids is None:
+            ids = scan_with_progress(bus, range(MAX_SERVO_ID + 1), settings.err).found
+            if not ids:
+                settings.out.print("no servos found")
+                return
+        _monitor_loop(settings, bus, ids, interval, count)
 
 
 def _monitor_loop(

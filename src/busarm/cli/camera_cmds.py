@@ -100,8 +100,7 @@ def _take_pictures(ac: ArmContext, board: str, board_at: str, views: int, seed: 
             settings.err.print(f"Lay the {spec.describe()} flat with its centre at "
                                f"({centre[0]:g}, {centre[1]:g}) mm, its long side across the "
                                "arm's front; it must not move.", highlight=False)
-        made_for = MadeFor.of(store.robot, (source.width_px, source.height_px), ac.config,
-                              robot.twin)
+        made_for = MadeFor.for_camera(store.robot, source, ac.config, robot.twin)
         if intrinsics_file == store.intrinsics_path:
             store.load_intrinsics(made_for)  # StaleCalibration saying why
         if intrinsics is not None and (source.width_px, source.height_px) != (
@@ -141,7 +140,8 @@ def _output(given: Path | None, kept: Path, store: CalibrationStore) -> Path:
               help="Seed of the view plan.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Where to write the intrinsics (JSON)  [default: kept for this robot, "
-                   "~/.config/busarm/ROBOT/camera.json]")
+                   "camera.json in $XDG_CONFIG_HOME/busarm/ROBOT/ (~/.config/busarm/ROBOT/ "
+                   "without it)]")
 @click.option("--yes", is_flag=True, help="Do not ask before each picture (hardware).")
 @pass_arm
 def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, views: int,
@@ -150,7 +150,7 @@ def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, vi
     """Find the camera's intrinsics and lens distortion from pictures of a board.
 
     The arm takes the camera through views of the board from many angles, then the
-    calibration is written to OUTPUT (busarm.camera_intrinsics, version 1).
+    calibration is written to FILE (busarm.camera_intrinsics, version 1).
     """
     from busarm.robot.calibration_store import MadeFor
     from busarm.robot.camera_calibration import intrinsics_from_views
@@ -178,10 +178,8 @@ def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, vi
         result = intrinsics_from_views(taken, model)
     save_intrinsics(output, result, board=spec.describe(), made_for=made_for.intrinsics())
     i = result.intrinsics
-    click.echo(
-        f"wrote {output}: {i.model}, fx {i.fx:.2f} fy {i.fy:.2f} cx {i.cx:.2f} cy {i.cy:.2f} px, "
-        f"distortion {[round(float(d), 5) for d in i.distortion]}; reprojection rms "
-        f"{result.rms_px:.3f} px over {len(result.per_view_rms_px)} views")
+    click.echo(f"wrote {output}: {i.describe()}; reprojection rms {result.rms_px:.3f} px over "
+               f"{len(result.per_view_rms_px)} views")
     if output == store.intrinsics_path:
         ac.settings.err.print(f"next, where the camera sits: `{store.command('handeye')}`",
                               highlight=False, soft_wrap=True)
@@ -202,7 +200,8 @@ def calibrate(ac: ArmContext, camera_src: str | None, board: str, model: str, vi
               help="Seed of the view plan.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Where to write the hand-eye calibration (JSON)  [default: kept for this "
-                   "robot, ~/.config/busarm/ROBOT/hand_eye.json]")
+                   "robot, hand_eye.json in $XDG_CONFIG_HOME/busarm/ROBOT/ "
+                   "(~/.config/busarm/ROBOT/ without it)]")
 @click.option("--yes", is_flag=True, help="Do not ask before each picture (hardware).")
 @pass_arm
 def handeye(ac: ArmContext, intrinsics: Path | None, camera_src: str | None, views: int,
@@ -210,7 +209,7 @@ def handeye(ac: ArmContext, intrinsics: Path | None, camera_src: str | None, vie
     """Find where the camera sits on the wrist from pictures of a fixed AprilTag board.
 
     The arm looks at the board (tag36h11 grid) from many poses; the camera's pose on the
-    wrist-pitch link is solved from the *measured* joints and written to OUTPUT
+    wrist-pitch link is solved from the *measured* joints and written to FILE
     (busarm.hand_eye, version 1).
     """
     from busarm.robot.camera_calibration import hand_eye_from_views

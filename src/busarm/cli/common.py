@@ -41,20 +41,31 @@ from busarm.bus.transport import DEFAULT_BAUDRATE
 from busarm.cli.arm_inputs import (
     check_gap_mm,
     gap_report,
+    joints_in,
     joints_to_move,
     parse_gripper_target,
+    target_in,
 )
+from busarm.cli.help_style import unit_metavar
 from busarm.cli.sessions import Session, announced, find_session, running_sessions
 from busarm.cli.stopping import (
     add_detail,
+    halt_motor,
     marking_the_stop,
+    no_servos,
     report_line,
     stop_and_read_back,
     stop_motors,
     torque_text,
     unwritten_text,
 )
-from busarm.errors import BusTimeoutError, ConfigError, ProtocolError
+from busarm.errors import (
+    BusTimeoutError,
+    ConfigError,
+    ProtocolError,
+    TransportError,
+    UnreliableLineError,
+)
 from busarm.fileio import robot_folder
 from busarm.protocol import MAX_SERVO_ID, AlarmFlag, check_servo_id
 from busarm.twin.scene import MAX_BLOCKS, Scene
@@ -64,6 +75,7 @@ from busarm.units import (
     POSITION_MIN_DEG,
     check_range,
     parse_ids,
+    range_text,
 )
 
 if TYPE_CHECKING:
@@ -82,11 +94,28 @@ SIM_NOTE = ("note: no --port given: using a simulated arm that lives for this on
 """What a command without --port says when no `busarm sim serve`/`twin serve` runs."""
 # Names commands import from here that live elsewhere (mypy: explicit re-exports).
 # What the stop says (busarm.cli.stopping).
-__all__ = ["add_detail", "report_line", "stop_and_read_back", "stop_motors", "torque_text",
-           "unwritten_text"]
-__all__ += ["check_gap_mm", "gap_report", "joints_to_move", "parse_gripper_target",
-            "robot_folder"]  # what the arm commands take (busarm.cli.arm_inputs)
+__all__ = ["add_detail", "halt_motor", "no_servos", "report_line", "stop_and_read_back",
+           "stop_motors", "torque_text", "unwritten_text"]
+# What the arm commands take (busarm.cli.arm_inputs).
+__all__ += ["check_gap_mm", "gap_report", "joints_in", "joints_to_move",
+            "parse_gripper_target", "robot_folder", "target_in"]
 __all__ += ["announced"]  # how `sim serve`/`twin serve` are found (busarm.cli.sessions)
+
+
+PIPE_WIDTH = 1000
+"""Columns of output that is not a terminal: no table is cut to fit 80 columns."""
+
+
+def make_console(*, stderr: bool = False) -> Console:
+    """A console for stdout (or stderr). On a terminal rich wraps to its width; piped or
+    redirected, a line is never broken (``soft_wrap``) and tables keep their whole
+    headers, up to PIPE_WIDTH columns or $COLUMNS if it is set: the reader is a program,
+    a file or a pager, not an 80-column screen."""
+    console = Console(stderr=stderr)
+    if console.is_terminal:
+        return console
+    width = PIPE_WIDTH if "COLUMNS" not in os.environ else None
+    return Console(stderr=stderr, soft_wrap=True, width=width)
 
 
 @dataclass
@@ -98,21 +127,27 @@ class Settings:
     echo: str = "auto"
     timeout_margin_ms: float = DEFAULT_TIMEOUT_MARGIN_S * 1000.0
     retries: int = DEFAULT_RETRIES
-    out: Console = field(default_factory=Console)
-    err: Console = field(default_factory=lambda: Console(stderr=True))
+    out: Console = field(default_factory=make_console)
+    err: Console = field(default_factory=lambda: make_console(stderr=True))
     port_given: bool = True
     """False when neither --port nor BUSARM_PORT was given (the default simulator)."""
+    port_from_env: bool = False
+    """True when the port is $BUSARM_PORT's (said with an error opening it)."""
     session: Session | None = field(default=None, init=False, repr=False)
     """The running `sim serve`/`twin serve` the default port is (after default_port())."""
     _default_resolved: bool = field(default=False, init=False, repr=False)
+    _default_said: bool = field(default=False, init=False, repr=False)
 
-    def default_port(self) -> str:
+    def default_port(self, *, say: bool = True) -> str:
         """The port of a command without --port: the newest running `busarm sim serve` or
         `twin serve` (so that commands build on each other), else the in-process
-        simulator. Which one is said once, on stderr."""
+        simulator. Which one is said once, on stderr (not if ``say`` is False: for a
+        command that only names the robot's files by it, and opens no bus)."""
         if not self._default_resolved:
             self._default_resolved = True
             self.session = find_session()
+        if say and not self._default_said:
+            self._default_said = True
             note = SIM_NOTE if self.session is None else (
                 f"note: no --port given: using {self.session.describe()} "
                 "(--port sim for a fresh simulated arm)")
@@ -123,7 +158,7 @@ class Settings:
         """The port the robot's kept files (poses, calibrations) are named after: a
         running `sim serve`/`twin serve` is its kind (``sim``, ``twin``) whether it is
         reached by default or by its pty, so that both find the same files."""
-        port = self.port if self.port_given else self.default_port()
+        port = self.port if self.port_given else self.default_port(say=False)
         served = next((s for s in running_sessions() if s.port == port), None)
         return served.kind if served is not None else port
 
@@ -142,19 +177,12 @@ class Settings:
         check_ids = list(check_ids)
         if port is None:
             port = self.port if self.port_given else self.default_port()
-        bus = ServoBus.open(
-            port,
-            baudrate=self.baudrate,
-            echo=self.echo,
-            timeout_margin_s=self.timeout_margin_ms / 1000.0,
-            retries=self.retries,
-        )
+        with self._port_named():
+            bus = ServoBus.open(port, baudrate=self.baudrate, echo=self.echo,
+                                timeout_margin_s=self.timeout_margin_ms / 1000.0,
+                                retries=self.retries)
         try:
-            for sid in check_ids:
-                try:
-                    (check or _ping)(bus, sid)
-                except BusTimeoutError:
-                    raise BusTimeoutError(f"no servo answers at ID {sid}", servo_id=sid) from None
+            _check_answering(bus, check_ids, check or _ping)
         except BaseException:
             bus.close()  # nothing was written: no emergency stop
             raise
@@ -174,15 +202,52 @@ class Settings:
             port = self.default_port() if default == "sim" else default
             if self.session is not None and options.get("camera") is None:
                 options["camera"] = self.session.camera
-        robot = Robot.open(port, baudrate=self.baudrate,
-                           echo=self.echo, timeout_margin_s=self.timeout_margin_ms / 1000.0,
-                           retries=self.retries, **options)
+        with self._port_named():
+            robot = Robot.open(port, baudrate=self.baudrate, echo=self.echo,
+                               timeout_margin_s=self.timeout_margin_ms / 1000.0,
+                               retries=self.retries, **options)
         with marking_the_stop(robot, robot.arm.bus, robot.config.servo_ids):
             yield robot
+
+    @contextmanager
+    def _port_named(self) -> Iterator[None]:
+        """A port that cannot be opened is said to come from $BUSARM_PORT, if it does."""
+        try:
+            yield
+        except TransportError as exc:
+            if self.port_from_env:
+                add_detail(exc, "the port came from $BUSARM_PORT")
+            raise
 
 
 def _ping(bus: ServoBus, sid: int) -> None:
     bus.read_id(sid)
+
+
+def _check_answering(bus: ServoBus, ids: list[int],
+                     check: Callable[[ServoBus, int], object]) -> None:
+    """Each of ``ids`` answers ``check``. One that is silent is asked again once the
+    others after it have been: if their replies came late or damaged, the driver's error
+    then says the line is unreliable, rather than "no servo answers" of a servo that may
+    be there."""
+    silent = []
+    for sid in ids:
+        try:
+            check(bus, sid)
+        except UnreliableLineError:
+            raise
+        except BusTimeoutError:
+            silent.append(sid)
+    for sid in silent:
+        if sid != ids[-1]:
+            try:
+                check(bus, sid)
+                continue  # it answers now: a bad line, which later reads will say
+            except UnreliableLineError:
+                raise
+            except BusTimeoutError:
+                pass
+        raise BusTimeoutError(f"no servo answers at ID {sid}", servo_id=sid) from None
 
 
 pass_settings = click.make_pass_decorator(Settings, ensure=True)
@@ -266,7 +331,7 @@ class AngleType(CheckedType):
         self.lo, self.hi = lo, hi
 
     def parse(self, text: str) -> float:
-        value = _number(text, f"an angle in deg, {self.lo:g}..{self.hi:g}")
+        value = _number(text, f"an angle in deg, {range_text(self.lo, self.hi)}")
         return check_range("angle", value, self.lo, self.hi, "deg")
 
 
@@ -279,10 +344,11 @@ class RangeType(CheckedType):
     def get_metavar(self, param: click.Parameter) -> str | None:
         if isinstance(param, click.Argument):
             return None  # an argument is shown by its own name (X Y Z)
-        return self.name.upper().replace(" ", "_")  # one word: it is one argument
+        # One word (it is one argument): its unit, as for every number option.
+        return unit_metavar(self.unit) or self.name.upper().replace(" ", "_")
 
     def parse(self, text: str) -> float:
-        value = _number(text, f"{self.name} in {self.unit}, {self.lo:g}..{self.hi:g}")
+        value = _number(text, f"{self.name} in {self.unit}, {range_text(self.lo, self.hi)}")
         return check_range(self.name, value, self.lo, self.hi, self.unit)
 
 
@@ -525,9 +591,9 @@ NUMBER_ARGS = {"ignore_unknown_options": True}
 
 
 def alarm_names(mask: AlarmFlag) -> str:
-    """``over-temperature,stalled`` style names of an alarm mask (``none`` if empty)."""
+    """``over-temperature, stalled`` style names of an alarm mask (``none`` if empty)."""
     names = [f.name.lower().replace("_", "-") for f in AlarmFlag if f and f in mask and f.name]
-    return ",".join(names) or "none"
+    return ", ".join(names) or "none"
 
 
 def serve_until_stopped(server: PtyServer) -> None:

@@ -77,6 +77,9 @@ def offset(settings: Settings, servo_id: int, offset_deg: float | None, save: bo
             bus.save_offset(servo_id)
         now = bus.read_offset_deg(servo_id)
     stored = "saved" if save else "not saved: lost at power off unless --save"
+    if offset_deg is not None and abs(now - offset_deg) > 1e-6:  # the servo's resolution
+        stored = (f"rounded from {offset_deg:+g} deg to the servo's steps of "
+                  f"{DEG_PER_PULSE:g} deg; {stored}")
     note = f" ({stored})" if offset_deg is not None or save else ""
     settings.out.print(f"servo {servo_id} angle offset: {now:+.2f} deg{note}")
 
@@ -103,10 +106,10 @@ def limits(
     """
     if angle is not None and pulses_from_deg(angle[0]) >= pulses_from_deg(angle[1]):
         raise click.BadParameter(f"min {angle[0]:g} must be below max {angle[1]:g} deg",
-                                 param_hint="--angle")
+                                 param_hint="'--angle'")
     if vin is not None and mv_from_v(vin[0]) >= mv_from_v(vin[1]):
         raise click.BadParameter(f"min {vin[0]:g} must be below max {vin[1]:g} V",
-                                 param_hint="--vin")
+                                 param_hint="'--vin'")
 
     def check(bus: ServoBus, sid: int) -> None:
         if vin is None:

@@ -12,8 +12,10 @@ from rich.table import Table
 
 from busarm.arm.arm import Arm
 from busarm.arm.config import load_arm_config
+from busarm.arm.kinematics import Pose
 from busarm.arm.motion import LinePath
 from busarm.cli.common import Settings, pass_settings, scan_report, scan_with_progress
+from busarm.cli.text import number
 from busarm.protocol import MAX_SERVO_ID
 
 PICK = (200.0, -110.0)
@@ -59,9 +61,8 @@ def demo(settings: Settings, no_timing: bool, line_speed: float) -> None:
 
             def row(step: str, off: float | None = None) -> None:
                 p = arm.read_pose()
-                path.add_row(step, f"{arm.clock.now() - t0:.1f}", f"{p.x_mm:.1f}",
-                             f"{p.y_mm:.1f}", f"{p.z_mm:.1f}", f"{p.pitch_deg:.1f}",
-                             "" if off is None else f"{off:.2f}")
+                path.add_row(step, number(arm.clock.now() - t0), *_pose_cells(p),
+                             "" if off is None else number(off, 2))
 
             def line(step: str, x: float, y: float, z: float) -> None:
                 start = arm.clock.now() - t0
@@ -72,8 +73,7 @@ def demo(settings: Settings, no_timing: bool, line_speed: float) -> None:
                 every = max(1, len(points) // 4)
                 for k in range(every, len(points) - 1, every):
                     p = points[k]
-                    path.add_row("", f"{start + rec.measured[k][0]:.1f}", f"{p.x_mm:.1f}",
-                                 f"{p.y_mm:.1f}", f"{p.z_mm:.1f}", f"{p.pitch_deg:.1f}", "")
+                    path.add_row("", number(start + rec.measured[k][0]), *_pose_cells(p), "")
                 row(step, float(segment.distance_mm(points).max()))
 
             arm.home()
@@ -96,6 +96,11 @@ def demo(settings: Settings, no_timing: bool, line_speed: float) -> None:
             out.print(path)
             counters = ", ".join(f"{k.replace('_', ' ')}: {v}" for k, v in bus.stats.items())
         out.print(f"done in {arm.clock.now() - t0:.1f} s ({counters})")
+
+
+def _pose_cells(p: Pose) -> list[str]:
+    """x, y, z (mm) and pitch (deg) of a table row, one decimal, never ``-0.0``."""
+    return [number(v) for v in (p.x_mm, p.y_mm, p.z_mm, p.pitch_deg)]
 
 
 COMMANDS = [demo]

@@ -19,6 +19,7 @@ from busarm.cli.common import (
     calibration_store,
     pass_settings,
 )
+from busarm.cli.text import number
 
 BLOCK = RangeType("block size", 10.0, 60.0, "mm")
 
@@ -29,13 +30,14 @@ BLOCK = RangeType("block size", 10.0, 60.0, "mm")
 @click.option("--intrinsics", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               default=None,
               help="Camera intrinsics from `busarm camera calibrate`  [default: the ones kept "
-                   "for this robot, in ~/.config/busarm/ROBOT/]")
+                   "for this robot, in $XDG_CONFIG_HOME/busarm/ROBOT/ (~/.config/busarm/ROBOT/ "
+                   "without it)]")
 @click.option("--hand-eye", "hand_eye", type=click.Path(dir_okay=False, exists=True,
                                                          path_type=Path),
               default=None,
               help="Camera pose on the wrist from `busarm camera handeye`  [default: the one "
                    "kept for this robot]")
-@click.option("--pose", default="look", show_default=True,
+@click.option("--pose", default="look", show_default=True, metavar="NAME",
               help="Named pose of the arm config to look from.")
 @click.option("--here", is_flag=True, help="Look from where the arm is (do not move).")
 @click.option("--frames", type=click.IntRange(1, 100), default=3, show_default=True,
@@ -84,7 +86,7 @@ def locate(settings: Settings, camera_src: str | None, intrinsics: Path | None,
     sightings = locator.locate_averaged(pictures)
     if save is not None:
         save.mkdir(parents=True, exist_ok=True)
-        lines = [f"{s.color} ({s.location.x_mm:.1f}, {s.location.y_mm:.1f}) mm"
+        lines = [f"{s.color} ({number(s.location.x_mm)}, {number(s.location.y_mm)}) mm"
                  + ("" if s.reachable else " out of reach") for s in sightings]
         dets = [s.detection for s in sightings if s.detection is not None]
         save_image(save / "locate.png", annotate(pictures[-1][0], dets, text_lines=lines))
@@ -99,6 +101,6 @@ def locate(settings: Settings, camera_src: str | None, intrinsics: Path | None,
         reach = ("top-down" if s.top_down else "tilted") if s.reachable else \
             f"out of reach ({s.reason})"
         click.echo(
-            f"{s.color:7s} x {loc.x_mm:7.1f}  y {loc.y_mm:7.1f}  z {loc.z_mm:5.1f} mm  "
-            f"yaw {loc.yaw_deg:6.1f} deg  frames {loc.frames} (spread {loc.spread_max_mm:.1f} "
-            f"mm)  reach: {reach}")
+            f"{s.color:7s} x {number(loc.x_mm):>7}  y {number(loc.y_mm):>7}  z "
+            f"{number(loc.z_mm):>5} mm  yaw {number(loc.yaw_deg):>6} deg  frames {loc.frames} "
+            f"(spread {number(loc.spread_max_mm)} mm)  reach: {reach}")

@@ -1,14 +1,16 @@
 """The ``busarm`` group: global options, command registry and error handling.
 
-Every expected failure ends as one line on stderr, ``error: ...``, and an exit code:
-2 for bad input (usage errors, ConfigError), 1 for bus errors (timeouts, garbled
-replies, a port that cannot be opened). Ctrl+C ends as one line ``interrupted: ...``
-and 130. Either line says what the servos were left doing, read back, if anything was
-written to them (``busarm.cli.stopping``). No tracebacks.
+Every expected failure ends as one line on stderr, ``error: ...``, and an exit code
+(``busarm.cli.exits``). Ctrl+C ends as one line ``interrupted: ...`` and 130. Either
+line says what the servos were left doing, read back, if anything was written to them
+(``busarm.cli.stopping``). Output whose reader went away (``busarm ... | head``) ends
+quietly with 141, as Unix tools do. No tracebacks.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
 import sys
 import warnings
 from collections.abc import Sequence
@@ -26,6 +28,7 @@ from busarm.cli import (
     config_cmds,
     dashboard_cmd,
     demo,
+    help_style,
     locate_cmd,
     motor_cmd,
     option_places,
@@ -40,11 +43,18 @@ from busarm.cli import (
 )
 from busarm.cli.bench_cmd import bench
 from busarm.cli.common import Settings, report_line, unwritten_text
+from busarm.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OUTPUT_CLOSED
+from busarm.cli.stopping import servos_note
 from busarm.errors import BusArmError, ConfigError
 
-EXIT_BUS_ERROR = 1
-EXIT_BAD_INPUT = 2
-EXIT_INTERRUPTED = 130
+EXIT_BUS_ERROR = EXIT_FAILED
+INPUT_ENDED = ("the input ended (end of file) before the question was answered: run it at a "
+               "terminal, or with --yes")
+
+
+class _OutputClosed(Exception):
+    """stdout's reader went away (raised from the BrokenPipeError, past click's own
+    handling of it, which would exit 1)."""
 
 
 def _fail(message: str, code: int, exc: BaseException | None = None) -> NoReturn:
@@ -58,6 +68,30 @@ def _interrupted(exc: BaseException, message: str = "interrupted") -> NoReturn:
         click.echo(err=True)  # off the line where the terminal echoed ^C
     click.echo(report_line(exc, message, unwritten=unwritten_text()), err=True)
     sys.exit(EXIT_INTERRUPTED)
+
+
+def _output_closed(exc: BaseException) -> NoReturn:
+    """The reader of stdout went away: end quietly, as Unix tools do; only if the servos
+    were stopped for it is that said (on stderr)."""
+    # Nothing more reaches the pipe, not even the flush at exit (no real stdout in tests).
+    with contextlib.suppress(OSError, ValueError):
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    if servos_note(exc) is not None:
+        click.echo(f"error: {report_line(exc, 'the output was closed (broken pipe)')}", err=True)
+    sys.exit(EXIT_OUTPUT_CLOSED)
+
+
+def _by(exc: BaseException, kind: type[BaseException]) -> bool:
+    """Whether ``exc`` is, or came of, a ``kind`` (click turns an EOF at a prompt into its
+    Abort; rich turns a broken pipe into SystemExit)."""
+    seen: BaseException | None = exc
+    met: set[int] = set()
+    while seen is not None and id(seen) not in met:
+        if isinstance(seen, kind):
+            return True
+        met.add(id(seen))
+        seen = seen.__cause__ or seen.__context__
+    return False
 
 
 def _show_warning(
@@ -82,18 +116,24 @@ class BusArmGroup(click.Group):
             warnings.showwarning = _show_warning
             try:
                 rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+                sys.stdout.flush()  # here, not at exit, where a closed pipe is not caught
             except click.ClickException as exc:
-                _fail(option_places.explain(exc, self, sys.argv[1:] if args is None else args),
+                said = option_places.explain(exc, self, sys.argv[1:] if args is None else args)
+                # One style: ours end without a full stop, so click's do too.
+                _fail(said[:-1] if said.endswith(".") and not said.endswith("..") else said,
                       exc.exit_code, exc)
             except click.Abort as exc:
+                if _by(exc, EOFError):  # not a Ctrl+C: stdin ended at a prompt
+                    click.echo(err=True)  # off the prompt's line
+                    _fail(INPUT_ENDED, EXIT_BAD_INPUT, exc)
                 # A command may say where it was: Abort("interrupted at frame 3 of 7").
                 _interrupted(exc, str(exc) or "interrupted")
             except ConfigError as exc:
                 _fail(str(exc), EXIT_BAD_INPUT, exc)
             except BusArmError as exc:
                 _fail(str(exc) or type(exc).__name__, EXIT_BUS_ERROR, exc)
-            except BrokenPipeError:  # `busarm decode ... | head`
-                sys.exit(0)
+            except (_OutputClosed, BrokenPipeError) as exc:  # `busarm decode ... | head`
+                _output_closed(exc)
         if not standalone_mode:
             return rv
         sys.exit(rv if isinstance(rv, int) else 0)
@@ -103,6 +143,10 @@ class BusArmGroup(click.Group):
             return super().invoke(ctx)
         except KeyboardInterrupt as exc:  # as click's Abort, without click's blank line
             raise click.Abort from exc
+        except (BrokenPipeError, SystemExit) as exc:
+            if _by(exc, BrokenPipeError):
+                raise _OutputClosed from exc
+            raise
 
 
 @click.group(cls=BusArmGroup, context_settings={"help_option_names": ["-h", "--help"]})
@@ -152,6 +196,7 @@ def cli(
         port=port, baudrate=baudrate, echo=echo, timeout_margin_ms=timeout_margin_ms,
         retries=retries,
         port_given=ctx.get_parameter_source("port") is not click.core.ParameterSource.DEFAULT,
+        port_from_env=ctx.get_parameter_source("port") is click.core.ParameterSource.ENVIRONMENT,
     )
 
 
@@ -171,6 +216,7 @@ arm_cmds.actions.add_command(samples_cmd.samples_list)
 # Last, once every command is in: `busarm arm pose --port twin`, `busarm --config X arm pose`.
 option_places.accept_everywhere(cli)
 option_places.name_numbers(cli)
+help_style.apply(cli)
 
 
 def main() -> None:

@@ -1,8 +1,9 @@
 """``motor``: a servo in motor (continuous rotation) mode, for wheels and conveyors.
 
-By default the command stays with the motor: it turns until Ctrl+C or ``--time``, and
-on the way out (an error too) it sets speed 0 and puts the servo back in position mode,
-holding where it stopped. ``--keep-turning`` leaves it turning; ``motor ID stop`` ends it.
+By default the command stays with the motor: it turns until Ctrl+C (exit code 130) or
+``--time``, and on the way out (an error too) it sets speed 0 and puts the servo back in
+position mode, holding where it stopped. ``--keep-turning`` leaves it turning; ``motor ID
+stop`` ends it (without energising a servo whose torque was turned off).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from busarm.cli.common import (
     CheckedType,
     RangeType,
     Settings,
+    halt_motor,
     parse_int,
     pass_settings,
 )
@@ -62,10 +64,11 @@ def motor(settings: Settings, servo_id: int, speed: int | str, duration_s: float
 
     SPEED is -1000..1000: the power the servo drives its motor with, not a rate (1000 =
     full power one way, -1000 the other, 0 = stopped); how fast it turns depends on the
-    servo, the supply and the load. It turns until Ctrl+C or --time, then stops (speed
-    0) and goes back to position mode, holding where it stopped; an error stops it too.
-    `busarm motor ID stop` does the same for a motor left turning. Not for a servo of the
-    arm: in motor mode it turns past its joint limits.
+    servo, the supply and the load. It turns until Ctrl+C (exit code 130) or --time, then
+    stops (speed 0) and goes back to position mode, holding where it stopped; an error
+    stops it too. `busarm motor ID stop` does the same for a motor left turning (a servo
+    made limp with `torque off` stays limp). Not for a servo of the arm: in motor mode it
+    turns past its joint limits.
     """
     if speed == "stop" and (keep_turning or duration_s is not None):
         raise click.UsageError("`stop` takes neither --time nor --keep-turning")
@@ -91,8 +94,9 @@ def motor(settings: Settings, servo_id: int, speed: int | str, duration_s: float
                            highlight=False, soft_wrap=True)
         try:
             _turn(bus, servo_id, duration_s)
-        except KeyboardInterrupt:
-            pass  # the way to end it: stop below, exit 0
+        except KeyboardInterrupt as exc:  # stopped, said, and exit code 130
+            settings.out.print(_stop(bus, servo_id), highlight=False, soft_wrap=True)
+            raise click.Abort("interrupted") from exc
         except BaseException:
             _try_stop(bus, servo_id)  # then the error (the bus's exit sends speed 0 too)
             raise
@@ -109,13 +113,19 @@ def _turn(bus: ServoBus, servo_id: int, duration_s: float | None) -> None:
 
 
 def _stop(bus: ServoBus, servo_id: int) -> str:
-    """Speed 0, then position mode (the servo holds where it stopped); what is true now."""
-    bus.stop_motor(servo_id)
-    bus.set_position_mode(servo_id)
-    at = f"{bus.read_position_deg(servo_id):+.1f} deg"
-    if bus.read_torque(servo_id):
-        return f"servo {servo_id} stopped: back in position mode, holding at {at}"
-    return f"servo {servo_id} stopped: in position mode at {at}, torque off (not holding)"
+    """Out of motor mode (a limp servo is not energised: ``halt_motor``); what is true now,
+    read back: where it is, whether it holds, and whether that is outside its limits."""
+    halt_motor(bus, servo_id)
+    at_deg = bus.read_position_deg(servo_id)
+    said = (f"servo {servo_id} stopped: back in position mode, holding at {at_deg:+.1f} deg"
+            if bus.read_torque(servo_id) else
+            f"servo {servo_id} stopped: back in position mode at {at_deg:+.1f} deg, limp "
+            f"(torque off, left off; `busarm torque on {servo_id}` makes it hold)")
+    lo_deg, hi_deg = bus.read_angle_limits_deg(servo_id)
+    if not lo_deg <= at_deg <= hi_deg:  # motor mode turns past them; moves cannot
+        said += (f"; that is outside its angle limits {lo_deg:+.1f}..{hi_deg:+.1f} deg: a "
+                 f"move within them brings it back (`busarm move {servo_id} 0`)")
+    return said
 
 
 def _try_stop(bus: ServoBus, servo_id: int) -> None:

@@ -25,10 +25,13 @@ import click
 from click.core import ParameterSource
 
 from busarm.cli.common import ArmContext, Settings
+from busarm.cli.help_style import metavar_from_help
 
 GLOBAL_NAMES = ("port", "baudrate", "echo", "timeout_margin_ms", "retries", "verbose")
 """The root options that commands accept after themselves too."""
 ARM_NAMES = ("config", "calibration")
+ARM_ENVVAR = "BUSARM_ARM"
+"""The environment's arm description, for every --config."""
 _ROOT_ARM = "busarm.arm_options"
 """ctx.meta key of the arm options given before the command."""
 _GLOBAL_PREFIX = "_global_"
@@ -53,15 +56,16 @@ def walk(group: click.Group, path: tuple[str, ...] = ()) -> Iterator[
 
 
 def name_numbers(group: click.Group) -> None:
-    """Give every number option without a metavar one word (``N``, ``NUMBER``) instead of
-    click's ``INTEGER RANGE``, which reads as two arguments; the help says the unit."""
+    """Give every number option without a metavar one word instead of click's ``INTEGER
+    RANGE``, which reads as two arguments: ``N`` for whole numbers, else its unit as its
+    help says it (``MS``, ``MM_S``; ``busarm.cli.help_style``)."""
     for command in (group, *(c for _, c in walk(group))):
         for param in command.params:
             if isinstance(param, click.Option) and param.metavar is None:
-                if isinstance(param.type, click.IntRange):
+                if isinstance(param.type, click.types.IntParamType):
                     param.metavar = "N"
-                elif isinstance(param.type, click.FloatRange):
-                    param.metavar = "NUMBER"
+                elif isinstance(param.type, click.types.FloatParamType):
+                    param.metavar = metavar_from_help(param.help or "")
 
 
 def _taken(command: click.Command) -> set[str]:
@@ -91,8 +95,8 @@ def _apply_global(ctx: click.Context, param: click.Parameter, value: Any) -> Non
             log_verbosely()
         return
     setattr(settings, name, value)
-    if name == "port":
-        settings.port_given = True
+    if name == "port":  # given after the command: this one, not $BUSARM_PORT
+        settings.port_given, settings.port_from_env = True, False
 
 
 def _apply_arm(ctx: click.Context, param: click.Parameter, value: Any) -> None:
@@ -167,6 +171,9 @@ def accept_everywhere(root: click.Group) -> None:
                     if not _taken(sub) & set(param.opts):
                         sub.params.append(_copy(param, f"{_ARM_PREFIX}{name}", _apply_arm))
         for own in command.params:
+            if "--config" in own.opts and isinstance(own, click.Option) and not own.hidden \
+                    and not own.envvar:  # every arm description honours it, and says so
+                own.envvar, own.show_envvar = ARM_ENVVAR, True
             for name in ARM_NAMES:
                 if f"--{name}" in own.opts and getattr(own, "envvar", None):
                     own.callback = _before_beats_environment(name, own.callback)

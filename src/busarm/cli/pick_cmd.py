@@ -29,12 +29,29 @@ from busarm.cli.common import (
     pass_settings,
     scene_options,
 )
+from busarm.cli.exits import JobNotDone
+from busarm.cli.sessions import find_session
+from busarm.cli.text import place
 from busarm.errors import ConfigError
 
 if TYPE_CHECKING:
     from busarm.apps.pick_sort import RunReport
 
 DEFAULT_REPORT = "pick-sort-report"
+
+
+def _note_own_twin(settings: Settings, table: str) -> None:
+    """Without --port pick-sort sorts a twin of its own, whatever server runs (a served
+    twin's table and bins are not known here): said when one runs, with how to use it."""
+    session = find_session()
+    if session is None:
+        return
+    how = (f"; to sort the served table: busarm --port {session.port} pick-sort --camera "
+           f"{session.camera} --bins 'COLOUR=X,Y;...' (the bins `twin serve` printed)"
+           if session.kind == "twin" and session.camera else "")
+    settings.err.print(f"note: pick-sort runs a twin of its own ({table}), not "
+                       f"{session.describe()}{how}", highlight=False, markup=False,
+                       soft_wrap=True)
 
 
 def parse_bins(text: str) -> dict[str, tuple[float, float]]:
@@ -102,6 +119,8 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
 
     Prints what happened to every block and the totals, and writes a report folder
     (JSON, the picture each pick started from, the table before and after, a GIF).
+    Exit code 0 when every block was sorted or skipped for a reason it gives (bin full,
+    out of reach, an unknown colour...), 1 when a block failed.
     """
     from busarm.apps.pick_job import PickJob
     from busarm.apps.pick_settings import PickSortSettings
@@ -112,10 +131,19 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
     if scene_file is not None or seed is not None or blocks is not None or (
             not settings.port_given):
         scene = make_scene(scene_file, seed, blocks, None if scene_file else colors)
+    if not settings.port_given:
+        _note_own_twin(settings, scene.source if scene is not None else "")
     bins_given = parse_bins(bins_text) if bins_text is not None else None
+    others = [c for c in bins_given or () if c not in names]
+    sorting = f"the colours to sort ({', '.join(names)}; --colors chooses them)"
     if bins_given is not None and not set(bins_given) & set(names):
-        raise ConfigError(f"--bins has no bin for the colours to sort ({', '.join(names)}): "
-                          "give COLOUR=X,Y for at least one of them")
+        raise ConfigError(f"--bins has no bin for {sorting}: "
+                          + (f"{', '.join(others)} is not one of them; " if others else "")
+                          + "give COLOUR=X,Y for at least one of them")
+    if others:  # a typo, or a colour left out of --colors: said, not silently ignored
+        settings.err.print(f"warning: --bins {', '.join(others)}: not one of {sorting}; "
+                           "no block goes there", highlight=False, markup=False,
+                           soft_wrap=True)
     ac = ArmContext(settings, config, None)
     survey_poses = parse_survey(survey_text, ac.config)
     check_writable(report_dir / "report.json" if report_dir.is_dir() else report_dir)
@@ -143,14 +171,18 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
             raise
     if as_json:
         click.echo(json.dumps(json.loads(path.read_text()), indent=2))
-        return
-    _print_summary(report, simulated, time.monotonic() - wall_start, report_dir)
+    else:
+        _print_summary(report, simulated, time.monotonic() - wall_start, report_dir)
+    failed = report.totals()["failed"]
+    if failed:  # skipped ones (bin full, out of reach...) were left by design
+        raise JobNotDone(f"{failed} block(s) failed to be sorted (the reasons above, and in "
+                         f"{report_dir}/report.json)")
 
 
 def _print_summary(report: RunReport, simulated: bool, wall_s: float,
                    report_dir: Path) -> None:
     for b in report.blocks:
-        where = f"({b.found_mm[0]:.0f}, {b.found_mm[1]:.0f}) mm"
+        where = place(b.found_mm)
         extra = f": {b.reason}" if b.reason else f", {b.attempts} attempt(s), {b.seconds:.1f} s"
         click.echo(f"{b.color:7s} at {where:18s} {b.outcome}{extra}")
     t = report.totals()

@@ -58,8 +58,9 @@ def sim() -> None:
 @click.option("--seed", type=int, default=0, show_default=True,
               help="Seed of the fault generator (same seed, same faults).")
 @click.option("--state", type=click.Path(dir_okay=False, path_type=Path),
-              help="JSON file of the servos' stored settings (IDs, offsets, limits): loaded "
-                   "if it exists (then --ids is ignored), rewritten on every stored write.")
+              help="JSON file of the servos' stored settings (IDs, offsets, limits) and "
+                   "horn positions: loaded if it exists (then --ids is ignored), rewritten "
+                   "on every stored write and, with the positions, when it stops.")
 @click.option("--block", is_flag=True,
               help="A 3 cm block sits between the gripper's fingers (servo 10 stops on it).")
 @pass_settings
@@ -67,7 +68,8 @@ def serve(
     settings: Settings, ids: list[int], echo: bool, no_timing: bool, turnaround_ms: float,
     drop: float, corrupt: float, seed: int, state: Path | None, block: bool,
 ) -> None:
-    """Serve simulated servos on a new pseudo-terminal until SIGINT or SIGTERM.
+    """Serve simulated servos on a new pseudo-terminal until SIGINT (Ctrl+C) or SIGTERM,
+    its way to stop: exit code 0.
 
     The first line of stdout is the device path (e.g. /dev/pts/7): open it with any
     serial program, at any baud rate. The simulated wire runs at --baud.

@@ -9,8 +9,10 @@ does not answer is named as such.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+import functools
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import AbstractContextManager, contextmanager
+from typing import Any, TypeVar, cast
 
 from busarm.bus.driver import ServoBus
 from busarm.errors import BusArmError
@@ -21,11 +23,27 @@ DONE_WITH_THEM = ("after the command was done with the servos (nothing was sent 
                   "since; they do what it left them doing)")
 _wrote_before: list[bool] = []
 """Holds True once a bus this process closed had written to its servos."""
+_without_servos: list[bool] = []
+"""Holds True once a command that has no servos (``no_servos``) has started."""
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def no_servos(command: F) -> F:
+    """Mark a command's function as one that has no servos (``vision detect``, the twin's
+    benchmarks): a stop of it then says nothing of servos."""
+    @functools.wraps(command)
+    def run(*args: Any, **kwargs: Any) -> Any:
+        _without_servos.append(True)
+        return command(*args, **kwargs)
+    return cast(F, run)
 
 
 def unwritten_text() -> str:
     """What a stop outside any bus says of the servos: nothing written, or nothing since
-    the command let them go (a Ctrl+C as a finished job prints its summary)."""
+    the command let them go (a Ctrl+C as a finished job prints its summary); nothing of a
+    command that has none."""
+    if _without_servos:
+        return ""
     return DONE_WITH_THEM if _wrote_before else NOTHING_WRITTEN
 HOLDING = "holding position (torque on)"
 LIMP = "limp (torque off)"
@@ -62,15 +80,23 @@ def torque_text(bus: ServoBus, ids: Iterable[int]) -> str:
     return "; ".join(f"{id_text(group)} {state}" for state, group in groups.items())
 
 
+def halt_motor(bus: ServoBus, sid: int) -> None:
+    """Take servo ``sid`` out of motor mode, holding where it is, without energising one
+    that is limp: with torque on, speed 0 then position mode; with torque off, only
+    position mode (which also sets speed 0), as a motor-mode write would load the motor."""
+    if bus.read_torque(sid):
+        bus.stop_motor(sid)
+    bus.set_position_mode(sid)
+
+
 def stop_motors(bus: ServoBus, ids: Iterable[int]) -> str:
-    """Stop each of ``ids`` found turning in motor mode (MOVE_STOP does not: speed 0, then
-    position mode); what was done, or "" if none was turning."""
+    """Stop each of ``ids`` found turning in motor mode (MOVE_STOP does not:
+    ``halt_motor``); what was done, or "" if none was turning."""
     turning = []
     for sid in sorted(set(ids)):
         try:
             if bus.read_mode(sid).mode == ServoMode.MOTOR:
-                bus.stop_motor(sid)
-                bus.set_position_mode(sid)
+                halt_motor(bus, sid)
                 turning.append(sid)
         except BusArmError:  # silent or garbled: the torque read-back says so
             continue

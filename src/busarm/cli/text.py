@@ -7,16 +7,16 @@ Every number carries its unit; no ``-0.0``; a place on the table is whole millim
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Sequence
+
+from busarm.arm.gripper import GripperState
+from busarm.units import fixed_number, place_text
 
 
 def number(value: float, digits: int = 1) -> str:
-    """``value`` with ``digits`` decimals, never ``-0.0`` (nor ``nan`` as a number)."""
-    if math.isnan(value):
-        return "unknown"
-    text = f"{value:.{digits}f}"
-    return text[1:] if text.startswith("-") and float(text) == 0.0 else text
+    """``value`` with ``digits`` decimals, never ``-0.0`` (nor ``nan`` as a number): the
+    one formatting of busarm's printed numbers (``busarm.units.fixed_number``)."""
+    return fixed_number(value, digits)
 
 
 def quantity(value: float, unit: str, digits: int = 1) -> str:
@@ -37,17 +37,17 @@ def pose(x_mm: float, y_mm: float, z_mm: float, pitch_deg: float, roll_deg: floa
 
 
 def place(xy_mm: Sequence[float]) -> str:
-    """``(172, 14) mm``: a place on the table."""
-    return f"({number(xy_mm[0], 0)}, {number(xy_mm[1], 0)}) mm"
+    """``(172, 14) mm``: a place on the table (``busarm.units.place_text``)."""
+    return place_text(xy_mm[:2])
 
 
-def gripper(gap_mm: float | None, *, holding: bool | None = None) -> str:
-    """The gripper as a person sees it: ``open 29.0 mm``, ``holding a block (30.5 mm)``,
-    ``closed``; ``unknown`` if it could not be read."""
-    if gap_mm is None or math.isnan(gap_mm):
-        return "unknown (no reply)"
-    if holding:
-        return f"holding a block ({quantity(gap_mm, 'mm')} apart)"
-    if gap_mm < 0.5:
-        return "closed"
-    return f"open {quantity(gap_mm, 'mm')}"
+def gripper(state: GripperState) -> str:
+    """The gripper as a person sees it (``busarm.arm.gripper``): ``open 29.2 mm (544
+    pulses)``, ``closed 0.0 mm (700 pulses)``, ``holding something 30.8 mm wide (536
+    pulses; told 700, stopped 164 short)``; the torque when it is off."""
+    torque = ", torque off" if state.torque_on is False else ""
+    gap = quantity(state.gap_mm, "mm")
+    if state.is_holding:
+        return (f"holding something {gap} wide ({state.position_pulses} pulses; told "
+                f"{state.target_pulses}, stopped {state.short_of_target_pulses} short{torque})")
+    return f"{state.state} {gap} ({state.position_pulses} pulses{torque})"

@@ -39,7 +39,7 @@ def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks:
 
     The first line of stdout is the device path (open it with any serial program), the
     second the camera source for `--camera` (twin://127.0.0.1:PORT). Runs until SIGINT
-    or SIGTERM.
+    (Ctrl+C) or SIGTERM, its way to stop: exit code 0.
     """
     from busarm.arm.config import load_arm_config
     from busarm.cli.common import serve_until_stopped
@@ -65,6 +65,10 @@ def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks:
                 click.echo(f"twin: {len(scene.blocks)} blocks ({scene.source}), servos on "
                            f"{path}, camera on {url}; Ctrl+C or SIGTERM to stop; commands "
                            "without --port use it", err=True)
+                if scene.bins:  # what pick-sort on it needs (--bins): it cannot ask
+                    bins = ";".join(f"{b.color}={b.x_mm:g},{b.y_mm:g}" for b in scene.bins)
+                    click.echo(f"bins: {bins} (busarm --port {path} pick-sort --camera "
+                               f"{url} --bins '{bins}')", err=True)
                 serve_until_stopped(server)
         finally:
             camera.stop()
@@ -75,7 +79,7 @@ def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks:
 @scene_options
 @click.option("--png", "png", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Where to write the picture (arm camera left, overview right).")
-@click.option("--pose", default="look", show_default=True,
+@click.option("--pose", default="look", show_default=True, metavar="NAME",
               help="Named pose of the arm config to render the arm in.")
 @click.option("--joints", "joints", default=None,
               help="Joint angles in deg, e.g. 0,-60,0,-90,0 (instead of --pose).")

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from busarm.cli.common import RangeType
+from busarm.cli.common import RangeType, no_servos
 from busarm.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -117,8 +117,9 @@ def _frame_text(frame: CameraFrame, index: int, detections: list[Detection],
 @click.option("--tags", "find_tags", is_flag=True, help="Also find AprilTags (36h11).")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per frame.")
 @click.option("--save", "save_dir", type=click.Path(file_okay=False),
-              help="Write each annotated frame to DIR/frame_NNNNNN.png.")
+              help="Write each annotated frame to DIRECTORY/frame_NNNNNN.png.")
 @click.pass_context
+@no_servos
 def detect(
     ctx: click.Context, camera: str, thresholds: str | None,
     vendor_yaml: str | None, section: str, colors: str | None, frame_count: int,

@@ -1,10 +1,11 @@
 """What the dashboard shows of the robot, read off the bus as it runs.
 
-Each control period reads the fast values (every servo's position and where the gripper
-was last told to go); the slow ones (temperature, voltage, torque of one servo) take turns,
-one servo per period, so a six-servo arm refreshes them about four times a second at
-25 Hz. Reads go straight to the bus, never through the arm's motion lock: a job moving
-the arm (which holds that lock for the whole move) is watched live.
+Each control period reads the fast values (every servo's position); the slow ones take
+turns, one value a period: a servo's temperature, voltage or torque (six servos: each
+value about every 0.7 s at 25 Hz), and every fourth period where the gripper was last
+told to go (MOVE_TIME_READ: with its position, whether it holds something). Reads go
+straight to the bus, never through the arm's motion lock: a job moving the arm (which
+holds that lock for the whole move) is watched live.
 
 Alarms are the servo's own limits against its readings (as ``busarm info`` shows them);
 the limits are read once, when the reader starts.
@@ -17,10 +18,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from busarm.arm.arm import Arm
+from busarm.arm.gripper import gripper_state
 from busarm.errors import BusArmError
 
-HOLD_SLACK_MM = 3.0
-"""Fingers told to close this much wider than closed, and still, hold something."""
+SLOW_VALUES = ("temp", "vin", "torque")
+TARGET_EVERY = 4
+"""Read the gripper's last commanded position every this many periods."""
 
 
 @dataclass
@@ -85,47 +88,45 @@ class StateReader:
             s.error = f"limits not read: {exc}"
 
     def read(self) -> Reading:
-        """The fast values now, and one servo's slow ones (BusArmError if a read fails)."""
+        """The fast values now, and one slow value (BusArmError if a read fails)."""
         arm, bus = self.arm, self.arm.bus
         pulses = {j.servo_id: bus.read_position_pulses(j.servo_id) for j in arm.config.joints}
         gid = arm.config.gripper.servo_id
         grip = bus.read_position_pulses(gid)
-        target = bus.read_move_time(gid).position_pulses  # the last one it was told
+        target = self.last.gripper_target_pulses if self.last is not None else None
+        if target is None or self._turn % TARGET_EVERY == 0:
+            target = bus.read_move_time(gid).position_pulses  # the last one it was told
         self.last = Reading(arm.joints_from_pulses(pulses), grip, target)
         self._read_slow()
         return self.last
 
     def _read_slow(self) -> None:
         ids = list(self.servos)
-        s = self.servos[ids[self._turn % len(ids)]]
-        self._turn += 1
+        k, self._turn = self._turn, self._turn + 1
+        s = self.servos[ids[k % len(ids)]]
+        value = SLOW_VALUES[(k // len(ids)) % len(SLOW_VALUES)]
         bus = self.arm.bus
         try:
-            s.temp_c = float(bus.read_temp_c(s.servo_id))
-            s.vin_v = bus.read_vin_v(s.servo_id)
-            s.torque_on = bus.read_torque(s.servo_id)
+            if value == "temp":
+                s.temp_c = float(bus.read_temp_c(s.servo_id))
+            elif value == "vin":
+                s.vin_v = bus.read_vin_v(s.servo_id)
+            else:
+                s.torque_on = bus.read_torque(s.servo_id)
             s.error = None if s.temp_limit_c is not None else s.error
         except BusArmError as exc:
             s.error = f"not answering: {exc}"
 
     def gripper(self, reading: Reading) -> dict[str, Any]:
-        """The gripper's gap (mm) and state: open, closed, or holding (told to close, and
-        stopped wider than closed: something is between the fingers), or moving."""
+        """The gripper's gap (mm) and state: open, closed or holding
+        (busarm.arm.gripper's rule), or moving while its gap changes."""
         g = self.arm.config.gripper
-        gap = g.gap_mm_at(reading.gripper_pulses)
-        moving = self._last_gap is not None and abs(gap - self._last_gap) > 0.3
-        self._last_gap = gap
-        target_gap = None if reading.gripper_target_pulses is None else g.gap_mm_at(
-            reading.gripper_target_pulses)
-        if moving:
-            state = "moving"
-        elif target_gap is not None and target_gap < gap - HOLD_SLACK_MM:
-            state = "holding"
-        elif gap <= HOLD_SLACK_MM:
-            state = "closed"
-        else:
-            state = "open"
-        return {"gap_mm": round(gap, 1), "state": state}
+        torque = self.servos[g.servo_id].torque_on
+        state = gripper_state(g, reading.gripper_pulses, reading.gripper_target_pulses,
+                              torque)
+        moving = self._last_gap is not None and abs(state.gap_mm - self._last_gap) > 0.3
+        self._last_gap = state.gap_mm
+        return {"gap_mm": round(state.gap_mm, 1), "state": "moving" if moving else state.state}
 
     def as_dict(self, reading: Reading) -> dict[str, Any]:
         """The values for the page, in deg and mm."""

@@ -410,11 +410,12 @@ def decode_message(frame: Frame) -> Request | Reply:
 
 
 def describe(message: Request | Reply, servo_id: int | None = None) -> str:
-    """One line for people: direction, command, ID and named values in units."""
+    """One line for people: direction, command (named as everywhere else in busarm,
+    without the manual's SERVO_ prefix), ID and named values in units."""
     if isinstance(message, Request):
         target = "broadcast" if message.servo_id == BROADCAST_ID else f"id {message.servo_id}"
         vals = " ".join(f"{k}={v}" for k, v in message.values.items())
-        return f"request {message.command.manual_name} to {target}" + (f": {vals}" if vals else "")
+        return f"request {message.command.name} to {target}" + (f": {vals}" if vals else "")
     parts = []
     for f in fields(message):
         v = getattr(message, f.name)
@@ -423,4 +424,4 @@ def describe(message: Request | Reply, servo_id: int | None = None) -> str:
         if hasattr(type(message), extra):
             parts.append(f"{extra}={getattr(message, extra):g}")
     origin = f" from id {servo_id}" if servo_id is not None else ""
-    return f"reply {message.COMMAND.manual_name}{origin}: " + " ".join(parts)
+    return f"reply {message.COMMAND.name}{origin}: " + " ".join(parts)

@@ -33,6 +33,7 @@ from typing import Any
 from busarm.arm.config import ArmConfig
 from busarm.errors import CalibrationError, ConfigError
 from busarm.fileio import read_versioned_json, robot_folder, robot_key
+from busarm.twin.camera import RemoteTwinCamera, TwinOptics
 from busarm.twin.lens import LENSES, LensSpec
 from busarm.twin.twin import Twin
 from busarm.vision.calibration import (
@@ -44,6 +45,7 @@ from busarm.vision.calibration import (
     load_hand_eye,
     load_intrinsics,
 )
+from busarm.vision.camera import CameraSource
 
 STORE_VERSION = 1
 """Bumped when what a kept calibration must match changes: older ones are then stale."""
@@ -79,10 +81,19 @@ class MadeFor:
     twin_mount: list[list[float]] | None = None
 
     @classmethod
+    def for_camera(cls, robot: str, camera: CameraSource, config: ArmConfig,
+                   twin: Twin | None = None) -> MadeFor:
+        """The record for ``camera`` on ``config``'s arm: a twin's camera (``twin``'s, or
+        a served twin's, whose server tells its optics) is recorded with its optics."""
+        optics = twin if twin is not None else (
+            camera.optics if isinstance(camera, RemoteTwinCamera) else None)
+        return cls.of(robot, (camera.width_px, camera.height_px), config, optics)
+
+    @classmethod
     def of(cls, robot: str, image_px: tuple[int, int], config: ArmConfig,
-           twin: Twin | None = None) -> MadeFor:
+           twin: Twin | TwinOptics | None = None) -> MadeFor:
         """The record for ``robot``'s camera giving ``image_px`` pictures, on ``config``'s
-        arm, on ``twin`` if it is one."""
+        arm, on ``twin`` (its optics) if it is one."""
         lens = mount = None
         if twin is not None:
             lens = _lens_record(twin.lens)

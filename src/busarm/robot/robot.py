@@ -32,7 +32,7 @@ from busarm.arm.arm import Arm
 from busarm.arm.calibration import Calibration, load_calibration
 from busarm.arm.config import ArmConfig, load_arm_config
 from busarm.bus.driver import ServoBus
-from busarm.bus.transport import DEFAULT_BAUDRATE, Transport, open_transport
+from busarm.bus.transport import DEFAULT_BAUDRATE, Transport, check_device, open_transport
 from busarm.clock import Clock
 from busarm.errors import ConfigError
 from busarm.progress import Progress, quiet
@@ -43,6 +43,7 @@ from busarm.twin.camera import TwinCamera
 from busarm.twin.scene import Scene
 from busarm.twin.transport import TwinTransport, is_twin_url, twin_from_url
 from busarm.twin.twin import Twin
+from busarm.units import listing
 from busarm.vision.calibration import (
     CameraIntrinsics,
     HandEyeResult,
@@ -131,9 +132,9 @@ class Robot:
         ``board``: on a twin, lay this calibration board on its table;
         ``scene``: what stands on a twin's table (else the URL's). ``needs``: what the job
         cannot do without (``camera``, ``camera_calibration``, ``bins``), checked before
-        the port is opened. ``bus_options`` go to ``ServoBus`` (echo, retries,
-        timeout_margin_s). Everything is checked before the arm moves; a failure closes
-        what was opened.
+        the port is opened (after a device path is checked to exist). ``bus_options`` go
+        to ``ServoBus`` (echo, retries, timeout_margin_s). Everything is checked before the
+        arm moves; a failure closes what was opened.
         """
         on_twin = is_twin_url(port)
         if scene is not None and not on_twin:
@@ -142,6 +143,8 @@ class Robot:
         if calibration_store is not None and calibration_dir is not None:
             raise ConfigError("give a calibration_store or a calibration_dir, not both")
         store = calibration_store if intrinsics is None and hand_eye is None else None
+        if not on_twin:  # a missing adapter first: it is what to fix first
+            check_device(port)
         _check_needs(needs, port, on_twin, camera, intrinsics, hand_eye, bins, store,
                      calibrate)
         given = config if isinstance(config, ArmConfig | None) else load_arm_config(config)
@@ -163,8 +166,8 @@ class Robot:
             source = _open_camera(camera, twin)
             if source is not None:
                 opened.append(source)
-            made_for = None if store is None or source is None else MadeFor.of(
-                store.robot, (source.width_px, source.height_px), cfg, twin)
+            made_for = None if store is None or source is None else MadeFor.for_camera(
+                store.robot, source, cfg, twin)
             calibration = _camera_calibration(twin, intrinsics, hand_eye, calibrate,
                                               calibration_dir, progress, store, made_for)
             robot = cls(arm, camera=source, calibration=calibration, bins=bins, twin=twin)
@@ -257,7 +260,7 @@ def _check_needs(needs: Collection[str], port: str, on_twin: bool, camera: str |
                  store: CalibrationStore | None, calibrate: bool) -> None:
     unknown = set(needs) - set(NEEDS)
     if unknown:
-        raise ConfigError(f"needs {sorted(unknown)}; allowed: {', '.join(NEEDS)}")
+        raise ConfigError(f"needs {listing(sorted(unknown))}; allowed: {listing(NEEDS)}")
     if hand_eye is not None and intrinsics is None:  # it was solved with those intrinsics
         raise ConfigError("a hand-eye calibration needs the intrinsics it was made with: "
                           "give --intrinsics too")

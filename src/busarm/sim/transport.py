@@ -25,7 +25,7 @@ from urllib.parse import parse_qs, urlsplit
 from busarm.errors import ConfigError, TransportError
 from busarm.protocol import SERVO_TURNAROUND_S
 from busarm.sim.bus import ARM_SERVO_IDS, FaultInjection, SimBus, WireTiming
-from busarm.units import check_range, parse_ids
+from busarm.units import check_range, listing, parse_ids
 
 _KNOWN = {"ids", "echo", "timing", "turnaround_ms", "drop", "corrupt", "late", "late_ms", "seed",
           "state", "block"}
@@ -50,6 +50,11 @@ def query_flag(q: dict[str, str], key: str, default: bool, what: str = "sim URL"
     return q[key] == "1"
 
 
+def _query_rate(q: dict[str, str], key: str) -> float:
+    """A fault probability from the URL, 0..1, checked under its URL key."""
+    return check_range(f"sim URL: {key}", query_float(q, key, 0.0), 0.0, 1.0)
+
+
 def sim_bus_from_url(url: str, baudrate: int = 115200) -> SimBus:
     """A SimBus configured by a ``sim://?...`` URL (``sim`` alone is the arm)."""
     query = urlsplit(url).query if "://" in url else ""
@@ -57,7 +62,8 @@ def sim_bus_from_url(url: str, baudrate: int = 115200) -> SimBus:
     unknown = set(raw) - _KNOWN
     if unknown:
         raise ConfigError(
-            f"sim URL: unknown parameter(s) {sorted(unknown)}; known: {sorted(_KNOWN)}"
+            f"sim URL: unknown parameter(s) {listing(sorted(unknown))}; known: "
+            f"{listing(sorted(_KNOWN))}"
         )
     q = {k: v[-1] for k, v in raw.items()}
     ids = parse_ids(q["ids"]) if "ids" in q else list(ARM_SERVO_IDS)
@@ -65,11 +71,13 @@ def sim_bus_from_url(url: str, baudrate: int = 115200) -> SimBus:
                                 query_float(q, "turnaround_ms", SERVO_TURNAROUND_S * 1000),
                                 0.0, 100.0, "ms")
     timing = WireTiming(baudrate, turnaround_ms / 1000.0, query_flag(q, "timing", True))
+    # Checked here under the URL's own keys (FaultInjection would name its fields).
     faults = FaultInjection(
-        drop_rate=query_float(q, "drop", 0.0),
-        corrupt_rate=query_float(q, "corrupt", 0.0),
-        late_rate=query_float(q, "late", 0.0),
-        late_s=query_float(q, "late_ms", 50.0) / 1000.0,
+        drop_rate=_query_rate(q, "drop"),
+        corrupt_rate=_query_rate(q, "corrupt"),
+        late_rate=_query_rate(q, "late"),
+        late_s=check_range("sim URL: late_ms", query_float(q, "late_ms", 50.0),
+                           0.0, 10000.0, "ms") / 1000.0,
         seed=int(query_float(q, "seed", 0)),
     )
     state = Path(q["state"]) if q.get("state") else None
@@ -123,7 +131,11 @@ class SimTransport:
         return self.read(256, timeout_s)
 
     def close(self) -> None:
-        self._closed = True
+        """Close; the servos power off, saving their state file (``state=``) with each
+        horn where it is, as a real servo's horn stays where the power left it."""
+        if not self._closed:
+            self._closed = True
+            self.bus.power_off()
 
     def _check_open(self) -> None:
         if self._closed:

@@ -17,6 +17,7 @@ import numpy.typing as npt
 
 from busarm.errors import ConfigError
 from busarm.twin.scene import BASE_CLEARANCE_MM, Board, Scene
+from busarm.units import place_text
 from busarm.vision.calibration.boards import (
     BoardSpec,
     CharucoSpec,
@@ -106,7 +107,7 @@ def check_boards_fit(scene: Scene, table_z_mm: float) -> None:
         for x, y in corners[:2].T:
             if not scene.table.contains(float(x), float(y)):
                 raise ConfigError(f"scene {scene.source}: boards[{i}] ({board.kind}, "
-                                  f"{w:g}x{h:g} mm) hangs off the table at ({x:.0f}, {y:.0f}) mm")
+                                  f"{w:g}x{h:g} mm) hangs off the table at {place_text((x, y))}")
         # The base is a disc around (0, 0): the board's nearest point must clear it.
         nearest = _nearest_on_rectangle(b2b, w, h)
         if nearest < BASE_CLEARANCE_MM:

@@ -8,29 +8,67 @@
 The wire format of the loopback camera is one request byte ``F`` per frame, answered by
 a header (magic ``BATF``, width, height as uint32, capture time as float64
 ``time.monotonic()``, which all processes on one Linux machine share) and the BGR bytes.
-The server binds 127.0.0.1 only.
+A request byte ``L`` asks for the camera's optics (what its calibration depends on): a
+header (magic ``BATL``, length as uint32) and that many bytes of JSON, ``{"lens":
+{LensSpec's fields}, "cam2link": 4x4 mm}``. The server binds 127.0.0.1 only.
 """
 
 from __future__ import annotations
 
 import contextlib
+import json
 import socket
 import socketserver
 import struct
 import threading
+from dataclasses import dataclass, fields
 from urllib.parse import urlsplit
 
 import numpy as np
 import numpy.typing as npt
 
+from busarm.arm.camera_mount import CameraMount
 from busarm.errors import CameraError, ConfigError
+from busarm.twin.lens import LensSpec
 from busarm.twin.twin import Twin
+from busarm.units import listing
 from busarm.vision.camera import CameraBase
 
 _HEADER = struct.Struct("<4sIId")
 _MAGIC = b"BATF"
+_OPTICS_HEADER = struct.Struct("<4sI")
+_OPTICS_MAGIC = b"BATL"
 LOOPBACK = "127.0.0.1"
 SOCKET_TIMEOUT_S = 5.0
+
+
+@dataclass(frozen=True)
+class TwinOptics:
+    """A twin camera's lens and where it sits on the arm: what its calibration is for
+    (``busarm.robot.calibration_store``); a ``Twin`` has the same two attributes."""
+
+    lens: LensSpec
+    mount: CameraMount
+
+    def to_json(self) -> bytes:
+        lens = {f.name: getattr(self.lens, f.name) for f in fields(LensSpec)
+                if not f.name.startswith("_")}
+        return json.dumps({"lens": lens, "cam2link": self.mount.cam2link.tolist()}).encode()
+
+    @classmethod
+    def from_json(cls, data: bytes) -> TwinOptics:
+        """Optics as ``to_json`` wrote them; CameraError if they are not."""
+        try:
+            raw = json.loads(data.decode("utf-8"))
+            lens = dict(raw["lens"])
+            lens["distortion"] = tuple(lens["distortion"])
+            cam2link = np.asarray(raw["cam2link"], dtype=float)
+            if cam2link.shape != (4, 4):
+                raise ValueError(f"cam2link has shape {cam2link.shape}")
+            return cls(LensSpec(**lens), CameraMount(cam2link))
+        except (ValueError, TypeError, KeyError, ConfigError) as exc:
+            raise CameraError(f"twin camera: the server's optics are not readable ({exc})"
+                              ) from None
 
 
 class TwinCamera(CameraBase):
@@ -73,11 +111,14 @@ class RemoteTwinCamera(CameraBase):
             raise ConfigError(f"twin camera host {host!r}: only this machine "
                               f"({LOOPBACK}) serves twin frames")
         name = f"twin://{host}:{port}"
+        self._sock = self._connect(name, port)
         try:
-            self._sock = socket.create_connection((LOOPBACK, port), timeout=SOCKET_TIMEOUT_S)
-        except OSError as exc:
-            raise CameraError(f"no camera at {name}: {exc} (is `busarm twin serve` "
-                              "running?)") from exc
+            self.optics: TwinOptics | None = self._fetch_optics()
+            """The served twin's lens and camera mount (None from a server too old to
+            tell): the twin's kept calibration is for them."""
+        except CameraError:  # such a server closes the connection on a request it lacks
+            self._sock.close()
+            self._sock, self.optics = self._connect(name, port), None
         try:
             first = self._fetch()
         except BaseException:
@@ -85,6 +126,24 @@ class RemoteTwinCamera(CameraBase):
             raise
         height, width = first.shape[:2]
         super().__init__(name, width, height)
+
+    @staticmethod
+    def _connect(name: str, port: int) -> socket.socket:
+        try:
+            return socket.create_connection((LOOPBACK, port), timeout=SOCKET_TIMEOUT_S)
+        except OSError as exc:
+            raise CameraError(f"no camera at {name}: {exc} (is `busarm twin serve` "
+                              "running?)") from exc
+
+    def _fetch_optics(self) -> TwinOptics:
+        try:
+            self._sock.sendall(b"L")
+        except OSError as exc:
+            raise CameraError(f"twin camera: {exc}") from exc
+        magic, size = _OPTICS_HEADER.unpack(self._recv(_OPTICS_HEADER.size))
+        if magic != _OPTICS_MAGIC or size > 1 << 16:
+            raise CameraError("twin camera: not a twin camera server (bad optics header)")
+        return TwinOptics.from_json(self._recv(size))
 
     def _recv(self, n: int) -> bytes:
         buf = bytearray()
@@ -121,7 +180,7 @@ def open_twin_camera(spec: str, **options: object) -> TwinCamera | RemoteTwinCam
     """Entry point of the ``twin`` camera scheme (see the module docstring)."""
     view = str(options.pop("view", "arm"))
     if options:
-        raise ConfigError(f"twin camera: unknown option(s) {sorted(options)}; known: view")
+        raise ConfigError(f"twin camera: unknown option(s) {listing(sorted(options))}; known: view")
     parts = urlsplit(spec) if "://" in spec else None
     if parts is not None and parts.netloc:
         try:
@@ -142,12 +201,17 @@ class CameraServer:
 
     def __init__(self, twin: Twin, port: int = 0) -> None:
         camera = TwinCamera(twin)
+        optics = TwinOptics(twin.lens, twin.mount).to_json()
 
         class Handler(socketserver.BaseRequestHandler):
             def handle(self) -> None:
                 sock: socket.socket = self.request
                 try:
-                    while sock.recv(1) == b"F":
+                    while (request := sock.recv(1)) in (b"F", b"L"):
+                        if request == b"L":
+                            sock.sendall(_OPTICS_HEADER.pack(_OPTICS_MAGIC, len(optics))
+                                         + optics)
+                            continue
                         frame = camera.read()
                         h, w = frame.image.shape[:2]
                         sock.sendall(_HEADER.pack(_MAGIC, w, h, frame.timestamp_s)

@@ -24,7 +24,7 @@ from typing import Any
 from busarm.errors import ConfigError
 from busarm.fileio import write_text_atomic
 from busarm.twin.footprints import TOUCH_TOLERANCE_MM, Footprint, penetration_mm
-from busarm.units import check_int_range, check_range
+from busarm.units import check_int_range, check_range, listing
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -423,8 +423,8 @@ def _table_from(data: dict[str, Any], cls: Any, key: str, source: str) -> Any:
     fields = cls.__dataclass_fields__
     unknown = sorted(set(data) - set(fields))
     if unknown:
-        raise ConfigError(f"scene {source}: {key}: unknown key(s) {unknown}; "
-                          f"known: {sorted(fields)}")
+        raise ConfigError(f"scene {source}: {key}: unknown key(s) {listing(unknown)}; "
+                          f"known: {listing(sorted(fields))}")
     try:
         return cls(**data)
     except TypeError as exc:  # a missing required key
@@ -466,7 +466,8 @@ def _scene_from_data(data: dict[str, Any], source: str) -> Scene:
              "lighting", "seed"}
     unknown = sorted(set(data) - known)
     if unknown:
-        raise ConfigError(f"scene {source}: unknown key(s) {unknown}; known: {sorted(known)}")
+        raise ConfigError(f"scene {source}: unknown key(s) {listing(unknown)}; known: "
+                          f"{listing(sorted(known))}")
 
     def items(key: str) -> list[dict[str, Any]]:
         value = data.get(key, [])

@@ -46,6 +46,7 @@ from busarm.twin.clutter import CLUTTER_DEFAULT_BLOCKS, CLUTTER_MAX_BLOCKS, clut
 from busarm.twin.lens import lens_by_name
 from busarm.twin.scene import COLORS, MAX_BLOCKS, Scene, load_scene, random_scene
 from busarm.twin.twin import CONTROL_PERIOD_S, Twin
+from busarm.units import listing
 
 _KNOWN = {"family", "seed", "blocks", "colors", "scene", "config", "echo", "timing", "board",
           "lens", "pace", "realtime"}
@@ -65,8 +66,8 @@ def twin_query(url: str) -> dict[str, str]:
     raw = parse_qs(query, keep_blank_values=True)
     unknown = set(raw) - _KNOWN
     if unknown:
-        raise ConfigError(f"twin URL: unknown parameter(s) {sorted(unknown)}; "
-                          f"known: {sorted(_KNOWN)}")
+        raise ConfigError(f"twin URL: unknown parameter(s) {listing(sorted(unknown))}; "
+                          f"known: {listing(sorted(_KNOWN))}")
     return {k: v[-1] for k, v in raw.items()}
 
 

@@ -39,7 +39,7 @@ import numpy as np
 import numpy.typing as npt
 
 from busarm.errors import ConfigError, VisionError
-from busarm.units import check_range
+from busarm.units import check_range, listing
 from busarm.vision.calibration.camera_model import CameraIntrinsics
 from busarm.vision.calibration.core import as_transform
 
@@ -417,7 +417,7 @@ def average_locations(locations: Sequence[BlockLocation]) -> BlockLocation:
         raise ConfigError("average_locations takes BlockLocation values")
     sizes = {loc.size_mm for loc in locs}
     if len(sizes) != 1:
-        raise ConfigError(f"cannot average blocks of different sizes {sorted(sizes)} mm")
+        raise ConfigError(f"cannot average blocks of different sizes {listing(sorted(sizes))} mm")
     weights = np.array([loc.frames for loc in locs], dtype=np.float64)
     xyz = np.array([[loc.x_mm, loc.y_mm, loc.z_mm] for loc in locs])
     mean = (xyz * weights[:, None]).sum(axis=0) / weights.sum()

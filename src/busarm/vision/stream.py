@@ -11,6 +11,8 @@ shown in a message or a frame's source name.
 from __future__ import annotations
 
 import os
+import socket
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from urllib.parse import urlsplit, urlunsplit
@@ -51,6 +53,30 @@ def _quiet_opencv() -> Iterator[None]:
         cv2.setLogLevel(previous)
 
 
+_DEFAULT_PORTS = {"rtsp": 554, "rtsps": 322, "http": 80, "https": 443}
+
+
+def _why_not_opened(url: str, waited_s: float, timeout_s: float) -> str:
+    """Why FFmpeg opened no stream (it does not say): a timeout if it waited that long;
+    else what a plain connection to the host finds (refused, unknown host), or a server
+    that answers with something that is not a video stream."""
+    if waited_s >= 0.9 * timeout_s:
+        return f"no video stream within {timeout_s:g} s (unreachable, or not answering)"
+    parts = urlsplit(url)
+    host = parts.hostname or ""
+    try:
+        port = parts.port or _DEFAULT_PORTS.get(parts.scheme.lower(), 80)
+        with socket.create_connection((host, port), timeout=min(timeout_s, 2.0)):
+            pass
+    except ConnectionRefusedError:
+        return f"the connection was refused (nothing listens on {host}:{port})"
+    except socket.gaierror:
+        return f"the host {host!r} is not known"
+    except (OSError, ValueError) as exc:  # unreachable network, a bad port number
+        return f"no connection to {host} ({getattr(exc, 'strerror', None) or exc})"
+    return f"{host}:{port} answered, but not with a video stream FFmpeg can decode"
+
+
 class NetworkStream(CameraBase):
     """Frames of a network stream; its size is the first frame's.
 
@@ -70,6 +96,7 @@ class NetworkStream(CameraBase):
         self.read_timeout_s = read_timeout_s
         params = [cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, round(open_timeout_s * 1000),
                   cv2.CAP_PROP_READ_TIMEOUT_MSEC, round(read_timeout_s * 1000)]
+        started = time.monotonic()
         with _quiet_opencv():
             capture = cv2.VideoCapture(url, cv2.CAP_FFMPEG, params)
             opened = capture.isOpened()
@@ -77,9 +104,9 @@ class NetworkStream(CameraBase):
         if not opened or not ok or image is None:
             capture.release()
             raise CameraError(
-                f"cannot open camera stream {name}: no video stream within "
-                f"{open_timeout_s:g} s (refused, unreachable, or not a stream FFmpeg can "
-                "decode)" if not opened else
+                f"cannot open camera stream {name}: "
+                + _why_not_opened(url, time.monotonic() - started, open_timeout_s)
+                if not opened else
                 f"camera stream {name} opened but gave no frame within {read_timeout_s:g} s"
             )
         self._capture = capture

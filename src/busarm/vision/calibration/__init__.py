@@ -52,7 +52,12 @@ from busarm.vision.calibration.boards import (
     TagBoardSpec,
     board_image_frame,
 )
-from busarm.vision.calibration.camera_model import MODELS, UNDISTORT_TOL_PX, CameraIntrinsics
+from busarm.vision.calibration.camera_model import (
+    MODELS,
+    UNDISTORT_TOL_PX,
+    CameraIntrinsics,
+    distortion_text,
+)
 from busarm.vision.calibration.core import (
     RIGID_TOL,
     FloatArray,
@@ -114,6 +119,7 @@ __all__ = [
     "calibrate_hand_eye",
     "calibrate_intrinsics",
     "default_min_points",
+    "distortion_text",
     "find_board",
     "invert_transform",
     "load_hand_eye",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -10,7 +11,7 @@ import numpy as np
 import numpy.typing as npt
 
 from busarm.errors import ConfigError, VisionError
-from busarm.units import check_int_range
+from busarm.units import check_int_range, fixed_number
 from busarm.vision.calibration.core import FloatArray, _array, _points, _readonly
 
 MODELS = ("pinhole", "fisheye")
@@ -20,6 +21,19 @@ UNDISTORT_TOL_PX = 0.01
 _POLISH_PX = 1e-4
 """OpenCV's undistortion is polished with Newton steps when it is off by more than this."""
 _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-6)
+
+
+DISTORTION_NAMES = {"pinhole": ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"),
+                    "fisheye": ("k1", "k2", "k3", "k4")}
+"""OpenCV's names of the distortion coefficients, in their order, per model."""
+
+
+def distortion_text(coefficients: Sequence[float] | FloatArray, model: str = "pinhole") -> str:
+    """Distortion coefficients as a person reads them: ``k1 -0.3044, k2 0.1525, p1
+    0.0008, ...`` (OpenCV's names, 4 decimals)."""
+    names = DISTORTION_NAMES.get(model, ())
+    return ", ".join(f"{names[i] if i < len(names) else f'd{i + 1}'} {fixed_number(float(v), 4)}"
+                     for i, v in enumerate(coefficients))
 
 
 @dataclass(frozen=True, eq=False)
@@ -148,11 +162,11 @@ class CameraIntrinsics:
         return cls("pinhole", 640, 480, k, d, calibrated=False)
 
     def describe(self) -> str:
-        d = " ".join(f"{v:.5g}" for v in self.distortion)
         tag = "" if self.calibrated else ", not calibrated for this camera"
         return (
             f"{self.model} {self.width_px}x{self.height_px}: fx {self.fx:.2f} fy {self.fy:.2f} "
-            f"cx {self.cx:.2f} cy {self.cy:.2f} px, distortion [{d}]{tag}"
+            f"cx {self.cx:.2f} cy {self.cy:.2f} px, distortion "
+            f"{distortion_text(self.distortion, self.model)}{tag}"
         )
 
     # ---------------------------------------------------------------- projection

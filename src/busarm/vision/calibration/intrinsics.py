@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 
 from busarm.errors import ConfigError, VisionError
-from busarm.units import check_int_range
+from busarm.units import check_int_range, listing
 from busarm.vision.calibration.camera_model import MODELS, CameraIntrinsics
 from busarm.vision.calibration.core import _rotvec_matrix
 from busarm.vision.calibration.detection import BoardObservation, _found_views
@@ -68,7 +68,7 @@ def calibrate_intrinsics(
         if len(used) < min_views:
             raise VisionError(
                 f"{len(used)} usable views of {len(observations)} after dropping "
-                f"{sorted(dropped)}; need at least {min_views}"
+                f"{listing(sorted(dropped))}; need at least {min_views}"
             )
         try:
             intr, per_view = calibrate([found[i] for i in used], (width, height), flags)
