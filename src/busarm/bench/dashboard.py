@@ -2,8 +2,9 @@
 time, through the real server on 127.0.0.1.
 
 - Rates: two headless Chromium pages show the dashboard (state, the wrist camera at
-  640x480 with the blocks drawn, the overview camera) for ``seconds``; the server counts
-  what it delivered to each (``/api/delivered``).
+  640x480 with the blocks drawn, the overview camera) for ``seconds`` while the arm
+  waves (an action group, again and again: every frame differs); the server counts what
+  it delivered to each (``/api/delivered``).
 - E-stop: a driver jogs, then sends ``estop``; the time from sending it to the first
   MOVE_STOP the servos receive (a probe on the twin's simulated bus, which the server
   never reads), ``tries`` times.
@@ -14,6 +15,7 @@ time, through the real server on 127.0.0.1.
 from __future__ import annotations
 
 import json
+import threading
 import time
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -75,7 +77,6 @@ def _rates(url: str, seconds: float, report: DashboardBenchReport,
     """Two headless Chromium pages on the dashboard (each showing the cameras); what the
     server delivered to them over ``seconds``, after a warm-up."""
     import shutil
-    import tempfile
 
     try:
         from playwright.sync_api import sync_playwright
@@ -86,6 +87,39 @@ def _rates(url: str, seconds: float, report: DashboardBenchReport,
     if chromium is None:
         raise ConfigError("bench dashboard drives two browsers: it needs Chromium "
                           "(make browser, or apt-get install chromium)")
+    moving, mover_id = threading.Event(), list[str]()
+    mover = threading.Thread(target=_keep_moving, args=(url, moving, mover_id),
+                             name="busarm-bench-mover")
+    mover.start()  # drives first: the browsers watch
+    moving.wait(10)
+    try:
+        _browsers(url, seconds, report, progress, chromium, sync_playwright, mover_id)
+    finally:
+        moving.clear()
+        mover.join()
+
+
+def _keep_moving(url: str, moving: threading.Event, mover: list[str]) -> None:
+    """The arm waves (the sample action group, again and again) while the rates are
+    measured: every camera frame differs, as when a person watches a job."""
+    with _ws(url) as ws:
+        mover.append(json.loads(ws.recv(timeout=10))["client"])  # its welcome
+        moving.set()
+        while moving.is_set():
+            ws.send('{"type": "play", "group": "wave"}')
+            while moving.is_set():
+                message = json.loads(ws.recv(timeout=30))
+                if message["type"] == "job" and message["state"] != "running":
+                    break
+                if message["type"] == "error":
+                    raise RuntimeError(message["text"])
+        ws.send('{"type": "stop"}')
+
+
+def _browsers(url: str, seconds: float, report: DashboardBenchReport, progress: Progress,
+              chromium: str, sync_playwright: Any, not_browsers: list[str]) -> None:
+    import tempfile
+
     with sync_playwright() as playwright, tempfile.TemporaryDirectory() as tmp:
         contexts = [playwright.chromium.launch_persistent_context(
             f"{tmp}/{k}", executable_path=chromium, headless=True, args=CHROMIUM_FLAGS,
@@ -102,7 +136,8 @@ def _rates(url: str, seconds: float, report: DashboardBenchReport,
             for context in contexts:
                 context.close()
     report.state_hz = [round((n - before["states"].get(c, 0)) / took, 1)
-                       for c, n in after["states"].items() if c in before["states"]]
+                       for c, n in after["states"].items()
+                       if c in before["states"] and c not in not_browsers]
     report.camera_fps = [round((n - before["frames"].get(k, 0)) / took, 1)
                          for k, n in after["frames"].items()
                          if k.startswith("wrist") and k in before["frames"]]
@@ -134,6 +169,11 @@ def _stops(url: str, seen: list[tuple[float, Request]], tries: int,
            report: DashboardBenchReport, progress: Progress) -> None:
     estop, deadman = [], []
     with _ws(url) as ws:
+        ws.send('{"type": "move_pose", "name": "home"}')  # the jogs stay clear of the limits
+        while True:
+            message = json.loads(ws.recv(timeout=30))
+            if message["type"] == "job" and message["state"] != "running":
+                break
         for k in range(tries):
             progress(f"stop {k + 1}/{tries}")
             _jog(ws, 1 if k % 2 else -1, 0.3)

@@ -21,7 +21,7 @@ from busarm.errors import BusArmError
 from busarm.robot import Robot
 from busarm.vision.annotate import annotate
 from busarm.vision.camera import CameraSource
-from busarm.vision.color import ColorDetector, default_thresholds
+from busarm.vision.color import ColorDetector, Detection, default_thresholds
 
 log = logging.getLogger(__name__)
 
@@ -31,12 +31,23 @@ IDLE_STOP_S = 2.0
 """A feed nobody has asked for a frame for this long stops grabbing."""
 
 
+DETECT_EVERY = 2
+"""The wrist camera's blocks are found in every this many frames (and drawn on each):
+a person sees boxes that lag a frame, and the CPU has time for more frames."""
+
+
 def block_boxes(colors: list[str]) -> Callable[[Image], Image]:
     """Draw the blocks of ``colors`` found in a picture (the wrist camera's overlay)."""
     detector = ColorDetector(default_thresholds(), colors=colors)
+    found: list[Detection] = []
+    count = 0
 
     def draw(image: Image) -> Image:
-        return annotate(image, detector.detect(image))
+        nonlocal found, count
+        if count % DETECT_EVERY == 0:
+            found = detector.detect(image)
+        count += 1
+        return annotate(image, found)
     return draw
 
 
@@ -91,12 +102,16 @@ class Feed:
 
     def _run(self) -> None:
         period = 1.0 / self.fps
+        next_at = time.monotonic()
         try:
             while not self._closed and (
                     self._waiting or time.monotonic() - self._wanted_at < IDLE_STOP_S):
-                start = time.monotonic()
                 self._publish(self._encode())
-                time.sleep(max(0.0, period - (time.monotonic() - start)))
+                next_at += period
+                delay = next_at - time.monotonic()
+                if delay < -period:  # far behind (a busy CPU): go on from now, no racing
+                    next_at, delay = time.monotonic(), 0.0
+                time.sleep(delay)
         finally:
             if self.on_thread_end is not None:
                 self.on_thread_end()  # a twin camera frees this thread's renderer
@@ -139,7 +154,7 @@ def robot_feeds(robot: Robot, fps: float) -> dict[str, Feed]:
     """A feed for each of the robot's cameras (``wrist`` with the blocks it sees drawn on,
     ``fps`` a second; the twin's ``overview`` at most OVERVIEW_FPS).
 
-    A twin's cameras are rendered for the page without shadows (several times cheaper on
+    A twin's cameras are rendered for the page without shadows or antialiasing (cheaper on
     a CPU, which is what lets the page have 15 frames a second); the pictures vision and
     jobs work on keep them.
     """
@@ -149,7 +164,7 @@ def robot_feeds(robot: Robot, fps: float) -> dict[str, Feed]:
     sources: dict[str, CameraSource] = dict(robot.cameras)
     if twin is not None:
         sources = {name: TwinCamera(twin, view="arm" if name == "wrist" else "overview",
-                                    shadows=False) for name in sources}
+                                    live=True) for name in sources}
     boxes = block_boxes(["red", "green", "blue", "yellow"])
     return {name: Feed(name, source, fps=fps if name == "wrist" else min(fps, OVERVIEW_FPS),
                        draw=boxes if name == "wrist" else None,

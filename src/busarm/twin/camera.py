@@ -75,9 +75,9 @@ class TwinCamera(CameraBase):
     """Frames from a twin in this process (its arm camera, or the overview camera)."""
 
     def __init__(self, twin: Twin, *, view: str = "arm", owns_twin: bool = False,
-                 shadows: bool = True) -> None:
-        """``shadows=False``: a live view for a person, several times cheaper to render
-        on a CPU (busarm.dashboard); vision gets the pictures with shadows."""
+                 live: bool = False) -> None:
+        """``live``: a view for a person, drawn without shadows or antialiasing, several
+        times cheaper on a CPU (busarm.dashboard); vision gets the full pictures."""
         if view not in ("arm", "overview"):
             raise ConfigError(f"twin camera view {view!r}; allowed: arm, overview")
         arm = view == "arm"
@@ -86,14 +86,14 @@ class TwinCamera(CameraBase):
         self.twin = twin
         self.view = view
         self._owns = owns_twin
-        self.shadows = shadows
+        self.live = live
 
     def _grab(self) -> npt.NDArray[np.uint8]:
         if self.twin.is_closed:
             raise CameraError(f"{self.name}: the twin was closed")
         if self.view == "arm":
-            return self.twin.render_camera(shadows=self.shadows)
-        return self.twin.render_overview(shadows=self.shadows)
+            return self.twin.render_camera(live=self.live)
+        return self.twin.render_overview(live=self.live)
 
     def _timestamp(self) -> float:
         return self.twin.clock.now()

@@ -25,6 +25,7 @@ looks the same every time.
 
 from __future__ import annotations
 
+import copy
 import ctypes.util
 import math
 import os
@@ -473,14 +474,18 @@ class Twin:
             self._renderers.remove(renderer)
         self._local.renderers = {}
 
-    def _renderer(self, width: int, height: int) -> Any:
+    def _renderer(self, width: int, height: int, live: bool = False) -> Any:
         cache = getattr(self._local, "renderers", None)
         if cache is None:
             cache = self._local.renderers = {}
-        key = (width, height)
+        key = (width, height, live)
         if key not in cache:
+            model = self.model
+            if live:  # the same model drawn without multisampling: a live view's own context
+                model = copy.copy(self.model)
+                model.vis.quality.offsamples = 0
             try:
-                cache[key] = self.mujoco.Renderer(self.model, height, width)
+                cache[key] = self.mujoco.Renderer(model, height, width)
             except Exception as exc:  # the GL backend's own errors vary by backend
                 raise TwinError(
                     f"cannot render with MUJOCO_GL={os.environ.get('MUJOCO_GL')}: {exc}; "
@@ -488,33 +493,38 @@ class Twin:
             self._renderers.append(cache[key])
         return cache[key]
 
-    def render_ideal(self, camera: str = "arm_camera", *, shadows: bool = True) -> ImageArray:
+    def render_ideal(self, camera: str = "arm_camera", *, live: bool = False) -> ImageArray:
         """The ideal pinhole render (RGB) of a camera: no lens (``overview`` is 640x480).
-        ``shadows=False``: a live view for a person (on a CPU, shadows are most of a
-        frame's cost); what vision works on keeps them."""
+
+        ``live``: a view for a person, drawn without shadows or antialiasing (on a CPU
+        those are most of a frame's cost: several times cheaper); the pictures vision
+        works on keep them.
+        """
         size = self._render_size if camera == "arm_camera" else (640, 480)
-        renderer = self._renderer(*size)
+        renderer = self._renderer(*size, live)
         if self.realtime:
             self.sync()
         with self._lock:
             renderer.update_scene(self.data, camera=camera)
-        renderer.scene.flags[self.mujoco.mjtRndFlag.mjRND_SHADOW] = shadows
+        renderer.scene.flags[self.mujoco.mjtRndFlag.mjRND_SHADOW] = not live
         image: ImageArray = renderer.render()
         return image
 
-    def render_camera(self, *, shadows: bool = True) -> ImageArray:
-        """The arm camera's image as the vision layer gets it: BGR, through the lens."""
+    def render_camera(self, *, live: bool = False) -> ImageArray:
+        """The arm camera's image as the vision layer gets it: BGR, through the lens
+        (``live``: see ``render_ideal``)."""
         import cv2
 
-        bgr = np.asarray(cv2.cvtColor(self.render_ideal("arm_camera", shadows=shadows),
+        bgr = np.asarray(cv2.cvtColor(self.render_ideal("arm_camera", live=live),
                                       cv2.COLOR_RGB2BGR), dtype=np.uint8)
         return self.lens.apply(bgr)
 
-    def render_overview(self, *, shadows: bool = True) -> ImageArray:
-        """The overview camera (BGR, 640x480, no lens): the whole table from above the front."""
+    def render_overview(self, *, live: bool = False) -> ImageArray:
+        """The overview camera (BGR, 640x480, no lens): the whole table from above the front
+        (``live``: see ``render_ideal``)."""
         import cv2
 
-        return np.asarray(cv2.cvtColor(self.render_ideal("overview", shadows=shadows),
+        return np.asarray(cv2.cvtColor(self.render_ideal("overview", live=live),
                                        cv2.COLOR_RGB2BGR), dtype=np.uint8)
 
     def cam2base_from_mujoco(self, camera: str = "arm_camera") -> FloatArray:

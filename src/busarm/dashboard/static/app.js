@@ -279,6 +279,7 @@
 
   const fmt = (v, digits = 1) => (typeof v === 'number' ? v.toFixed(digits) : '–');
 
+  let drawnLinks = '';
   function renderState(s) {
     lastState = s;
     stateCount += 1;
@@ -325,7 +326,11 @@
     $('rec-frames').textContent = s.recording === null || s.recording === undefined
       ? 'not recording' : `recording: ${s.recording} frame${s.recording === 1 ? '' : 's'}`;
     markMoving(s.jog);
-    drawArm(s.links_mm || []);
+    const links = JSON.stringify(s.links_mm || []);
+    if (links !== drawnLinks) {  // redrawn only when the arm moved: the page stays light
+      drawnLinks = links;
+      drawArm(s.links_mm || []);
+    }
   }
 
   function renderServos(servos) {
