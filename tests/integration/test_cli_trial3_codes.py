@@ -375,6 +375,8 @@ def test_monitor_only_reads_and_its_ctrl_c_sends_nothing(
         pty_arm: tuple[str, ListeningSim], home: dict[str, str]) -> None:
     path, sim = pty_arm
     assert run("move", "1", "-40", "--time", "6", port=path).exit_code == 0
+    with ServoBus.open(path, echo="off") as bus:
+        bus.read_id(1)  # answered after the move was taken
     sim.heard.clear()
     proc = busarm("--port", path, "monitor", "--ids", "1", "--interval", "0.05", env=home)
     wait_for(proc.stdout, "refresh 2", proc)

@@ -188,6 +188,7 @@ def test_monitor_ctrl_c_sends_and_says_nothing_of_stopping(
         pty_arm: tuple[str, ListeningSim]) -> None:
     path, sim = pty_arm
     hold(path, 2)  # servo 1 stays limp, as the simulated servos start
+    time.sleep(0.1)  # (the simulator has taken the hold's writes)
     sim.heard.clear()
     monitor = busarm("--port", path, "monitor", "--ids", "1,2", "--interval", "0.05")
     assert monitor.stdout is not None
@@ -315,8 +316,10 @@ def test_pick_sort_error_mid_run_is_one_line_that_names_the_silent_servo(
             "(torque on); servo 3 not answering (torque unknown); the gripper: holding a "
             in line), line
     data = strict_json(report / "report.json")
+    # A servo heard before that goes quiet: its supply is the first thing to check.
     assert data["gripper"].startswith("holding a ") and data["stopped"].startswith(
-        "BusTimeoutError: ")
+        "UnreliableLineError: servo 3 did not answer"), data["stopped"]
+    assert "though it answered on this bus before: check its supply" in data["stopped"]
     assert data["totals"]["median_cycle_s"] is None
 
 

@@ -32,7 +32,9 @@ SLACK_S = 0.005
 """What a call may take beyond its own timeouts: scheduling on a busy 2-core machine."""
 VIN_REPLY_BYTES = 8
 TYPED = (BusTimeoutError, ProtocolError)
-TYPED_NAMES = ("BusTimeoutError", "ProtocolError", "ChecksumError")
+TYPED_NAMES = ("BusTimeoutError", "UnreliableLineError", "ProtocolError", "ChecksumError")
+"""The typed errors a read may end with (UnreliableLineError: a timeout from a servo that
+answered before, or on a line seen delivering replies late or damaged)."""
 
 SUPPLY_MV = {1: 11100, 2: 10200, 3: 9300, 4: 8400, 5: 7500, 10: 11900}
 """Distinct supplies, so that one servo's VIN reply is never right for another."""

@@ -17,6 +17,9 @@ The rules, applied to each ```sh code block of the section, in order:
   runs); they run as the same command with smaller counts, given there.
 * INTERACTIVE: the lines in ``INTERACTIVE`` get the answers a person gives ("y") on
   stdin; every other line gets an empty stdin.
+* BENCH: a benchmark line may miss a speed target on a busy test machine: then it prints
+  FAIL and exits 1 with the one line ``MISSED`` says, which is not the README's fault;
+  any other error is.
 * Every other line runs as written, with bash, in a fresh folder per block whose
   ``.venv/bin/busarm`` runs this checkout's busarm, so that the files one line writes
   (camera.json, ws.png) are there for the next. Each must exit 0 with no traceback and
@@ -58,6 +61,8 @@ SMALLER = {
 }
 """README line (without its comment) -> the smaller run of the same commands."""
 INTERACTIVE = {f"{BUSARM} arm calibrate": "y\n" * 4}
+MISSED = re.compile(r"error: \d+ target\(s\) missed: FAIL in the report")
+"""The line of a benchmark that printed FAIL (exit code 1): allowed (see BENCH)."""
 LINE_TIMEOUT_S = 120.0
 
 
@@ -104,6 +109,8 @@ class Run:
 
     def check(self, line: str, code: int, out: str, err: str) -> None:
         errors = [x for x in err.splitlines() if x.startswith("error:")]
+        if f"{BUSARM} bench" in line and errors and all(MISSED.fullmatch(x) for x in errors):
+            code, errors = (0 if code == 1 else code), []  # a speed target, missed (BENCH)
         if code != 0 or "Traceback" in out + err or errors:
             self.failures.append(f"{line}\n  exit {code}\n  stderr: {err.strip()[-2000:]}")
 

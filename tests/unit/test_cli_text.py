@@ -28,7 +28,15 @@ def test_every_line_carries_its_units() -> None:
 
 
 def test_the_gripper_says_what_it_does() -> None:
-    assert text.gripper(29.04) == "open 29.0 mm"
-    assert text.gripper(30.5, holding=True) == "holding a block (30.5 mm apart)"
-    assert text.gripper(0.2) == "closed"
-    assert text.gripper(None) == "unknown (no reply)"
+    from busarm.arm.config import load_arm_config
+    from busarm.arm.gripper import gripper_state
+
+    g = load_arm_config().gripper
+    opened = g.pulses_for_gap_mm(29.0)
+    assert text.gripper(gripper_state(g, opened, g.open_pulses, True)) == (
+        f"open {g.gap_mm_at(opened):.1f} mm ({opened} pulses)")
+    assert text.gripper(gripper_state(g, g.closed_pulses, g.closed_pulses, False)) == (
+        f"closed 0.0 mm ({g.closed_pulses} pulses, torque off)")
+    held = text.gripper(gripper_state(g, opened, g.closed_pulses, True))
+    assert held.startswith(f"holding something {g.gap_mm_at(opened):.1f} mm wide (")
+    assert f"told {g.closed_pulses}, stopped {abs(g.closed_pulses - opened)} short" in held

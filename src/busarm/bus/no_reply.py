@@ -25,7 +25,7 @@ CUT_SHORT_HINT = ("bytes are lost on the line, or the replies come late: check t
 DAMAGED_HINT = ("bytes are lost or corrupted on the line: check the cabling and its connectors, "
                 "electrical noise near the bus, and the baud rate (--baud; LX servos use 115200)")
 QUIET_HINT = ("check its supply (a servo short of voltage goes quiet), its cable and the "
-              "connectors")
+              "connectors; on a busy computer, --timeout-margin-ms waits longer")
 LATE_HINT = ("the line is slow to deliver: a USB adapter's latency timer (`busarm ports`), a "
              "busy computer, or a servo short of supply voltage; --timeout-margin-ms waits longer")
 

@@ -14,8 +14,14 @@ from rich.console import Console
 from rich.table import Table
 
 from busarm.bench.bus import BusBenchReport, run_bench, sim_pty_server
-from busarm.cli.common import IdListType, RangeType, Settings, no_servos, pass_settings
-from busarm.cli.exits import JobNotDone
+from busarm.cli.common import (
+    IdListType,
+    JobNotDone,
+    RangeType,
+    Settings,
+    no_servos,
+    pass_settings,
+)
 from busarm.units import listing
 
 if TYPE_CHECKING:
@@ -56,7 +62,9 @@ def bench(
     pseudo-terminal with 115200-baud wire timing, so the numbers include the real
     serial path. On hardware (`--port /dev/ttyUSB0`) this is the first diagnostic to
     run: a rate far below the wire limit points at adapter latency or a noisy bus.
-    `busarm bench ik` measures the arm's inverse kinematics instead.
+    `busarm bench ik` measures the arm's inverse kinematics instead. A benchmark that
+    judges its report against targets (ik, locate, vision, dashboard, pick) exits with
+    code 1 when it prints FAIL, after the whole report (--json too).
     """
     if click.get_current_context().invoked_subcommand is not None:
         return

@@ -46,7 +46,8 @@ from busarm.cli.arm_inputs import (
     parse_gripper_target,
     target_in,
 )
-from busarm.cli.help_style import unit_metavar
+from busarm.cli.exits import JobNotDone
+from busarm.cli.help_style import metavar_from_help, unit_metavar
 from busarm.cli.sessions import Session, announced, find_session, running_sessions
 from busarm.cli.stopping import (
     add_detail,
@@ -99,7 +100,8 @@ __all__ = ["add_detail", "halt_motor", "no_servos", "report_line", "stop_and_rea
 # What the arm commands take (busarm.cli.arm_inputs).
 __all__ += ["check_gap_mm", "gap_report", "joints_in", "joints_to_move",
             "parse_gripper_target", "robot_folder", "target_in"]
-__all__ += ["announced"]  # how `sim serve`/`twin serve` are found (busarm.cli.sessions)
+__all__ += ["announced", "find_session"]  # running `sim serve`/`twin serve` (cli.sessions)
+__all__ += ["JobNotDone", "metavar_from_help"]  # exit codes, help style (cli.exits, help_style)
 
 
 PIPE_WIDTH = 1000

@@ -17,12 +17,12 @@ import click
 from busarm.cli.common import (
     Settings,
     calibration_store,
+    find_session,
     interrupt_on_signals,
     make_scene,
     pass_settings,
     scene_options,
 )
-from busarm.cli.sessions import find_session
 from busarm.errors import ConfigError
 
 if TYPE_CHECKING:

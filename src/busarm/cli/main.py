@@ -10,6 +10,7 @@ quietly with 141, as Unix tools do. No tracebacks.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import os
 import sys
 import warnings
@@ -94,6 +95,13 @@ def _by(exc: BaseException, kind: type[BaseException]) -> bool:
     return False
 
 
+def _of_ctrl_c(exc: BaseException) -> bool:
+    """Whether ``exc`` came of a Ctrl+C: a KeyboardInterrupt in its chain, or the
+    ctypes.ArgumentError it turns into in a C call's arguments (MuJoCo's OpenGL calls)."""
+    return _by(exc, KeyboardInterrupt) or (
+        isinstance(exc, ctypes.ArgumentError) and "KeyboardInterrupt" in str(exc))
+
+
 def _show_warning(
     message: Warning | str, category: type[Warning], filename: str, lineno: int,
     file: TextIO | None = None, line: str | None = None,
@@ -146,6 +154,12 @@ class BusArmGroup(click.Group):
         except (BrokenPipeError, SystemExit) as exc:
             if _by(exc, BrokenPipeError):
                 raise _OutputClosed from exc
+            raise
+        except (click.Abort, click.ClickException):
+            raise  # (an Abort saying where it was interrupted keeps its words)
+        except Exception as exc:
+            if _of_ctrl_c(exc):  # a Ctrl+C inside a C call comes wrapped (ctypes)
+                raise click.Abort from exc
             raise
 
 

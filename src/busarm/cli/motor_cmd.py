@@ -88,11 +88,11 @@ def motor(settings: Settings, servo_id: int, speed: int | str, duration_s: float
                                f"it with `busarm motor {servo_id} stop`", highlight=False,
                                soft_wrap=True)
             return
-        settings.err.print(f"servo {servo_id} turning at speed {speed} (motor mode): "
-                           + ("Ctrl+C stops it" if duration_s is None
-                              else f"for {duration_s:g} s, Ctrl+C stops it"),
-                           highlight=False, soft_wrap=True)
-        try:
+        try:  # from the start: a Ctrl+C as it is said is a stop like any other
+            settings.err.print(f"servo {servo_id} turning at speed {speed} (motor mode): "
+                               + ("Ctrl+C stops it" if duration_s is None
+                                  else f"for {duration_s:g} s, Ctrl+C stops it"),
+                               highlight=False, soft_wrap=True)
             _turn(bus, servo_id, duration_s)
         except KeyboardInterrupt as exc:  # stopped, said, and exit code 130
             settings.out.print(_stop(bus, servo_id), highlight=False, soft_wrap=True)

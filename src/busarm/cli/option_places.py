@@ -24,8 +24,7 @@ from typing import Any
 import click
 from click.core import ParameterSource
 
-from busarm.cli.common import ArmContext, Settings
-from busarm.cli.help_style import metavar_from_help
+from busarm.cli.common import ArmContext, Settings, metavar_from_help
 
 GLOBAL_NAMES = ("port", "baudrate", "echo", "timeout_margin_ms", "retries", "verbose")
 """The root options that commands accept after themselves too."""

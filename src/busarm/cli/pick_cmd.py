@@ -20,17 +20,17 @@ from busarm.arm.config import ArmConfig
 from busarm.cli.common import (
     DEFAULT_COLORS,
     ArmContext,
+    JobNotDone,
     Settings,
     add_detail,
     calibration_store,
     check_writable,
+    find_session,
     make_scene,
     parse_float_list,
     pass_settings,
     scene_options,
 )
-from busarm.cli.exits import JobNotDone
-from busarm.cli.sessions import find_session
 from busarm.cli.text import place
 from busarm.errors import ConfigError
 
