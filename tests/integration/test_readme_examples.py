@@ -57,7 +57,7 @@ SMALLER = {
     f"{BUSARM} bench vision ; {BUSARM} bench locate":
         f"{BUSARM} bench vision --pictures 2 --seconds 0.5 ; {BUSARM} bench locate "
         "--placements 20",
-    f"{BUSARM} bench dashboard": f"{BUSARM} bench dashboard --seconds 2 --tries 3",
+    f"{BUSARM} bench dashboard": f"{BUSARM} bench dashboard --seconds 1 --tries 2",
 }
 """README line (without its comment) -> the smaller run of the same commands."""
 INTERACTIVE = {f"{BUSARM} arm calibrate": "y\n" * 4}

@@ -58,7 +58,7 @@ def _soak(bus: ServoBus, reads: int, rng: random.Random) -> None:
             value = bus.read_position_pulses(sid)
         except (BusTimeoutError, ProtocolError) as exc:
             outcomes[type(exc).__name__] += 1
-            if f"after {bus.retries + 1} attempts" not in str(exc):
+            if f" {bus.retries + 1} attempts" not in str(exc):  # "after 3", "in 3 attempts"
                 unbounded.append(str(exc))
         else:
             outcomes["right"] += 1
@@ -87,7 +87,7 @@ def _soak(bus: ServoBus, reads: int, rng: random.Random) -> None:
 
 @pytest.mark.slow
 def test_soak_echo_off(tmp_path: Path) -> None:
-    soak(tmp_path, 10_000, echo=False, seed=20240611)
+    soak(tmp_path, 5_000, echo=False, seed=20240611)
 
 
 @pytest.mark.slow

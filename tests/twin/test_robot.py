@@ -57,13 +57,14 @@ def test_the_same_calibration_files_give_the_same_robot_on_another_scene(
 
 
 def test_missing_parts_are_refused_before_the_port_is_opened() -> None:
-    with pytest.raises(ConfigError, match=r"on /dev/ttyUSB9 this job needs the wrist camera "
-                                          r"\(--camera\); the camera's calibration"):
-        Robot.open("/dev/ttyUSB9", needs=("camera", "camera_calibration"))
+    port = "socket://127.0.0.1:9"  # nothing listens: opening it would fail
+    with pytest.raises(ConfigError, match=r"on socket://127.0.0.1:9 this job needs the wrist "
+                                          r"camera \(--camera\); the camera's calibration"):
+        Robot.open(port, needs=("camera", "camera_calibration"))
     with pytest.raises(ConfigError, match="where the bins are"):
-        Robot.open("/dev/ttyUSB9", camera="/dev/video9", needs=("bins",))
+        Robot.open(port, camera="/dev/video9", needs=("bins",))
     with pytest.raises(ConfigError, match="needs wings; allowed: camera"):
-        Robot.open("/dev/ttyUSB9", needs=("wings",))
+        Robot.open(port, needs=("wings",))
     with pytest.raises(ConfigError, match="a scene is for the twin; sim is not one"):
         Robot.open("sim", scene=Scene())
     with pytest.raises(ConfigError, match="give both camera calibration files"):

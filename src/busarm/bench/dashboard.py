@@ -25,7 +25,7 @@ from websockets.sync.connection import Connection
 
 from busarm.bench.common import latency_percentiles_ms, machine_info
 from busarm.dashboard.access import Access
-from busarm.dashboard.feeds import robot_feeds
+from busarm.dashboard.feeds import DEFAULT_FPS, robot_feeds
 from busarm.dashboard.server import ServerThread
 from busarm.dashboard.service import RobotService
 from busarm.errors import ConfigError
@@ -202,7 +202,7 @@ def run_dashboard_bench(*, seconds: float = 10.0, tries: int = 50,
             lambda r: seen.append((time.monotonic(), r)) if r.command is Command.MOVE_STOP
             else None)
         service = RobotService(robot).start()
-        feeds = robot_feeds(robot, fps=15)
+        feeds = robot_feeds(robot, fps=DEFAULT_FPS)  # as `busarm dashboard` streams
         report.camera_size = f"{robot.camera.width_px}x{robot.camera.height_px}"
         http = ServerThread(service, Access.for_bind("127.0.0.1"), feeds).start()
         try:

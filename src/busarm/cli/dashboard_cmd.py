@@ -63,7 +63,7 @@ def realtime_twin(port: str) -> str:
 @click.option("--reports", "reports_dir", type=click.Path(file_okay=False, path_type=Path),
               default=Path("dashboard-reports"), show_default=True,
               help="Folder for pick-and-sort reports.")
-@click.option("--fps", type=click.FloatRange(1, 30), default=15, show_default=True,
+@click.option("--fps", type=click.FloatRange(1, 30), default=20, show_default=True,
               help="Camera frames per second (frames/s) at most, per camera.")
 @click.option("--config", default="jetauto_pro", show_default=True,
               help="Arm description: a shipped name or a TOML file.")

@@ -27,6 +27,8 @@ log = logging.getLogger(__name__)
 
 Image = npt.NDArray[np.uint8]
 JPEG_QUALITY = 80
+DEFAULT_FPS = 20.0
+"""A camera's frames a second on the page, at most (a USB camera gives 30)."""
 IDLE_STOP_S = 2.0
 """A feed nobody has asked for a frame for this long stops grabbing."""
 
@@ -111,7 +113,7 @@ class Feed:
                 delay = next_at - time.monotonic()
                 if delay < -period:  # far behind (a busy CPU): go on from now, no racing
                     next_at, delay = time.monotonic(), 0.0
-                time.sleep(delay)
+                time.sleep(max(0.0, delay))
         finally:
             if self.on_thread_end is not None:
                 self.on_thread_end()  # a twin camera frees this thread's renderer
@@ -126,6 +128,11 @@ class Feed:
             self.error = str(exc)
             log.warning("camera %s: %s", self.name, exc)
             image = _message_image(f"{self.name}: {exc}")
+            time.sleep(0.5)
+        except Exception as exc:  # a bug must not end the feed in silence: say it, go on
+            log.exception("camera %s", self.name)
+            self.error = f"{type(exc).__name__}: {exc}"
+            image = _message_image(f"{self.name}: {self.error}")
             time.sleep(0.5)
         ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
         return bytes(data) if ok else b""
