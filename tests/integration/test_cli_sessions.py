@@ -381,3 +381,37 @@ def test_an_option_of_the_command_given_before_it_says_where_it_goes() -> None:
     message = one_error(invoke("--json", "arm", "pose"))
     assert "--json is an option of `busarm arm pose`" in message
     assert "No such option: --nosuch" in one_error(invoke("--nosuch", "arm", "pose"))
+
+
+def test_the_dashboard_watches_a_running_sim_serve_with_its_saved_poses(
+        env: dict[str, str], servers: list[Server], tmp_path: Path) -> None:
+    """Without --port the dashboard drives the served arm, and finds the poses the
+    commands saved for it; Ctrl+C stops it as a server stops: exit 0, no traceback."""
+    import urllib.request
+
+    server = Server(["sim", "serve", "--no-timing"], env)
+    servers.append(server)
+    server.wait_announced()
+    saved = busarm("arm", "pose", "--save", "over_bin", env=env)
+    assert saved.returncode == 0, saved.stderr
+    dashboard = subprocess.Popen(
+        [sys.executable, "-m", "busarm", "dashboard", "--http-port", "0", "--reports",
+         str(tmp_path / "reports")], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, env={**env, "PYTHONUNBUFFERED": "1"},
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        assert dashboard.stdout is not None
+        url = dashboard.stdout.readline().strip()
+        assert url.startswith("http://127.0.0.1:"), dashboard.communicate(timeout=10)
+        with urllib.request.urlopen(url + "api/robot", timeout=10) as reply:
+            robot = json.loads(reply.read())
+        assert robot["port"] == server.path and not robot["twin"]
+        assert "over_bin" in robot["poses"]
+    finally:
+        dashboard.send_signal(signal.SIGINT)
+        _, err = dashboard.communicate(timeout=20)
+    assert dashboard.returncode == 0, err
+    assert "Traceback" not in err
+    assert f"using the arm of `busarm sim serve` (pid {server.proc.pid}) on {server.path}" in err
+    assert err.rstrip().endswith("dashboard stopped: every servo was told to stop where it is "
+                                 "(MOVE_STOP)")

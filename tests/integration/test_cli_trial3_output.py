@@ -274,3 +274,15 @@ def test_bench_locate_counts_per_bearing_and_a_pass_is_no_error() -> None:
     assert len(bearings) >= 2, result.stderr
     located = int(re.search(r"located (\d+)", result.stdout).group(1))  # type: ignore[union-attr]
     assert sum(int(n) for _, n, _ in bearings) == located, (result.stderr, result.stdout)
+
+
+def test_empty_or_broken_json_joints_say_so_without_python() -> None:
+    for given, said in (("", "joints from stdin: empty; expected the JSON of `busarm arm pose "
+                              "--json`"),
+                        ('{"a":\n', "joints from stdin: not JSON (line 2, column 1: expecting "
+                                    "value)")):
+        done = subprocess.run([sys.executable, "-m", "busarm", "--port", "sim", "arm",
+                               "move-joints", "--json", "-"], input=given, text=True,
+                              capture_output=True, timeout=60)
+        assert done.returncode == 2, done.stderr
+        assert said in done.stderr and "Expecting value" not in done.stderr, done.stderr

@@ -49,8 +49,13 @@ def joints_from_json(source: str, config: ArmConfig) -> tuple[float, ...]:
         data: Any = json.loads(raw)
     except OSError as exc:
         raise ConfigError(f"cannot read joints from {where}: {exc.strerror or exc}") from None
-    except ValueError as exc:
-        raise ConfigError(f"joints from {where}: not JSON ({exc})") from None
+    except json.JSONDecodeError as exc:
+        what = "empty" if not raw.strip() else (
+            f"not JSON (line {exc.lineno}, column {exc.colno}: {exc.msg.lower()})")
+        raise ConfigError(f"joints from {where}: {what}; expected the JSON of `busarm arm "
+                          "pose --json`, `arm ik --json` or a list of angles") from None
+    except ValueError as exc:  # not UTF-8 text
+        raise ConfigError(f"joints from {where}: not text ({exc})") from None
     try:
         return joints_in(data, config)
     except ConfigError as exc:

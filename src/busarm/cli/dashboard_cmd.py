@@ -126,7 +126,9 @@ def _run(settings: Settings, sock: socket.socket, access: Access,
     with settings.open_robot(default=default, camera=camera_src,
                              config=load_arm_config(config), scene=scene,
                              calibration_store=store, progress=say) as robot:
-        service = RobotService(robot, reports=reports_dir).start()
+        # Its saved poses and recorded groups are the robot's, where the commands find them
+        # (the folder its calibration is kept in: a served arm's kind, `twin`, a device).
+        service = RobotService(robot, folder=store.folder, reports=reports_dir).start()
         feeds = robot_feeds(robot, fps)
 
         def announce(link: str) -> None:

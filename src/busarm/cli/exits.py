@@ -4,7 +4,7 @@
 job not done though the command ran to its end (``JobNotDone``: blocks left unsorted, a
 benchmark target missed; its output is printed first). 2: bad input (usage errors,
 ConfigError, the input ending at a question). 130: interrupted (Ctrl+C); the servers
-(``sim serve``, ``twin serve``), whose way to stop is SIGINT or SIGTERM, end 0. 141:
+(``sim serve``, ``twin serve``, ``dashboard``), whose way to stop is SIGINT or SIGTERM, end 0. 141:
 stdout's reader went away (``busarm ... | head``), quietly, as Unix tools do.
 """
 
