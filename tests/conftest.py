@@ -8,15 +8,19 @@ from __future__ import annotations
 
 import gc
 import os
+import signal
+import subprocess
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import pytest
 from hypothesis import settings
 
 from busarm.bus.driver import ServoBus
+from busarm.protocol import SPECS, Command, FrameParser
 from busarm.sim.bus import ARM_SERVO_IDS, SimBus, WireTiming
 from busarm.sim.pty import PtyServer
 from busarm.sim.transport import SimTransport
@@ -119,3 +123,32 @@ def twin_calibration(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Pa
     with Robot.open("twin", calibration_dir=folder):
         pass
     return folder / "camera.json", folder / "hand_eye.json"
+
+
+class ListeningSim(SimBus):
+    """A simulated bus that keeps every command the host sent it, parsed from the bytes."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.heard: list[Command] = []
+        self._wire = FrameParser()
+
+    def receive(self, data: bytes) -> None:
+        self.heard += [Command(frame.command) for frame in self._wire.feed(data)]
+        super().receive(data)
+
+    def writes(self) -> list[Command]:
+        """The write commands heard so far (anything but a read)."""
+        return [c for c in self.heard if not SPECS[c].is_read]
+
+
+def sigint_and_wait(proc: subprocess.Popen[str], timeout_s: float = 30.0
+                    ) -> tuple[int, str, str]:
+    """Ctrl+C to a command run as a subprocess; its exit code, stdout and stderr."""
+    proc.send_signal(signal.SIGINT)
+    try:
+        out, err = proc.communicate(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        raise
+    return proc.returncode, out, err

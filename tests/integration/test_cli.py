@@ -29,6 +29,7 @@ from busarm.cli.main import cli
 from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.pty import PtyServer
 from busarm.sim.servo import ServoParams, SimServo
+from conftest import sigint_and_wait
 
 SIM = "sim://?timing=0"
 
@@ -389,14 +390,9 @@ def _busarm() -> list[str]:
     return [str(script)] if script.exists() else [sys.executable, "-m", "busarm"]
 
 
+
 def _sigint_and_wait(proc: subprocess.Popen[str]) -> tuple[int, str, str]:
-    proc.send_signal(signal.SIGINT)
-    try:
-        out, err = proc.communicate(timeout=10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        raise
-    return proc.returncode, out, err
+    return sigint_and_wait(proc, 10)
 
 
 def test_sim_serve_and_monitor_as_subprocesses() -> None:

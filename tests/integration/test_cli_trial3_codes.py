@@ -35,9 +35,10 @@ from click.testing import CliRunner, Result
 
 from busarm.bus.driver import ServoBus
 from busarm.cli.main import cli
-from busarm.protocol import SPECS, Command, FrameParser, ServoMode
-from busarm.sim.bus import SimBus, WireTiming
+from busarm.protocol import Command, ServoMode
+from busarm.sim.bus import WireTiming
 from busarm.sim.pty import PtyServer
+from conftest import ListeningSim, sigint_and_wait
 
 FAR1 = {"format": "busarm.scene", "version": 1, "seed": 3,
         "table": {"x_min_mm": -200.0, "x_max_mm": 420.0, "y_min_mm": -400.0,
@@ -53,20 +54,6 @@ FAR1 = {"format": "busarm.scene", "version": 1, "seed": 3,
 """A red block at x = 380 mm, beyond the gripper's reach (the third trial's far1.json)."""
 
 
-class ListeningSim(SimBus):
-    """A simulated bus that keeps every command the host sent it, parsed from the bytes."""
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self.heard: list[Command] = []
-        self._wire = FrameParser()
-
-    def receive(self, data: bytes) -> None:
-        self.heard += [Command(frame.command) for frame in self._wire.feed(data)]
-        super().receive(data)
-
-    def writes(self) -> list[Command]:
-        return [c for c in self.heard if not SPECS[c].is_read]
 
 
 def _serve(ids: tuple[int, ...]) -> Iterator[tuple[str, ListeningSim]]:
@@ -140,14 +127,9 @@ def wait_for(stream: Any, text: str, proc: subprocess.Popen[str]) -> list[str]:
     return lines
 
 
+
 def ctrl_c(proc: subprocess.Popen[str]) -> tuple[int, str, str]:
-    proc.send_signal(signal.SIGINT)
-    try:
-        out, err = proc.communicate(timeout=30)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        raise
-    return proc.returncode, out, err
+    return sigint_and_wait(proc, 30)
 
 
 def one_error(result: Result | subprocess.CompletedProcess[str], code: int) -> str:

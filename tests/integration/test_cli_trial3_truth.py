@@ -29,7 +29,6 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
@@ -40,28 +39,15 @@ from busarm.arm.gripper import gripper_state
 from busarm.arm.kinematics import ArmKinematics
 from busarm.cli.main import cli
 from busarm.errors import UnreachableError
-from busarm.protocol import SPECS, Command, FrameParser
-from busarm.sim.bus import SimBus, WireTiming
+from busarm.protocol import Command
+from busarm.sim.bus import WireTiming
 from busarm.sim.pty import PtyServer
+from conftest import ListeningSim
 
 CONFIG = load_arm_config()
 GRIPPER_ID = CONFIG.gripper.servo_id
 
 
-class ListeningSim(SimBus):
-    """A simulated bus that keeps every command the host sent it, parsed from the bytes."""
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self.heard: list[Command] = []
-        self._wire = FrameParser()
-
-    def receive(self, data: bytes) -> None:
-        self.heard += [Command(frame.command) for frame in self._wire.feed(data)]
-        super().receive(data)
-
-    def writes(self) -> list[Command]:
-        return [c for c in self.heard if not SPECS[c].is_read]
 
 
 def _served(block: bool) -> Iterator[tuple[str, ListeningSim]]:

@@ -27,30 +27,16 @@ from click.testing import CliRunner, Result
 from busarm.bus.driver import ServoBus
 from busarm.cli.main import cli
 from busarm.errors import ConfigError, MotionTimeoutError
-from busarm.protocol import SPECS, Command, FrameParser
-from busarm.sim.bus import SimBus, WireTiming
+from busarm.protocol import Command
+from busarm.sim.bus import WireTiming
 from busarm.sim.pty import PtyServer
+from conftest import ListeningSim, sigint_and_wait
 
 VENDOR = Path(__file__).resolve().parents[1] / "data" / "vendor" / "arm_action_1.d6a"
 ARM_IDS = (1, 2, 3, 4, 5, 10)
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1", "COLUMNS": "120"}
 
 
-class ListeningSim(SimBus):
-    """A simulated bus that keeps every command the host sent it, parsed from the bytes."""
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self.heard: list[Command] = []
-        self._wire = FrameParser()
-
-    def receive(self, data: bytes) -> None:
-        self.heard += [Command(frame.command) for frame in self._wire.feed(data)]
-        super().receive(data)
-
-    def writes(self) -> list[Command]:
-        """The write commands heard so far (anything but a read)."""
-        return [c for c in self.heard if not SPECS[c].is_read]
 
 
 @pytest.fixture
@@ -92,14 +78,9 @@ def busarm(*args: str) -> subprocess.Popen[str]:
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
+
 def ctrl_c(proc: subprocess.Popen[str]) -> tuple[int, str, str]:
-    proc.send_signal(signal.SIGINT)
-    try:
-        out, err = proc.communicate(timeout=20)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        raise
-    return proc.returncode, out, err
+    return sigint_and_wait(proc, 20)
 
 
 # ---------------------------------------------------------------------- refusals, prompts

@@ -20,6 +20,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from urllib.parse import urlsplit
 
+from busarm.errors import ConfigError
+
 COOKIE = "busarm_token"
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "[::1]", "::1")
 
@@ -45,7 +47,6 @@ class Access:
     def for_bind(cls, bind: str, token: str | None = None) -> Access:
         """Loopback: the token given, if any. Elsewhere: the token given, else a new one."""
         if token is not None and len(token) < 16:
-            from busarm.errors import ConfigError
             raise ConfigError(f"--token of {len(token)} characters: give at least 16 (or "
                               "none, and one is made)")
         if token is None and not is_loopback(bind):

@@ -103,7 +103,6 @@ class RobotService:
         self._rearm_after: str | None = None  # a stop's halt, lifted when its job ends
         self.log_lines: collections.deque[dict[str, Any]] = collections.deque(maxlen=LOG_LINES)
         self.last_state: dict[str, Any] = {}
-        self.state_count = 0
         self._closed = threading.Event()
         self._thread = threading.Thread(target=self._run, name="busarm-dashboard", daemon=True)
         # The deadman has its own thread: a control period slowed by the bus or the CPU
@@ -494,5 +493,4 @@ class RobotService:
                 "recording": None if self._recording is None else len(self._recording),
             })
         self.last_state = state
-        self.state_count += 1
         self.publish("state", **state)
