@@ -22,6 +22,11 @@ class LimitError(ConfigError):
     """A target outside the configured limits; raised before any byte is sent."""
 
 
+class UnsupportedError(ConfigError):
+    """What this port cannot do: the controller board has no command for it (it offers no
+    raw pass-through to the servo line). Raised before anything is sent."""
+
+
 class ProtocolError(BusArmError):
     """An undecodable or unexpected frame. ``raw`` keeps the offending bytes."""
 

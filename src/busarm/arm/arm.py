@@ -282,7 +282,7 @@ class Arm:
         the position it was last told and its torque, read back."""
         sid = self.config.gripper.servo_id
         position = self.bus.read_position_pulses(sid)
-        target = self.bus.read_move_time(sid).position_pulses
+        target = self.bus.last_target_pulses(sid)
         return gripper_state(self.config.gripper, position, target, self.bus.read_torque(sid))
 
     # ------------------------------------------------------------------ joint moves

@@ -156,23 +156,31 @@ class ServoBus:
         check_range("timeout_margin_s", timeout_margin_s, 0.0, 1.0, "s")
         check_int_range("retries", retries, 0, 10)
         self.transport = transport
-        self.clock: Clock = transport.clock
-        self._now = self.clock.now  # the hot path's one clock read, bound once
         self.turnaround_s = float(turnaround_s)
         self.timeout_margin_s = float(timeout_margin_s)
-        self.retries = retries
         self.byte_s = 10.0 / transport.baudrate
-        self._lock = threading.RLock()
         self._plans: dict[tuple[int, Command], _ReadPlan] = {}
-        self._limits: dict[int, tuple[float, float]] = {}
         self._line_free_at = 0.0
-        self._spinning: set[int] = set()  # servos this bus set turning in motor mode
         # (servo ID, command) -> when a request of it last timed out: its reply may come late.
         self._late: dict[tuple[int, int], float] = {}
         self._trouble: LineSighting | None = None  # the last reply seen late or damaged
+        self._echo_warned = False  # said that our own bytes come back with echo off
+        self._init_state(transport.clock, retries, limits_deg)
+        self.echo = echo_mode is EchoMode.ON
+        if echo_mode is EchoMode.AUTO:
+            self.echo = self._detect_echo()
+
+    def _init_state(self, clock: Clock, retries: int,
+                    limits_deg: Mapping[int, tuple[float, float]] | None) -> None:
+        """What every servo bus keeps, whatever its wire."""
+        self.clock = clock
+        self._now = clock.now  # the hot path's one clock read, bound once
+        self.retries = retries
+        self._lock = threading.RLock()
+        self._limits: dict[int, tuple[float, float]] = {}
+        self._spinning: set[int] = set()  # servos this bus set turning in motor mode
         self._answered: set[int] = set()  # servos that gave a valid reply on this bus
         self._move_ends: dict[int, float] = {}  # servo ID -> when its last move should end
-        self._echo_warned = False  # said that our own bytes come back with echo off
         self.wrote = False
         """Whether a write command (one that can move or change a servo) has gone out."""
         self.written_ids: set[int] = set()
@@ -183,18 +191,18 @@ class ServoBus:
         self._halted: str | None = None  # why the bus is halted (``halt``), until ``rearm``
         for sid, (lo, hi) in (limits_deg or {}).items():
             self.set_limits_deg(sid, lo, hi)
-        self.echo = echo_mode is EchoMode.ON
-        if echo_mode is EchoMode.AUTO:
-            self.echo = self._detect_echo()
         self.stats = {"retries": 0, "timeouts": 0, "bad_replies": 0}
 
     # ------------------------------------------------------------------ lifecycle
 
     @classmethod
     def open(cls, port: str, *, baudrate: int = DEFAULT_BAUDRATE, **kwargs: object) -> ServoBus:
-        """Open ``port`` (device path, pyserial URL or ``sim``) and return a bus on it."""
+        """Open ``port`` (device path, pyserial URL, ``sim``, ``twin`` or ``board://...``)
+        and return a bus on it: the servos behind a controller board for ``board://``."""
         transport = open_transport(port, baudrate=baudrate)
         try:
+            if transport.framing == "board":
+                return servo_bus_on(transport, **kwargs)
             return cls(transport, **kwargs)  # type: ignore[arg-type]
         except BaseException:
             transport.close()
@@ -299,12 +307,18 @@ class ServoBus:
                 "refusing to broadcast ID_WRITE: it would renumber every servo on the bus"
             )
         self._check_not_halted(command, args)
-        request = encode_request(servo_id, command, *args)
+        request = self._encode_write(servo_id, command, args)
+        self._mark_written((servo_id,))
+        self._send(request)
+
+    def _encode_write(self, servo_id: int, command: Command, args: tuple[int, ...]) -> bytes:
+        """The bytes of a write command on this bus's wire (checked: nothing is sent)."""
+        return encode_request(servo_id, command, *args)
+
+    def _mark_written(self, servo_ids: Iterable[int]) -> None:
         # Marked before sending: a write that fails half-way may have reached the servo.
         self.wrote = self._unstopped = True
-        if servo_id != BROADCAST_ID:
-            self.written_ids.add(servo_id)
-        self._send(request)
+        self.written_ids.update(sid for sid in servo_ids if sid != BROADCAST_ID)
 
     def query(self, servo_id: int, command: Command) -> Reply:
         """Send a read command and return the validated, typed reply (with retries)."""
@@ -633,6 +647,13 @@ class ServoBus:
                 )
         assert duration_s is not None
         time_ms = ms_from_s(duration_s)
+        self._send_moves(pulses, time_ms, use_start=use_start)
+        self._moving_until(pulses, time_ms / 1000.0)
+        return time_ms / 1000.0
+
+    def _send_moves(self, pulses: Mapping[int, int], time_ms: int, *, use_start: bool) -> None:
+        """Every servo to its target (pulses) in ``time_ms``: queued, then one MOVE_START
+        (``use_start``), or each at once."""
         with self._lock:
             if not use_start:
                 for sid, p in pulses.items():
@@ -641,8 +662,6 @@ class ServoBus:
                 for sid, p in pulses.items():
                     self.send(sid, Command.MOVE_TIME_WAIT_WRITE, p, time_ms)
                 self.send(BROADCAST_ID, Command.MOVE_START)
-        self._moving_until(pulses, time_ms / 1000.0)
-        return time_ms / 1000.0
 
     def stop(self, servo_ids: Iterable[int] | None = None) -> None:
         """MOVE_STOP: stop moving and hold position (all servos if none given)."""
@@ -769,6 +788,10 @@ class ServoBus:
     def read_move_time(self, servo_id: int) -> MoveTimeReply:
         """The last MOVE_TIME_WRITE target and time the servo received."""
         return self._read(servo_id, Command.MOVE_TIME_READ, MoveTimeReply)
+
+    def last_target_pulses(self, servo_id: int) -> int | None:
+        """Where the servo was last told to go (pulses), as it reports it."""
+        return self.read_move_time(servo_id).position_pulses
 
     def read_move_time_wait(self, servo_id: int) -> MoveTimeWaitReply:
         """The pending MOVE_TIME_WAIT_WRITE (some servos never answer: a typed timeout)."""
@@ -994,6 +1017,16 @@ class ServoBus:
         self._plans = {k: v for k, v in self._plans.items() if k[0] not in (old_id, new_id)}
         if self.read_id(new_id) != new_id:
             raise ProtocolError(f"servo did not take ID {new_id}")
+
+
+def servo_bus_on(transport: Transport, **kwargs: object) -> ServoBus:
+    """The servo bus on an open ``transport``: the LX driver, or for a controller board's
+    link (``transport.framing == "board"``) the servos behind the board."""
+    if transport.framing == "board":
+        from busarm.bus.board_bus import BoardServoBus  # it builds on this module
+
+        return BoardServoBus.on(transport, **kwargs)  # type: ignore[arg-type]
+    return ServoBus(transport, **kwargs)  # type: ignore[arg-type]
 
 
 def open_bus(port: str, **kwargs: object) -> ServoBus:

@@ -8,7 +8,11 @@ driver. ``open_transport`` picks one from a port string:
 - ``socket://``, ``rfc2217://``, ``loop://``, ``spy://`` ...: any pyserial URL;
 - ``sim`` or ``sim://?ids=1,2,3``: the in-process simulator, and ``twin`` or
   ``twin://?seed=3``: the digital twin, each imported lazily by name so that this layer
-  never imports them.
+  never imports them;
+- ``board:///dev/ttyACM0``: the servos behind the vendor's controller board (its own
+  frames at 1,000,000 baud), and ``board://sim?...``, ``board://twin?...``: the simulated
+  board in front of the simulator or the twin. A transport's ``framing`` says which
+  protocol its bytes are: ``lx`` (the servos' own) or ``board``.
 """
 
 from __future__ import annotations
@@ -28,11 +32,36 @@ from busarm.errors import ConfigError, TransportError
 
 DEFAULT_BAUDRATE = 115200
 
+BOARD_BAUDRATE = 1_000_000
+"""The controller board's fixed USB serial rate."""
+BOARD_PREFIX = "board://"
+
 # Scheme -> "module:callable(url, baudrate) -> Transport", imported only when used.
 TRANSPORT_SCHEMES: dict[str, str] = {
     "sim": "busarm.sim.transport:open_sim_transport",
     "twin": "busarm.twin.transport:open_twin_transport",
 }
+BOARD_SCHEMES: dict[str, str] = {
+    "sim": "busarm.sim.board:open_sim_board_transport",
+    "twin": "busarm.twin.transport:open_twin_board_transport",
+}
+"""The simulated controller board in front of these (``board://sim?...``)."""
+
+
+def board_target(port: str) -> str | None:
+    """What a ``board://`` port names behind the board: a device path or pyserial URL,
+    or ``sim://?...``/``twin://?...`` for a simulated board; None if not a board port."""
+    if not port.startswith(BOARD_PREFIX):
+        return None
+    inner = port[len(BOARD_PREFIX):]
+    for scheme in BOARD_SCHEMES:
+        if inner == scheme or inner.startswith((scheme + "?", scheme + "://")):
+            query = inner.split("?", 1)[1] if "?" in inner else ""
+            return f"{scheme}://?{query}" if query else scheme
+    if not inner:
+        raise ConfigError(f"{port!r}: give the board's device after board://, e.g. "
+                          "board:///dev/ttyACM0 (or board://sim, board://twin)")
+    return inner
 
 
 @runtime_checkable
@@ -41,6 +70,8 @@ class Transport(Protocol):
 
     name: str
     baudrate: int
+    framing: str
+    """The protocol of the bytes: ``lx`` (bus servos' own) or ``board`` (controller board)."""
     latency_s: float
     """Extra delay the adapter adds before received bytes reach us (USB latency timer)."""
     clock: Clock
@@ -103,9 +134,10 @@ class SerialTransport:
     """A pyserial port. Device paths on POSIX use the file descriptor directly,
     which saves tens of microseconds per transaction over ``Serial.read``."""
 
-    def __init__(self, port: Any, name: str, *, use_fd: bool) -> None:
+    def __init__(self, port: Any, name: str, *, use_fd: bool, framing: str = "lx") -> None:
         self._port = port
         self.name = name
+        self.framing = framing
         self.baudrate = int(port.baudrate)
         self.latency_s = 0.0
         self.clock: Clock = WALL_CLOCK
@@ -245,6 +277,7 @@ def _device_problem(path: str) -> str | None:
 def check_device(port: str) -> None:
     """TransportError if ``port`` is a device path that cannot be a serial port (missing,
     not a device, no permission), without opening it; URLs and ``sim`` pass."""
+    port = board_target(port) or port
     scheme = port.split("://", 1)[0] if "://" in port else port
     if "://" in port or scheme in TRANSPORT_SCHEMES or os.name != "posix":
         return
@@ -255,28 +288,48 @@ def check_device(port: str) -> None:
 
 
 def open_transport(port: str, *, baudrate: int = DEFAULT_BAUDRATE) -> Transport:
-    """Open ``port``: a device path, a pyserial URL, or ``sim``/``sim://...``."""
+    """Open ``port``: a device path, a pyserial URL, ``sim``/``sim://...``,
+    ``twin``/``twin://...`` or ``board://...`` (``baudrate`` is the servo bus's; a
+    controller board's link is always 1,000,000 baud)."""
     if not isinstance(port, str) or not port.strip():
         raise ConfigError(f"port must be a device path, a URL or 'sim', got {port!r}")
     baudrate = _check_baudrate(baudrate)
-    scheme = port.split("://", 1)[0] if "://" in port else port
-    target = TRANSPORT_SCHEMES.get(scheme)
+    target = board_target(port)
     if target is not None:
-        module_name, func_name = target.split(":")
-        factory = getattr(importlib.import_module(module_name), func_name)
-        transport: Transport = factory(port, baudrate)
-        return transport
+        scheme = target.split("://", 1)[0]
+        if scheme in BOARD_SCHEMES:
+            return _factory(BOARD_SCHEMES[scheme])(target, baudrate, port)  # type: ignore[no-any-return]
+        return _open_serial(target, BOARD_BAUDRATE, name=port, framing="board")
+    scheme = port.split("://", 1)[0] if "://" in port else port
+    if scheme in TRANSPORT_SCHEMES:
+        return _factory(TRANSPORT_SCHEMES[scheme])(port, baudrate)  # type: ignore[no-any-return]
+    return _open_serial(port, baudrate, name=port, framing="lx")
+
+
+def _factory(target: str) -> Any:
+    module_name, func_name = target.split(":")
+    return getattr(importlib.import_module(module_name), func_name)
+
+
+def _open_serial(port: str, baudrate: int, *, name: str, framing: str) -> SerialTransport:
     import serial  # pyserial; imported here so the protocol-only user never pays for it
 
     check_device(port)
     try:
         if "://" in port:
-            ser = serial.serial_for_url(port, baudrate=baudrate, timeout=0, write_timeout=1.0)
+            ser = serial.serial_for_url(port, baudrate=baudrate, timeout=0, write_timeout=1.0,
+                                        do_not_open=True)
         else:
-            ser = serial.Serial(port, baudrate=baudrate, timeout=0, write_timeout=1.0)
+            ser = serial.Serial(None, baudrate=baudrate, timeout=0, write_timeout=1.0)
+            ser.port = port
+        if framing == "board":  # the vendor's board wants RTS and DTR low before it opens
+            ser.rts = False
+            ser.dtr = False
+        ser.open()
     except ValueError as exc:
         raise ConfigError(f"cannot open {port!r}: {exc}") from exc
     except (serial.SerialException, OSError) as exc:
         why = _OPEN_ERRORS.get(_os_errno(exc), str(exc))
         raise TransportError(f"cannot open {port!r}: {why}") from exc
-    return SerialTransport(ser, port, use_fd="://" not in port and os.name == "posix")
+    return SerialTransport(ser, name, use_fd="://" not in port and os.name == "posix",
+                           framing=framing)

@@ -88,6 +88,7 @@ T = TypeVar("T")
 
 NO_REPLY = "no reply"
 BAD_REPLY = "bad reply"
+NOT_HERE = "n/a (the controller board cannot read it)"
 
 SIM_NOTE = ("note: no --port given: using a simulated arm that lives for this one command "
             "(it starts straight up every time); to keep one between commands, run "

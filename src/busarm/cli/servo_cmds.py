@@ -15,6 +15,7 @@ from busarm.cli.common import (
     BAD_REPLY,
     MOVE_TIME,
     NO_REPLY,
+    NOT_HERE,
     NUMBER_ARGS,
     POSE,
     SERVO_ID,
@@ -34,6 +35,7 @@ from busarm.errors import (
     EchoMismatchError,
     LimitError,
     ProtocolError,
+    UnsupportedError,
 )
 from busarm.protocol import (
     BROADCAST_ID,
@@ -84,6 +86,8 @@ def info_rows(
     for name, command, show in INFO_FIELDS:
         try:
             rows.append((name, show(bus.query(sid, command))))
+        except UnsupportedError:
+            rows.append((name, NOT_HERE))
         except (BusTimeoutError, ProtocolError) as exc:
             rows.append((name, NO_REPLY if isinstance(exc, BusTimeoutError) else BAD_REPLY))
             if errors is not None:

@@ -95,7 +95,7 @@ class StateReader:
         grip = bus.read_position_pulses(gid)
         target = self.last.gripper_target_pulses if self.last is not None else None
         if target is None or self._turn % TARGET_EVERY == 0:
-            target = bus.read_move_time(gid).position_pulses  # the last one it was told
+            target = bus.last_target_pulses(gid)  # the last one it was told
         self.last = Reading(arm.joints_from_pulses(pulses), grip, target)
         self._read_slow()
         return self.last

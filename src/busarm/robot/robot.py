@@ -31,8 +31,14 @@ from urllib.parse import parse_qs, urlsplit
 from busarm.arm.arm import Arm
 from busarm.arm.calibration import Calibration, load_calibration
 from busarm.arm.config import ArmConfig, load_arm_config
-from busarm.bus.driver import ServoBus
-from busarm.bus.transport import DEFAULT_BAUDRATE, Transport, check_device, open_transport
+from busarm.bus.driver import servo_bus_on
+from busarm.bus.transport import (
+    DEFAULT_BAUDRATE,
+    Transport,
+    board_target,
+    check_device,
+    open_transport,
+)
 from busarm.clock import Clock
 from busarm.errors import ConfigError
 from busarm.progress import Progress, quiet
@@ -41,7 +47,7 @@ from busarm.robot.locate import NOT_BLOCK_COLORS, BlockLocator
 from busarm.robot.twin_calibration import TwinCalibration, calibrate_twin_camera
 from busarm.twin.camera import TwinCamera
 from busarm.twin.scene import Scene
-from busarm.twin.transport import TwinTransport, is_twin_url, twin_from_url
+from busarm.twin.transport import TwinTransport, is_twin_url, twin_behind_board, twin_from_url
 from busarm.twin.twin import Twin
 from busarm.units import listing
 from busarm.vision.calibration import (
@@ -136,7 +142,9 @@ class Robot:
         to ``ServoBus`` (echo, retries, timeout_margin_s). Everything is checked before the
         arm moves; a failure closes what was opened.
         """
-        on_twin = is_twin_url(port)
+        behind = board_target(port)  # the twin behind a simulated controller board
+        twin_port = behind if behind is not None and is_twin_url(behind) else port
+        on_twin = is_twin_url(twin_port)
         if scene is not None and not on_twin:
             raise ConfigError(f"a scene is for the twin; {port} is not one (use --port twin, "
                               "or no --port)")
@@ -153,15 +161,20 @@ class Robot:
         twin: Twin | None = None
         transport: Transport
         if on_twin:  # the arm is the twin's (its URL's config=, if the program gave none)
-            twin = twin_from_url(with_board(port, board) if board else port, baudrate,
-                                 config=given, scene=scene)
-            cfg, transport = twin.config, TwinTransport(twin)
+            url = with_board(twin_port, board) if board else twin_port
+            if twin_port is behind:
+                transport = twin_behind_board(url, baudrate, config=given, scene=scene)
+                twin = transport.twin
+            else:
+                twin = twin_from_url(url, baudrate, config=given, scene=scene)
+                transport = TwinTransport(twin)
+            cfg = twin.config
         else:
             cfg = given or load_arm_config()
             transport = open_transport(port, baudrate=baudrate)
         opened: list[Any] = [transport]
         try:
-            bus = ServoBus(transport, **bus_options)
+            bus = servo_bus_on(transport, **bus_options)
             arm = Arm(bus, cfg, cal)
             source = _open_camera(camera, twin)
             if source is not None:

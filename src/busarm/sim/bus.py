@@ -19,6 +19,7 @@ import threading
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 from busarm.clock import WALL_CLOCK, Clock
 from busarm.errors import ConfigError, ProtocolError
@@ -114,8 +115,27 @@ def _uart_bytes(line: list[int]) -> bytes:
     return bytes(out)
 
 
+class SimLine(Protocol):
+    """The host's end of a simulated line: what a transport or a pty serves."""
+
+    framing: str
+    """The protocol on the line: ``lx`` (servos) or ``board`` (a controller board)."""
+    clock: Clock
+    timing: WireTiming
+
+    def receive(self, data: bytes) -> None: ...
+
+    def pop_output(self, max_bytes: int | None = None) -> bytes: ...
+
+    def next_output_at(self) -> float | None: ...
+
+    def power_off(self) -> None: ...
+
+
 class SimBus:
     """Simulated servos on one half-duplex line. Thread-safe."""
+
+    framing = "lx"
 
     def __init__(
         self,

@@ -1,4 +1,5 @@
-"""A SimBus on a pseudo-terminal, so any serial program can talk to simulated servos.
+"""A simulated line (a SimBus, or a SimBoard in front of one) on a pseudo-terminal, so
+any serial program can talk to simulated servos.
 
 ``PtyServer(bus).start()`` returns a device path such as ``/dev/pts/7``; open it with
 any serial library at any baud rate. Replies are written when the simulated wire
@@ -16,7 +17,7 @@ import tty
 from types import TracebackType
 
 from busarm.errors import ConfigError, TransportError
-from busarm.sim.bus import SimBus
+from busarm.sim.bus import SimLine
 
 _SPIN_S = 0.00015  # below this, spin instead of sleeping: select() overshoots by ~50-100 us
 
@@ -24,7 +25,7 @@ _SPIN_S = 0.00015  # below this, spin instead of sleeping: select() overshoots b
 class PtyServer:
     """Serves ``bus`` on a new pseudo-terminal from a background thread."""
 
-    def __init__(self, bus: SimBus) -> None:
+    def __init__(self, bus: SimLine) -> None:
         if bus.clock.is_simulated:
             # Programs at the other end wait in wall seconds; nothing would move the time.
             raise ConfigError("a pty serves a bus on the wall clock, not a simulated one")

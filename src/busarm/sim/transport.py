@@ -24,7 +24,7 @@ from urllib.parse import parse_qs, urlsplit
 
 from busarm.errors import ConfigError, TransportError
 from busarm.protocol import SERVO_TURNAROUND_S
-from busarm.sim.bus import ARM_SERVO_IDS, FaultInjection, SimBus, WireTiming
+from busarm.sim.bus import ARM_SERVO_IDS, FaultInjection, SimBus, SimLine, WireTiming
 from busarm.units import check_range, listing, parse_ids
 
 _KNOWN = {"ids", "echo", "timing", "turnaround_ms", "drop", "corrupt", "late", "late_ms", "seed",
@@ -90,11 +90,13 @@ def sim_bus_from_url(url: str, baudrate: int = 115200) -> SimBus:
 
 
 class SimTransport:
-    """A transport whose other end is a SimBus in this process."""
+    """A transport whose other end is a simulated line in this process: a SimBus, or a
+    SimBoard in front of one."""
 
-    def __init__(self, bus: SimBus, name: str = "sim") -> None:
+    def __init__(self, bus: SimLine, name: str = "sim") -> None:
         self.bus = bus
         self.name = name
+        self.framing = bus.framing
         self.baudrate = bus.timing.baudrate
         self.latency_s = 0.0
         self.clock = bus.clock

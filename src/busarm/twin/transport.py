@@ -34,11 +34,13 @@ every time reported is in simulated seconds. Closing the transport closes the tw
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
 from busarm.arm.config import ArmConfig, load_arm_config
 from busarm.clock import SimClock
 from busarm.errors import ConfigError
+from busarm.sim.board import SimBoard, board_from_query, split_board_keys
 from busarm.sim.bus import WireTiming
 from busarm.sim.transport import SimTransport, query_flag, query_float
 from busarm.twin.boards import BOARD_SPECS, calibration_board
@@ -141,10 +143,11 @@ def twin_from_url(url: str, baudrate: int = 115200, *, realtime: bool = False,
 
 
 class TwinTransport(SimTransport):
-    """A transport to a twin's simulated bus; closing it closes the twin."""
+    """A transport to a twin's simulated bus, or to a simulated controller board in front
+    of it (``board``); closing it closes the twin."""
 
-    def __init__(self, twin: Twin, name: str = "twin") -> None:
-        super().__init__(twin.bus, name)
+    def __init__(self, twin: Twin, name: str = "twin", *, board: SimBoard | None = None) -> None:
+        super().__init__(board if board is not None else twin.bus, name)
         self.twin = twin
 
     def close(self) -> None:
@@ -155,3 +158,22 @@ class TwinTransport(SimTransport):
 def open_twin_transport(url: str, baudrate: int = 115200) -> TwinTransport:
     """Entry point used by ``busarm.bus.transport.open_transport`` for ``twin``/``twin://``."""
     return TwinTransport(twin_from_url(url, baudrate), name=url)
+
+
+def twin_behind_board(url: str, baudrate: int = 115200, **kwargs: Any) -> TwinTransport:
+    """The twin of ``url`` (``twin://?...``, with the simulated board's own keys too)
+    behind a simulated controller board; ``kwargs`` go to ``twin_from_url``."""
+    inner, keys = split_board_keys(url)
+    twin = twin_from_url(inner, baudrate, **kwargs)
+    try:
+        return TwinTransport(twin, name=url, board=board_from_query(twin.bus, keys))
+    except BaseException:
+        twin.close()
+        raise
+
+
+def open_twin_board_transport(url: str, baudrate: int = 115200, name: str = "") -> TwinTransport:
+    """Entry point of ``open_transport`` for ``board://twin?...``."""
+    transport = twin_behind_board(url, baudrate)
+    transport.name = name or url
+    return transport

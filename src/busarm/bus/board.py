@@ -1,0 +1,287 @@
+"""The vendor's controller board on one serial link: typed calls, every read timed out.
+
+``BoardLink`` writes the board's frames and reads its stream, in which the board mixes
+its own reports (IMU, battery, keys) with the answers to our reads. A servo read is
+matched by function, servo ID and sub-command; everything else in between is kept (the
+latest IMU sample and battery voltage, the key presses) or counted, never taken for the
+answer. Each read has a deadline derived from both legs of the trip (the host link at
+1,000,000 baud, the servo line behind the board) and a bounded number of attempts: a
+silent board, a garbled or misaddressed reply, or a flood of reports ends in a typed
+error, never a hang (the vendor's SDK waits for ever in one version) or a wrong value.
+
+The board offers no raw pass-through to the servo line: what the LX protocol can do and
+the board's sub-commands cannot (motor mode, the servos' LEDs, the queued move of
+MOVE_TIME_WAIT_WRITE) raises UnsupportedError.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+import threading
+from collections import deque
+from dataclasses import dataclass, field
+
+from busarm.bus.transport import Transport
+from busarm.errors import BusTimeoutError, ChecksumError, ConfigError, ProtocolError
+from busarm.protocol import SERVO_TURNAROUND_S, SPECS
+from busarm.protocol.board import (
+    FRAME_OVERHEAD,
+    LX_COMMANDS,
+    MOTOR_COUNT,
+    READ_FORMATS,
+    Battery,
+    BoardFrameParser,
+    BoardReport,
+    BoardRequest,
+    BuzzerBeep,
+    ImuSample,
+    KeyEvent,
+    LedBlink,
+    MotorSpeeds,
+    ServoRead,
+    ServoReply,
+    ServoSub,
+    decode_report,
+)
+from busarm.units import check_range
+
+SERVO_LINE_BAUDRATE = 115200
+"""The servo line behind the board (the LX servos' rate)."""
+BOARD_SERVO_WAIT_S = 0.012
+"""Allowance for the board's own wait on a servo before it answers -1 (not published by
+the vendor: generous)."""
+DEFAULT_MARGIN_S = 0.004
+DEFAULT_RETRIES = 2
+WHEEL_LIMIT_REV_S = 1.5
+"""The firmware's wheel speed limit (about 1.5 rev/s): faster commands are refused."""
+REPORT_MAX_DATA = 64
+"""The longest frame the board sends (an SBUS report has 36 data bytes)."""
+_READ_CHUNK = 4096
+
+
+@dataclass
+class BoardReadings:
+    """The latest of what the board reports on its own, with when it came (link clock)."""
+
+    imu: ImuSample | None = None
+    imu_at_s: float = -math.inf
+    battery_v: float | None = None
+    battery_at_s: float = -math.inf
+    keys: deque[KeyEvent] = field(default_factory=lambda: deque(maxlen=64))
+    reports: int = 0
+    stray_replies: int = 0
+    """Servo replies that answered nothing asked (late, or for another servo)."""
+
+
+class BoardLink:
+    """One controller board on ``transport`` (framing ``board``). Thread-safe."""
+
+    def __init__(self, transport: Transport, *, timeout_margin_s: float = DEFAULT_MARGIN_S,
+                 retries: int = DEFAULT_RETRIES,
+                 wheel_limit_rev_s: float = WHEEL_LIMIT_REV_S) -> None:
+        if transport.framing != "board":
+            raise ConfigError(f"{transport.name} is not a controller board's port "
+                              "(give board:///dev/ttyACM0, or board://sim)")
+        self.transport = transport
+        self.clock = transport.clock
+        self.timeout_margin_s = check_range("timeout_margin_s", timeout_margin_s, 0.0, 1.0, "s")
+        self.retries = retries
+        self.wheel_limit_rev_s = wheel_limit_rev_s
+        self.readings = BoardReadings()
+        self._parser = BoardFrameParser(max_data_len=REPORT_MAX_DATA)
+        self._lock = threading.RLock()
+        self._host_byte_s = 10.0 / transport.baudrate
+        self.servo_byte_s = 10.0 / SERVO_LINE_BAUDRATE
+
+    # ------------------------------------------------------------------ writing
+
+    def write(self, request: BoardRequest) -> None:
+        """Send one request (encoded first: a bad value raises before anything is sent)."""
+        data = request.encode()
+        with self._lock:
+            self.transport.write(data)
+
+    def set_motor_speeds(self, speeds_rev_s: dict[int, float]) -> None:
+        """Wheel motors 1..4 at these speeds (rev/s); every speed is checked first."""
+        for motor, rev_s in speeds_rev_s.items():
+            if isinstance(motor, bool) or motor not in range(1, MOTOR_COUNT + 1):
+                raise ConfigError(f"motor = {motor!r}; allowed: 1..{MOTOR_COUNT}")
+            check_range(f"motor {motor} speed", rev_s, -self.wheel_limit_rev_s,
+                        self.wheel_limit_rev_s, "rev/s")
+        if speeds_rev_s:
+            self.write(MotorSpeeds(tuple(sorted(speeds_rev_s.items()))))
+
+    def stop_motors(self) -> None:
+        """Every wheel motor to 0 rev/s."""
+        self.write(MotorSpeeds(tuple((m, 0.0) for m in range(1, MOTOR_COUNT + 1))))
+
+    def beep(self, freq_hz: int = 2400, on_s: float = 0.1, off_s: float = 0.0,
+             repeat: int = 1) -> None:
+        """Sound the buzzer ``repeat`` times."""
+        check_range("freq_hz", freq_hz, 0, 20000, "Hz")
+        self.write(BuzzerBeep(int(freq_hz), _ms("on_s", on_s), _ms("off_s", off_s),
+                              _count(repeat)))
+
+    def blink(self, led_id: int = 1, on_s: float = 0.1, off_s: float = 0.1,
+              repeat: int = 1) -> None:
+        """Blink the board's LED ``repeat`` times (0: until told otherwise)."""
+        check_range("led_id", led_id, 1, 255)
+        self.write(LedBlink(int(led_id), _ms("on_s", on_s), _ms("off_s", off_s),
+                            _count(repeat)))
+
+    # ------------------------------------------------------------------ reading
+
+    def read_budget_s(self, sub: ServoSub) -> float:
+        """The longest one servo read can take before it returns or raises."""
+        return (self.retries + 1) * self.attempt_s(sub)
+
+    def attempt_s(self, sub: ServoSub) -> float:
+        """One attempt's deadline: both legs on the wire, the servo's and the board's
+        turnaround, the adapter's latency and the margin."""
+        request_and_reply = (FRAME_OVERHEAD + 2) + (FRAME_OVERHEAD + 3 + _value_size(sub))
+        host = request_and_reply * self._host_byte_s
+        spec = SPECS[LX_COMMANDS[sub]]
+        servo = (6 + (spec.reply_length or 0) + 3) * self.servo_byte_s
+        return (host + servo + SERVO_TURNAROUND_S + BOARD_SERVO_WAIT_S
+                + self.transport.latency_s + self.timeout_margin_s)
+
+    def servo_read(self, sub: ServoSub, servo_id: int, *, retries: int | None = None
+                   ) -> ServoReply:
+        """One servo's value; BusTimeoutError or ProtocolError (typed) when no good answer
+        came in ``retries + 1`` attempts."""
+        request = ServoRead(sub, servo_id)
+        data = request.encode()
+        attempts = (self.retries if retries is None else retries) + 1
+        problems: list[str] = []
+        garbled = False
+        with self._lock:
+            for _ in range(attempts):
+                self.poll()  # what came before is not the answer: keep its reports
+                crc_before = self._parser.crc_failures
+                self.transport.write(data)
+                reply, other = self._await_reply(sub, servo_id, self.attempt_s(sub))
+                if reply is not None and reply.ok:
+                    return reply
+                garbled |= self._parser.crc_failures > crc_before
+                problems.append("the board said the servo did not answer (status -1)"
+                                if reply is not None else
+                                f"a reply for servo {other} came instead" if other is not None
+                                else "nothing came back")
+        return self._fail(sub, servo_id, problems, garbled)
+
+    def _await_reply(self, sub: ServoSub, servo_id: int, timeout_s: float
+                     ) -> tuple[ServoReply | None, int | None]:
+        deadline = self.clock.now() + timeout_s
+        other: int | None = None
+        while True:
+            remaining = deadline - self.clock.now()
+            chunk = self.transport.read(_READ_CHUNK, remaining) if remaining > 0 else b""
+            if not chunk:
+                return None, other
+            for report in self._take(chunk):
+                if isinstance(report, ServoReply):
+                    if report.sub is sub and report.servo_id == servo_id:
+                        return report, None
+                    self.readings.stray_replies += 1
+                    if report.sub is sub:
+                        other = report.servo_id
+
+    def _fail(self, sub: ServoSub, servo_id: int, problems: list[str], garbled: bool
+              ) -> ServoReply:
+        name = sub.name.lower().replace("_", " ")
+        said = "; ".join(sorted(set(problems), key=problems.index))
+        tries = f" in {len(problems)} attempts" if len(problems) > 1 else ""
+        text = f"servo {servo_id} {name} through the controller board: no answer{tries} ({said})"
+        if garbled:
+            raise ChecksumError(text + ": damaged frames came back (check the USB cable)")
+        if any("instead" in p for p in problems):
+            raise ProtocolError(text)
+        raise BusTimeoutError(text, servo_id=servo_id, command=int(LX_COMMANDS[sub]),
+                              timeout_s=self.attempt_s(sub))
+
+    def poll(self, timeout_s: float = 0.0) -> list[BoardReport]:
+        """Read what the board has sent (waiting up to ``timeout_s`` for the first bytes);
+        keep its reports; return them."""
+        out: list[BoardReport] = []
+        with self._lock:
+            chunk = self.transport.read(_READ_CHUNK, timeout_s)
+            while chunk:
+                out += self._take(chunk)
+                chunk = self.transport.read(_READ_CHUNK, 0.0)
+        return out
+
+    def read_imu(self, timeout_s: float = 0.5) -> ImuSample:
+        """The next IMU sample the board sends (BusTimeoutError if none in ``timeout_s``)."""
+        return self._next_report("imu", "an IMU sample", timeout_s)  # type: ignore[return-value]
+
+    def read_battery_v(self, timeout_s: float = 2.0) -> float:
+        """The battery voltage: the latest report if under a second old, else the next."""
+        r = self.readings
+        self.poll()
+        if r.battery_v is not None and self.clock.now() - r.battery_at_s < 1.0:
+            return r.battery_v
+        battery = self._next_report("battery", "a battery report", timeout_s)
+        assert isinstance(battery, float)
+        return battery
+
+    def key_events(self) -> list[KeyEvent]:
+        """The board's button presses since the last call."""
+        self.poll()
+        with self._lock:
+            keys = list(self.readings.keys)
+            self.readings.keys.clear()
+        return keys
+
+    def _next_report(self, kind: str, what: str, timeout_s: float) -> ImuSample | float:
+        check_range("timeout_s", timeout_s, 0.0, 60.0, "s")
+        with self._lock:
+            before = self.readings.reports
+            deadline = self.clock.now() + timeout_s
+            while True:
+                for report in self.poll(max(deadline - self.clock.now(), 0.0)):
+                    if kind == "imu" and isinstance(report, ImuSample):
+                        return report
+                    if kind == "battery" and isinstance(report, Battery):
+                        return report.voltage_v
+                if self.clock.now() >= deadline:
+                    raise BusTimeoutError(
+                        f"{self.transport.name}: no {what} from the controller board in "
+                        f"{timeout_s:g} s ({self.readings.reports - before} other reports): "
+                        "is it powered, and is this its port?", timeout_s=timeout_s)
+
+    def _take(self, chunk: bytes) -> list[BoardReport]:
+        """Frames in ``chunk`` as reports, the readings kept up to date."""
+        out: list[BoardReport] = []
+        r = self.readings
+        now = self.clock.now()
+        for frame in self._parser.feed(chunk):
+            try:
+                report = decode_report(frame)
+            except ProtocolError:
+                continue  # a frame no board sends: noise that happened to pass the CRC
+            r.reports += 1
+            if isinstance(report, ImuSample):
+                r.imu, r.imu_at_s = report, now
+            elif isinstance(report, Battery):
+                r.battery_v, r.battery_at_s = report.voltage_v, now
+            elif isinstance(report, KeyEvent):
+                r.keys.append(report)
+            out.append(report)
+        return out
+
+    def close(self) -> None:
+        self.transport.close()
+
+
+def _value_size(sub: ServoSub) -> int:
+    return struct.calcsize(READ_FORMATS[sub])
+
+
+def _ms(name: str, seconds: float) -> int:
+    return round(check_range(name, seconds, 0.0, 65.535, "s") * 1000)
+
+
+def _count(repeat: int) -> int:
+    check_range("repeat", repeat, 0, 65535)
+    return int(repeat)

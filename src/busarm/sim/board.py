@@ -1,0 +1,376 @@
+"""A simulated controller board: the vendor's STM32 board behind the same bytes.
+
+``SimBoard`` speaks the board's frames to the host (1,000,000 baud) and the LX protocol
+to the simulated servos behind it (a ``SimBus``, or a twin's), as the firmware does: a
+multi-servo move becomes one MOVE_TIME_WRITE per servo, a read becomes the LX read and
+its reply's value, or status -1 when the servo does not answer in time. It also hosts
+four wheel motors with encoders (a first-order speed loop, as the firmware's PID at 100
+Hz behaves from outside), an IMU and a battery, and streams IMU and battery reports on
+its own as the real board does. It is a "line" like ``SimBus``: ``SimTransport`` serves
+it in-process and ``PtyServer`` on a pseudo-terminal.
+
+Rates and timings the vendor does not publish are this model's choices, named below.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import struct
+import threading
+from collections import deque
+from dataclasses import dataclass, field
+from urllib.parse import parse_qsl, urlencode, urlsplit, urlunsplit
+
+from busarm.clock import Clock
+from busarm.errors import ProtocolError
+from busarm.protocol import Command, FrameParser, encode_request
+from busarm.protocol.board import (
+    BOARD_BAUDRATE,
+    LX_COMMANDS,
+    READ_FORMATS,
+    Battery,
+    BoardFrameParser,
+    BoardRequest,
+    BuzzerBeep,
+    ImuSample,
+    KeyEvent,
+    KeyEventKind,
+    LedBlink,
+    MotorSpeeds,
+    ServoMove,
+    ServoRead,
+    ServoReply,
+    ServoStop,
+    ServoSub,
+    ServoWrite,
+    decode_request,
+)
+from busarm.protocol.commands import SPECS
+from busarm.sim.bus import SimBus, WireTiming
+from busarm.sim.transport import SimTransport, query_flag, query_float, sim_bus_from_url
+from busarm.units import check_range
+
+SERVO_REPLY_WAIT_S = 0.010
+"""How long the simulated firmware waits for a servo's LX reply before answering -1."""
+IMU_HZ = 100.0
+BATTERY_HZ = 2.0
+WHEEL_MAX_REV_S = 1.5
+"""The firmware's speed limit (field notes: about 1.5 rev/s); faster commands are clamped."""
+WHEEL_TIME_CONSTANT_S = 0.08
+ENCODER_TICKS_PER_REV = 3960
+OUT_CAP_BYTES = 4096
+"""Reports the host has not read beyond this are dropped, oldest first (a full tty buffer)."""
+_MAX_CATCH_UP_S = 0.2  # streams restart from now after a longer gap, not with a burst
+_EPS_S = 1e-9  # "due now": a simulated clock may stop a rounding error short of a time
+
+
+@dataclass
+class BoardFaults:
+    """Faults to inject at the board: a silent board, damaged or misaddressed replies."""
+
+    silent: bool = False
+    corrupt_rate: float = 0.0
+    wrong_id_rate: float = 0.0
+    seed: int = 0
+
+
+@dataclass
+class SimWheel:
+    """One wheel motor: its commanded and actual speed (rev/s) and encoder count."""
+
+    target_rev_s: float = 0.0
+    rev_s: float = 0.0
+    turns: float = 0.0
+
+    @property
+    def encoder_ticks(self) -> int:
+        return math.floor(self.turns * ENCODER_TICKS_PER_REV)
+
+    def advance(self, dt_s: float) -> None:
+        if dt_s <= 0.0:
+            return
+        k = 1.0 - math.exp(-dt_s / WHEEL_TIME_CONSTANT_S)
+        before = self.rev_s
+        self.rev_s += (self.target_rev_s - self.rev_s) * k
+        self.turns += 0.5 * (before + self.rev_s) * dt_s
+
+
+@dataclass
+class _PendingRead:
+    request: ServoRead
+    command: Command
+    deadline: float
+
+
+@dataclass
+class BoardLog:
+    """What the board was told to do with its LED and buzzer, and what it refused."""
+
+    led: list[LedBlink] = field(default_factory=list)
+    buzzer: list[BuzzerBeep] = field(default_factory=list)
+    rejected_frames: int = 0
+
+
+class SimBoard:
+    """The controller board in front of ``servos``. Thread-safe."""
+
+    framing = "board"
+
+    def __init__(self, servos: SimBus, *, imu_hz: float = IMU_HZ,
+                 battery_hz: float = BATTERY_HZ, battery_v: float = 12.3,
+                 faults: BoardFaults | None = None, seed: int = 0) -> None:
+        self.servos = servos
+        self.clock: Clock = servos.clock
+        self.timing = WireTiming(BOARD_BAUDRATE, turnaround_s=0.0)
+        self.faults = faults or BoardFaults()
+        self.wheels = [SimWheel() for _ in range(4)]
+        self.battery_v = battery_v
+        self.imu_gyro_rad_s = (0.0, 0.0, 0.0)
+        """What the IMU's gyro measures now (before noise); a mobile twin sets it."""
+        self.imu_accel_mps2 = (0.0, 0.0, 9.80665)
+        self.log = BoardLog()
+        self._rng = random.Random(seed)
+        self._fault_rng = random.Random(self.faults.seed)
+        self._lock = threading.RLock()
+        self._parser = BoardFrameParser()
+        self._lx = FrameParser()
+        self._jobs: deque[BoardRequest] = deque()
+        self._read: _PendingRead | None = None
+        self._out: list[tuple[float, bytes, bool]] = []  # (due, bytes, is a stream report)
+        self._line_in_free = 0.0
+        self._line_out_free = 0.0
+        now = self.clock.now()
+        self._periods = {"imu": 1.0 / imu_hz if imu_hz > 0 else 0.0,
+                         "battery": 1.0 / battery_hz if battery_hz > 0 else 0.0}
+        self._next = {name: now + period for name, period in self._periods.items()}
+        self._wheels_at = now
+
+    # ------------------------------------------------------------------ the host's side
+
+    def receive(self, data: bytes) -> None:
+        """Bytes the host sent."""
+        with self._lock:
+            now = self.clock.now()
+            done = max(now, self._line_in_free) + len(data) * self.timing.byte_s
+            self._line_in_free = done
+            if self.faults.silent:
+                return
+            for frame in self._parser.feed(data):
+                try:
+                    self._jobs.append(decode_request(frame))
+                except ProtocolError:
+                    self.log.rejected_frames += 1
+            self._run_jobs(now)
+
+    def pop_output(self, max_bytes: int | None = None) -> bytes:
+        """The bytes due on the host's side by now."""
+        with self._lock:
+            now = self.clock.now() + _EPS_S
+            self._pump(now)
+            out = bytearray()
+            while self._out and self._out[0][0] <= now:
+                due, data, stream = self._out.pop(0)
+                if max_bytes is not None and len(out) + len(data) > max_bytes:
+                    keep = max_bytes - len(out)
+                    out += data[:keep]
+                    self._out.insert(0, (due, data[keep:], stream))
+                    break
+                out += data
+            return bytes(out)
+
+    def next_output_at(self) -> float | None:
+        """When something is next due: a reply, a report, or a servo's answer to relay."""
+        with self._lock:
+            self._pump(self.clock.now() + _EPS_S)
+            due = [t for t in self._next.values() if not self.faults.silent and t > 0]
+            if self._out:
+                due.append(self._out[0][0])
+            if self._read is not None:
+                lx = self.servos.next_output_at()
+                due.append(self._read.deadline if lx is None else min(lx, self._read.deadline))
+            return min(due) if due else None
+
+    def power_off(self) -> None:
+        self.servos.power_off()
+
+    # ------------------------------------------------------------------ test hooks
+
+    def press_key(self, key_id: int = 1, event: KeyEventKind = KeyEventKind.CLICK) -> None:
+        """The board's button ``key_id`` did ``event`` (reported at once)."""
+        with self._lock:
+            self._send(self.clock.now(), KeyEvent(key_id, event).encode(), stream=True)
+
+    def inject(self, data: bytes) -> None:
+        """Put ``data`` on the host's line now (garbage, a stray frame)."""
+        with self._lock:
+            self._send(self.clock.now(), data, stream=False)
+
+    # ------------------------------------------------------------------ firmware
+
+    def _run_jobs(self, now: float) -> None:
+        while self._read is None and self._jobs:
+            job = self._jobs.popleft()
+            if isinstance(job, ServoRead):
+                command = LX_COMMANDS[job.sub]
+                lx = encode_request(job.servo_id, command)
+                self.servos.pop_output()  # nothing old is taken for this answer
+                self._lx = FrameParser()
+                self.servos.receive(lx)
+                spec = SPECS[command]
+                wire = (len(lx) + (spec.reply_length or 0) + 3) * self.servos.timing.byte_s
+                self._read = _PendingRead(job, command, now + wire + SERVO_REPLY_WAIT_S)
+            elif isinstance(job, ServoMove):
+                for sid, pulses in job.targets:
+                    self.servos.receive(encode_request(sid, Command.MOVE_TIME_WRITE, pulses,
+                                                       min(job.duration_ms, 30000)))
+            elif isinstance(job, ServoStop):
+                for sid in job.servo_ids:
+                    self.servos.receive(encode_request(sid, Command.MOVE_STOP))
+            elif isinstance(job, ServoWrite):
+                self._servo_write(job)
+            elif isinstance(job, MotorSpeeds):
+                self._advance_wheels(now)
+                for motor, rev_s in job.speeds:
+                    if math.isfinite(rev_s):
+                        clamped = max(-WHEEL_MAX_REV_S, min(WHEEL_MAX_REV_S, rev_s))
+                        self.wheels[motor - 1].target_rev_s = clamped
+            elif isinstance(job, LedBlink):
+                self.log.led.append(job)
+            elif isinstance(job, BuzzerBeep):
+                self.log.buzzer.append(job)
+
+    def _servo_write(self, job: ServoWrite) -> None:
+        command = LX_COMMANDS[job.sub]
+        args: tuple[int, ...] = job.values
+        if job.sub is ServoSub.TORQUE_OFF:
+            args = (0,)
+        elif job.sub is ServoSub.TORQUE_ON:
+            args = (1,)
+        try:
+            self.servos.receive(encode_request(job.servo_id, command, *args))
+        except Exception:  # a value the LX frame cannot carry: the firmware sends nothing
+            self.log.rejected_frames += 1
+
+    def _pump(self, now: float) -> None:
+        """Relay a servo's answer, time out a read, move the wheels, stream reports."""
+        read = self._read
+        if read is not None:
+            reply = self._lx_answer(read)
+            if reply is None and now >= read.deadline:
+                reply = ServoReply(read.request.servo_id, read.request.sub, -1,
+                                   (0,) * (len(READ_FORMATS[read.request.sub]) - 1))
+            if reply is not None:
+                self._read = None
+                self._send(now, self._mangle(reply), stream=False)
+                self._run_jobs(now)
+        self._advance_wheels(now)
+        if not self.faults.silent:
+            self._stream(now)
+
+    def _lx_answer(self, read: _PendingRead) -> ServoReply | None:
+        for frame in self._lx.feed(self.servos.pop_output()):
+            asked = read.request.servo_id
+            if frame.command == int(read.command) and (frame.servo_id == asked or asked == 254):
+                fmt = READ_FORMATS[read.request.sub]
+                try:
+                    values = struct.unpack(fmt, frame.params)
+                except struct.error:
+                    continue
+                return ServoReply(asked, read.request.sub, 0, tuple(int(v) for v in values))
+        return None
+
+    def _mangle(self, reply: ServoReply) -> bytes:
+        f, rng = self.faults, self._fault_rng
+        if f.wrong_id_rate and rng.random() < f.wrong_id_rate:
+            reply = ServoReply((reply.servo_id % 253) + 1, reply.sub, reply.status, reply.values)
+        data = bytearray(reply.encode())
+        if f.corrupt_rate and rng.random() < f.corrupt_rate:
+            data[rng.randrange(2, len(data))] ^= rng.randrange(1, 256)
+        return bytes(data)
+
+    def _advance_wheels(self, now: float) -> None:
+        dt = now - self._wheels_at
+        if dt > 0:
+            for wheel in self.wheels:
+                wheel.advance(dt)
+            self._wheels_at = now
+
+    def _stream(self, now: float) -> None:
+        for name, period in self._periods.items():
+            if period <= 0:
+                continue
+            due = self._next[name]
+            if now - due > _MAX_CATCH_UP_S:
+                due = now - _MAX_CATCH_UP_S
+            while due <= now:
+                self._send(due, self._report(name), stream=True)
+                due += period
+            self._next[name] = due
+
+    def _report(self, name: str) -> bytes:
+        gauss = self._rng.gauss
+        if name == "battery":
+            return Battery(round(self.battery_v + gauss(0.0, 0.01), 3)).encode()
+        ax, ay, az = self.imu_accel_mps2
+        gx, gy, gz = self.imu_gyro_rad_s
+        return ImuSample((ax + gauss(0, 0.02), ay + gauss(0, 0.02), az + gauss(0, 0.02)),
+                         (gx + gauss(0, 0.001), gy + gauss(0, 0.001),
+                          gz + gauss(0, 0.001))).encode()
+
+    def _send(self, now: float, data: bytes, *, stream: bool) -> None:
+        start = max(now, self._line_out_free)
+        due = start + len(data) * self.timing.byte_s
+        self._line_out_free = due
+        self._out.append((due, data, stream))
+        if len(self._out) > 1 and self._out[-2][0] > due:
+            self._out.sort(key=lambda item: item[0])
+        backlog = sum(len(d) for _, d, _ in self._out)
+        while backlog > OUT_CAP_BYTES:
+            oldest = next((i for i, item in enumerate(self._out) if item[2]), None)
+            if oldest is None:
+                break
+            backlog -= len(self._out.pop(oldest)[1])
+
+
+
+BOARD_KEYS = {"imu_hz", "battery_hz", "battery_v", "silent", "board_corrupt", "wrong_id",
+              "board_seed"}
+"""URL keys for the simulated board itself (``board://sim?ids=1,2&imu_hz=200``)."""
+
+
+def split_board_keys(url: str) -> tuple[str, dict[str, str]]:
+    """``url`` without the board's own keys, and those keys."""
+    parts = urlsplit(url)
+    pairs = parse_qsl(parts.query, keep_blank_values=True)
+    mine = {k: v for k, v in pairs if k in BOARD_KEYS}
+    rest = urlencode([(k, v) for k, v in pairs if k not in BOARD_KEYS], safe=",/")
+    if "://" not in url:
+        return url, mine
+    return (urlunsplit(parts._replace(query=rest)) if rest else url.split("://", 1)[0]), mine
+
+
+def board_from_query(servos: SimBus, q: dict[str, str]) -> SimBoard:
+    """A simulated board in front of ``servos``, configured by its URL keys."""
+    def number(key: str, default: float, lo: float, hi: float, unit: str = "") -> float:
+        return check_range(f"board URL: {key}", query_float(q, key, default, "board URL"),
+                           lo, hi, unit)
+
+    faults = BoardFaults(
+        silent=query_flag(q, "silent", False, "board URL"),
+        corrupt_rate=number("board_corrupt", 0.0, 0.0, 1.0),
+        wrong_id_rate=number("wrong_id", 0.0, 0.0, 1.0),
+        seed=int(number("board_seed", 0, 0, 2**32 - 1)),
+    )
+    return SimBoard(servos, imu_hz=number("imu_hz", IMU_HZ, 0.0, 5000.0, "Hz"),
+                    battery_hz=number("battery_hz", BATTERY_HZ, 0.0, 100.0, "Hz"),
+                    battery_v=number("battery_v", 12.3, 0.0, 30.0, "V"), faults=faults,
+                    seed=faults.seed)
+
+
+def open_sim_board_transport(url: str, baudrate: int = 115200, name: str = "") -> SimTransport:
+    """Entry point of ``open_transport`` for ``board://sim?...`` (``url`` is the
+    ``sim://?...`` behind the board; ``baudrate`` the servos' line)."""
+    inner, keys = split_board_keys(url)
+    board = board_from_query(sim_bus_from_url(inner, baudrate), keys)
+    return SimTransport(board, name=name or url)
