@@ -211,6 +211,11 @@ class BoardLink:
                 chunk = self.transport.read(_READ_CHUNK, 0.0)
         return out
 
+    def check_talking(self, timeout_s: float = 1.0) -> None:
+        """BusTimeoutError unless the board sends something within ``timeout_s`` (it
+        reports its IMU and battery on its own: a silent port is not a working board)."""
+        self._next_report("any", "report", timeout_s)
+
     def read_imu(self, timeout_s: float = 0.5) -> ImuSample:
         """The next IMU sample the board sends (BusTimeoutError if none in ``timeout_s``)."""
         return self._next_report("imu", "an IMU sample", timeout_s)  # type: ignore[return-value]
@@ -240,6 +245,8 @@ class BoardLink:
             deadline = self.clock.now() + timeout_s
             while True:
                 for report in self.poll(max(deadline - self.clock.now(), 0.0)):
+                    if kind == "any":
+                        return 0.0
                     if kind == "imu" and isinstance(report, ImuSample):
                         return report
                     if kind == "battery" and isinstance(report, Battery):

@@ -14,7 +14,7 @@ import re
 import signal
 import threading
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import FrameType
@@ -36,8 +36,9 @@ from busarm.arm.arm import Arm
 from busarm.arm.calibration import Calibration, load_calibration
 from busarm.arm.config import ArmConfig, load_arm_config
 from busarm.arm.kinematics import ArmKinematics
+from busarm.bus.board import BoardLink
 from busarm.bus.driver import DEFAULT_RETRIES, DEFAULT_TIMEOUT_MARGIN_S, ScanResult, ServoBus
-from busarm.bus.transport import DEFAULT_BAUDRATE
+from busarm.bus.transport import DEFAULT_BAUDRATE, open_transport
 from busarm.cli.arm_inputs import (
     check_gap_mm,
     gap_report,
@@ -61,6 +62,7 @@ from busarm.cli.stopping import (
     unwritten_text,
 )
 from busarm.errors import (
+    BusArmError,
     BusTimeoutError,
     ConfigError,
     ProtocolError,
@@ -191,6 +193,29 @@ class Settings:
             raise
         with marking_the_stop(bus, bus, check_ids):
             yield bus
+
+    @contextmanager
+    def open_board(self) -> Iterator[BoardLink]:
+        """The controller board on ``--port`` (a ``board://`` port): its link, closed after
+        the body, which stops its wheel motors on the way out by an exception."""
+        port = self.port if self.port_given else self.default_port()
+        with self._port_named():
+            transport = open_transport(port, baudrate=self.baudrate)
+        try:
+            link = BoardLink(transport, timeout_margin_s=self.timeout_margin_ms / 1000.0,
+                             retries=self.retries)
+            link.check_talking()
+        except BaseException:
+            transport.close()
+            raise
+        try:
+            yield link
+        except BaseException:
+            with suppress(BusArmError):
+                link.stop_motors()
+            raise
+        finally:
+            link.close()
 
     @contextmanager
     def open_robot(self, *, default: str = "sim", **options: Any) -> Iterator[Robot]:

@@ -24,6 +24,7 @@ from busarm.bus.driver import DEFAULT_RETRIES, DEFAULT_TIMEOUT_MARGIN_S
 from busarm.bus.transport import DEFAULT_BAUDRATE
 from busarm.cli import (
     arm_cmds,
+    board_cmds,
     bus_cmds,
     camera_cmds,
     config_cmds,
@@ -216,7 +217,7 @@ def cli(
 
 for _module in (
     bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, twin_cmds, camera_cmds,
-    vision_cmds, pick_cmd, demo, motor_cmd, dashboard_cmd,
+    vision_cmds, pick_cmd, demo, motor_cmd, dashboard_cmd, board_cmds,
 ):
     for _command in _module.COMMANDS:
         cli.add_command(_command)

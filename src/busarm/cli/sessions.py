@@ -25,6 +25,7 @@ from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
 
+from busarm.bus.transport import board_target
 from busarm.errors import ConfigError
 from busarm.fileio import write_text_atomic
 
@@ -149,7 +150,8 @@ def running_sessions() -> list[Session]:
         session = _read(path)
         if session is None:
             continue  # not ours to judge or remove
-        if not _alive(session.pid) or not Path(session.port).exists():
+        device = board_target(session.port) or session.port
+        if not _alive(session.pid) or not Path(device).exists():
             with suppress(OSError):
                 path.unlink()
             continue

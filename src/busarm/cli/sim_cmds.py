@@ -19,6 +19,7 @@ from busarm.cli.common import (
     pass_settings,
     serve_until_stopped,
 )
+from busarm.errors import ConfigError
 from busarm.units import parse_ids
 
 if TYPE_CHECKING:
@@ -63,18 +64,29 @@ def sim() -> None:
                    "on every stored write and, with the positions, when it stops.")
 @click.option("--block", is_flag=True,
               help="A 3 cm block sits between the gripper's fingers (servo 10 stops on it).")
+@click.option("--board", is_flag=True,
+              help="Behind a simulated controller board: the board's frames at 1,000,000 "
+                   "baud on the pty (port board:///dev/pts/N), IMU and battery reports, four "
+                   "wheel motors.")
 @pass_settings
 def serve(
     settings: Settings, ids: list[int], echo: bool, no_timing: bool, turnaround_ms: float,
-    drop: float, corrupt: float, seed: int, state: Path | None, block: bool,
+    drop: float, corrupt: float, seed: int, state: Path | None, block: bool, board: bool,
 ) -> None:
     """Serve simulated servos on a new pseudo-terminal until SIGINT (Ctrl+C) or SIGTERM,
     its way to stop: exit code 0.
 
-    The first line of stdout is the device path (e.g. /dev/pts/7): open it with any
-    serial program, at any baud rate. The simulated wire runs at --baud.
+    The first line of stdout is the port to give --port: the device path (e.g.
+    /dev/pts/7; open it with any serial program, at any baud rate: the simulated wire
+    runs at --baud), or with --board board:///dev/pts/7 (the board's link at 1,000,000
+    baud, its servo line at --baud).
     """
+    from busarm.sim.board import SimBoard
     from busarm.sim.bus import FaultInjection, SimBus, WireTiming
+
+    if board and echo:
+        raise ConfigError("--echo: a controller board's link does not echo (give one of "
+                          "--board and --echo)")
     from busarm.sim.pty import PtyServer
 
     bus = SimBus.with_ids(
@@ -86,17 +98,19 @@ def serve(
     )
     if block:
         bus.put_block_in_gripper()
-    server = PtyServer(bus)
+    server = PtyServer(SimBoard(bus) if board else bus)
     path = server.open()
+    port = f"board://{path}" if board else path
     # Found by commands without --port while it runs; written before the path is shown,
     # so that no client waits for it (the server answers only once it serves).
-    with announced("sim", path):
-        click.echo(path)
+    with announced("sim", port):
+        click.echo(port)
         sys.stdout.flush()
         servos = ", ".join(str(s.servo_id) for s in bus.servos)
         timing = "no wire timing" if no_timing else f"{settings.baudrate} baud"
         click.echo(
-            f"simulating servos {servos} on {path} ({timing}"
+            f"simulating servos {servos} "
+            + ("behind a controller board " if board else "") + f"on {path} ({timing}"
             + (", echo" if echo else "") + (f", state {state}" if state else "")
             + "); Ctrl+C or SIGTERM to stop; commands without --port use it",
             err=True,

@@ -32,17 +32,23 @@ def twin() -> None:
 @click.option("--echo", is_flag=True, help="Echo every byte the host sends (one-wire adapter).")
 @click.option("--camera-port", type=click.IntRange(0, 65535), default=0, show_default=True,
               help="TCP port on 127.0.0.1 for the camera (0: any free port).")
+@click.option("--board", is_flag=True,
+              help="Behind a simulated controller board: the board's frames at 1,000,000 "
+                   "baud on the pty (port board:///dev/pts/N), IMU and battery reports, four "
+                   "wheel motors.")
 @pass_settings
 def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks: int | None,
-          colors: str | None, config: str, echo: bool, camera_port: int) -> None:
+          colors: str | None, config: str, echo: bool, camera_port: int, board: bool) -> None:
     """Serve the twin's servos on a pseudo-terminal and its camera on 127.0.0.1.
 
-    The first line of stdout is the device path (open it with any serial program), the
+    The first line of stdout is the port to give --port (the device path, or with --board
+    board:///dev/pts/N: the twin behind a simulated controller board), the
     second the camera source for `--camera` (twin://127.0.0.1:PORT). Runs until SIGINT
     (Ctrl+C) or SIGTERM, its way to stop: exit code 0.
     """
     from busarm.arm.config import load_arm_config
     from busarm.cli.common import serve_until_stopped
+    from busarm.sim.board import SimBoard
     from busarm.sim.bus import WireTiming
     from busarm.sim.pty import PtyServer
     from busarm.twin.camera import CameraServer
@@ -52,8 +58,12 @@ def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks:
     with Twin(load_arm_config(config), scene, timing=WireTiming(settings.baudrate),
               echo=echo) as tw:
         camera = CameraServer(tw, camera_port)
-        server = PtyServer(tw.bus)
+        if board and echo:
+            raise ConfigError("--echo: a controller board's link does not echo (give one of "
+                              "--board and --echo)")
+        server = PtyServer(SimBoard(tw.bus) if board else tw.bus)
         path = server.open()
+        path = f"board://{path}" if board else path
         url = camera.start()
         try:
             # Found by commands without --port while it runs; written before the path is

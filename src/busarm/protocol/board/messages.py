@@ -30,6 +30,7 @@ MOTOR_SET_SPEEDS = 0x01
 PWM_SERVO_MOVE = 0x01
 MOTOR_COUNT = 4
 BROADCAST_SERVO_ID = 254
+FLOAT32_MAX = 3.4028234663852886e38
 
 
 class ServoSub(enum.IntEnum):
@@ -209,8 +210,9 @@ class MotorSpeeds:
         data = bytearray((MOTOR_SET_SPEEDS, len(self.speeds)))
         for motor, rev_s in self.speeds:
             _check("motor", motor, 1, MOTOR_COUNT)
-            if not math.isfinite(rev_s):
-                raise ConfigError(f"motor {motor} speed = {rev_s!r} rev/s; it must be a number")
+            if not math.isfinite(rev_s) or abs(rev_s) > FLOAT32_MAX:
+                raise ConfigError(f"motor {motor} speed = {rev_s!r} rev/s; allowed: a finite "
+                                  f"number within +-{FLOAT32_MAX:.4g} (float32)")
             data += struct.pack("<Bf", motor - 1, rev_s)
         return encode_frame(Func.MOTOR, data)
 
@@ -251,6 +253,7 @@ class PwmServoMove:
     targets: tuple[tuple[int, int], ...]
 
     def encode(self) -> bytes:
+        _check("PWM servo count", len(self.targets), 1, 83)  # as many as fit one frame
         data = bytearray(_pack("PWM move", "<BHB", PWM_SERVO_MOVE, self.duration_ms,
                                len(self.targets)))
         for port, pulse_us in self.targets:
@@ -267,6 +270,7 @@ class OledText:
 
     def encode(self) -> bytes:
         raw = self.text.encode()
+        _check("OLED text bytes (UTF-8)", len(raw), 0, 253)  # 2 + 253 data bytes fill a frame
         return encode_frame(Func.OLED, bytes((_check("OLED line", self.line, 0, 255),
                                               len(raw))) + raw)
 
@@ -293,7 +297,7 @@ def decode_request(frame: BoardFrame) -> BoardRequest:
         if frame.func == Func.BUZZER:
             _expect_len(frame, 8)
             return BuzzerBeep(*struct.unpack("<HHHH", data))
-    except (IndexError, struct.error):
+    except (IndexError, ValueError, struct.error):  # ValueError: an unknown sub-command
         pass
     raise ProtocolError(f"not a request this board model takes: {frame.name} "
                         f"{data.hex(' ') or '(no data)'}", frame.to_bytes())
