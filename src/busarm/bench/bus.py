@@ -21,6 +21,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 
 from busarm.bench.common import latency_percentiles_ms, machine_info
+from busarm.bus.board import SERVO_LINE_BAUDRATE
+from busarm.bus.board_bus import BoardServoBus
 from busarm.bus.driver import ServoBus
 from busarm.errors import BusArmError, ConfigError, TransportError
 from busarm.progress import Progress, quiet
@@ -71,10 +73,15 @@ class BusBenchResult:
 class BusBenchReport:
     port: str
     baudrate: int
+    """The servo line's rate."""
     turnaround_ms: float
     echo: bool
     machine: dict[str, str]
     results: list[BusBenchResult]
+    board_baudrate: int | None = None
+    """Through a controller board: its link's rate (the servo line is behind it)."""
+    board_link_reads_s: float | None = None
+    """Through a controller board: the position reads/s its link alone would allow."""
 
     def to_dict(self) -> dict[str, object]:
         d = asdict(self)
@@ -140,7 +147,7 @@ def bench_os_floor(bus: ServoBus, servo_id: int, count: int) -> BusBenchResult |
     the same file descriptor: what any client pays the OS. None if the port has no
     descriptor (URLs, the in-process simulator)."""
     fd = getattr(bus.transport, "fd", None)
-    if fd is None:
+    if fd is None or bus.transport.framing != "lx":
         return None
     request = encode_request(servo_id, Command.POS_READ)
     need = _reply_bytes(Command.POS_READ) + (len(request) if bus.echo else 0)
@@ -219,7 +226,7 @@ class SimServerProcess:
         self._proc = proc
         assert proc.stdout is not None
         path = proc.stdout.readline().strip()
-        if not path.startswith("/dev/"):
+        if not path.startswith(("/dev/", "board:///dev/")):
             self._stop()
             raise TransportError(f"simulator did not start: {self.stderr.strip() or path!r}")
         return path
@@ -243,11 +250,14 @@ class SimServerProcess:
 
 
 def sim_pty_server(
-    turnaround_ms: float, ids: str = "1,2,3,4,5,10", *, echo: bool = False
+    turnaround_ms: float, ids: str = "1,2,3,4,5,10", *, echo: bool = False,
+    board: bool = False,
 ) -> SimServerProcess:
-    """The simulated arm for ``busarm bench``, in its own process on a pseudo-terminal."""
+    """The simulated arm for ``busarm bench``, in its own process on a pseudo-terminal
+    (behind a simulated controller board with ``board``: its port is ``board://...``)."""
     return SimServerProcess(
-        "--ids", ids, "--turnaround-ms", str(turnaround_ms), *(["--echo"] if echo else [])
+        "--ids", ids, "--turnaround-ms", str(turnaround_ms), *(["--echo"] if echo else []),
+        *(["--board"] if board else []),
     )
 
 
@@ -274,7 +284,9 @@ def run_bench(
         for _ in range(WARM_UP_READS):  # fails fast if nobody is there
             bus.read_position_pulses(servo_ids[0])
         sid = servo_ids[0]
-        stages = 3 if getattr(bus.transport, "fd", None) is None else 4  # 4: the OS floor
+        with_floor = getattr(bus.transport, "fd", None) is not None and not isinstance(
+            bus, BoardServoBus)
+        stages = 4 if with_floor else 3  # 4: the OS floor
         progress(f"1/{stages}: {reads} position reads of servo {sid}")
         results = [bench_position_reads(bus, sid, reads)]
         progress(f"2/{stages}: {loops} state loops of {len(servo_ids)} servo(s)")
@@ -286,6 +298,10 @@ def run_bench(
         floor = bench_os_floor(bus, sid, reads)
         if floor is not None:
             results.insert(1, floor)
+        if isinstance(bus, BoardServoBus):
+            return BusBenchReport(
+                port, SERVO_LINE_BAUDRATE, turnaround_ms, False, machine_info(), results,
+                bus.transport.baudrate, 1.0 / bus.link_time_s(6, _reply_bytes(Command.POS_READ)))
         return BusBenchReport(
             port, bus.transport.baudrate, turnaround_ms, bus.echo, machine_info(), results
         )

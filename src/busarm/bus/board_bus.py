@@ -29,6 +29,7 @@ from busarm.errors import BusTimeoutError, ConfigError, ProtocolError, Unsupport
 from busarm.protocol import (
     BROADCAST_ID,
     MAX_SERVO_ID,
+    SERVO_TURNAROUND_S,
     SPECS,
     Command,
     Frame,
@@ -99,6 +100,7 @@ class BoardServoBus(ServoBus):
         self.link = link
         self.transport = link.transport
         self.echo = False
+        self.turnaround_s = SERVO_TURNAROUND_S
         self._targets: dict[int, int] = {}  # servo ID -> the last target sent (pulses)
         self._init_state(link.clock, link.retries, limits_deg)
 
@@ -115,12 +117,15 @@ class BoardServoBus(ServoBus):
         unknown = sorted(k for k in lx_only if k != "turnaround_s")
         if unknown:
             raise ConfigError(f"unknown option(s) for a board's servos: {', '.join(unknown)}")
+        turnaround_s = float(lx_only.get("turnaround_s", SERVO_TURNAROUND_S))
         link_options: dict[str, Any] = {}
         if retries is not None:
             link_options["retries"] = retries
         if timeout_margin_s is not None:
             link_options["timeout_margin_s"] = timeout_margin_s
-        return cls(BoardLink(transport, **link_options), limits_deg=limits_deg)
+        bus = cls(BoardLink(transport, **link_options), limits_deg=limits_deg)
+        bus.turnaround_s = turnaround_s  # the servos' own, behind the board: for wire times
+        return bus
 
     def close(self) -> None:
         self.link.close()
@@ -198,9 +203,16 @@ class BoardServoBus(ServoBus):
 
     def wire_time_s(self, tx_bytes: int, rx_bytes: int) -> float:
         """Time both legs need for a request and its reply of these LX sizes: the board's
-        link (its frames are 7 bytes longer, both ways together) and the servo line."""
-        host = (tx_bytes + rx_bytes + 7) * 10.0 / self.transport.baudrate
-        return host + (tx_bytes + rx_bytes) * self.link.servo_byte_s
+        link and the servo line behind it (with the servo's turnaround)."""
+        servo_line = (tx_bytes + rx_bytes) * self.link.servo_byte_s + (
+            self.turnaround_s if rx_bytes else 0.0)
+        return self.link_time_s(tx_bytes, rx_bytes) + servo_line
+
+    def link_time_s(self, tx_bytes: int, rx_bytes: int) -> float:
+        """The board's link alone for the same exchange: a board read request is one byte
+        longer than the LX one (7 bytes against 6), its reply two (10 against 8 for a
+        position)."""
+        return (tx_bytes + rx_bytes + 3) * 10.0 / self.transport.baudrate
 
     # ------------------------------------------------------------------ scan
 

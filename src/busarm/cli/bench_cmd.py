@@ -71,11 +71,12 @@ def bench(
     kwargs = dict(servo_ids=servo_ids, reads=reads, loops=loops, scans=scans,
                   turnaround_ms=turnaround_ms, echo=settings.echo,
                   progress=lambda text: settings.err.print(f"bench {text}", highlight=False))
-    if settings.port == "sim":
+    if settings.port in ("sim", "board://sim"):
         ids = ",".join(map(str, servo_ids))
-        with sim_pty_server(turnaround_ms, ids, echo=sim_echo) as path:
+        board = settings.port == "board://sim"
+        with sim_pty_server(turnaround_ms, ids, echo=sim_echo, board=board) as path:
             report = run_bench(path, **kwargs)  # type: ignore[arg-type]
-        report.port = f"sim (own process, pty {path})"
+        report.port = f"{settings.port} (own process, pty {path.removeprefix('board://')})"
     else:
         report = run_bench(settings.port, **kwargs)  # type: ignore[arg-type]
     if as_json:
@@ -86,8 +87,11 @@ def bench(
 
 def _print(settings: Settings, report: BusBenchReport) -> None:
     m = report.machine
+    line = (f"servo line {report.baudrate} baud behind a controller board "
+            f"({report.board_baudrate:,} baud)" if report.board_baudrate else
+            f"{report.baudrate} baud")
     settings.out.print(
-        f"[bold]busarm bench[/] on {report.port}: {report.baudrate} baud, turnaround "
+        f"[bold]busarm bench[/] on {report.port}: {line}, turnaround "
         f"{report.turnaround_ms} ms, echo {'on' if report.echo else 'off'}\n"
         f"machine: {m['cpu']}, {m['cores']} cores, Python {m['python']}, {m['os']}"
     )
@@ -108,6 +112,12 @@ def _print(settings: Settings, report: BusBenchReport) -> None:
             str(r.errors),
         )
     settings.out.print(table)
+    if report.board_link_reads_s is not None:
+        settings.out.print(
+            f"wire limit: both legs, the board's {report.board_baudrate:,}-baud link and the "
+            f"{report.baudrate}-baud servo line behind it; the link alone would allow "
+            f"{report.board_link_reads_s:,.0f} position reads/s. A scan through the board "
+            "waits, for every absent ID, as long as the board waits for its reply.")
     scan = report.results[-1].scan  # bench_scan is always last
     assert scan is not None
     settings.out.print(
