@@ -1,7 +1,10 @@
 """Shared fixtures: simulated arms reachable in-process and through a real pseudo-terminal.
 
-Every driver test runs four ways: in-process and over a pty, each with the simulated
-adapter echoing and not echoing. Leaked threads fail the test that leaked them.
+Every driver test runs five ways: in-process and over a pty, each with the simulated
+adapter echoing and not echoing, and through the simulated controller board on a pty
+(the same simulated servos behind it). A test of the LX wire itself (echo, raw frames,
+replies the board never passes on) says so with ``lx_wire_only``. Leaked threads fail
+the test that leaked them.
 """
 
 from __future__ import annotations
@@ -19,8 +22,11 @@ from typing import Any
 import pytest
 from hypothesis import settings
 
+from busarm.bus.board_bus import BoardServoBus
 from busarm.bus.driver import ServoBus
+from busarm.bus.transport import BOARD_PREFIX
 from busarm.protocol import SPECS, Command, FrameParser
+from busarm.sim.board import SimBoard
 from busarm.sim.bus import ARM_SERVO_IDS, SimBus, WireTiming
 from busarm.sim.pty import PtyServer
 from busarm.sim.transport import SimTransport
@@ -32,6 +38,19 @@ if os.environ.get("CI"):
     settings.load_profile("ci")
 
 
+LX_WAYS = ["inproc-noecho", "inproc-echo", "pty-noecho", "pty-echo"]
+"""The plain LX line: in-process or through a pty, the adapter echoing or not."""
+BOARD_WAY = "pty-board"
+"""The simulated controller board served on a pty, opened as ``board:///dev/pts/N`` (a
+BoardServoBus), in front of the same simulated servos."""
+WAYS = [*LX_WAYS, BOARD_WAY]
+
+lx_wire_only = pytest.mark.parametrize("arm", LX_WAYS, indirect=True)
+"""For a test of the LX wire itself (echo, raw frames, stray or late LX replies, two
+servos' replies colliding): the board never passes those bytes on, so it runs the LX
+ways only (deselected by parametrization, not skipped)."""
+
+
 @dataclass
 class SimArm:
     """A driver and the simulator behind it, for tests to inspect."""
@@ -39,12 +58,23 @@ class SimArm:
     bus: ServoBus
     sim: SimBus
     kind: str
+    board: SimBoard | None = None
+    """The simulated controller board between the bus and ``sim``, if any."""
 
 
 def make_sim_arm(
-    kind: str, *, ids: tuple[int, ...] = ARM_SERVO_IDS, echo: bool = False, **bus_kwargs: object
+    kind: str, *, ids: tuple[int, ...] = ARM_SERVO_IDS, echo: bool = False,
+    board: bool = False, **bus_kwargs: object
 ) -> tuple[SimArm, PtyServer | None]:
+    """A bus on simulated servos: in-process (``kind`` "inproc") or on a pty ("pty"),
+    through a simulated controller board on that pty if ``board``."""
     sim = SimBus.with_ids(ids, timing=WireTiming(), echo=echo)
+    if board:
+        sim_board = SimBoard(sim)
+        server = PtyServer(sim_board)
+        bus = ServoBus.open(BOARD_PREFIX + server.start(), **bus_kwargs)  # type: ignore[arg-type]
+        assert isinstance(bus, BoardServoBus)
+        return SimArm(bus, sim, kind, sim_board), server
     if kind == "pty":
         server = PtyServer(sim)
         path = server.start()
@@ -53,12 +83,18 @@ def make_sim_arm(
     return SimArm(ServoBus(SimTransport(sim), **bus_kwargs), sim, kind), None  # type: ignore[arg-type]
 
 
-@pytest.fixture(params=["inproc-noecho", "inproc-echo", "pty-noecho", "pty-echo"])
+def make_sim_arm_way(way: str, **kwargs: Any) -> tuple[SimArm, PtyServer | None]:
+    """``make_sim_arm`` for one of ``WAYS``; checks the echo the bus detected."""
+    kind, line = way.split("-")
+    sim_arm, server = make_sim_arm(kind, echo=line == "echo", board=line == "board", **kwargs)
+    assert sim_arm.bus.echo is (line == "echo"), "echo auto-detection failed"
+    return sim_arm, server
+
+
+@pytest.fixture(params=WAYS)
 def arm(request: pytest.FixtureRequest) -> Iterator[SimArm]:
-    """The simulated 6-servo arm behind a ServoBus, four ways (echo detected at open)."""
-    kind, echo = request.param.split("-")
-    sim_arm, server = make_sim_arm(kind, echo=echo == "echo")
-    assert sim_arm.bus.echo is (echo == "echo"), "echo auto-detection failed"
+    """The simulated 6-servo arm behind a ServoBus, five ways (echo detected at open)."""
+    sim_arm, server = make_sim_arm_way(request.param)
     try:
         yield sim_arm
     finally:

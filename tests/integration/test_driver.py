@@ -32,7 +32,7 @@ from busarm.protocol import AlarmFlag, Command, ServoMode
 from busarm.sim.bus import ARM_SERVO_IDS
 from busarm.sim.pty import PtyServer
 from busarm.sim.servo import FULL_TURN_PULSES, ServoParams, SimServo
-from conftest import SimArm, make_sim_arm
+from conftest import WAYS, SimArm, make_sim_arm_way
 
 pytestmark = pytest.mark.usefixtures("no_gc_pauses")
 
@@ -579,9 +579,9 @@ def test_clean_exit_from_with_block_sends_nothing(arm: SimArm) -> None:
 # ---------------------------------------------------------------------- fixtures
 
 
-@pytest.fixture(params=["inproc-noecho", "inproc-echo", "pty-noecho", "pty-echo"])
+@pytest.fixture(params=WAYS)
 def way(request: pytest.FixtureRequest) -> str:
-    """The four ways of the ``arm`` fixture, for tests that need other servos."""
+    """The five ways of the ``arm`` fixture, for tests that need other servos."""
     return str(request.param)
 
 
@@ -591,10 +591,8 @@ def arm_with(way: str) -> Iterator[ArmFactory]:
     made: list[tuple[SimArm, PtyServer | None]] = []
 
     def make(ids: tuple[int, ...], **bus_kwargs: object) -> SimArm:
-        kind, echo = way.split("-")
-        sim_arm, server = make_sim_arm(kind, ids=ids, echo=echo == "echo", **bus_kwargs)
+        sim_arm, server = make_sim_arm_way(way, ids=ids, **bus_kwargs)
         made.append((sim_arm, server))
-        assert sim_arm.bus.echo is (echo == "echo")
         return sim_arm
 
     yield make

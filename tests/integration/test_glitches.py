@@ -24,7 +24,7 @@ from busarm.protocol import Command, PositionReply, TempReply, VinReply, encode_
 from busarm.sim.bus import FaultInjection, SimBus, WireTiming
 from busarm.sim.pty import PtyServer
 from busarm.sim.transport import SimTransport
-from conftest import SimArm
+from conftest import SimArm, lx_wire_only
 
 pytestmark = pytest.mark.usefixtures("no_gc_pauses")
 
@@ -85,6 +85,9 @@ STRAYS = {
 }
 
 
+# Stray bytes and late replies on the LX wire: behind a controller board the host never
+# sees that line's bytes, so these run the LX ways only.
+@lx_wire_only
 @pytest.mark.parametrize("stray", list(STRAYS.values()), ids=list(STRAYS))
 def test_stray_bytes_before_the_reply(arm: SimArm, stray: bytes) -> None:
     set_supplies(arm, SUPPLY_MV)
@@ -97,6 +100,7 @@ def test_stray_bytes_before_the_reply(arm: SimArm, stray: bytes) -> None:
     assert arm.bus.read_vin_v(1) == 6.8
 
 
+@lx_wire_only
 def test_stray_bytes_before_every_reply_of_a_scan(arm: SimArm) -> None:
     # Scans read many replies back to back; a stray frame naming an absent ID between
     # them must not be reported, and the real servos still must be.
@@ -145,6 +149,7 @@ def _late_reply_outcomes(arm: SimArm, delays_s: list[float]) -> list[str]:
     return problems
 
 
+@lx_wire_only
 def test_reply_after_its_timeout(arm: SimArm) -> None:
     # Delays in units of the per-attempt timeout land the late reply in the first
     # attempt, in a retry, in the next read of servo 2 and in the next read of servo 1.
@@ -153,6 +158,7 @@ def test_reply_after_its_timeout(arm: SimArm) -> None:
     assert not problems, "\n".join(problems)
 
 
+@lx_wire_only
 def test_reply_after_its_timeout_without_retries(arm: SimArm) -> None:
     arm.bus.retries = 0
     unit = arm.bus.timeout_s(6, VIN_REPLY_BYTES)

@@ -308,10 +308,10 @@ def test_bad_request_is_one_protocol_error_naming_its_bytes(func: Func, data: st
     (Func.BUS_SERVO, "01 05"),
     (Func.SYS, "05 e8 1c"),  # not the battery
     (Func.SYS, "04 e8"),
-    (Func.IMU, "00" * 23),
+    (Func.IMU, bytes(23).hex(" ")),
     (Func.KEY, "01"),
-    (Func.GAMEPAD, "00" * 6),
-    (Func.SBUS, "00" * 35),
+    (Func.GAMEPAD, bytes(6).hex(" ")),
+    (Func.SBUS, bytes(35).hex(" ")),
     (Func.LED, "01 64 00 c8 00 03 00"),  # host to board only
 ])
 def test_bad_report_is_one_protocol_error_naming_its_bytes(func: Func, data: str) -> None:

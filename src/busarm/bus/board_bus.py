@@ -198,6 +198,10 @@ class BoardServoBus(ServoBus):
         read it back from the servo."""
         return self._targets.get(check_servo_id(servo_id))
 
+    def _forget(self, *servo_ids: int) -> None:
+        for sid in servo_ids:  # the target told to the old ID is not the new ID's
+            self._targets.pop(sid, None)
+
     def read_budget_s(self, command: Command) -> float:
         return self.link.read_budget_s(self._sub(1, command))
 

@@ -992,6 +992,10 @@ class ServoBus:
                 return "garbled"
             return "ok"
 
+    def _forget(self, *servo_ids: int) -> None:
+        """Drop what is cached about these IDs' requests (an ID changed hands)."""
+        self._plans = {k: v for k, v in self._plans.items() if k[0] not in servo_ids}
+
     def set_id(self, old_id: int, new_id: int) -> None:
         """Renumber the servo at ``old_id`` to ``new_id``, safely.
 
@@ -1014,7 +1018,7 @@ class ServoBus:
         self.send(old_id, Command.ID_WRITE, new_id)
         self.written_ids.discard(old_id)  # it answers at its new ID from now on
         self.written_ids.add(new_id)
-        self._plans = {k: v for k, v in self._plans.items() if k[0] not in (old_id, new_id)}
+        self._forget(old_id, new_id)
         if self.read_id(new_id) != new_id:
             raise ProtocolError(f"servo did not take ID {new_id}")
 

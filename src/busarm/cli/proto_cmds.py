@@ -18,6 +18,8 @@ from busarm.protocol import (
     describe,
     encode_request,
 )
+from busarm.protocol.board import BoardFrameParser
+from busarm.protocol.board.describe import describe_board_frame
 
 _SEPARATORS = re.compile(r"\\x|(?<![0-9a-fA-F])0[xX]|[\s,:;]+")
 
@@ -63,12 +65,25 @@ def decode_lines(data: bytes) -> tuple[list[str], int]:
         at = data.find(raw, at)
         entries.append((at, f"{frame.hex()}  {_explain(frame)}"))
         at += len(raw)
+    board = BoardFrameParser()  # the controller board's frames (AA 55 ...), if any
+    board_frames = board.feed(data) + board.flush()
+    at = 0
+    for found in board_frames:
+        raw = found.to_bytes()
+        at = data.find(raw, at)
+        entries.append((at, f"{raw.hex(' ')}  {describe_board_frame(found)}"))
+        at += len(raw)
     at = 0
     for raw in bad:
         at = data.find(raw, at)
         entries.append((at, f"{raw.hex(' ')}  {_bad_checksum(raw)}"))
         at += 1
     summary = f"{len(frames)} frame(s) in {len(data)} byte(s)"
+    if board_frames:
+        summary = (f"{len(frames)} servo frame(s) and {len(board_frames)} controller-board "
+                   f"frame(s) in {len(data)} byte(s)")
+        return [text for _, text in sorted(entries, key=lambda e: e[0])] + [summary], \
+            len(frames) + len(board_frames)
     if parser.skipped_bytes:
         summary += f"; {parser.skipped_bytes} byte(s) skipped (not part of a valid frame)"
     if parser.checksum_failures:
@@ -100,7 +115,8 @@ def decode(hex_text: tuple[str, ...]) -> None:
     5555010312 is two digits per byte; commas, colons and 0x are optional. Example:
     busarm decode 55 55 01 07 01 f4 01 e8 03 16. Garbage between frames is skipped and
     counted; a candidate with a bad checksum is shown with the checksum it should have.
-    Exit code 1 when no valid frame is found.
+    The controller board's frames (AA 55 ...) are found and explained too. Exit code 1
+    when no valid frame is found.
     """
     if "-" in hex_text:
         if len(hex_text) > 1:

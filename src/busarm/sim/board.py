@@ -61,6 +61,10 @@ WHEEL_TIME_CONSTANT_S = 0.08
 ENCODER_TICKS_PER_REV = 3960
 OUT_CAP_BYTES = 4096
 """Reports the host has not read beyond this are dropped, oldest first (a full tty buffer)."""
+TX_QUEUE_S = 0.002
+"""The firmware's transmit queue, in line time: a streamed report that would wait longer
+for the line is skipped, so reports asked for faster than the line carries cost reports,
+not a backlog that delays every reply behind it."""
 _MAX_CATCH_UP_S = 0.2  # streams restart from now after a longer gap, not with a burst
 _EPS_S = 1e-9  # "due now": a simulated clock may stop a rounding error short of a time
 
@@ -304,7 +308,8 @@ class SimBoard:
             if now - due > _MAX_CATCH_UP_S:
                 due = now - _MAX_CATCH_UP_S
             while due <= now:
-                self._send(due, self._report(name), stream=True)
+                if self._line_out_free - due <= TX_QUEUE_S:
+                    self._send(due, self._report(name), stream=True)
                 due += period
             self._next[name] = due
 
