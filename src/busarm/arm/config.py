@@ -13,13 +13,12 @@ model in degrees; the servo position of a joint is
 from __future__ import annotations
 
 import math
-import sys
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from busarm.errors import ConfigError, LimitError
+from busarm.tomlfile import TomlReader, load_toml, parse_toml
 from busarm.units import (
     CENTER_PULSES,
     DEG_PER_PULSE,
@@ -28,18 +27,10 @@ from busarm.units import (
     POSITION_MAX_PULSES,
     POSITION_MIN_DEG,
     POSITION_MIN_PULSES,
-    check_int_range,
-    check_range,
-    listing,
     plain_number,
     range_text,
     shown,
 )
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
 FORMAT_NAME = "busarm.arm"
 FORMAT_VERSION = 1
@@ -285,75 +276,19 @@ class ArmConfig:
 
 def load_arm_config(name_or_path: str | Path = DEFAULT_ARM) -> ArmConfig:
     """A shipped arm by name (``jetauto_pro``) or any TOML file by path."""
-    text: str
-    if isinstance(name_or_path, str) and name_or_path in SHIPPED:
-        source = f"{name_or_path} (shipped)"
-        text = (resources.files("busarm.arm") / "configs" / f"{name_or_path}.toml").read_text(
-            encoding="utf-8"
-        )
-    else:
-        path = Path(name_or_path)
-        source = str(path)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise ConfigError(
-                f"arm config {path}: no such file (shipped arms: {', '.join(SHIPPED)})"
-            ) from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ConfigError(f"arm config {path}: cannot read it: {exc}") from None
-    return arm_config_from_toml(text, source)
+    data, source = load_toml(name_or_path, what="arm config", package="busarm.arm",
+                             shipped=SHIPPED)
+    return _Reader(source).arm(data)
 
 
 def arm_config_from_toml(text: str, source: str = "<string>") -> ArmConfig:
     """Parse and check an arm description; errors name ``source`` and the key."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"arm config {source}: not valid TOML: {exc}") from None
-    return _Reader(source).arm(data)
+    return _Reader(source).arm(parse_toml(text, what="arm config", source=source))
 
 
-class _Reader:
+class _Reader(TomlReader):
     def __init__(self, source: str) -> None:
-        self.source = source
-
-    def fail(self, key: str, message: str) -> ConfigError:
-        return ConfigError(f"arm config {self.source}: {key}: {message}")
-
-    def table(self, data: dict[str, Any], key: str) -> dict[str, Any]:
-        value = data.get(key)
-        if not isinstance(value, dict):
-            raise self.fail(key, "missing table" if value is None else "must be a table")
-        return value
-
-    def number(
-        self, data: dict[str, Any], key: str, where: str, lo: float, hi: float,
-        default: float | None = None,
-    ) -> float:
-        value = data.get(key, default)
-        name = f"{where}.{key}"
-        if value is None:
-            raise self.fail(name, "missing")
-        return check_range(f"arm config {self.source}: {name}", value, lo, hi)
-
-    def integer(
-        self, data: dict[str, Any], key: str, where: str, lo: int, hi: int,
-        default: int | None = None,
-    ) -> int:
-        value = data.get(key, default)
-        name = f"{where}.{key}"
-        if value is None:
-            raise self.fail(name, "missing")
-        if isinstance(value, bool) or not isinstance(value, int):  # named without the range
-            raise self.fail(name, f"must be an integer, got {shown(value)}")
-        return check_int_range(f"arm config {self.source}: {name}", value, lo, hi)
-
-    def unknown(self, data: dict[str, Any], where: str, known: set[str]) -> None:
-        extra = sorted(set(data) - known)
-        if extra:
-            raise self.fail(where, f"unknown key(s) {listing(extra)}; known: "
-                                  f"{listing(sorted(known))}")
+        super().__init__("arm config", source)
 
     def arm(self, data: dict[str, Any]) -> ArmConfig:
         self.unknown(
@@ -361,15 +296,7 @@ class _Reader:
             {"format", "version", "name", "geometry", "workspace", "joints", "gripper", "poses",
              "action_groups", "camera"},
         )
-        if data.get("format") != FORMAT_NAME:
-            raise self.fail("format", f"must be {FORMAT_NAME!r}, got {data.get('format')!r}")
-        if data.get("version") != FORMAT_VERSION:
-            raise self.fail(
-                "version", f"{data.get('version')!r}; this busarm reads version {FORMAT_VERSION}"
-            )
-        name = data.get("name")
-        if not isinstance(name, str) or not name.strip():
-            raise self.fail("name", f"must be a non-empty string, got {name!r}")
+        name = self.header(data, FORMAT_NAME, FORMAT_VERSION)
         geometry = self.geometry(self.table(data, "geometry"))
         workspace = data.get("workspace", {})
         if not isinstance(workspace, dict):
