@@ -3,18 +3,21 @@
 Every driver test runs five ways: in-process and over a pty, each with the simulated
 adapter echoing and not echoing, and through the simulated controller board on a pty
 (the same simulated servos behind it). A test of the LX wire itself (echo, raw frames,
-replies the board never passes on) says so with ``lx_wire_only``. Leaked threads fail
-the test that leaked them.
+replies the board never passes on) says so with ``lx_wire_only``, one of LX commands the
+board cannot pass on with ``lx_commands_only``. Leaked threads fail the test that leaked
+them.
 """
 
 from __future__ import annotations
 
 import gc
 import os
+import shutil
 import signal
 import subprocess
 import threading
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -49,6 +52,11 @@ lx_wire_only = pytest.mark.parametrize("arm", LX_WAYS, indirect=True)
 """For a test of the LX wire itself (echo, raw frames, stray or late LX replies, two
 servos' replies colliding): the board never passes those bytes on, so it runs the LX
 ways only (deselected by parametrization, not skipped)."""
+lx_commands_only = pytest.mark.parametrize("arm", LX_WAYS, indirect=True)
+"""For a test of LX commands the board has no sub-command for (motor mode, the servos'
+LEDs and alarm masks, queued moves, reading moves back): the LX ways only. That the
+board's bus refuses them, sending nothing, is test_driver's
+test_the_board_refuses_what_it_cannot_pass_on."""
 
 
 @dataclass
@@ -70,17 +78,48 @@ def make_sim_arm(
     through a simulated controller board on that pty if ``board``."""
     sim = SimBus.with_ids(ids, timing=WireTiming(), echo=echo)
     if board:
-        sim_board = SimBoard(sim)
-        server = PtyServer(sim_board)
-        bus = ServoBus.open(BOARD_PREFIX + server.start(), **bus_kwargs)  # type: ignore[arg-type]
-        assert isinstance(bus, BoardServoBus)
-        return SimArm(bus, sim, kind, sim_board), server
+        board_bus, sim_board, server = open_board_bus(sim, **bus_kwargs)
+        return SimArm(board_bus, sim, kind, sim_board), server
     if kind == "pty":
         server = PtyServer(sim)
         path = server.start()
         bus = ServoBus.open(path, **bus_kwargs)  # type: ignore[arg-type]
         return SimArm(bus, sim, kind), server
     return SimArm(ServoBus(SimTransport(sim), **bus_kwargs), sim, kind), None  # type: ignore[arg-type]
+
+
+def open_board_bus(sim: SimBus, **bus_kwargs: object
+                   ) -> tuple[BoardServoBus, SimBoard, PtyServer]:
+    """A simulated controller board in front of ``sim``, served on a pty and opened as
+    ``board:///dev/pts/N``: the bus, the board, and the server to stop."""
+    board = SimBoard(sim)
+    server = PtyServer(board)
+    try:
+        bus = ServoBus.open(BOARD_PREFIX + server.start(), **bus_kwargs)  # type: ignore[arg-type]
+    except BaseException:
+        server.stop()
+        raise
+    assert isinstance(bus, BoardServoBus)
+    return bus, board, server
+
+
+@contextmanager
+def sim_bus_on(sim: SimBus, way: str = "inproc", **bus_kwargs: object) -> Iterator[ServoBus]:
+    """A bus on ``sim`` for a ``with`` block: in-process, or behind the simulated board
+    on a pty (``way`` BOARD_WAY)."""
+    if way != BOARD_WAY:
+        with ServoBus(SimTransport(sim), **bus_kwargs) as bus:  # type: ignore[arg-type]
+            yield bus
+        return
+    board_bus, _, server = open_board_bus(sim, **bus_kwargs)
+    try:
+        with board_bus:
+            yield board_bus
+            # Answered, so every write before it has reached the servos: the server may
+            # stop (it would drop bytes still in the pty, unread).
+            board_bus.read_temp_c(next(s.servo_id for s in sim.servos))
+    finally:
+        server.stop()
 
 
 def make_sim_arm_way(way: str, **kwargs: Any) -> tuple[SimArm, PtyServer | None]:
@@ -159,6 +198,20 @@ def twin_calibration(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Pa
     with Robot.open("twin", calibration_dir=folder):
         pass
     return folder / "camera.json", folder / "hand_eye.json"
+
+
+def keep_twin_calibration(config_home: Path, files: tuple[Path, Path]) -> Path:
+    """Keep ``files`` (``twin_calibration``'s) for robot ``twin`` in the XDG config folder
+    ``config_home``, where a twin's ``pick-sort`` would keep the calibration it made
+    (busarm.robot.calibration_store), so the commands run there do not make it again.
+    Making and keeping it is test_cli_calibrations'. The robot's folder is returned."""
+    from busarm.fileio import robot_key
+
+    folder = config_home / "busarm" / robot_key("twin")
+    folder.mkdir(parents=True, exist_ok=True)
+    for file in files:
+        shutil.copy2(file, folder / file.name)
+    return folder
 
 
 class ListeningSim(SimBus):

@@ -20,7 +20,7 @@ from busarm.cli.main import cli
 from busarm.sim import transport
 
 README = Path(__file__).resolve().parents[2] / "README.md"
-UNIT = re.compile(r"\b(mm|deg|deg/s|mm/s|s|ms|V|C|bit/s|pixels|px|cm2|%|0\.\.1|probability)\b"
+UNIT = re.compile(r"\b(mm|deg|deg/s|mm/s|s|ms|V|C|Hz|bit/s|pixels|px|cm2|%|0\.\.1|probability)\b"
                   r"|\bfactor\b|seconds|frames/s")
 COUNTS = {"--views", "--seed", "--scenes", "--workers", "--reads", "--scans", "--loops",
           "--frames", "--count", "--retries", "--blocks", "--pictures", "--placements", "--n",
@@ -134,7 +134,7 @@ def test_a_range_is_said_once() -> None:
     assert not twice, twice
 
 
-NUMBER_METAVARS = {"N", "S", "MS", "MM", "DEG", "DEG_S", "MM_S", "PX", "V", "C", "FACTOR",
+NUMBER_METAVARS = {"N", "S", "MS", "MM", "DEG", "DEG_S", "MM_S", "PX", "V", "C", "HZ", "FACTOR",
                    "FPS", "PROBABILITY"}
 """A number option's metavar: its unit, or N for a count (never NUMBER or INTEGER)."""
 SAME_NAME_OTHER_MEANING = {"--pose": "a servo pose ID=DEG,... (`move`), or a named pose",

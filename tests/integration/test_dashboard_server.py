@@ -45,8 +45,11 @@ class Server:
     requests: list[tuple[float, Request]]
 
     def ws(self, query: str = "", **kwargs: Any) -> ClientConnection:
+        # Every message is taken in, as a page does (max_queue None): with the client's
+        # default bound, a test that reads nothing for a second stops reading the socket,
+        # and its close then waits 10 s for the server's close frame it cannot see.
         return connect(self.url.replace("http", "ws") + "ws" + query, open_timeout=5,
-                       **kwargs)
+                       max_queue=None, **kwargs)
 
     def servo_deg(self, servo_id: int) -> float:
         """Where the simulated servo is (the truth, not what the page was told)."""

@@ -1,8 +1,11 @@
 """The bus driver end to end: ServoBus against the simulated arm.
 
-Every test that takes ``arm`` runs four ways (see conftest): in-process and through a
-real pseudo-terminal, each with the simulated adapter echoing and not. Nothing of
-busarm is mocked; what a call did is checked on the simulator's servos.
+Every test that takes ``arm`` runs five ways (see conftest): in-process and through a
+real pseudo-terminal, each with the simulated adapter echoing and not, and through the
+simulated controller board on a pty (``board:///dev/pts/N``) in front of the same
+servos. Tests of the LX wire itself, or of LX commands the board cannot pass on, say so
+and run the four LX ways. Nothing of busarm is mocked; what a call did is checked on the
+simulator's servos.
 
 The simulator's motion model is exact and runs on the monotonic clock, so instead of
 sleeping to see where a servo is at some moment, a test asks a copy of the servo's
@@ -13,6 +16,7 @@ enters except the few milliseconds a command takes to reach the simulator.
 from __future__ import annotations
 
 import copy
+import re
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -27,12 +31,22 @@ from busarm.errors import (
     LimitError,
     MotionTimeoutError,
     TransportError,
+    UnsupportedError,
 )
-from busarm.protocol import AlarmFlag, Command, ServoMode
+from busarm.protocol import AlarmFlag, Command, Request, ServoMode
+from busarm.protocol.board import BoardFrameParser, ServoRead, ServoSub
+from busarm.protocol.board import decode_request as decode_board_request
 from busarm.sim.bus import ARM_SERVO_IDS
 from busarm.sim.pty import PtyServer
 from busarm.sim.servo import FULL_TURN_PULSES, ServoParams, SimServo
-from conftest import WAYS, SimArm, make_sim_arm_way
+from conftest import (
+    BOARD_WAY,
+    LX_WAYS,
+    WAYS,
+    SimArm,
+    lx_commands_only,
+    make_sim_arm_way,
+)
 
 pytestmark = pytest.mark.usefixtures("no_gc_pauses")
 
@@ -83,6 +97,19 @@ def wait_for(predicate: Callable[[], bool], timeout_s: float = 2.0) -> bool:
     return True
 
 
+def hear_moves(arm: SimArm) -> list[tuple[Command, int, int, int]]:
+    """The move commands the servos receive from now on: (command, ID, pulses, ms)."""
+    heard: list[tuple[Command, int, int, int]] = []
+    moves = (Command.MOVE_TIME_WRITE, Command.MOVE_TIME_WAIT_WRITE)
+
+    def tap(request: Request) -> None:
+        if request.command in moves:
+            heard.append((request.command, request.servo_id, request.args[0], request.args[1]))
+
+    arm.sim.taps.append(tap)
+    return heard
+
+
 def read_budget_s(bus: ServoBus, command: Command) -> float:
     return bus.read_budget_s(command) + SLACK_S
 
@@ -102,6 +129,9 @@ def test_scan_of_a_subset(arm: SimArm) -> None:
     assert result.conflicts == []
 
 
+# Two servos' replies colliding on the LX wire: the board hands back a value or -1, never
+# the line's bytes, so it cannot tell a shared ID from an absent one.
+@pytest.mark.parametrize("way", LX_WAYS)
 def test_scan_reports_two_servos_on_one_id(way: str, arm_with: ArmFactory) -> None:
     arm = arm_with((1, 3, 3))
     result = arm.bus.scan(range(6))
@@ -136,11 +166,11 @@ def test_readings_match_the_simulator(arm: SimArm) -> None:
 
 
 def test_negative_position_near_the_end_stop(arm: SimArm) -> None:
-    # Below 0 pulses the potentiometer still reads (signed 16-bit on the wire).
-    place(arm, {2: 40.0})
-    arm.bus.set_motor_speed(2, -1000)
-    assert wait_for(lambda: arm.bus.read_position_pulses(2) < -20, 2.0)
-    arm.bus.stop_motor(2)
+    # Below 0 pulses the potentiometer still reads (signed 16-bit on the wire, and in the
+    # board's reply).
+    place(arm, {2: -40.0})
+    assert arm.bus.read_position_pulses(2) == -40
+    assert arm.bus.read_position_deg(2) == pytest.approx(-540 * 0.24)
 
 
 # ---------------------------------------------------------------------- motion
@@ -179,24 +209,31 @@ def test_sync_move_starts_and_arrives_together(arm: SimArm) -> None:
         assert predicted(arm, sid, t1 + duration + 0.01).position_pulses == pytest.approx(target)
     assert all(abs(f - 0.5) < 0.06 for f in halfway.values()), halfway
     # The same start for all: the fractions agree far better than the estimate of it.
-    assert max(halfway.values()) - min(halfway.values()) < 0.005, halfway
+    # (Behind the board, each servo starts once its own MOVE_TIME_WRITE, 10 bytes, has
+    # crossed the servo line after those of the servos before it.)
+    skew_s = 0.0 if arm.board is None else (len(targets) - 1) * 10 * arm.sim.timing.byte_s
+    assert max(halfway.values()) - min(halfway.values()) < 0.005 + skew_s / duration, halfway
     reached = arm.bus.wait_until_reached(targets, tolerance_deg=0.3, timeout_s=2.0)
     assert reached == pytest.approx(targets, abs=0.3)
 
 
 def test_sync_move_without_start_uses_move_time_write(arm: SimArm) -> None:
+    heard = hear_moves(arm)
     arm.bus.sync_move_deg({2: 12.0, 3: -12.0}, 0.1, use_start=False)
-    assert arm.bus.read_move_time(2).position_pulses == 550
-    assert arm.bus.read_move_time(3).position_pulses == 450
+    sync(arm)
+    assert heard == [(Command.MOVE_TIME_WRITE, 2, 550, 100),
+                     (Command.MOVE_TIME_WRITE, 3, 450, 100)]
     arm.bus.wait_until_reached({2: 12.0, 3: -12.0}, tolerance_deg=0.3, timeout_s=1.0)
 
 
 def test_speed_limited_move_takes_largest_delta_over_speed(arm: SimArm) -> None:
+    heard = hear_moves(arm)
     t0 = time.monotonic()
     duration = arm.bus.move_at_speed_deg(1, 36.0, 120.0)
     t1 = time.monotonic()
     assert duration == pytest.approx(36.0 / 120.0)
-    assert arm.bus.read_move_time(1).time_ms == 300
+    sync(arm)
+    assert heard == [(Command.MOVE_TIME_WRITE, 1, 650, 300)]
     assert predicted(arm, 1, t0 + duration - 0.02).position_pulses < 650 - 5
     assert predicted(arm, 1, t1 + duration + 0.01).position_pulses == pytest.approx(650)
 
@@ -291,6 +328,7 @@ def test_vin_and_temperature_limits(arm: SimArm) -> None:
         arm.bus.write_vin_limits_v(5, 4.0, 11.0)
 
 
+@lx_commands_only  # the board has no sub-command for the servos' LEDs
 def test_led_on_and_off(arm: SimArm) -> None:
     assert arm.bus.read_led(10) is True
     arm.bus.set_led(10, False)
@@ -301,6 +339,7 @@ def test_led_on_and_off(arm: SimArm) -> None:
     assert arm.bus.read_led(10) is True
 
 
+@lx_commands_only  # the board has no sub-command for the alarm masks
 def test_alarm_mask(arm: SimArm) -> None:
     assert arm.bus.read_alarm_mask(2) == AlarmFlag(7)
     mask = AlarmFlag.OVER_TEMPERATURE | AlarmFlag.STALLED
@@ -325,6 +364,7 @@ def _turned(arm: SimArm, servo_id: int, dt: float) -> float:
     return d - FULL_TURN_PULSES if d > FULL_TURN_PULSES / 2 else d
 
 
+@lx_commands_only  # the board has no sub-command for motor mode
 def test_motor_mode_turns_until_speed_zero(arm: SimArm) -> None:
     arm.bus.set_motor_speed(1, 500)
     mode = arm.bus.read_mode(1)
@@ -397,6 +437,7 @@ def test_read_faults_overheated(arm: SimArm) -> None:
 # ---------------------------------------------------------------------- move-time reads
 
 
+@lx_commands_only  # the board can neither queue a move nor read one back
 def test_read_move_time_and_move_time_wait(arm: SimArm) -> None:
     arm.bus.move_deg(2, 12.0, 0.25)
     r = arm.bus.read_move_time(2)
@@ -414,6 +455,7 @@ def test_read_move_time_and_move_time_wait(arm: SimArm) -> None:
     assert predicted(arm, 3, time.monotonic() + 1.0).position_pulses == pytest.approx(400)
 
 
+@lx_commands_only  # the board cannot read a queued move back
 def test_servo_that_never_answers_wait_read_gives_typed_timeout(arm: SimArm) -> None:
     silent = SimServo(3, params=ServoParams(answers_wait_read=False), now=time.monotonic())
     index = next(i for i, s in enumerate(arm.sim.servos) if s.servo_id == 3)
@@ -428,6 +470,51 @@ def test_servo_that_never_answers_wait_read_gives_typed_timeout(arm: SimArm) -> 
     # The bus is fine afterwards, for that servo's other reads and for the others.
     assert arm.bus.read_position_pulses(3) == 500
     assert arm.bus.read_move_time_wait(2).position_pulses == 500
+
+
+# ---------------------------------------------------------------------- the board's limits
+
+
+@pytest.mark.parametrize("arm", [BOARD_WAY], indirect=True)
+def test_the_board_refuses_what_it_cannot_pass_on(arm: SimArm) -> None:
+    """What the ``lx_commands_only`` tests use, the board has no sub-command for: each call
+    says so (UnsupportedError) and not a byte of it reaches the board or the servos."""
+    assert arm.board is not None
+    bus, to_board = arm.bus, bytearray()
+    receive = arm.board.receive
+
+    def record(data: bytes) -> None:  # instrumentation: what crosses the host's link
+        to_board.extend(data)
+        receive(data)
+
+    arm.board.receive = record  # type: ignore[method-assign]
+    heard: list[Command] = []
+    arm.sim.taps.append(lambda r: heard.append(r.command))
+    refused: list[tuple[Callable[[], object], str]] = [
+        (lambda: bus.set_motor_speed(1, 500), "motor (continuous rotation) mode"),
+        (lambda: bus.stop_motor(1), "motor (continuous rotation) mode"),
+        (lambda: bus.set_position_mode(1), "motor (continuous rotation) mode"),
+        (lambda: bus.read_mode(1), "reading the servo's mode"),
+        (lambda: bus.set_led(10, False), "the servos' LEDs"),
+        (lambda: bus.read_led(10), "the servos' LEDs"),
+        (lambda: bus.write_alarm_mask(2, AlarmFlag.NONE), "the servos' alarm masks"),
+        (lambda: bus.read_alarm_mask(2), "the servos' alarm masks"),
+        (lambda: bus.send(3, Command.MOVE_TIME_WAIT_WRITE, 400, 700), "queued moves"),
+        (lambda: bus.send(254, Command.MOVE_START), "MOVE_START"),
+        (lambda: bus.read_move_time(2), "reading back the last move command"),
+        (lambda: bus.read_move_time_wait(3), "reading back a queued move"),
+    ]
+    for call, what in refused:
+        with pytest.raises(UnsupportedError, match=re.escape(f"cannot do {what}") + ".*"
+                           + re.escape("(use a plain LX bus adapter for this)")):
+            call()
+    sync(arm)
+    # The sync read is all that went to the board, and to the servos.
+    sent = [decode_board_request(f) for f in BoardFrameParser().feed(bytes(to_board))]
+    assert sent == [ServoRead(ServoSub.READ_TEMPERATURE, 1)]
+    assert heard == [Command.TEMP_READ]
+    assert not bus.wrote
+    assert arm.sim.servo(1).is_loaded is False  # power-on state: nothing changed it
 
 
 # ---------------------------------------------------------------------- software limits
@@ -487,6 +574,9 @@ def test_set_id_refuses_when_old_id_is_absent(arm: SimArm) -> None:
     assert sorted(s.servo_id for s in arm.sim.servos) == [1, 2, 3, 4, 5, 10]
 
 
+# Two servos on one ID, told apart by their colliding LX replies: behind the board they
+# look like no servo at all (the board answers -1), see test_scan_reports_two_servos...
+@pytest.mark.parametrize("way", LX_WAYS)
 def test_set_id_refuses_two_servos_on_the_old_id(way: str, arm_with: ArmFactory) -> None:
     arm = arm_with((1, 3, 3))
     with pytest.raises(BusConflictError):
@@ -494,6 +584,7 @@ def test_set_id_refuses_two_servos_on_the_old_id(way: str, arm_with: ArmFactory)
     assert [s.servo_id for s in arm.sim.servos] == [1, 3, 3]
 
 
+@pytest.mark.parametrize("way", LX_WAYS)  # colliding LX replies, as above
 def test_set_id_refuses_a_new_id_held_by_two_servos(way: str, arm_with: ArmFactory) -> None:
     # Two servos on 3 garble each other's ID reply, so 3 is not "found": it is still taken.
     arm = arm_with((1, 3, 3))

@@ -25,6 +25,11 @@ The rules, applied to each ```sh code block of the section, in order:
   (camera.json, ws.png) are there for the next. Each must exit 0 with no traceback and
   no ``error:`` line. Nothing runs on the developer's files: the runtime folder (running
   servers) and $XDG_CONFIG_HOME (kept calibrations, saved poses) are the test's own.
+* KEPT: each block's $XDG_CONFIG_HOME starts with the twin's camera calibration kept in
+  it (the session's ``twin_calibration``, as a first ``pick-sort`` would have kept it),
+  so that the lines run as they do for a reader after their first sort: none makes it
+  again (calibrating and keeping it is test_cli_calibrations'; the lines that calibrate
+  on purpose, ``camera calibrate``/``handeye``, still do).
 """
 
 from __future__ import annotations
@@ -39,6 +44,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
+
+from conftest import keep_twin_calibration
 
 README = Path(__file__).resolve().parents[2] / "README.md"
 BUSARM = ".venv/bin/busarm"
@@ -115,8 +122,9 @@ class Run:
             self.failures.append(f"{line}\n  exit {code}\n  stderr: {err.strip()[-2000:]}")
 
 
-def _workdir(tmp_path: Path) -> tuple[Path, dict[str, str]]:
-    """A folder whose .venv/bin/busarm is this checkout's, and the environment to run in."""
+def _workdir(tmp_path: Path, calibration: tuple[Path, Path]) -> tuple[Path, dict[str, str]]:
+    """A folder whose .venv/bin/busarm is this checkout's, and the environment to run in
+    (the twin's ``calibration`` kept in its config folder: KEPT)."""
     script = tmp_path / ".venv" / "bin" / "busarm"
     script.parent.mkdir(parents=True)
     script.write_text(f'#!/bin/sh\nexec "{sys.executable}" -m busarm "$@"\n')
@@ -125,6 +133,7 @@ def _workdir(tmp_path: Path) -> tuple[Path, dict[str, str]]:
            if k not in ("BUSARM_PORT", "BUSARM_ARM", "BUSARM_CALIBRATION")}
     env.update(BUSARM_RUNTIME_DIR=str(tmp_path / "run"), XDG_CONFIG_HOME=str(tmp_path / "config"),
                COLUMNS="120", PYTHONUNBUFFERED="1")
+    keep_twin_calibration(tmp_path / "config", calibration)
     return tmp_path, env
 
 
@@ -156,9 +165,9 @@ def _stop_server(line: str, proc: subprocess.Popen[str], run: Run) -> None:
     run.check(f"{line} (stopped with SIGTERM)", proc.returncode, out, err)
 
 
-def run_block(lines: list[str], tmp_path: Path) -> Run:
+def run_block(lines: list[str], tmp_path: Path, calibration: tuple[Path, Path]) -> Run:
     """Run one block's lines by the rules above."""
-    cwd, env = _workdir(tmp_path)
+    cwd, env = _workdir(tmp_path, calibration)
     run = Run()
     servers: list[tuple[str, subprocess.Popen[str]]] = []
     values: dict[str, str] = {}
@@ -216,9 +225,10 @@ def test_the_using_it_section_has_examples_of_each_kind() -> None:
 @pytest.mark.slow
 @pytest.mark.timeout(600)
 @pytest.mark.parametrize("number", range(len(BLOCKS)), ids=lambda n: f"block{n + 1}")
-def test_readme_block_runs_as_written(number: int, tmp_path: Path) -> None:
+def test_readme_block_runs_as_written(number: int, tmp_path: Path,
+                                      twin_calibration: tuple[Path, Path]) -> None:
     start = time.monotonic()
-    run = run_block(BLOCKS[number], tmp_path)
+    run = run_block(BLOCKS[number], tmp_path, twin_calibration)
     took = time.monotonic() - start
     report = [f"block {number + 1}: {len(run.ran)} run, {len(run.skipped)} skipped (hardware), "
               f"{len(run.smaller)} smaller, {took:.1f} s"]

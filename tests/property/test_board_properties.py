@@ -21,7 +21,6 @@ from busarm.protocol.board import (
     Battery,
     BoardFrame,
     BoardFrameParser,
-    BoardReport,
     BoardRequest,
     BuzzerBeep,
     GamepadState,
@@ -131,7 +130,9 @@ requests: st.SearchStrategy[BoardRequest] = st.one_of(
               st.integers(*U16)),
 )
 imu_values = st.floats(-1e4, 1e4)
-reports: st.SearchStrategy[BoardReport] = st.one_of(
+EncodableReport = ServoReply | Battery | ImuSample | KeyEvent
+"""The reports with an ``encode`` (the simulated board sends them)."""
+reports: st.SearchStrategy[EncodableReport] = st.one_of(
     servo_replies(),
     st.builds(Battery, st.integers(*U16).map(lambda mv: mv / 1000)),
     st.builds(ImuSample, st.tuples(imu_values, imu_values, imu_values),
@@ -169,7 +170,8 @@ def assert_same_request(got: BoardRequest, sent: BoardRequest) -> None:
 
 def close(got: tuple[float, ...], sent: tuple[float, ...]) -> bool:
     """Within float32 precision (plus the unit conversions' rounding)."""
-    return all(math.isclose(g, s, rel_tol=1e-6, abs_tol=1e-9) for g, s in zip(got, sent))
+    pairs = zip(got, sent, strict=True)
+    return all(math.isclose(g, s, rel_tol=1e-6, abs_tol=1e-9) for g, s in pairs)
 
 
 def parse_one(raw: bytes, max_data_len: int = 255) -> BoardFrame:
@@ -195,7 +197,7 @@ def test_every_request_round_trips_through_the_parser(request_: BoardRequest) ->
 
 @SETTINGS
 @given(reports)
-def test_every_report_round_trips_through_the_links_parser(report: BoardReport) -> None:
+def test_every_report_round_trips_through_the_links_parser(report: EncodableReport) -> None:
     raw = report.encode()
     assert raw[-1] == oracle_crc8(raw[2:-1])
     decoded = decode_report(parse_one(raw, REPORT_MAX_DATA))
@@ -219,16 +221,6 @@ def test_gamepad_and_sbus_reports_decode_field_by_field(
 
 # ---------------------------------------------------------------- (b) garbage and chunks
 
-# Anything on the line: typed requests and reports, and arbitrary frames of every function.
-frames = st.one_of(
-    requests.map(lambda r: r.encode()),
-    reports.map(lambda r: r.encode()),
-    st.builds(oracle_frame, st.integers(0, FUNCS - 1), st.binary(max_size=40)),
-)
-short_frames = st.one_of(  # what BoardLink's parser (REPORT_MAX_DATA) takes
-    reports.map(lambda r: r.encode()),
-    st.builds(oracle_frame, st.integers(0, FUNCS - 1), st.binary(max_size=REPORT_MAX_DATA)),
-)
 # Garbage full of near misses: stray headers and half headers, false headers announcing
 # long frames (up to 255 bytes), frames with unknown function codes (CRC correct).
 garbage_piece = st.one_of(
@@ -239,6 +231,19 @@ garbage_piece = st.one_of(
     st.builds(oracle_frame, st.integers(FUNCS, 255), st.binary(max_size=8)),
 )
 garbage = st.lists(garbage_piece, max_size=4).map(b"".join)
+
+# Anything on the line: typed requests and reports, and arbitrary frames of every function.
+frames = st.one_of(
+    requests.map(lambda r: r.encode()),
+    reports.map(lambda r: r.encode()),
+    st.builds(oracle_frame, st.integers(0, FUNCS - 1), st.binary(max_size=40)),
+    st.builds(oracle_frame, st.integers(0, FUNCS - 1), garbage),  # headers in the data
+)
+short_frames = st.one_of(  # what BoardLink's parser (REPORT_MAX_DATA) takes
+    reports.map(lambda r: r.encode()),
+    st.builds(oracle_frame, st.integers(0, FUNCS - 1), st.binary(max_size=REPORT_MAX_DATA)),
+    st.builds(oracle_frame, st.integers(0, FUNCS - 1), garbage.map(lambda g: g[:REPORT_MAX_DATA])),
+)
 chunk_sizes = st.lists(st.integers(1, 40), min_size=1, max_size=8)
 
 
@@ -320,7 +325,8 @@ def test_garbage_that_forms_a_valid_frame_is_a_frame() -> None:
     # garbage byte the CRC comes out right: then the line holds a valid SYS frame there,
     # which is taken, and the real frame it overlaps is lost (no parser can tell).
     false_header = HEADER + b"\x00\x04"
-    collide = [g for g in range(256) if oracle_crc8(b"\x00\x04" + bytes((g,)) + real[:3]) == real[3]]
+    collide = [g for g in range(256)
+               if oracle_crc8(b"\x00\x04" + bytes((g,)) + real[:3]) == real[3]]
     assert len(collide) == 1
     stream = false_header + bytes(collide) + real
     assert valid_frame_starts(stream) == [0, len(stream) - len(real)]

@@ -7,7 +7,7 @@ reads."""
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -59,11 +59,9 @@ class Look:
 
 
 @pytest.fixture(scope="module")
-def calibration(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, Path]]:
-    out = tmp_path_factory.mktemp("cal")
-    with Robot.open("twin://?blocks=0", calibration_dir=out):
-        pass
-    yield out / "camera.json", out / "hand_eye.json"
+def calibration(twin_calibration: tuple[Path, Path]) -> tuple[Path, Path]:
+    """The twin's camera calibration, made once per run by our flows (tests/conftest.py)."""
+    return twin_calibration
 
 
 @pytest.fixture(scope="module")

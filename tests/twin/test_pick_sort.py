@@ -19,15 +19,10 @@ from busarm.twin.twin import Twin
 
 
 @pytest.fixture(scope="module")
-def calibration(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    out = tmp_path_factory.mktemp("cal")
-    intr, he = out / "camera.json", out / "hand_eye.json"
-    runner = CliRunner(mix_stderr=False)
-    assert runner.invoke(cli, ["--port", "twin", "camera", "calibrate", "--views", "12",
-                               "-o", str(intr)]).exit_code == 0
-    assert runner.invoke(cli, ["--port", "twin", "camera", "handeye", "--intrinsics", str(intr),
-                               "--views", "10", "-o", str(he)]).exit_code == 0
-    return intr, he
+def calibration(twin_calibration: tuple[Path, Path]) -> tuple[Path, Path]:
+    """The twin's camera calibration, made once per run by our flows (tests/conftest.py;
+    the camera commands that make it are tested in test_calibration_flows.py)."""
+    return twin_calibration
 
 
 def _robot(calibration: tuple[Path, Path], port: str) -> Robot:

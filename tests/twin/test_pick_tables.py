@@ -4,7 +4,6 @@ Scored against the twin's truth, which the sorter never reads."""
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -17,11 +16,9 @@ from busarm.twin.twin import BlockState
 
 
 @pytest.fixture(scope="module")
-def calibration(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, Path]]:
-    out = tmp_path_factory.mktemp("cal")
-    with Robot.open("twin://?blocks=0", calibration_dir=out):
-        pass
-    yield out / "camera.json", out / "hand_eye.json"
+def calibration(twin_calibration: tuple[Path, Path]) -> tuple[Path, Path]:
+    """The twin's camera calibration, made once per run by our flows (tests/conftest.py)."""
+    return twin_calibration
 
 
 def test_a_colour_with_more_blocks_than_a_layer_is_stacked_in_its_bin(

@@ -42,12 +42,12 @@ def test_a_twin_robot_has_its_camera_bins_clock_and_a_calibration_made_in_it(
 
 
 def test_the_same_calibration_files_give_the_same_robot_on_another_scene(
-        tmp_path: Path) -> None:
-    with Robot.open("twin://?blocks=0", calibration_dir=tmp_path):
-        pass
+        twin_calibration: tuple[Path, Path]) -> None:
+    # The files a twin robot's calibration wrote (calibration_dir: the session's, made as
+    # the test above makes its own), on a twin with another table.
     scene = Scene(blocks=(Block("red", 200.0, 30.0, 0.0),))
-    with Robot.open("twin", scene=scene, intrinsics=tmp_path / "camera.json",
-                    hand_eye=tmp_path / "hand_eye.json") as robot:
+    with Robot.open("twin", scene=scene, intrinsics=twin_calibration[0],
+                    hand_eye=twin_calibration[1]) as robot:
         cal = robot.require_camera_calibration()
         assert cal.twin_run is None and "camera.json" in cal.source
         seen = robot.locator().locate_averaged([(robot.camera.read().image,

@@ -65,11 +65,9 @@ GROUPS: dict[str, tuple[str, Points, float]] = {
 
 
 @pytest.fixture(scope="module")
-def calibration(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, Path]]:
-    out = tmp_path_factory.mktemp("cal")
-    with Robot.open("twin://?blocks=0", calibration_dir=out):
-        pass
-    yield out / "camera.json", out / "hand_eye.json"
+def calibration(twin_calibration: tuple[Path, Path]) -> tuple[Path, Path]:
+    """The twin's camera calibration, made once per run by our flows (tests/conftest.py)."""
+    return twin_calibration
 
 
 def _matched(got: Points, truth: Points) -> list[float]:

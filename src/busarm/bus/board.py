@@ -44,7 +44,7 @@ from busarm.protocol.board import (
     ServoSub,
     decode_report,
 )
-from busarm.units import check_range
+from busarm.units import check_range, range_text
 
 SERVO_LINE_BAUDRATE = 115200
 """The servo line behind the board (the LX servos' rate)."""
@@ -58,6 +58,7 @@ WHEEL_LIMIT_REV_S = 1.5
 REPORT_MAX_DATA = 64
 """The longest frame the board sends (an SBUS report has 36 data bytes)."""
 _READ_CHUNK = 4096
+_POLL_MAX_BYTES = 16 * _READ_CHUNK
 
 
 @dataclass
@@ -89,6 +90,8 @@ class BoardLink:
         self.retries = retries
         self.wheel_limit_rev_s = wheel_limit_rev_s
         self.readings = BoardReadings()
+        self.wheel_targets_rev_s: dict[int, float] = {}
+        """What each wheel motor was last told on this link (rev/s), by motor number."""
         self._parser = BoardFrameParser(max_data_len=REPORT_MAX_DATA)
         self._lock = threading.RLock()
         self._host_byte_s = 10.0 / transport.baudrate
@@ -107,14 +110,24 @@ class BoardLink:
         for motor, rev_s in speeds_rev_s.items():
             if isinstance(motor, bool) or motor not in range(1, MOTOR_COUNT + 1):
                 raise ConfigError(f"motor = {motor!r}; allowed: 1..{MOTOR_COUNT}")
-            check_range(f"motor {motor} speed", rev_s, -self.wheel_limit_rev_s,
-                        self.wheel_limit_rev_s, "rev/s")
+            limit = self.wheel_limit_rev_s
+            if isinstance(rev_s, float) and not math.isfinite(rev_s):  # said with the range
+                raise ConfigError(f"motor {motor} speed = {rev_s} rev/s is out of range "
+                                  f"{range_text(-limit, limit, 'rev/s')}")
+            check_range(f"motor {motor} speed", rev_s, -limit, limit, "rev/s")
         if speeds_rev_s:
             self.write(MotorSpeeds(tuple(sorted(speeds_rev_s.items()))))
+            self.wheel_targets_rev_s.update(speeds_rev_s)
 
     def stop_motors(self) -> None:
         """Every wheel motor to 0 rev/s."""
         self.write(MotorSpeeds(tuple((m, 0.0) for m in range(1, MOTOR_COUNT + 1))))
+        self.wheel_targets_rev_s = dict.fromkeys(range(1, MOTOR_COUNT + 1), 0.0)
+
+    @property
+    def wheels_turning(self) -> bool:
+        """Whether this link last told a wheel motor to turn (and not to stop since)."""
+        return any(rev_s != 0.0 for rev_s in self.wheel_targets_rev_s.values())
 
     def beep(self, freq_hz: int = 2400, on_s: float = 0.1, off_s: float = 0.0,
              repeat: int = 1) -> None:
@@ -158,15 +171,17 @@ class BoardLink:
         with self._lock:
             for _ in range(attempts):
                 self.poll()  # what came before is not the answer: keep its reports
-                crc_before = self._parser.crc_failures
+                damaged_before = self._damaged()
                 self.transport.write(data)
                 reply, other = self._await_reply(sub, servo_id, self.attempt_s(sub))
                 if reply is not None and reply.ok:
                     return reply
-                garbled |= self._parser.crc_failures > crc_before
+                damaged = self._damaged() > damaged_before
+                garbled |= damaged
                 problems.append("the board said the servo did not answer (status -1)"
                                 if reply is not None else
                                 f"a reply for servo {other} came instead" if other is not None
+                                else "damaged frames came back" if damaged
                                 else "nothing came back")
         return self._fail(sub, servo_id, problems, garbled)
 
@@ -187,6 +202,10 @@ class BoardLink:
                     if report.sub is sub:
                         other = report.servo_id
 
+    def _damaged(self) -> int:
+        # A damaged frame fails its CRC, or (its header or length hit) is skipped as noise.
+        return self._parser.crc_failures + self._parser.skipped_bytes
+
     def _fail(self, sub: ServoSub, servo_id: int, problems: list[str], garbled: bool
               ) -> ServoReply:
         name = sub.name.lower().replace("_", " ")
@@ -194,7 +213,7 @@ class BoardLink:
         tries = f" in {len(problems)} attempts" if len(problems) > 1 else ""
         text = f"servo {servo_id} {name} through the controller board: no answer{tries} ({said})"
         if garbled:
-            raise ChecksumError(text + ": damaged frames came back (check the USB cable)")
+            raise ChecksumError(text + ": check the USB cable")
         if any("instead" in p for p in problems):
             raise ProtocolError(text)
         raise BusTimeoutError(text, servo_id=servo_id, command=int(LX_COMMANDS[sub]),
@@ -206,9 +225,16 @@ class BoardLink:
         out: list[BoardReport] = []
         with self._lock:
             chunk = self.transport.read(_READ_CHUNK, timeout_s)
-            while chunk:
+            taken = 0
+            # Bounded: a board reporting faster than this loop parses must not hold it.
+            while chunk and taken < _POLL_MAX_BYTES:
                 out += self._take(chunk)
+                taken += len(chunk)
                 chunk = self.transport.read(_READ_CHUNK, 0.0)
+            if chunk:
+                out += self._take(chunk)
+            # No read waits while polling: a servo reply here is a late or stray one.
+            self.readings.stray_replies += sum(isinstance(r, ServoReply) for r in out)
         return out
 
     def check_talking(self, timeout_s: float = 1.0) -> None:
@@ -218,7 +244,7 @@ class BoardLink:
 
     def read_imu(self, timeout_s: float = 0.5) -> ImuSample:
         """The next IMU sample the board sends (BusTimeoutError if none in ``timeout_s``)."""
-        return self._next_report("imu", "an IMU sample", timeout_s)  # type: ignore[return-value]
+        return self._next_report("imu", "IMU sample", timeout_s)  # type: ignore[return-value]
 
     def read_battery_v(self, timeout_s: float = 2.0) -> float:
         """The battery voltage: the latest report if under a second old, else the next."""
@@ -226,7 +252,7 @@ class BoardLink:
         self.poll()
         if r.battery_v is not None and self.clock.now() - r.battery_at_s < 1.0:
             return r.battery_v
-        battery = self._next_report("battery", "a battery report", timeout_s)
+        battery = self._next_report("battery", "battery report", timeout_s)
         assert isinstance(battery, float)
         return battery
 
@@ -252,10 +278,12 @@ class BoardLink:
                     if kind == "battery" and isinstance(report, Battery):
                         return report.voltage_v
                 if self.clock.now() >= deadline:
+                    others = self.readings.reports - before
+                    came = f" (only {others} report(s) of other kinds)" if others else ""
                     raise BusTimeoutError(
                         f"{self.transport.name}: no {what} from the controller board in "
-                        f"{timeout_s:g} s ({self.readings.reports - before} other reports): "
-                        "is it powered, and is this its port?", timeout_s=timeout_s)
+                        f"{timeout_s:g} s{came}: is it powered, and is this its port?",
+                        timeout_s=timeout_s)
 
     def _take(self, chunk: bytes) -> list[BoardReport]:
         """Frames in ``chunk`` as reports, the readings kept up to date."""

@@ -20,12 +20,19 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Iterable, Mapping
+from types import TracebackType
 from typing import Any
 
 from busarm.bus.board import BoardLink
 from busarm.bus.driver import EchoMode, ScanResult, ServoBus
 from busarm.bus.transport import Transport
-from busarm.errors import BusTimeoutError, ConfigError, ProtocolError, UnsupportedError
+from busarm.errors import (
+    BusConflictError,
+    BusTimeoutError,
+    ConfigError,
+    ProtocolError,
+    UnsupportedError,
+)
 from busarm.protocol import (
     BROADCAST_ID,
     MAX_SERVO_ID,
@@ -130,6 +137,12 @@ class BoardServoBus(ServoBus):
     def close(self) -> None:
         self.link.close()
 
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        if exc_type is not None and self.link.wheels_turning:
+            self._unstopped = True  # the wheels are written too: the exit's stop is theirs
+        super().__exit__(exc_type, exc, tb)
+
     # ------------------------------------------------------------------ the wire
 
     def emergency_stop(self) -> None:
@@ -218,6 +231,47 @@ class BoardServoBus(ServoBus):
         position)."""
         return (tx_bytes + rx_bytes + 3) * 10.0 / self.transport.baudrate
 
+    # ------------------------------------------------------------------ IDs
+
+    def read_id(self, servo_id: int = BROADCAST_ID) -> int:
+        """ID_READ through the board; on the broadcast ID only one servo on the bus can
+        answer (several answer at once, and the board says none did)."""
+        try:
+            return super().read_id(servo_id)
+        except (BusTimeoutError, ProtocolError) as exc:
+            if servo_id != BROADCAST_ID:
+                raise
+            raise BusConflictError(
+                "no single servo answered ID_READ on the broadcast ID through the controller "
+                "board: none is connected, or more than one (they answer at once)") from exc
+
+    def set_id(self, old_id: int, new_id: int) -> None:
+        """Renumber the servo at ``old_id``, only when it is the one servo on the bus.
+
+        Through the board two servos sharing an ID look like none (the board hands back
+        "no answer", not the garbled bytes), so the plain bus's check cannot be made here:
+        the broadcast ID read, which only a lone servo answers cleanly, is asked instead."""
+        check_servo_id(old_id)
+        check_servo_id(new_id)
+        if old_id == new_id:
+            raise ConfigError(f"servo already has ID {new_id}")
+        try:
+            only = self.read_id(BROADCAST_ID)
+        except BusConflictError as exc:
+            raise BusConflictError(
+                f"{exc}: through the controller board, renumbering needs exactly one servo "
+                "on the bus (a shared ID cannot be seen through it); disconnect the others"
+            ) from exc
+        if only != old_id:
+            raise BusTimeoutError(f"the one servo on the bus has ID {only}, not {old_id}",
+                                  servo_id=old_id)
+        self.send(old_id, Command.ID_WRITE, new_id)
+        self.written_ids.discard(old_id)
+        self.written_ids.add(new_id)
+        self._forget(old_id, new_id)
+        if self.read_id(new_id) != new_id:
+            raise ProtocolError(f"servo did not take ID {new_id}")
+
     # ------------------------------------------------------------------ scan
 
     def scan(self, servo_ids: Iterable[int] = range(MAX_SERVO_ID + 1), *,
@@ -239,7 +293,7 @@ class BoardServoBus(ServoBus):
                 self._answered.add(sid)
             if progress is not None:
                 progress(sid)
-        return ScanResult(found, [], self._now() - started)
+        return ScanResult(sorted(found), [], self._now() - started)  # as ServoBus.scan: sorted
 
 
 assert set(_READS.values()) == set(READ_FORMATS)

@@ -32,7 +32,7 @@ def board() -> None:
 
 @board.command()
 @click.option("--time", "sample_s", type=RangeType("time", 0.1, 60.0, "s"), default=SAMPLE_S,
-              show_default=True, help="How long to listen to the board's reports.")
+              show_default=True, help="How long to listen to the board's reports, in s.")
 @pass_settings
 def info(settings: Settings, sample_s: float) -> None:
     """What the board reports on its own: battery voltage, IMU, button presses, and how
@@ -81,9 +81,9 @@ def _table(link: BoardLink, battery_v: float, samples: list[ImuSample], elapsed_
 
 @board.command()
 @click.option("--freq", "freq_hz", type=RangeType("frequency", 20, 20000, "Hz"), default=2400,
-              show_default=True, help="Tone.")
+              metavar="HZ", show_default=True, help="Tone in Hz.")
 @click.option("--time", "on_s", type=RangeType("time", 0.01, 10.0, "s"), default=0.1,
-              show_default=True, help="How long it sounds.")
+              show_default=True, help="How long it sounds, in s.")
 @pass_settings
 def beep(settings: Settings, freq_hz: float, on_s: float) -> None:
     """Sound the board's buzzer once."""

@@ -13,7 +13,9 @@ import contextlib
 import click
 
 from busarm.arm.config import DEFAULT_ARM, load_arm_config
+from busarm.bus.board_bus import unsupported
 from busarm.bus.driver import ServoBus
+from busarm.bus.transport import board_target
 from busarm.cli.common import (
     NUMBER_ARGS,
     SERVO_ID,
@@ -25,6 +27,7 @@ from busarm.cli.common import (
     pass_settings,
 )
 from busarm.errors import LimitError
+from busarm.protocol import Command
 from busarm.units import MOTOR_SPEED_MAX, check_int_range
 
 POLL_S = 0.2
@@ -74,6 +77,9 @@ def motor(settings: Settings, servo_id: int, speed: int | str, duration_s: float
         raise click.UsageError("`stop` takes neither --time nor --keep-turning")
     if keep_turning and duration_s is not None:
         raise click.UsageError("give --time or --keep-turning, not both")
+    port = settings.port if settings.port_given else settings.default_port(say=False)
+    if board_target(port) is not None:  # first: --arm-servo would not make it possible
+        raise unsupported(Command.OR_MOTOR_MODE_WRITE)
     part = load_arm_config(config_name).servo_range_deg(servo_id)
     if isinstance(speed, int) and part is not None and not arm_servo:
         raise LimitError(f"servo {servo_id} is {part[0]} of the arm: in motor mode it would "

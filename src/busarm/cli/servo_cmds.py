@@ -161,8 +161,9 @@ def move(
 ) -> None:
     """Move servo ID to ANGLE_DEG (-120..120 from its mid-point), or several with --pose.
 
-    Poses start together (MOVE_TIME_WAIT_WRITE to each, then one MOVE_START) and
-    arrive together. Negative angles work as plain arguments: `busarm move 2 -30`.
+    Poses start together (MOVE_TIME_WAIT_WRITE to each, then one MOVE_START; through a
+    controller board, one multi-servo frame) and arrive together. Negative angles work
+    as plain arguments: `busarm move 2 -30`.
     A servo that is one of the arm's joints (or its gripper) is kept within that joint's
     limits, as servo angles (uncalibrated; see `busarm arm` for joint angles), unless
     --ignore-arm-limits.

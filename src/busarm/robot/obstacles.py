@@ -91,13 +91,18 @@ class Obstacle:
 
     def reaches(self, points_mm: FloatArray, margin_mm: float) -> bool:
         """Whether the thing may be within ``margin_mm`` of any of ``points_mm`` (N x 3,
-        mm, base frame): a point held by the column standing on ``corners`` (a thing
+        mm, base frame): whether ``holds`` any of them."""
+        return bool(self.holds(points_mm, margin_mm).any())
+
+    def holds(self, points_mm: FloatArray, margin_mm: float) -> npt.NDArray[np.bool_]:
+        """Which of ``points_mm`` (N x 3, mm, base frame) the thing may be within
+        ``margin_mm`` of: those held by the column standing on ``corners`` (a thing
         stands upright: no wider up than at its foot) and by every view's cone."""
         points = np.asarray(points_mm, dtype=np.float64).reshape(-1, 3)
         held = near_convex(self.corners, points[:, :2], margin_mm)
         for view in self.views:
             held &= view.holds(points, margin_mm)
-        return bool(held.any())
+        return held
 
 
 def near_convex(corners: FloatArray, points: FloatArray, margin_mm: float

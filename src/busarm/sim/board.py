@@ -20,10 +20,10 @@ import struct
 import threading
 from collections import deque
 from dataclasses import dataclass, field
-from urllib.parse import parse_qsl, urlencode, urlsplit, urlunsplit
+from urllib.parse import parse_qsl, urlencode, urlsplit
 
 from busarm.clock import Clock
-from busarm.errors import ProtocolError
+from busarm.errors import ConfigError, ProtocolError
 from busarm.protocol import Command, FrameParser, encode_request
 from busarm.protocol.board import (
     BOARD_BAUDRATE,
@@ -160,11 +160,14 @@ class SimBoard:
             self._line_in_free = done
             if self.faults.silent:
                 return
-            for frame in self._parser.feed(data):
+            parser = self._parser
+            refused = parser.crc_failures + parser.unknown_funcs  # damaged, or no board's
+            for frame in parser.feed(data):
                 try:
                     self._jobs.append(decode_request(frame))
                 except ProtocolError:
                     self.log.rejected_frames += 1
+            self.log.rejected_frames += parser.crc_failures + parser.unknown_funcs - refused
             self._run_jobs(now)
 
     def pop_output(self, max_bytes: int | None = None) -> bytes:
@@ -215,34 +218,42 @@ class SimBoard:
     def _run_jobs(self, now: float) -> None:
         while self._read is None and self._jobs:
             job = self._jobs.popleft()
-            if isinstance(job, ServoRead):
-                command = LX_COMMANDS[job.sub]
-                lx = encode_request(job.servo_id, command)
-                self.servos.pop_output()  # nothing old is taken for this answer
-                self._lx = FrameParser()
-                self.servos.receive(lx)
-                spec = SPECS[command]
-                wire = (len(lx) + (spec.reply_length or 0) + 3) * self.servos.timing.byte_s
-                self._read = _PendingRead(job, command, now + wire + SERVO_REPLY_WAIT_S)
-            elif isinstance(job, ServoMove):
-                for sid, pulses in job.targets:
-                    self.servos.receive(encode_request(sid, Command.MOVE_TIME_WRITE, pulses,
-                                                       min(job.duration_ms, 30000)))
-            elif isinstance(job, ServoStop):
-                for sid in job.servo_ids:
-                    self.servos.receive(encode_request(sid, Command.MOVE_STOP))
-            elif isinstance(job, ServoWrite):
-                self._servo_write(job)
-            elif isinstance(job, MotorSpeeds):
-                self._advance_wheels(now)
-                for motor, rev_s in job.speeds:
-                    if math.isfinite(rev_s):
-                        clamped = max(-WHEEL_MAX_REV_S, min(WHEEL_MAX_REV_S, rev_s))
-                        self.wheels[motor - 1].target_rev_s = clamped
-            elif isinstance(job, LedBlink):
-                self.log.led.append(job)
-            elif isinstance(job, BuzzerBeep):
-                self.log.buzzer.append(job)
+            try:
+                self._run(job, now)
+            except ConfigError:  # a value no LX frame can carry: the firmware sends nothing
+                self.log.rejected_frames += 1
+
+    def _run(self, job: BoardRequest, now: float) -> None:
+        if isinstance(job, ServoRead):
+            command = LX_COMMANDS[job.sub]
+            lx = encode_request(job.servo_id, command)
+            self.servos.pop_output()  # nothing old is taken for this answer
+            self._lx = FrameParser()
+            self.servos.receive(lx)
+            spec = SPECS[command]
+            wire = (len(lx) + (spec.reply_length or 0) + 3) * self.servos.timing.byte_s
+            self._read = _PendingRead(job, command, now + wire + SERVO_REPLY_WAIT_S)
+        elif isinstance(job, ServoMove):
+            frames = [encode_request(sid, Command.MOVE_TIME_WRITE, pulses,
+                                     min(job.duration_ms, 30000))
+                      for sid, pulses in job.targets]  # all checked before any is sent
+            for frame in frames:
+                self.servos.receive(frame)
+        elif isinstance(job, ServoStop):
+            for sid in job.servo_ids:
+                self.servos.receive(encode_request(sid, Command.MOVE_STOP))
+        elif isinstance(job, ServoWrite):
+            self._servo_write(job)
+        elif isinstance(job, MotorSpeeds):
+            self._advance_wheels(now)
+            for motor, rev_s in job.speeds:
+                if math.isfinite(rev_s):
+                    clamped = max(-WHEEL_MAX_REV_S, min(WHEEL_MAX_REV_S, rev_s))
+                    self.wheels[motor - 1].target_rev_s = clamped
+        elif isinstance(job, LedBlink):
+            self.log.led.append(job)
+        elif isinstance(job, BuzzerBeep):
+            self.log.buzzer.append(job)
 
     def _servo_write(self, job: ServoWrite) -> None:
         command = LX_COMMANDS[job.sub]
@@ -251,10 +262,7 @@ class SimBoard:
             args = (0,)
         elif job.sub is ServoSub.TORQUE_ON:
             args = (1,)
-        try:
-            self.servos.receive(encode_request(job.servo_id, command, *args))
-        except Exception:  # a value the LX frame cannot carry: the firmware sends nothing
-            self.log.rejected_frames += 1
+        self.servos.receive(encode_request(job.servo_id, command, *args))
 
     def _pump(self, now: float) -> None:
         """Relay a servo's answer, time out a read, move the wheels, stream reports."""
@@ -352,7 +360,8 @@ def split_board_keys(url: str) -> tuple[str, dict[str, str]]:
     rest = urlencode([(k, v) for k, v in pairs if k not in BOARD_KEYS], safe=",/")
     if "://" not in url:
         return url, mine
-    return (urlunsplit(parts._replace(query=rest)) if rest else url.split("://", 1)[0]), mine
+    # Not urlunsplit: with no host it drops the "//", and "sim:?ids=7" reads as no query.
+    return (f"{parts.scheme}://?{rest}" if rest else url.split("://", 1)[0]), mine
 
 
 def board_from_query(servos: SimBus, q: dict[str, str]) -> SimBoard:

@@ -126,6 +126,8 @@ class BoardFrameParser:
         self._max = max_data_len
         self.skipped_bytes = 0
         self.crc_failures = 0
+        self.unknown_funcs = 0
+        """Headers followed by a function code no board has (the firmware drops those)."""
 
     @property
     def pending(self) -> bytes:
@@ -150,6 +152,7 @@ class BoardFrameParser:
             if len(buf) < 4:
                 return out
             if buf[2] >= FUNC_LIMIT or buf[3] > self._max:
+                self.unknown_funcs += buf[2] >= FUNC_LIMIT
                 self._skip_one()
                 continue
             end = buf[3] + FRAME_OVERHEAD
