@@ -48,6 +48,15 @@ class TransportError(BusArmError, OSError):
     """The port cannot be opened, or vanished while in use."""
 
 
+class NotALidarError(TransportError):
+    """A port given as a Lidar's whose device does not answer like one (no valid reply to
+    the Lidar's identification requests)."""
+
+
+class LidarFaultError(BusArmError):
+    """The Lidar reports itself in error (its health status), or stopped scanning."""
+
+
 class BusTimeoutError(BusArmError, TimeoutError):
     """No valid reply arrived by the deadline (after the allowed retries)."""
 
@@ -164,9 +173,11 @@ __all__ = [
     "ContactError",
     "EchoMismatchError",
     "KinematicsError",
+    "LidarFaultError",
     "LimitError",
     "MotionError",
     "MotionTimeoutError",
+    "NotALidarError",
     "ProtocolError",
     "ServoFaultError",
     "TransportError",

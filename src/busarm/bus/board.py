@@ -38,6 +38,7 @@ from busarm.protocol.board import (
     ImuSample,
     KeyEvent,
     LedBlink,
+    MotorEncoders,
     MotorSpeeds,
     ServoRead,
     ServoReply,
@@ -69,6 +70,9 @@ class BoardReadings:
     imu_at_s: float = -math.inf
     battery_v: float | None = None
     battery_at_s: float = -math.inf
+    encoders: MotorEncoders | None = None
+    """The latest encoder counts (busarm's extension: the stock firmware sends none)."""
+    encoders_at_s: float = -math.inf
     keys: deque[KeyEvent] = field(default_factory=lambda: deque(maxlen=64))
     reports: int = 0
     stray_replies: int = 0
@@ -300,6 +304,8 @@ class BoardLink:
                 r.imu, r.imu_at_s = report, now
             elif isinstance(report, Battery):
                 r.battery_v, r.battery_at_s = report.voltage_v, now
+            elif isinstance(report, MotorEncoders):
+                r.encoders, r.encoders_at_s = report, now
             elif isinstance(report, KeyEvent):
                 r.keys.append(report)
             out.append(report)

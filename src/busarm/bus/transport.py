@@ -220,6 +220,15 @@ class SerialTransport:
         except Exception as exc:
             raise TransportError(f"{self.name}: cannot reset input: {exc}") from exc
 
+    def set_dtr(self, asserted: bool) -> bool:
+        """Set the DTR modem line (a USB adapter may wire it to a motor, as the RPLIDAR
+        A1's does); False if the port has no modem lines (a pty, a URL)."""
+        try:
+            self._port.dtr = asserted
+        except (OSError, ValueError):  # pyserial's SerialException is an OSError
+            return False
+        return True
+
     def close(self) -> None:
         self._port.close()
 

@@ -24,6 +24,7 @@ from busarm.bus.driver import DEFAULT_RETRIES, DEFAULT_TIMEOUT_MARGIN_S
 from busarm.bus.transport import DEFAULT_BAUDRATE
 from busarm.cli import (
     arm_cmds,
+    base_cmds,
     board_cmds,
     bus_cmds,
     camera_cmds,
@@ -31,6 +32,7 @@ from busarm.cli import (
     dashboard_cmd,
     demo,
     help_style,
+    lidar_cmds,
     locate_cmd,
     motor_cmd,
     option_places,
@@ -217,7 +219,8 @@ def cli(
 
 for _module in (
     bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, twin_cmds, camera_cmds,
-    vision_cmds, pick_cmd, demo, motor_cmd, dashboard_cmd, board_cmds,
+    vision_cmds, pick_cmd, demo, motor_cmd, dashboard_cmd, board_cmds, base_cmds,
+    lidar_cmds,
 ):
     for _command in _module.COMMANDS:
         cli.add_command(_command)

@@ -37,6 +37,7 @@ from busarm.protocol.board import (
     KeyEvent,
     KeyEventKind,
     LedBlink,
+    MotorEncoders,
     MotorSpeeds,
     ServoMove,
     ServoRead,
@@ -59,6 +60,10 @@ WHEEL_MAX_REV_S = 1.5
 """The firmware's speed limit (field notes: about 1.5 rev/s); faster commands are clamped."""
 WHEEL_TIME_CONSTANT_S = 0.08
 ENCODER_TICKS_PER_REV = 3960
+WHEEL_DIAMETER_M = 0.0965
+HALF_SPREAD_M = (0.218 + 0.195) / 2
+"""The JetAuto chassis (busarm.base's jetauto.toml), for the gyro of a board with no twin:
+it turns as the wheels would turn that base (motors 1, 2 on the left, mounted mirrored)."""
 OUT_CAP_BYTES = 4096
 """Reports the host has not read beyond this are dropped, oldest first (a full tty buffer)."""
 TX_QUEUE_S = 0.002
@@ -123,7 +128,8 @@ class SimBoard:
 
     def __init__(self, servos: SimBus, *, imu_hz: float = IMU_HZ,
                  battery_hz: float = BATTERY_HZ, battery_v: float = 12.3,
-                 faults: BoardFaults | None = None, seed: int = 0) -> None:
+                 faults: BoardFaults | None = None, seed: int = 0,
+                 encoders: bool = True) -> None:
         self.servos = servos
         self.clock: Clock = servos.clock
         self.timing = WireTiming(BOARD_BAUDRATE, turnaround_s=0.0)
@@ -132,6 +138,9 @@ class SimBoard:
         self.battery_v = battery_v
         self.imu_gyro_rad_s = (0.0, 0.0, 0.0)
         """What the IMU's gyro measures now (before noise); a mobile twin sets it."""
+        self.imu_follows_wheels = True
+        """Whether the gyro's z also reads the yaw rate the wheels give a JetAuto base (a
+        board on a base with no twin); a mobile twin turns this off and sets the gyro."""
         self.imu_accel_mps2 = (0.0, 0.0, 9.80665)
         self.log = BoardLog()
         self._rng = random.Random(seed)
@@ -147,6 +156,8 @@ class SimBoard:
         now = self.clock.now()
         self._periods = {"imu": 1.0 / imu_hz if imu_hz > 0 else 0.0,
                          "battery": 1.0 / battery_hz if battery_hz > 0 else 0.0}
+        # busarm's MotorEncoders report, at the IMU's rate (the stock firmware has none).
+        self._periods["encoders"] = self._periods["imu"] if encoders else 0.0
         self._next = {name: now + period for name, period in self._periods.items()}
         self._wheels_at = now
 
@@ -325,8 +336,14 @@ class SimBoard:
         gauss = self._rng.gauss
         if name == "battery":
             return Battery(round(self.battery_v + gauss(0.0, 0.01), 3)).encode()
+        if name == "encoders":
+            a, b, c, d = (_int32(w.encoder_ticks) for w in self.wheels)
+            return MotorEncoders((a, b, c, d)).encode()
         ax, ay, az = self.imu_accel_mps2
         gx, gy, gz = self.imu_gyro_rad_s
+        if self.imu_follows_wheels:
+            gz += (sum(w.rev_s for w in self.wheels) * math.pi * WHEEL_DIAMETER_M
+                   / (4.0 * HALF_SPREAD_M))
         return ImuSample((ax + gauss(0, 0.02), ay + gauss(0, 0.02), az + gauss(0, 0.02)),
                          (gx + gauss(0, 0.001), gy + gauss(0, 0.001),
                           gz + gauss(0, 0.001))).encode()
@@ -347,8 +364,13 @@ class SimBoard:
 
 
 
+def _int32(ticks: int) -> int:
+    """An encoder count as a 32-bit counter holds it (it wraps)."""
+    return (ticks + 2**31) % 2**32 - 2**31
+
+
 BOARD_KEYS = {"imu_hz", "battery_hz", "battery_v", "silent", "board_corrupt", "wrong_id",
-              "board_seed"}
+              "board_seed", "encoders"}
 """URL keys for the simulated board itself (``board://sim?ids=1,2&imu_hz=200``)."""
 
 
@@ -379,7 +401,7 @@ def board_from_query(servos: SimBus, q: dict[str, str]) -> SimBoard:
     return SimBoard(servos, imu_hz=number("imu_hz", IMU_HZ, 0.0, 5000.0, "Hz"),
                     battery_hz=number("battery_hz", BATTERY_HZ, 0.0, 100.0, "Hz"),
                     battery_v=number("battery_v", 12.3, 0.0, 30.0, "V"), faults=faults,
-                    seed=faults.seed)
+                    seed=faults.seed, encoders=query_flag(q, "encoders", True, "board URL"))
 
 
 def open_sim_board_transport(url: str, baudrate: int = 115200, name: str = "") -> SimTransport:

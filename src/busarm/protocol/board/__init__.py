@@ -30,6 +30,7 @@ from busarm.protocol.board.messages import (
     KeyEvent,
     KeyEventKind,
     LedBlink,
+    MotorEncoders,
     MotorSpeeds,
     OledText,
     PwmServoMove,
@@ -49,7 +50,8 @@ __all__ = [
     "MOTOR_COUNT",
     "READ_FORMATS", "WRITE_FORMATS", "Battery", "BoardFrame", "BoardFrameParser", "BoardReport",
     "BoardRequest", "BuzzerBeep", "Func", "GamepadState", "ImuSample", "KeyEvent",
-    "KeyEventKind", "LedBlink", "MotorSpeeds", "OledText", "PwmServoMove", "SbusState",
+    "KeyEventKind", "LedBlink", "MotorEncoders", "MotorSpeeds", "OledText", "PwmServoMove",
+    "SbusState",
     "ServoMove", "ServoRead", "ServoReply", "ServoStop", "ServoSub", "ServoWrite", "crc8_maxim",
     "decode_frame", "decode_report", "decode_request", "encode_frame",
 ]

@@ -15,6 +15,7 @@ from busarm.protocol.board.messages import (
     ImuSample,
     KeyEvent,
     LedBlink,
+    MotorEncoders,
     MotorSpeeds,
     SbusState,
     ServoMove,
@@ -70,6 +71,9 @@ def _words(m: BoardRequest | BoardReport) -> str:
         a = "  ".join(f"{v:.2f}" for v in m.accel_mps2)
         g = "  ".join(f"{math.degrees(v):.2f}" for v in m.gyro_rad_s)
         return f"IMU acceleration {a} m/s^2, angular rate {g} deg/s"
+    if isinstance(m, MotorEncoders):
+        return "encoder counts " + ", ".join(
+            f"motor {n} {t}" for n, t in enumerate(m.ticks, start=1)) + " (busarm's extension)"
     if isinstance(m, KeyEvent):
         return f"key {m.key_id} {m.event.name}"
     if isinstance(m, GamepadState):

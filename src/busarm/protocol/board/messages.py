@@ -3,7 +3,8 @@
 Host to board (requests): ``ServoMove``, ``ServoStop``, ``ServoRead``, ``ServoWrite``,
 ``MotorSpeeds``, ``LedBlink``, ``BuzzerBeep``, ``PwmServoMove``, ``OledText``. Board to
 host (reports): ``ServoReply``, ``Battery``, ``ImuSample``, ``KeyEvent``,
-``GamepadState``, ``SbusState``. ``decode_request`` and ``decode_report`` turn a frame
+``GamepadState``, ``SbusState``, and busarm's own ``MotorEncoders`` (not the stock
+firmware's). ``decode_request`` and ``decode_report`` turn a frame
 into one of them; anything else raises ProtocolError naming the bytes.
 
 Units on the wire, as the vendor's firmware and SDK use them: servo positions in pulses
@@ -27,6 +28,10 @@ STANDARD_GRAVITY = 9.80665
 SYS_BATTERY = 0x04
 """SYS report sub-code: the battery voltage."""
 MOTOR_SET_SPEEDS = 0x01
+MOTOR_ENCODERS = 0x10
+"""MOTOR report sub-code: the four encoder counts. busarm's extension, not the stock
+firmware's (which reports no encoder counts): the simulated board sends it, and a
+firmware that adds it should use this layout (``MotorEncoders``)."""
 PWM_SERVO_MOVE = 0x01
 MOTOR_COUNT = 4
 BROADCAST_SERVO_ID = 254
@@ -407,7 +412,25 @@ class SbusState:
     fail_safe: bool
 
 
-BoardReport = ServoReply | Battery | ImuSample | KeyEvent | GamepadState | SbusState
+@dataclass(frozen=True)
+class MotorEncoders:
+    """The wheel motors' encoder counts (motor 1..4 order), signed 32-bit, wrapping.
+
+    busarm's extension (func MOTOR, data ``[0x10, int32 LE x 4]``): the vendor's stock
+    firmware sends no encoder counts; busarm's simulated board does, and without it the
+    base's odometry integrates the commanded wheel speeds instead.
+    """
+
+    ticks: tuple[int, int, int, int]
+
+    def encode(self) -> bytes:
+        for motor, ticks in enumerate(self.ticks, 1):
+            _check(f"motor {motor} encoder ticks", ticks, -(2**31), 2**31 - 1)
+        return encode_frame(Func.MOTOR, struct.pack("<B4i", MOTOR_ENCODERS, *self.ticks))
+
+
+BoardReport = (ServoReply | Battery | ImuSample | KeyEvent | GamepadState | SbusState
+               | MotorEncoders)
 
 
 def decode_report(frame: BoardFrame) -> BoardReport:
@@ -427,6 +450,9 @@ def decode_report(frame: BoardFrame) -> BoardReport:
             return ImuSample((v[0] * STANDARD_GRAVITY, v[1] * STANDARD_GRAVITY,
                               v[2] * STANDARD_GRAVITY),
                              (math.radians(v[3]), math.radians(v[4]), math.radians(v[5])))
+        if func == Func.MOTOR and len(data) == 17 and data[0] == MOTOR_ENCODERS:
+            a, b, c, d = struct.unpack_from("<4i", data, 1)
+            return MotorEncoders((a, b, c, d))
         if func == Func.KEY and len(data) == 2:
             return KeyEvent(data[0], KeyEventKind(data[1]))
         if func == Func.GAMEPAD and len(data) == 7:

@@ -1,0 +1,93 @@
+"""Where the base is on the floor: wheel odometry, its heading from the IMU's gyro.
+
+A mecanum wheel's rollers slip sideways by design, so the wheels measure the heading
+poorly (a turn in place scrubs); a MEMS gyro measures it well but drifts by its bias. The
+fusion here takes the translation from the wheels and the heading change from the gyro,
+with the gyro's bias learnt whenever the wheels say the base stands still. Without a gyro
+reading the wheels' own heading is used.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from busarm.base.kinematics import MecanumKinematics, Twist, WheelSpeeds
+
+STILL_M = 1e-5
+"""Wheel travel (m) below which, over one update, the base is taken to stand still."""
+BIAS_GAIN = 0.05
+"""How much of the gyro's reading while still goes into its bias at each update."""
+
+
+@dataclass(frozen=True)
+class Pose2D:
+    """A pose on the floor: metres, and yaw counter-clockwise in radians (-pi..pi)."""
+
+    x_m: float = 0.0
+    y_m: float = 0.0
+    yaw_rad: float = 0.0
+
+    @property
+    def yaw_deg(self) -> float:
+        return math.degrees(self.yaw_rad)
+
+    def moved_by(self, dx_m: float, dy_m: float, dyaw_rad: float) -> Pose2D:
+        """This pose after a displacement given in its own frame (heading at mid-way)."""
+        mid = self.yaw_rad + dyaw_rad / 2.0
+        c, s = math.cos(mid), math.sin(mid)
+        return Pose2D(self.x_m + dx_m * c - dy_m * s, self.y_m + dx_m * s + dy_m * c,
+                      wrap_rad(self.yaw_rad + dyaw_rad))
+
+    def relative_to(self, origin: Pose2D) -> Pose2D:
+        """This pose seen from ``origin`` (in its frame)."""
+        dx, dy = self.x_m - origin.x_m, self.y_m - origin.y_m
+        c, s = math.cos(origin.yaw_rad), math.sin(origin.yaw_rad)
+        return Pose2D(dx * c + dy * s, -dx * s + dy * c, wrap_rad(self.yaw_rad - origin.yaw_rad))
+
+
+def wrap_rad(angle_rad: float) -> float:
+    """``angle_rad`` in -pi..pi."""
+    return math.atan2(math.sin(angle_rad), math.cos(angle_rad))
+
+
+class Odometry:
+    """The base's pose from its wheels' turns (and the gyro's yaw rate, when given)."""
+
+    def __init__(self, kinematics: MecanumKinematics, start: Pose2D | None = None) -> None:
+        self.kinematics = kinematics
+        self.pose = start or Pose2D()
+        self.twist = Twist()
+        """The latest velocity estimate, in the base's frame."""
+        self.gyro_bias_rad_s = 0.0
+        self._turns: WheelSpeeds | None = None
+        self._gyro: float | None = None
+        self._at_s: float | None = None
+
+    def reset(self, pose: Pose2D | None = None) -> None:
+        """Start again from ``pose`` (default the origin); the gyro's bias is kept."""
+        self.pose = pose or Pose2D()
+        self.twist = Twist()
+
+    def update(self, wheel_turns: WheelSpeeds, t_s: float,
+               gyro_z_rad_s: float | None = None) -> Pose2D:
+        """Take each wheel's total turns so far (revolutions, positive forward) at time
+        ``t_s``, and the gyro's yaw rate then if there is one; return the new pose."""
+        last, last_gyro, last_t = self._turns, self._gyro, self._at_s
+        self._turns, self._gyro, self._at_s = wheel_turns, gyro_z_rad_s, t_s
+        if last is None or last_t is None or t_s <= last_t:
+            return self.pose
+        dt = t_s - last_t
+        circumference = self.kinematics.config.wheel_circumference_m
+        travel = tuple((now - before) * circumference
+                       for now, before in zip(wheel_turns, last, strict=True))
+        moved = self.kinematics.twist((travel[0], travel[1], travel[2], travel[3]))
+        dyaw = moved.wz_rad_s  # the wheels' own heading change (a displacement here)
+        if gyro_z_rad_s is not None:
+            rate = gyro_z_rad_s if last_gyro is None else (gyro_z_rad_s + last_gyro) / 2.0
+            if max(abs(d) for d in travel) < STILL_M:
+                self.gyro_bias_rad_s += BIAS_GAIN * (rate - self.gyro_bias_rad_s)
+            dyaw = (rate - self.gyro_bias_rad_s) * dt
+        self.pose = self.pose.moved_by(moved.vx_m_s, moved.vy_m_s, dyaw)
+        self.twist = Twist(moved.vx_m_s / dt, moved.vy_m_s / dt, dyaw / dt)
+        return self.pose

@@ -1,0 +1,108 @@
+"""``lidar scan | serve``: the 2D Lidar (a Slamtec RPLIDAR A1) on its own serial port.
+
+The Lidar is not on the servo bus, so these commands take their own ``--lidar`` (or
+$BUSARM_LIDAR), not the global --port; by default the simulated A1 in this process.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import click
+
+from busarm.cli.common import RangeType, serve_until_stopped
+
+SIM_LIDAR = "lidar://sim"
+LIDAR_OPTION = click.option(
+    "--lidar", "lidar_port", default=SIM_LIDAR, show_default=True, envvar="BUSARM_LIDAR",
+    help="The Lidar's serial port (e.g. /dev/ttyUSB1, its own, not the servo bus's --port; "
+         "or $BUSARM_LIDAR), or lidar://sim[?hz=10] for the simulated A1 in this process.")
+
+
+@click.group()
+def lidar() -> None:
+    """The 2D Lidar: a Slamtec RPLIDAR A1 on its own USB serial port (--lidar)."""
+
+
+@lidar.command()
+@LIDAR_OPTION
+@click.option("--png", type=click.Path(dir_okay=False, path_type=Path),
+              help="Also write a polar picture of the scan to this PNG file.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print the device, the summary and every beam as JSON.")
+@click.option("--timeout", "timeout_s", type=RangeType("timeout", 0.2, 30.0, "s"), default=2.0,
+              show_default=True, help="How long to wait for a complete revolution, in s.")
+def scan(lidar_port: str, png: Path | None, as_json: bool, timeout_s: float) -> None:
+    """Read one 360-degree scan: how many returns, the rate, the nearest return and its
+    bearing (degrees counter-clockwise from the Lidar's forward axis)."""
+    from busarm.lidar.rplidar import open_lidar
+
+    with open_lidar(lidar_port) as device:
+        one = device.read_scan(timeout_s)
+        info, health = device.info, device.health
+    returns = int(one.valid.sum())
+    nearest = one.nearest()
+    model = (f"RPLIDAR model 0x{info.model:02X} (firmware {info.firmware[0]}."
+             f"{info.firmware[1]:02d}, hardware {info.hardware}) on {lidar_port}")
+    if png is not None:
+        from busarm.lidar.picture import write_scan_png
+
+        write_scan_png(one, png, f"{model}: {returns} returns")
+    if as_json:
+        click.echo(json.dumps({
+            "port": lidar_port, "model": info.model, "firmware": list(info.firmware),
+            "hardware": info.hardware, "serial": info.serial_hex, "health": health.status.name,
+            "beams": len(one), "returns": returns, "rate_hz": _number(one.rate_hz),
+            "nearest_m": nearest[0] if nearest else None,
+            "nearest_bearing_deg": math.degrees(nearest[1]) if nearest else None,
+            "angles_deg": [round(math.degrees(a), 4) for a in one.angles_rad],
+            "ranges_m": [_number(r) for r in one.ranges_m],
+            "png": str(png) if png else None,
+        }))
+        return
+    click.echo(model)
+    rate = f"{one.rate_hz:.1f} Hz" if math.isfinite(one.rate_hz) else "rate unknown"
+    click.echo(f"{len(one)} beams, {returns} returns, {rate}")
+    if nearest is None:
+        click.echo("no return in range")
+    else:
+        click.echo(f"nearest return {nearest[0]:.3f} m at bearing {math.degrees(nearest[1]):.1f} "
+                   "deg (counter-clockwise from forward)")
+    if png is not None:
+        click.echo(f"polar picture written to {png}")
+
+
+def _number(value: float) -> float | None:
+    return float(value) if math.isfinite(value) else None
+
+
+@lidar.command()
+@click.option("--hz", "scan_hz", type=RangeType("Hz", 2.0, 10.0, "Hz"), default=5.5,
+              show_default=True, help="Revolutions a second, in Hz.")
+@click.option("--garbage", type=click.FloatRange(0.0, 1.0), default=0.0, show_default=True,
+              help="Probability (0..1) per measurement of 1-6 random bytes before it.")
+@click.option("--seed", type=int, default=0, show_default=True,
+              help="Seed of the garbage generator.")
+def serve(scan_hz: float, garbage: float, seed: int) -> None:
+    """Serve a simulated RPLIDAR A1 in a rectangular room on a new pseudo-terminal until
+    SIGINT (Ctrl+C) or SIGTERM: exit code 0. The first line of stdout is its device path,
+    for --lidar."""
+    from busarm.clock import WALL_CLOCK
+    from busarm.sim.pty import PtyServer
+    from busarm.sim.rplidar import SimRplidar
+
+    device = SimRplidar(scan_hz=scan_hz, garbage_rate=garbage, seed=seed, clock=WALL_CLOCK)
+    server = PtyServer(device)
+    path = server.open()
+    click.echo(path)
+    sys.stdout.flush()
+    click.echo(f"simulating an RPLIDAR A1 on {path} ({scan_hz:g} Hz, {device.nodes_per_rev} "
+               "measurements a revolution); Ctrl+C or SIGTERM to stop", err=True)
+    serve_until_stopped(server)
+    click.echo("simulated Lidar stopped", err=True)
+
+
+COMMANDS = [lidar]

@@ -1,0 +1,311 @@
+"""A pure codec of the Slamtec RPLIDAR A1 serial protocol (the standard scan).
+
+Bytes only: no I/O, no clock. From the public protocol document:
+
+- A request is ``A5 cmd``; a command with a payload (cmd >= 0x80) adds
+  ``size payload checksum``, the checksum the XOR of every byte before it.
+- A reply starts with a 7-byte descriptor ``A5 5A`` + 32 bits little-endian (the low 30
+  bits the length of each data reply, the top 2 the send mode: 0 one reply, 1 a stream)
+  + a data type byte.
+- GET_INFO (0x50) answers type 0x04 with 20 bytes: model, firmware minor, firmware major,
+  hardware, 16-byte serial number. GET_HEALTH (0x52) answers type 0x06 with 3 bytes:
+  status (0 good, 1 warning, 2 error) and a 16-bit error code. SCAN (0x20) answers type
+  0x81 in stream mode, then 5-byte measurement nodes until STOP (0x25) or RESET (0x40),
+  which have no reply.
+- A measurement node: byte 0 = quality (6 bits) << 2 | not-S << 1 | S, where S = 1 marks
+  the first node of a new revolution; bytes 1-2 (little-endian) = angle_q6 (15 bits,
+  degrees x 64) << 1 | C, the check bit, always 1; bytes 3-4 = distance_q2 (mm x 4),
+  0 when there was no return.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import IntEnum
+
+from busarm.errors import ConfigError, ProtocolError
+
+SYNC = 0xA5
+"""First byte of every request and of every reply descriptor."""
+REPLY_SYNC = 0x5A
+"""Second byte of a reply descriptor."""
+DESCRIPTOR_SIZE = 7
+NODE_SIZE = 5
+INFO_SIZE = 20
+HEALTH_SIZE = 3
+RPLIDAR_BAUDRATE = 115200
+"""The A1's fixed serial rate."""
+A1_RANGE_MIN_M = 0.15
+A1_RANGE_MAX_M = 12.0
+"""The A1's rated range (its data sheet: 0.15-12 m); nearer or farther, no return."""
+
+MAX_ANGLE_Q6 = 0x7FFF
+MAX_DISTANCE_Q2 = 0xFFFF
+MAX_QUALITY = 0x3F
+
+
+class Cmd(IntEnum):
+    """Request codes of the standard protocol."""
+
+    STOP = 0x25
+    RESET = 0x40
+    SCAN = 0x20
+    GET_INFO = 0x50
+    GET_HEALTH = 0x52
+
+
+class DataType(IntEnum):
+    """The data type byte of a reply descriptor."""
+
+    INFO = 0x04
+    HEALTH = 0x06
+    MEASUREMENT = 0x81
+
+
+class SendMode(IntEnum):
+    SINGLE = 0
+    MULTIPLE = 1
+
+
+class HealthStatus(IntEnum):
+    GOOD = 0
+    WARNING = 1
+    ERROR = 2
+
+
+def encode_request(cmd: int, payload: bytes = b"") -> bytes:
+    """``A5 cmd``, or ``A5 cmd size payload checksum`` when there is a payload."""
+    if not 0 <= cmd <= 0xFF:
+        raise ConfigError(f"RPLIDAR command {cmd!r} is out of range 0..255")
+    if not payload:
+        return bytes((SYNC, cmd))
+    if len(payload) > 0xFF:
+        raise ConfigError(f"RPLIDAR payload of {len(payload)} bytes; at most 255")
+    body = bytes((SYNC, cmd, len(payload))) + payload
+    checksum = 0
+    for b in body:
+        checksum ^= b
+    return body + bytes((checksum,))
+
+
+@dataclass(frozen=True)
+class Request:
+    cmd: int
+    payload: bytes = b""
+
+
+class RequestParser:
+    """Finds requests in what a host writes (the device's side). Never raises: bytes
+    before ``A5`` and payload requests with a wrong checksum are skipped."""
+
+    def __init__(self) -> None:
+        self._buf = bytearray()
+        self.rejected = 0
+
+    def feed(self, data: bytes) -> list[Request]:
+        buf = self._buf
+        buf += data
+        out: list[Request] = []
+        while True:
+            start = buf.find(SYNC)
+            if start < 0:
+                buf.clear()
+                return out
+            del buf[:start]
+            if len(buf) < 2:
+                return out
+            cmd = buf[1]
+            if cmd < 0x80:
+                out.append(Request(cmd))
+                del buf[:2]
+                continue
+            if len(buf) < 3 or len(buf) < 4 + buf[2]:
+                return out
+            size = buf[2]
+            frame = bytes(buf[: 4 + size])
+            if encode_request(cmd, frame[3 : 3 + size]) == frame and size:
+                out.append(Request(cmd, frame[3 : 3 + size]))
+                del buf[: 4 + size]
+            else:
+                self.rejected += 1
+                del buf[:1]
+
+
+@dataclass(frozen=True)
+class Descriptor:
+    """A reply descriptor: the size of each data reply, the send mode, the data type."""
+
+    length: int
+    mode: int
+    data_type: int
+
+    def encode(self) -> bytes:
+        if not 0 <= self.length < 1 << 30:
+            raise ConfigError(f"descriptor length {self.length} is out of range 0..2**30-1")
+        if not 0 <= self.mode <= 3 or not 0 <= self.data_type <= 0xFF:
+            raise ConfigError(f"descriptor mode {self.mode} (0..3) or type {self.data_type} "
+                              "(0..255) out of range")
+        word = self.length | (self.mode << 30)
+        return bytes((SYNC, REPLY_SYNC)) + word.to_bytes(4, "little") + bytes((self.data_type,))
+
+
+INFO_DESCRIPTOR = Descriptor(INFO_SIZE, SendMode.SINGLE, DataType.INFO)
+HEALTH_DESCRIPTOR = Descriptor(HEALTH_SIZE, SendMode.SINGLE, DataType.HEALTH)
+SCAN_DESCRIPTOR = Descriptor(NODE_SIZE, SendMode.MULTIPLE, DataType.MEASUREMENT)
+
+
+def decode_descriptor(data: bytes) -> Descriptor:
+    """The descriptor in exactly 7 bytes; ProtocolError if they are not one."""
+    if len(data) != DESCRIPTOR_SIZE:
+        raise ProtocolError(f"a reply descriptor is 7 bytes, got {len(data)}", data)
+    if data[0] != SYNC or data[1] != REPLY_SYNC:
+        raise ProtocolError(f"a reply descriptor starts A5 5A, got {data[:2].hex(' ')}", data)
+    word = int.from_bytes(data[2:6], "little")
+    return Descriptor(word & ((1 << 30) - 1), word >> 30, data[6])
+
+
+def find_descriptor(buffer: bytes) -> tuple[Descriptor, int] | None:
+    """The first descriptor in ``buffer`` and the index just after it, or None if there
+    is none yet. Bytes before it are the caller's to discard (noise, old scan data)."""
+    at = bytes(buffer).find(bytes((SYNC, REPLY_SYNC)))
+    if at < 0 or len(buffer) - at < DESCRIPTOR_SIZE:
+        return None
+    return decode_descriptor(bytes(buffer[at : at + DESCRIPTOR_SIZE])), at + DESCRIPTOR_SIZE
+
+
+@dataclass(frozen=True)
+class DeviceInfo:
+    model: int
+    firmware: tuple[int, int]
+    """(major, minor)."""
+    hardware: int
+    serial_number: bytes
+
+    def encode(self) -> bytes:
+        if len(self.serial_number) != 16:
+            raise ConfigError(f"serial number of {len(self.serial_number)} bytes; must be 16")
+        major, minor = self.firmware
+        return bytes((self.model, minor, major, self.hardware)) + self.serial_number
+
+    @property
+    def serial_hex(self) -> str:
+        return self.serial_number.hex().upper()
+
+
+def decode_info(data: bytes) -> DeviceInfo:
+    if len(data) != INFO_SIZE:
+        raise ProtocolError(f"device info is {INFO_SIZE} bytes, got {len(data)}", data)
+    return DeviceInfo(data[0], (data[2], data[1]), data[3], bytes(data[4:]))
+
+
+@dataclass(frozen=True)
+class Health:
+    status: HealthStatus
+    error_code: int
+
+    def encode(self) -> bytes:
+        return bytes((int(self.status),)) + self.error_code.to_bytes(2, "little")
+
+
+def decode_health(data: bytes) -> Health:
+    if len(data) != HEALTH_SIZE:
+        raise ProtocolError(f"health is {HEALTH_SIZE} bytes, got {len(data)}", data)
+    if data[0] > HealthStatus.ERROR:
+        raise ProtocolError(f"health status {data[0]} is not one of 0 (good), 1 (warning), "
+                            "2 (error)", data)
+    return Health(HealthStatus(data[0]), int.from_bytes(data[1:3], "little"))
+
+
+@dataclass(frozen=True)
+class Node:
+    """One measurement, in the wire's fixed-point units."""
+
+    start: bool
+    """The first node of a new revolution."""
+    quality: int
+    angle_q6: int
+    distance_q2: int
+
+    @property
+    def angle_rad(self) -> float:
+        return math.radians(self.angle_q6 / 64.0)
+
+    @property
+    def distance_m(self) -> float:
+        """Metres; 0.0 means no return."""
+        return self.distance_q2 / 4000.0
+
+    def encode(self) -> bytes:
+        if not (0 <= self.quality <= MAX_QUALITY and 0 <= self.angle_q6 <= MAX_ANGLE_Q6
+                and 0 <= self.distance_q2 <= MAX_DISTANCE_Q2):
+            raise ConfigError(f"node out of range: quality {self.quality} (0..63), angle_q6 "
+                              f"{self.angle_q6} (0..32767), distance_q2 {self.distance_q2} "
+                              "(0..65535)")
+        s = int(self.start)
+        return bytes((self.quality << 2 | (1 - s) << 1 | s,)) + (
+            (self.angle_q6 << 1 | 1).to_bytes(2, "little")
+            + self.distance_q2.to_bytes(2, "little"))
+
+
+def node_from_si(start: bool, quality: int, angle_rad: float, distance_m: float) -> Node:
+    """The node nearest to ``angle_rad`` (wrapped to 0..2 pi) and ``distance_m`` (0 or
+    NaN/inf: no return; capped at the largest the wire carries, 16.38 m)."""
+    angle_q6 = round(math.degrees(angle_rad % (2 * math.pi)) * 64.0) % (360 * 64)
+    if not math.isfinite(distance_m) or distance_m <= 0:
+        distance_q2 = 0
+    else:
+        distance_q2 = min(round(distance_m * 4000.0), MAX_DISTANCE_Q2)
+    return Node(start, quality, angle_q6, distance_q2)
+
+
+def is_node(data: bytes) -> bool:
+    """Whether 5 bytes can be a node: S differs from not-S and the check bit is 1."""
+    b0 = data[0]
+    return (b0 & 1) != ((b0 >> 1) & 1) and (data[1] & 1) == 1
+
+
+def decode_node(data: bytes) -> Node:
+    if len(data) != NODE_SIZE:
+        raise ProtocolError(f"a measurement node is 5 bytes, got {len(data)}", data)
+    if not is_node(data):
+        raise ProtocolError(f"not a measurement node (S == not-S or check bit 0): "
+                            f"{data.hex(' ')}", data)
+    word = int.from_bytes(data[1:3], "little")
+    return Node(bool(data[0] & 1), data[0] >> 2, word >> 1, int.from_bytes(data[3:5], "little"))
+
+
+class NodeParser:
+    """Measurement nodes from a byte stream, resynchronising after garbage.
+
+    At each position a 5-byte window that passes ``is_node`` is taken as a node (and the
+    parser moves on 5 bytes); any other byte is skipped. Never raises. The flag and the
+    check bit are all the protocol offers: a window of noise passes them by chance (1 in
+    8 for random bytes), so a node may be invented in garbage, and a run of noise whose
+    last 4 bytes start no passing window always leaves the parser aligned on the next
+    real node (tests/property/test_rplidar_properties.py states this exactly).
+    """
+
+    def __init__(self) -> None:
+        self._buf = bytearray()
+        self.skipped_bytes = 0
+
+    def feed(self, data: bytes) -> list[Node]:
+        buf = self._buf
+        buf += data
+        out: list[Node] = []
+        i = 0
+        n = len(buf)
+        while n - i >= NODE_SIZE:
+            window = bytes(buf[i : i + NODE_SIZE])
+            if is_node(window):
+                out.append(decode_node(window))
+                i += NODE_SIZE
+            else:
+                i += 1
+                self.skipped_bytes += 1
+        del buf[:i]
+        return out
+
+    def reset(self) -> None:
+        self._buf.clear()

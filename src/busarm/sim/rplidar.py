@@ -1,0 +1,268 @@
+"""A simulated Slamtec RPLIDAR A1 on its serial line: requests in, replies and scans out.
+
+``SimRplidar`` is a line like ``SimBus`` (``busarm.sim.bus.SimLine``): serve it on a pty
+(``PtyServer``) or in this process (``lidar://sim?...``, ``open_sim_lidar_transport``).
+It answers GET_INFO (as an A1M8 would) and GET_HEALTH, and after SCAN streams
+measurement nodes of a 2D world (a callable: bearing, counter-clockwise in the Lidar's
+frame, in rad -> range in m) at ``sample_hz`` nodes a second, ``scan_hz`` revolutions a
+second (the A1: 2000 samples/s at 5.5 Hz, about 1 degree apart), until STOP or RESET.
+
+Like the real unit its wire angles run clockwise; the first node of each revolution
+carries S = 1. Not modelled: the motor's spin-up, angle jitter between revolutions,
+intensity beyond a fixed quality, and the express scan modes.
+
+URL keys of ``lidar://sim?...``: ``hz`` (revolutions/s, 2..10, default 5.5), ``silent``
+(1 = answers nothing), ``garbage`` (probability per node of 1-6 random bytes before it),
+``seed`` (of the garbage), ``health`` (0 good, 1 warning, 2 error).
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import threading
+from collections.abc import Callable
+from urllib.parse import parse_qs, urlsplit
+
+from busarm.clock import Clock, SimClock
+from busarm.errors import ConfigError
+from busarm.protocol.rplidar import (
+    A1_RANGE_MAX_M,
+    A1_RANGE_MIN_M,
+    HEALTH_DESCRIPTOR,
+    INFO_DESCRIPTOR,
+    RPLIDAR_BAUDRATE,
+    SCAN_DESCRIPTOR,
+    Cmd,
+    DeviceInfo,
+    Health,
+    HealthStatus,
+    Node,
+    Request,
+    RequestParser,
+    node_from_si,
+)
+from busarm.sim.bus import WireTiming
+from busarm.sim.transport import SimTransport, query_flag, query_float
+from busarm.units import check_range, listing
+
+World = Callable[[float], float]
+"""Bearing (rad, counter-clockwise from the Lidar's forward axis) -> range (m); inf or
+NaN where nothing is in reach."""
+
+A1_SAMPLE_HZ = 2000.0
+"""The A1's standard-scan sample rate."""
+GOOD_QUALITY = 47
+"""The quality an A1 reports for a solid return (its usual 0xBC >> 2)."""
+A1_INFO = DeviceInfo(model=0x18, firmware=(1, 29), hardware=7,
+                     serial_number=bytes.fromhex("B2E0F8C3F3E29BD4C2E59EF70A5F4313"))
+RESET_BANNER = b"RP LIDAR System.\r\nFirmware Ver 1.29 - rtm, HW Ver 7\r\nModel: 18\r\n"
+"""What an A1 prints after RESET (text the host must skip)."""
+BATCH_NODES = 16
+"""Nodes delivered together (8 ms at 2000/s), as a USB serial adapter batches them."""
+MAX_BACKLOG_S = 0.5
+"""Unread scan data older than this is lost, as a full serial buffer loses it."""
+
+
+def rectangular_room(
+    x_min_m: float = -1.5, x_max_m: float = 2.5, y_min_m: float = -1.0, y_max_m: float = 2.0,
+) -> World:
+    """The walls of a rectangle around the Lidar (which sits at 0, 0, facing +x)."""
+    if not (x_min_m < 0 < x_max_m and y_min_m < 0 < y_max_m):
+        raise ConfigError(f"room x {x_min_m:g}..{x_max_m:g} m, y {y_min_m:g}..{y_max_m:g} m "
+                          "must contain the Lidar at 0, 0")
+
+    def ray(bearing_rad: float) -> float:
+        c, s = math.cos(bearing_rad), math.sin(bearing_rad)
+        hits = []
+        if c > 1e-12:
+            hits.append(x_max_m / c)
+        elif c < -1e-12:
+            hits.append(x_min_m / c)
+        if s > 1e-12:
+            hits.append(y_max_m / s)
+        elif s < -1e-12:
+            hits.append(y_min_m / s)
+        return min(hits)
+
+    return ray
+
+
+class SimRplidar:
+    """A simulated A1 on one full-duplex serial line. Thread-safe."""
+
+    framing = "rplidar"
+
+    def __init__(
+        self, world: World | None = None, *, scan_hz: float = 5.5,
+        sample_hz: float = A1_SAMPLE_HZ, clock: Clock | None = None,
+        health: Health | None = None, garbage_rate: float = 0.0,
+        seed: int = 0, silent: bool = False,
+    ) -> None:
+        self.world = world or rectangular_room()
+        self.scan_hz = check_range("scan_hz", scan_hz, 2.0, 10.0, "Hz")
+        self.sample_hz = check_range("sample_hz", sample_hz, 100.0, 2300.0, "Hz")
+        self.nodes_per_rev = round(self.sample_hz / self.scan_hz)
+        self.clock: Clock = clock or SimClock(step_s=0.002)
+        self.timing = WireTiming(RPLIDAR_BAUDRATE, 0.001)
+        self.health = health or Health(HealthStatus.GOOD, 0)
+        self.garbage_rate = check_range("garbage_rate", garbage_rate, 0.0, 1.0)
+        self.silent = silent
+        self._rng = random.Random(seed)
+        self._parser = RequestParser()
+        self._lock = threading.Lock()
+        self._out: list[tuple[float, bytes]] = []
+        self._epoch_s = self.clock.now()
+        self._next_node: int | None = None  # index of the next node to send, None: not scanning
+        self._pending_garbage = b""
+        self.requests: list[Request] = []
+        """Every request received, in order (a probe for tests)."""
+
+    @property
+    def scanning(self) -> bool:
+        with self._lock:
+            return self._next_node is not None
+
+    # ------------------------------------------------------------------ wire side
+
+    def receive(self, data: bytes) -> None:
+        """Bytes the host has written."""
+        with self._lock:
+            now = self.clock.now()
+            done = now + len(data) * self.timing.byte_s
+            for request in self._parser.feed(bytes(data)):
+                self.requests.append(request)
+                if not self.silent:
+                    self._on_request(request, done)
+
+    def pop_output(self, max_bytes: int | None = None) -> bytes:
+        """The bytes due on the host's side by now (at most ``max_bytes``)."""
+        with self._lock:
+            now = self.clock.now()
+            self._produce_nodes(now)
+            out = bytearray()
+            while self._out and self._out[0][0] <= now:
+                when, data = self._out.pop(0)
+                if max_bytes is not None and len(out) + len(data) > max_bytes:
+                    keep = max_bytes - len(out)
+                    out += data[:keep]
+                    self._out.insert(0, (when, data[keep:]))
+                    break
+                out += data
+            return bytes(out)
+
+    def next_output_at(self) -> float | None:
+        """When the next bytes are due (a batch of nodes while scanning), or None."""
+        with self._lock:
+            times = [self._out[0][0]] if self._out else []
+            if self._next_node is not None:
+                times.append(self._node_time(self._next_node + BATCH_NODES - 1))
+            return min(times) if times else None
+
+    def power_off(self) -> None:
+        """Stop scanning (nothing survives power-off)."""
+        with self._lock:
+            self._next_node = None
+
+    # ------------------------------------------------------------------ test hooks
+
+    def inject_garbage(self, data: bytes) -> None:
+        """Put ``data`` on the line just before the next node (line noise)."""
+        with self._lock:
+            self._pending_garbage += bytes(data)
+
+    def go_silent(self) -> None:
+        """Stop sending and answering anything (an unplugged or stalled unit)."""
+        with self._lock:
+            self.silent = True
+            self._next_node = None
+            self._out.clear()
+
+    def node(self, index: int) -> Node:
+        """The node with global index ``index`` (the same every revolution)."""
+        k = index % self.nodes_per_rev
+        # Clockwise on the wire: wire angle a is bearing -a in the Lidar's own frame.
+        wire_rad = 2.0 * math.pi * k / self.nodes_per_rev
+        exact = node_from_si(k == 0, GOOD_QUALITY, wire_rad, 1.0)
+        bearing_rad = -math.radians(exact.angle_q6 / 64.0)
+        range_m = float(self.world(bearing_rad))
+        if not (math.isfinite(range_m) and A1_RANGE_MIN_M <= range_m <= A1_RANGE_MAX_M):
+            return Node(k == 0, 0, exact.angle_q6, 0)
+        return node_from_si(k == 0, GOOD_QUALITY, wire_rad, range_m)
+
+    # ------------------------------------------------------------------ internals
+
+    def _node_time(self, index: int) -> float:
+        """When node ``index``'s last byte reaches the host."""
+        return self._epoch_s + (index + 1) / self.sample_hz
+
+    def _on_request(self, request: Request, done: float) -> None:
+        at = done + self.timing.turnaround_s
+        if request.cmd in (Cmd.STOP, Cmd.RESET):
+            self._next_node = None
+            self._out.clear()
+            if request.cmd == Cmd.RESET:
+                self._schedule(at + 0.002, RESET_BANNER)
+        elif request.cmd == Cmd.GET_INFO:
+            self._schedule(at, INFO_DESCRIPTOR.encode() + A1_INFO.encode())
+        elif request.cmd == Cmd.GET_HEALTH:
+            self._schedule(at, HEALTH_DESCRIPTOR.encode() + self.health.encode())
+        elif request.cmd == Cmd.SCAN and self.health.status is not HealthStatus.ERROR:
+            self._schedule(at, SCAN_DESCRIPTOR.encode())
+            # The motor already turns: the stream joins the revolution where it is.
+            self._next_node = math.ceil((at - self._epoch_s) * self.sample_hz)
+        # Anything else: an A1 ignores requests it does not know.
+
+    def _produce_nodes(self, now: float) -> None:
+        if self._next_node is None:
+            return
+        due_last = math.floor((now - self._epoch_s) * self.sample_hz) - 1
+        oldest = due_last - int(MAX_BACKLOG_S * self.sample_hz)
+        self._next_node = max(self._next_node, oldest)
+        chunk = bytearray()
+        while self._next_node <= due_last:
+            if self._pending_garbage:
+                chunk += self._pending_garbage
+                self._pending_garbage = b""
+            if self.garbage_rate and self._rng.random() < self.garbage_rate:
+                chunk += self._rng.randbytes(self._rng.randint(1, 6))
+            chunk += self.node(self._next_node).encode()
+            self._next_node += 1
+        if chunk:
+            self._schedule(self._node_time(due_last), bytes(chunk))
+
+    def _schedule(self, when: float, data: bytes) -> None:
+        self._out.append((when, data))
+        self._out.sort(key=lambda item: item[0])
+
+
+_KNOWN = {"hz", "silent", "garbage", "seed", "health"}
+
+
+def sim_lidar_from_url(url: str, clock: Clock | None = None) -> SimRplidar:
+    """A SimRplidar configured by a ``lidar://sim?...`` URL (keys in the module's doc)."""
+    raw = parse_qs(urlsplit(url).query, keep_blank_values=True)
+    unknown = set(raw) - _KNOWN
+    if unknown:
+        raise ConfigError(f"lidar URL: unknown parameter(s) {listing(sorted(unknown))}; "
+                          f"known: {listing(sorted(_KNOWN))}")
+    q = {k: v[-1] for k, v in raw.items()}
+    what = "lidar URL"
+    status = check_range("lidar URL: health", query_float(q, "health", 0.0, what), 0, 2)
+    if status != int(status):
+        raise ConfigError(f"lidar URL: health={q['health']!r}; allowed: 0, 1 or 2")
+    return SimRplidar(
+        scan_hz=check_range("lidar URL: hz", query_float(q, "hz", 5.5, what), 2.0, 10.0, "Hz"),
+        garbage_rate=check_range("lidar URL: garbage", query_float(q, "garbage", 0.0, what),
+                                 0.0, 1.0),
+        seed=int(query_float(q, "seed", 0.0, what)),
+        silent=query_flag(q, "silent", False, what),
+        health=Health(HealthStatus(int(status)), 0 if status == 0 else 0x8001),
+        clock=clock,
+    )
+
+
+def open_sim_lidar_transport(url: str) -> SimTransport:
+    """The simulated A1 in this process, on its own simulated clock (scans take no wall
+    time): ``lidar://sim`` or ``lidar://sim?hz=10``."""
+    return SimTransport(sim_lidar_from_url(url), name=url)
