@@ -51,11 +51,15 @@ demo: $(STAMP) gl
 
 # lint-imports checks the layer contract in pyproject.toml ([tool.importlinter]); --no-cache:
 # the graph takes well under a second, and no .import_linter_cache/ is left in the tree.
+# The tests start some hundreds of busarm processes: their bytecode is cached (in
+# .venv/pycache, not in the tree) even where PYTHONDONTWRITEBYTECODE is set, else each
+# process compiles busarm's modules again (0.2 s a command).
 test: $(STAMP) gl browser
 	$(BIN)/ruff check src tests
 	$(BIN)/mypy
 	$(BIN)/lint-imports --no-cache
-	$(BIN)/python -m pytest -q $(PYTEST_ARGS)
+	env -u PYTHONDONTWRITEBYTECODE PYTHONPYCACHEPREFIX=$(CURDIR)/$(VENV)/pycache \
+	  $(BIN)/python -m pytest -q $(PYTEST_ARGS)
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests

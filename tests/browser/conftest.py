@@ -46,6 +46,8 @@ from playwright.sync_api import (
     sync_playwright,
 )
 
+from conftest import keep_twin_calibration
+
 CHROMIUM = "/usr/bin/chromium"
 ALLOWED_HOST = "127.0.0.1"
 # Our standard flags. Playwright passes --headless, --no-sandbox (needed as root),
@@ -150,8 +152,8 @@ def page(browser_context: BrowserContext) -> Page:
 # ---------------------------------------------------------------- a real `busarm dashboard`
 
 DASHBOARD_START_S = 90.0
-"""How long `busarm dashboard` may take to print its link (the first start calibrates the
-twin's camera, about 8 s on a free machine)."""
+"""How long `busarm dashboard` may take to print its link (one that calibrates the twin's
+camera first takes about 8 s on a free machine)."""
 
 
 @dataclass(frozen=True)
@@ -232,10 +234,13 @@ def running_dashboard(config_home: Path, folder: Path, *args: str) -> Iterator[D
 
 
 @pytest.fixture(scope="session")
-def dashboard_config_home(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """One XDG config folder for every dashboard of the session: the twin's camera
-    calibration is made once, then kept there."""
-    return tmp_path_factory.mktemp("dashboard-config")
+def dashboard_config_home(tmp_path_factory: pytest.TempPathFactory,
+                          twin_calibration: tuple[Path, Path]) -> Path:
+    """One XDG config folder for every dashboard of the session, the twin's camera
+    calibration kept in it (the session's: no dashboard makes it again)."""
+    home = tmp_path_factory.mktemp("dashboard-config")
+    keep_twin_calibration(home, twin_calibration)
+    return home
 
 
 @pytest.fixture(scope="module")

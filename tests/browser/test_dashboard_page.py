@@ -221,8 +221,9 @@ def test_a_second_page_watches_and_takes_over_explicitly(
 
         watcher.locator("#take-over").click()
         expect(watcher.locator("#role")).to_have_text("you drive")
+        # /api/state is the newest tick's: the take-over is in it a tick later.
+        wait_for(lambda: dashboard.api("state")["driver"] != driver_id, "the new driver")
         new_id = dashboard.api("state")["driver"]
-        assert new_id != driver_id
         expect(page.locator("#role")).to_have_text(f"watching (page {new_id} drives)")
         hold(watcher, jog_button(JOINT, -1), 0.6)
         assert before - still_deg(dashboard) >= 3

@@ -170,13 +170,14 @@ def test_a_twin_with_another_lens_calibrates_again_and_the_commands_remake_it(
     # Back on the usual lens, the kept one is stale: refused, and the commands remake it.
     line = one_error(busarm("--port", "twin", "vision", "locate", config=tmp_path)[0])
     assert "made for the twin's 'vendor' lens" in line and "this is the twin's 'wide'" in line
-    done, _ = busarm("--port", "twin", "camera", "calibrate", "--views", "12", config=tmp_path)
+    # Few views (6): what is checked is which files the commands remake, not how well.
+    done, _ = busarm("--port", "twin", "camera", "calibrate", "--views", "6", config=tmp_path)
     assert done.returncode == 0, done.stderr
     assert f"wrote {folder / 'camera.json'}" in done.stdout
     assert "next, where the camera sits: `busarm --port twin camera handeye`" in done.stderr
     line = one_error(busarm("--port", "twin", "vision", "locate", config=tmp_path)[0])
     assert "hand_eye.json is stale" in line and "`busarm --port twin camera handeye`" in line
-    done, _ = busarm("--port", "twin", "camera", "handeye", "--views", "10", config=tmp_path)
+    done, _ = busarm("--port", "twin", "camera", "handeye", "--views", "6", config=tmp_path)
     assert done.returncode == 0, done.stderr
     assert made_for(folder / "hand_eye.json")["twin_lens"]["distortion"][0] == \
         pytest.approx(-0.30)

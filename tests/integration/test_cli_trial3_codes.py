@@ -38,7 +38,7 @@ from busarm.cli.main import cli
 from busarm.protocol import Command, ServoMode
 from busarm.sim.bus import WireTiming
 from busarm.sim.pty import PtyServer
-from conftest import ListeningSim, sigint_and_wait
+from conftest import ListeningSim, keep_twin_calibration, sigint_and_wait
 
 FAR1 = {"format": "busarm.scene", "version": 1, "seed": 3,
         "table": {"x_min_mm": -200.0, "x_max_mm": 420.0, "y_min_mm": -400.0,
@@ -77,10 +77,12 @@ def pty_wheel() -> Iterator[tuple[str, ListeningSim]]:
 
 
 @pytest.fixture(scope="module")
-def home(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, str]]:
+def home(tmp_path_factory: pytest.TempPathFactory, twin_calibration: tuple[Path, Path]
+         ) -> Iterator[dict[str, str]]:
     """The environment of the commands: their own config and runtime folders (the twin's
-    camera calibration is made once, kept there, and reused by the next command)."""
+    camera calibration kept there, as a first pick-sort keeps it, for the next commands)."""
     root = tmp_path_factory.mktemp("home")
+    keep_twin_calibration(root / "config", twin_calibration)
     env = {"XDG_CONFIG_HOME": str(root / "config"), "XDG_RUNTIME_DIR": str(root / "run"),
            "BUSARM_RUNTIME_DIR": str(root / "run"), "COLUMNS": "200",
            "PYTHONUNBUFFERED": "1"}
@@ -165,9 +167,11 @@ def test_a_block_beyond_reach_is_skipped_as_out_of_reach_and_the_run_exits_0(
 
 
 def test_a_block_that_failed_makes_pick_sort_exit_1_after_its_report(
-        home: dict[str, str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+        home: dict[str, str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        twin_calibration: tuple[Path, Path]) -> None:
     from busarm.apps.pick_sort import PickSorter
 
+    keep_twin_calibration(Path(os.environ["XDG_CONFIG_HOME"]), twin_calibration)  # this test's
     def missed(self: PickSorter, target: Any) -> tuple[bool, str, None, Any]:
         return False, "the test's grasp missed", None, self._plan(target)
 

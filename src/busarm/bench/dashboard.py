@@ -105,15 +105,20 @@ def _keep_moving(url: str, moving: threading.Event, mover: list[str]) -> None:
     with _ws(url) as ws:
         mover.append(json.loads(ws.recv(timeout=10))["client"])  # its welcome
         moving.set()
+        playing = False
         while moving.is_set():
-            ws.send('{"type": "play", "group": "wave"}')
-            while moving.is_set():
-                message = json.loads(ws.recv(timeout=30))
-                if message["type"] == "job" and message["state"] != "running":
-                    break
-                if message["type"] == "error":
-                    raise RuntimeError(message["text"])
+            if not playing:
+                ws.send('{"type": "play", "group": "wave"}')
+                playing = True
+            message = json.loads(ws.recv(timeout=30))
+            if message["type"] == "job" and message["state"] != "running":
+                playing = False
+            if message["type"] == "error":
+                raise RuntimeError(message["text"])
         ws.send('{"type": "stop"}')
+        while playing:  # until the stopped job has ended: only then may the arm move again
+            message = json.loads(ws.recv(timeout=30))
+            playing = not (message["type"] == "job" and message["state"] != "running")
 
 
 def _browsers(url: str, seconds: float, report: DashboardBenchReport, progress: Progress,
@@ -169,9 +174,15 @@ def _stops(url: str, seen: list[tuple[float, Request]], tries: int,
            report: DashboardBenchReport, progress: Progress) -> None:
     estop, deadman = [], []
     with _ws(url) as ws:
+        # The waving page may not have left the seat yet (the server frees it after its
+        # close): then this page watches, and takes the seat over.
+        if json.loads(ws.recv(timeout=10))["role"] != "driver":  # its welcome
+            ws.send('{"type": "drive", "take_over": true}')
         ws.send('{"type": "move_pose", "name": "home"}')  # the jogs stay clear of the limits
         while True:
             message = json.loads(ws.recv(timeout=30))
+            if message["type"] == "error":  # refused: no job will end
+                raise RuntimeError(message["text"])
             if message["type"] == "job" and message["state"] != "running":
                 break
         for k in range(tries):
