@@ -553,6 +553,9 @@ def test_limits_given_at_construction(way: str, arm_with: ArmFactory) -> None:
 # ---------------------------------------------------------------------- IDs
 
 
+# Through the board a servo is renumbered only when it is alone on the bus (a shared ID
+# cannot be seen through it): tests/integration/test_board_link.py::test_set_id_through_*.
+@pytest.mark.parametrize("arm", LX_WAYS, indirect=True)
 def test_set_id_renumbers_the_one_servo(arm: SimArm) -> None:
     arm.bus.set_id(5, 7)
     assert arm.bus.scan([4, 5, 6, 7]).found == [4, 7]
@@ -568,6 +571,7 @@ def test_set_id_refuses_when_new_id_is_taken(arm: SimArm) -> None:
     assert sorted(s.servo_id for s in arm.sim.servos) == [1, 2, 3, 4, 5, 10]
 
 
+@pytest.mark.parametrize("arm", LX_WAYS, indirect=True)  # the board: as above
 def test_set_id_refuses_when_old_id_is_absent(arm: SimArm) -> None:
     with pytest.raises(BusTimeoutError):
         arm.bus.set_id(6, 7)
