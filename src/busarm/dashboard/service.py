@@ -277,12 +277,16 @@ class RobotService:
             self.arm.bus.emergency_stop()
             self.log(f"stopped: {why}; every servo holds where it stopped")
             return
-        latched = self.arm.bus.halted is not None
+        with self._lock:  # before the halt: a job it ends at once must find it (_end_job)
+            latched = self.arm.bus.halted is not None
+            if not latched:  # not an e-stop: the robot may move again once the job ended
+                self._rearm_after = why
         self.arm.bus.halt(why)  # cuts the job short, from its own thread's next write
-        if not latched:  # not an e-stop: the robot may move again once the job has ended
-            self._rearm_after = why
         job.cancel.set()
         job.thread.join(timeout=JOB_STOP_WAIT_S)
+        with self._lock:  # the job may have ended on its own just before the halt
+            if not latched and self._job is None and self.arm.bus.halted == why:
+                self.arm.bus.rearm()
         self.log(f"stopped {job.name}: {why}; every servo holds where it stopped"
                  + ("" if not job.thread.is_alive() else
                     " (the job is still ending; nothing moves until it has)"))
