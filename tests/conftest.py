@@ -16,7 +16,8 @@ import shutil
 import signal
 import subprocess
 import threading
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -243,3 +244,13 @@ def sigint_and_wait(proc: subprocess.Popen[str], timeout_s: float = 30.0
         proc.kill()
         raise
     return proc.returncode, out, err
+
+
+def wait_for(predicate: Callable[[], bool], timeout_s: float = 2.0) -> bool:
+    """Poll until ``predicate()`` holds (True) or ``timeout_s`` passes (False)."""
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.002)
+    return True

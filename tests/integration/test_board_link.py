@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import struct
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from typing import Any
@@ -52,6 +52,7 @@ from busarm.protocol.board import (
 from busarm.sim.board import ENCODER_TICKS_PER_REV, BoardFaults, SimBoard
 from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.pty import PtyServer
+from conftest import wait_for
 
 pytestmark = pytest.mark.usefixtures("no_gc_pauses")
 
@@ -140,15 +141,6 @@ def timed_read(link: BoardLink, sub: ServoSub, servo_id: int) -> ServoReply | Bu
     budget_s = link.read_budget_s(sub) + SLACK_S
     assert elapsed_s <= budget_s, f"{sub.name} of {servo_id}: {elapsed_s * 1e3:.1f} ms"
     return result
-
-
-def wait_for(predicate: Callable[[], bool], timeout_s: float = 2.0) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while not predicate():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.005)
-    return True
 
 
 def sync(link: BoardLink, s: Served) -> None:

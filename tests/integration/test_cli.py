@@ -29,7 +29,7 @@ from busarm.cli.main import cli
 from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.pty import PtyServer
 from busarm.sim.servo import ServoParams, SimServo
-from conftest import sigint_and_wait
+from conftest import sigint_and_wait, wait_for
 
 SIM = "sim://?timing=0"
 
@@ -46,15 +46,6 @@ def assert_one_error(result: Result, code: int) -> str:
     assert "Traceback" not in result.stdout + result.stderr
     assert isinstance(result.exception, SystemExit)
     return lines[0]
-
-
-def wait_for(predicate: Callable[[], bool], timeout_s: float = 2.0) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while not predicate():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.005)
-    return True
 
 
 PtyFactory = Callable[[Sequence[SimServo]], tuple[str, SimBus]]

@@ -46,6 +46,7 @@ from conftest import (
     SimArm,
     lx_commands_only,
     make_sim_arm_way,
+    wait_for,
 )
 
 pytestmark = pytest.mark.usefixtures("no_gc_pauses")
@@ -85,16 +86,6 @@ def frames_after_sync(arm: SimArm) -> int:
     """frames_received once everything sent so far has been handled."""
     sync(arm)
     return arm.sim.frames_received
-
-
-def wait_for(predicate: Callable[[], bool], timeout_s: float = 2.0) -> bool:
-    """Poll until ``predicate()`` holds (True) or ``timeout_s`` passes (False)."""
-    deadline = time.monotonic() + timeout_s
-    while not predicate():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.002)
-    return True
 
 
 def hear_moves(arm: SimArm) -> list[tuple[Command, int, int, int]]:

@@ -100,6 +100,7 @@ class BoardLink:
         self._lock = threading.RLock()
         self._host_byte_s = 10.0 / transport.baudrate
         self.servo_byte_s = 10.0 / SERVO_LINE_BAUDRATE
+        self._attempt_s = {sub: self._attempt_deadline_s(sub) for sub in READ_FORMATS}
 
     # ------------------------------------------------------------------ writing
 
@@ -156,6 +157,9 @@ class BoardLink:
     def attempt_s(self, sub: ServoSub) -> float:
         """One attempt's deadline: both legs on the wire, the servo's and the board's
         turnaround, the adapter's latency and the margin."""
+        return self._attempt_s[sub]
+
+    def _attempt_deadline_s(self, sub: ServoSub) -> float:
         request_and_reply = (FRAME_OVERHEAD + 2) + (FRAME_OVERHEAD + 3 + _value_size(sub))
         host = request_and_reply * self._host_byte_s
         spec = SPECS[LX_COMMANDS[sub]]
@@ -244,11 +248,13 @@ class BoardLink:
     def check_talking(self, timeout_s: float = 1.0) -> None:
         """BusTimeoutError unless the board sends something within ``timeout_s`` (it
         reports its IMU and battery on its own: a silent port is not a working board)."""
-        self._next_report("any", "report", timeout_s)
+        self._next_report(object, "report", timeout_s)
 
     def read_imu(self, timeout_s: float = 0.5) -> ImuSample:
         """The next IMU sample the board sends (BusTimeoutError if none in ``timeout_s``)."""
-        return self._next_report("imu", "IMU sample", timeout_s)  # type: ignore[return-value]
+        imu = self._next_report(ImuSample, "IMU sample", timeout_s)
+        assert isinstance(imu, ImuSample)
+        return imu
 
     def read_battery_v(self, timeout_s: float = 2.0) -> float:
         """The battery voltage: the latest report if under a second old, else the next."""
@@ -256,9 +262,9 @@ class BoardLink:
         self.poll()
         if r.battery_v is not None and self.clock.now() - r.battery_at_s < 1.0:
             return r.battery_v
-        battery = self._next_report("battery", "battery report", timeout_s)
-        assert isinstance(battery, float)
-        return battery
+        battery = self._next_report(Battery, "battery report", timeout_s)
+        assert isinstance(battery, Battery)
+        return battery.voltage_v
 
     def key_events(self) -> list[KeyEvent]:
         """The board's button presses since the last call."""
@@ -268,19 +274,16 @@ class BoardLink:
             self.readings.keys.clear()
         return keys
 
-    def _next_report(self, kind: str, what: str, timeout_s: float) -> ImuSample | float:
+    def _next_report(self, kind: type, what: str, timeout_s: float) -> BoardReport:
+        """The next report of ``kind`` the board sends (``object``: any)."""
         check_range("timeout_s", timeout_s, 0.0, 60.0, "s")
         with self._lock:
             before = self.readings.reports
             deadline = self.clock.now() + timeout_s
             while True:
                 for report in self.poll(max(deadline - self.clock.now(), 0.0)):
-                    if kind == "any":
-                        return 0.0
-                    if kind == "imu" and isinstance(report, ImuSample):
+                    if isinstance(report, kind):
                         return report
-                    if kind == "battery" and isinstance(report, Battery):
-                        return report.voltage_v
                 if self.clock.now() >= deadline:
                     others = self.readings.reports - before
                     came = f" (only {others} report(s) of other kinds)" if others else ""

@@ -58,21 +58,10 @@ def decode_lines(data: bytes) -> tuple[list[str], int]:
     bad: list[bytes] = []
     parser = FrameParser(on_bad_checksum=bad.append)
     frames = parser.feed(data) + parser.flush()
-    entries: list[tuple[int, str]] = []
-    at = 0
-    for frame in frames:
-        raw = frame.to_bytes()
-        at = data.find(raw, at)
-        entries.append((at, f"{frame.hex()}  {_explain(frame)}"))
-        at += len(raw)
     board = BoardFrameParser()  # the controller board's frames (AA 55 ...), if any
     board_frames = board.feed(data) + board.flush()
-    at = 0
-    for found in board_frames:
-        raw = found.to_bytes()
-        at = data.find(raw, at)
-        entries.append((at, f"{raw.hex(' ')}  {describe_board_frame(found)}"))
-        at += len(raw)
+    entries = _placed(data, [(f.to_bytes(), _explain(f)) for f in frames])
+    entries += _placed(data, [(f.to_bytes(), describe_board_frame(f)) for f in board_frames])
     at = 0
     for raw in bad:
         at = data.find(raw, at)
@@ -82,13 +71,23 @@ def decode_lines(data: bytes) -> tuple[list[str], int]:
     if board_frames:
         summary = (f"{len(frames)} servo frame(s) and {len(board_frames)} controller-board "
                    f"frame(s) in {len(data)} byte(s)")
-        return [text for _, text in sorted(entries, key=lambda e: e[0])] + [summary], \
-            len(frames) + len(board_frames)
-    if parser.skipped_bytes:
+    elif parser.skipped_bytes:  # (the board's frames are bytes the servos' parser skips)
         summary += f"; {parser.skipped_bytes} byte(s) skipped (not part of a valid frame)"
     if parser.checksum_failures:
         summary += f"; {parser.checksum_failures} candidate frame(s) with a bad checksum"
-    return [text for _, text in sorted(entries, key=lambda e: e[0])] + [summary], len(frames)
+    lines = [text for _, text in sorted(entries, key=lambda e: e[0])] + [summary]
+    return lines, len(frames) + len(board_frames)
+
+
+def _placed(data: bytes, found: list[tuple[bytes, str]]) -> list[tuple[int, str]]:
+    """Each found frame's bytes and words as a line, with where in ``data`` it starts."""
+    entries: list[tuple[int, str]] = []
+    at = 0
+    for raw, words in found:
+        at = data.find(raw, at)
+        entries.append((at, f"{raw.hex(' ')}  {words}"))
+        at += len(raw)
+    return entries
 
 
 def _explain(frame: Frame) -> str:

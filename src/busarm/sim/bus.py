@@ -115,6 +115,22 @@ def _uart_bytes(line: list[int]) -> bytes:
     return bytes(out)
 
 
+def pop_due(queue: list[tuple[float, bytes]], now: float, max_bytes: int | None = None
+            ) -> bytes:
+    """Take from ``queue`` (due time, bytes; in time order) the bytes due by ``now``, at
+    most ``max_bytes`` (the rest of a cut item stays at its place)."""
+    out = bytearray()
+    while queue and queue[0][0] <= now:
+        when, data = queue.pop(0)
+        if max_bytes is not None and len(out) + len(data) > max_bytes:
+            keep = max_bytes - len(out)
+            out += data[:keep]
+            queue.insert(0, (when, data[keep:]))
+            break
+        out += data
+    return bytes(out)
+
+
 class SimLine(Protocol):
     """The host's end of a simulated line: what a transport or a pty serves."""
 
@@ -218,17 +234,7 @@ class SimBus:
     def pop_output(self, max_bytes: int | None = None) -> bytes:
         """The bytes due on the host's side by now (at most ``max_bytes``; the rest stay)."""
         with self._lock:
-            now = self.clock.now()
-            out = bytearray()
-            while self._out and self._out[0][0] <= now:
-                when, data = self._out.pop(0)
-                if max_bytes is not None and len(out) + len(data) > max_bytes:
-                    keep = max_bytes - len(out)
-                    out += data[:keep]
-                    self._out.insert(0, (when, data[keep:]))
-                    break
-                out += data
-            return bytes(out)
+            return pop_due(self._out, self.clock.now(), max_bytes)
 
     def next_output_at(self) -> float | None:
         """When the next bytes are due, or None if nothing is scheduled."""

@@ -42,7 +42,7 @@ from busarm.protocol.rplidar import (
     RequestParser,
     node_from_si,
 )
-from busarm.sim.bus import WireTiming
+from busarm.sim.bus import WireTiming, pop_due
 from busarm.sim.transport import SimTransport, query_flag, query_float
 from busarm.units import check_range, listing
 
@@ -140,16 +140,7 @@ class SimRplidar:
         with self._lock:
             now = self.clock.now()
             self._produce_nodes(now)
-            out = bytearray()
-            while self._out and self._out[0][0] <= now:
-                when, data = self._out.pop(0)
-                if max_bytes is not None and len(out) + len(data) > max_bytes:
-                    keep = max_bytes - len(out)
-                    out += data[:keep]
-                    self._out.insert(0, (when, data[keep:]))
-                    break
-                out += data
-            return bytes(out)
+            return pop_due(self._out, now, max_bytes)
 
     def next_output_at(self) -> float | None:
         """When the next bytes are due (a batch of nodes while scanning), or None."""
