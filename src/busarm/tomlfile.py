@@ -35,8 +35,8 @@ def load_toml(name_or_path: str | Path, *, what: str, package: str,
         try:
             text = path.read_text(encoding="utf-8")
         except FileNotFoundError:
-            raise ConfigError(f"{what} {path}: no such file (shipped: {', '.join(shipped)})"
-                              ) from None
+            listed = f" (shipped: {', '.join(shipped)})" if shipped else ""
+            raise ConfigError(f"{what} {path}: no such file{listed}") from None
         except (OSError, UnicodeDecodeError) as exc:
             raise ConfigError(f"{what} {path}: cannot read it: {exc}") from None
     return parse_toml(text, what=what, source=source), source

@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 import pytest
 
-from busarm.base.config import LidarMount
+from busarm.base.config import Mount
 from busarm.clock import WALL_CLOCK
 from busarm.errors import BusTimeoutError, LidarFaultError, NotALidarError
 from busarm.lidar import to_points
@@ -76,7 +76,7 @@ def test_scans_are_the_worlds_ranges_at_the_wires_angles(
 def test_points_in_the_base_frame(device: SimRplidar, lidar: RplidarA1) -> None:
     # Mounted 0.1 m ahead, turned left 90 deg: the Lidar's forward wall (x = 2.5 m in its
     # frame) is on the base's left, at y = 2.5 m, straight out from the Lidar (x = 0.1 m).
-    mount = LidarMount(x_m=0.1, y_m=0.0, z_m=0.2, yaw_rad=math.pi / 2)
+    mount = Mount(x_m=0.1, y_m=0.0, z_m=0.2, yaw_rad=math.pi / 2)
     points = to_points(lidar.read_scan(1.0), mount)
     # Its backward wall (x = -1.5 m) is on the base's right, at y = -1.5 m.
     across = points[np.abs(points[:, 0] - 0.1) < 0.01]

@@ -32,13 +32,17 @@ class WheelMotor:
 
 
 @dataclass(frozen=True)
-class LidarMount:
-    """Where the Lidar sits on the base (its scan's origin and zero angle)."""
+class Mount:
+    """Where a part sits on the base: the Lidar (its scan's origin and zero angle), the
+    arm (its base frame), in the base frame (x forward, y left, z up from the floor)."""
 
     x_m: float
     y_m: float
     z_m: float
     yaw_rad: float
+
+
+DEFAULT_ARM_MOUNT = Mount(0.0, 0.0, 0.145, 0.0)
 
 
 @dataclass(frozen=True)
@@ -58,7 +62,9 @@ class ChassisConfig:
     max_accel_m_s2: float
     max_yaw_accel_rad_s2: float
     command_timeout_s: float
-    lidar: LidarMount
+    lidar: Mount
+    arm: Mount = DEFAULT_ARM_MOUNT
+    """Where the arm's base frame is (on the JetAuto Pro: the top deck)."""
     source: str = ""
 
     @property
@@ -94,7 +100,7 @@ class _Reader(TomlReader):
 
     def chassis(self, data: dict[str, Any]) -> ChassisConfig:
         self.unknown(data, "top level", {"format", "version", "name", "wheels", "limits",
-                                         "lidar"})
+                                         "lidar", "arm"})
         name = self.header(data, FORMAT_NAME, FORMAT_VERSION)
         wheels = self.table(data, "wheels")
         self.unknown(wheels, "wheels", {"diameter_mm", "track_mm", "wheelbase_mm",
@@ -102,10 +108,6 @@ class _Reader(TomlReader):
         limits = self.table(data, "limits")
         self.unknown(limits, "limits", {"max_speed_m_s", "max_yaw_rate_deg_s", "max_accel_m_s2",
                                         "max_yaw_accel_deg_s2", "command_timeout_s"})
-        lidar = data.get("lidar", {})
-        if not isinstance(lidar, dict):
-            raise self.fail("lidar", "must be a table")
-        self.unknown(lidar, "lidar", {"x_mm", "y_mm", "z_mm", "yaw_deg"})
         return ChassisConfig(
             name=name,
             wheel_diameter_m=self.number(wheels, "diameter_mm", "wheels", 10, 1000) / 1000,
@@ -123,13 +125,20 @@ class _Reader(TomlReader):
                 self.number(limits, "max_yaw_accel_deg_s2", "limits", 1, 36000)),
             command_timeout_s=self.number(limits, "command_timeout_s", "limits", 0.05, 10,
                                           0.5),
-            lidar=LidarMount(
-                self.number(lidar, "x_mm", "lidar", -2000, 2000, 0.0) / 1000,
-                self.number(lidar, "y_mm", "lidar", -2000, 2000, 0.0) / 1000,
-                self.number(lidar, "z_mm", "lidar", 0, 3000, 150.0) / 1000,
-                math.radians(self.number(lidar, "yaw_deg", "lidar", -180, 180, 0.0))),
+            lidar=self.mount(data, "lidar", 150.0),
+            arm=self.mount(data, "arm", 145.0),
             source=self.source,
         )
+
+    def mount(self, data: dict[str, Any], key: str, default_z_mm: float) -> Mount:
+        table = data.get(key, {})
+        if not isinstance(table, dict):
+            raise self.fail(key, "must be a table")
+        self.unknown(table, key, {"x_mm", "y_mm", "z_mm", "yaw_deg"})
+        return Mount(self.number(table, "x_mm", key, -2000, 2000, 0.0) / 1000,
+                     self.number(table, "y_mm", key, -2000, 2000, 0.0) / 1000,
+                     self.number(table, "z_mm", key, 0, 3000, default_z_mm) / 1000,
+                     math.radians(self.number(table, "yaw_deg", key, -180, 180, 0.0)))
 
     def motors(self, data: dict[str, Any]) -> tuple[WheelMotor, WheelMotor, WheelMotor,
                                                     WheelMotor]:

@@ -15,11 +15,22 @@ import click
 
 from busarm.cli.common import RangeType, serve_until_stopped
 
-SIM_LIDAR = "lidar://sim"
 LIDAR_OPTION = click.option(
-    "--lidar", "lidar_port", default=SIM_LIDAR, show_default=True, envvar="BUSARM_LIDAR",
+    "--lidar", "lidar_port", default=None, envvar="BUSARM_LIDAR",
     help="The Lidar's serial port (e.g. /dev/ttyUSB1, its own, not the servo bus's --port; "
-         "or $BUSARM_LIDAR), or lidar://sim[?hz=10] for the simulated A1 in this process.")
+         "or $BUSARM_LIDAR); lidar://sim[?hz=10] for the simulated A1 in a room, or "
+         "twin://?family=arena[&seed=N] for a twin's, in this process. [default: the Lidar "
+         "of a running `busarm twin serve --arena`, else lidar://sim]")
+
+
+def lidar_port_or_default(given: str | None) -> str:
+    """--lidar if given, else a running twin's Lidar, else the simulated A1."""
+    from busarm.cli.sessions import running_sessions
+    from busarm.lidar.rplidar import SIM_LIDAR
+
+    if given:
+        return given
+    return next((s.lidar for s in running_sessions() if s.lidar), SIM_LIDAR)
 
 
 @click.group()
@@ -38,9 +49,10 @@ def lidar() -> None:
 def scan(lidar_port: str, png: Path | None, as_json: bool, timeout_s: float) -> None:
     """Read one 360-degree scan: how many returns, the rate, the nearest return and its
     bearing (degrees counter-clockwise from the Lidar's forward axis)."""
-    from busarm.lidar.rplidar import open_lidar
+    from busarm.robot.lidar_port import open_any_lidar
 
-    with open_lidar(lidar_port) as device:
+    lidar_port = lidar_port_or_default(lidar_port)
+    with open_any_lidar(lidar_port) as device:
         one = device.read_scan(timeout_s)
         info, health = device.info, device.health
     returns = int(one.valid.sum())

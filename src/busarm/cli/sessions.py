@@ -11,6 +11,8 @@ File layout::
 
     {"format": "busarm-session", "version": 1, "kind": "sim", "pid": 1234,
      "port": "/dev/pts/7", "camera": null, "started": 1700000000.0}
+
+(a twin with an arena adds ``"lidar": "/dev/pts/9"``, its Lidar's port).
 """
 
 from __future__ import annotations
@@ -49,6 +51,8 @@ class Session:
     """When it started (seconds since the epoch)."""
     path: Path
     """Its runtime file."""
+    lidar: str | None = None
+    """The Lidar's serial port (a pty path) of a twin with an arena; else None."""
 
     def describe(self) -> str:
         """``the arm of `busarm sim serve` (pid 1234) on /dev/pts/7``."""
@@ -85,7 +89,8 @@ def _own_dir(folder: Path, create: bool) -> bool:
 
 
 @contextmanager
-def announced(kind: str, port: str, camera: str | None = None) -> Iterator[Path | None]:
+def announced(kind: str, port: str, camera: str | None = None,
+              lidar: str | None = None) -> Iterator[Path | None]:
     """Write this process's runtime file for the body's duration (None: no folder for it).
 
     The file is removed when the body ends, by an exception or SIGTERM too (the caller
@@ -97,6 +102,8 @@ def announced(kind: str, port: str, camera: str | None = None) -> Iterator[Path 
     path = folder / f"{kind}-{os.getpid()}.json"
     data = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "kind": kind,
             "pid": os.getpid(), "port": port, "camera": camera, "started": time.time()}
+    if lidar is not None:
+        data["lidar"] = lidar
     try:
         write_text_atomic(path, json.dumps(data) + "\n", "runtime file")
     except ConfigError:  # the server runs all the same; commands just cannot find it
@@ -132,12 +139,12 @@ def _read(path: Path) -> Session | None:
             data.get("version") != FORMAT_VERSION:
         return None
     kind, pid, port = data.get("kind"), data.get("pid"), data.get("port")
-    camera, started = data.get("camera"), data.get("started", 0.0)
+    camera, started, lidar = data.get("camera"), data.get("started", 0.0), data.get("lidar")
     if kind not in KINDS or not isinstance(pid, int) or not isinstance(port, str) or \
-            not (camera is None or isinstance(camera, str)) or \
+            not all(v is None or isinstance(v, str) for v in (camera, lidar)) or \
             not isinstance(started, int | float):
         return None
-    return Session(kind, pid, port, camera, float(started), path)
+    return Session(kind, pid, port, camera, float(started), path, lidar)
 
 
 def running_sessions() -> list[Session]:

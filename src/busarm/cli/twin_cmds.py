@@ -8,12 +8,17 @@ from __future__ import annotations
 import sys
 from datetime import datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from busarm.cli.common import Settings, announced, make_scene, pass_settings, scene_options
 from busarm.errors import ConfigError
 from busarm.twin.scene import MAX_BLOCKS
+
+if TYPE_CHECKING:
+    from busarm.twin.arena import Arena
+    from busarm.twin.twin import Twin
 
 
 @click.group()
@@ -36,15 +41,21 @@ def twin() -> None:
               help="Behind a simulated controller board: the board's frames at 1,000,000 "
                    "baud on the pty (port board:///dev/pts/N), IMU and battery reports, four "
                    "wheel motors.")
+@click.option("--arena", "arena_spec", default=None, metavar="SEED|FILE",
+              help="The mobile robot in an arena instead of the arm on a table: a seed (a "
+                   "seeded arena) or an arena TOML file. Its base runs on the board's "
+                   "wheels (implies --board); its Lidar is on a second pseudo-terminal.")
 @pass_settings
 def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks: int | None,
-          colors: str | None, config: str, echo: bool, camera_port: int, board: bool) -> None:
+          colors: str | None, config: str, echo: bool, camera_port: int, board: bool,
+          arena_spec: str | None) -> None:
     """Serve the twin's servos on a pseudo-terminal and its camera on 127.0.0.1.
 
     The first line of stdout is the port to give --port (the device path, or with --board
     board:///dev/pts/N: the twin behind a simulated controller board), the
-    second the camera source for `--camera` (twin://127.0.0.1:PORT). Runs until SIGINT
-    (Ctrl+C) or SIGTERM, its way to stop: exit code 0.
+    second the camera source for `--camera` (twin://127.0.0.1:PORT), with --arena a third:
+    the Lidar's device path for `--lidar`. Runs until SIGINT (Ctrl+C) or SIGTERM, its way
+    to stop: exit code 0.
     """
     from busarm.arm.config import load_arm_config
     from busarm.cli.common import serve_until_stopped
@@ -52,37 +63,76 @@ def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks:
     from busarm.sim.bus import WireTiming
     from busarm.sim.pty import PtyServer
     from busarm.twin.camera import CameraServer
+    from busarm.twin.lidar import lidar_for_twin
     from busarm.twin.twin import Twin
 
-    scene = make_scene(scene_file, seed, blocks, colors)
+    if arena_spec is not None and (scene_file or seed is not None or blocks is not None
+                                   or colors is not None):
+        raise ConfigError("--arena is the whole world: give it or --scene/--seed/--blocks/"
+                          "--colors, not both")
+    arena = _arena(arena_spec) if arena_spec is not None else None
+    board = board or arena is not None
+    if board and echo:
+        raise ConfigError("--echo: a controller board's link does not echo (give one of "
+                          "--board/--arena and --echo)")
+    scene = None if arena is not None else make_scene(scene_file, seed, blocks, colors)
     with Twin(load_arm_config(config), scene, timing=WireTiming(settings.baudrate),
-              echo=echo) as tw:
+              echo=echo, arena=arena) as tw:
         camera = CameraServer(tw, camera_port)
-        if board and echo:
-            raise ConfigError("--echo: a controller board's link does not echo (give one of "
-                              "--board and --echo)")
-        server = PtyServer(SimBoard(tw.bus) if board else tw.bus)
+        sim_board = SimBoard(tw.bus) if board else None
+        if sim_board is not None and tw.mobile is not None:
+            tw.mobile.attach(sim_board)
+        server = PtyServer(sim_board or tw.bus)
         path = server.open()
         path = f"board://{path}" if board else path
+        lidar = PtyServer(lidar_for_twin(tw)) if arena is not None else None
+        lidar_path = lidar.start() if lidar is not None else None
         url = camera.start()
         try:
             # Found by commands without --port while it runs; written before the path is
             # shown, so that no client waits for it.
-            with announced("twin", path, url):
-                click.echo(path)
-                click.echo(url)
+            with announced("twin", path, url, lidar_path):
+                for line in (path, url, lidar_path):
+                    if line is not None:
+                        click.echo(line)
                 sys.stdout.flush()
-                click.echo(f"twin: {len(scene.blocks)} blocks ({scene.source}), servos on "
-                           f"{path}, camera on {url}; Ctrl+C or SIGTERM to stop; commands "
-                           "without --port use it", err=True)
-                if scene.bins:  # what pick-sort on it needs (--bins): it cannot ask
-                    bins = ";".join(f"{b.color}={b.x_mm:g},{b.y_mm:g}" for b in scene.bins)
-                    click.echo(f"bins: {bins} (busarm --port {path} pick-sort --camera "
-                               f"{url} --bins '{bins}')", err=True)
+                _say_serving(tw, path, url, lidar_path)
                 serve_until_stopped(server)
         finally:
             camera.stop()
+            if lidar is not None:
+                lidar.stop()
     click.echo("twin stopped", err=True)
+
+
+def _arena(spec: str) -> Arena:
+    """--arena's value: a seed (digits) or an arena file."""
+    from busarm.twin.arena import load_arena
+    from busarm.twin.arena_gen import random_arena
+
+    if spec.isdigit():
+        if int(spec) > 2**32 - 1:
+            raise ConfigError(f"--arena {spec}: a seed must be 0..{2**32 - 1}")
+        return random_arena(int(spec))
+    return load_arena(spec)
+
+
+def _say_serving(tw: Twin, path: str, url: str, lidar_path: str | None) -> None:
+    if tw.arena is not None:
+        a = tw.arena
+        click.echo(f"twin: the mobile robot in {a.name} ({a.source}: {len(a.tables)} tables, "
+                   f"{len(a.boxes)} boxes, {len(a.blocks)} blocks), board on {path}, camera "
+                   f"on {url}, Lidar on {lidar_path}; Ctrl+C or SIGTERM to stop; commands "
+                   "without --port (and lidar without --lidar) use it", err=True)
+        return
+    scene = tw.scene
+    click.echo(f"twin: {len(scene.blocks)} blocks ({scene.source}), servos on "
+               f"{path}, camera on {url}; Ctrl+C or SIGTERM to stop; commands "
+               "without --port use it", err=True)
+    if scene.bins:  # what pick-sort on it needs (--bins): it cannot ask
+        bins = ";".join(f"{b.color}={b.x_mm:g},{b.y_mm:g}" for b in scene.bins)
+        click.echo(f"bins: {bins} (busarm --port {path} pick-sort --camera "
+                   f"{url} --bins '{bins}')", err=True)
 
 
 @twin.command()
@@ -100,18 +150,34 @@ def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks:
 @click.option("--view", type=click.Choice(["both", "arm", "overview"]), default="both",
               show_default=True,
               help="Both cameras side by side, or one (arm: a raw camera frame for vision).")
+@click.option("--arena", "arena_spec", default=None, metavar="SEED|FILE",
+              help="Render the mobile robot's arena from above instead (a seed or an arena "
+                   "file): the robot, one Lidar scan's returns and its path.")
 @click.pass_context
 def snapshot(ctx: click.Context, scene_file: Path | None, seed: int | None, blocks: int | None,
              colors: str | None, png: Path, pose: str, joints: str | None, config: str,
-             lens: str, view: str) -> None:
+             lens: str, view: str, arena_spec: str | None) -> None:
     """Render the scene from the arm camera and from an overview camera, without a viewer.
 
     The overview shows the base frame's origin and x/y axes (ticks every 50 mm) and each
     bin in its colour; a caption under the picture says what it is (scene, seed, arm,
     when). --view arm writes the camera frame alone, unmarked, as vision gets it.
+    --arena draws the mobile robot's arena from straight above instead.
     """
     import cv2
     import numpy as np
+
+    if arena_spec is not None:
+        given = [name for name, value in (("--scene", scene_file), ("--seed", seed),
+                                          ("--blocks", blocks), ("--colors", colors),
+                                          ("--joints", joints)) if value is not None]
+        given += [f"--{name}" for name in ("pose", "lens", "view") if ctx.get_parameter_source(
+            name) is not click.core.ParameterSource.DEFAULT]
+        if given:
+            raise ConfigError(f"--arena draws the arena from above: {', '.join(given)} "
+                              "do not apply to it")
+        _arena_snapshot(_arena(arena_spec), png, config)
+        return
 
     from busarm.arm.config import load_arm_config
     from busarm.arm.kinematics import ArmKinematics
@@ -157,6 +223,31 @@ def snapshot(ctx: click.Context, scene_file: Path | None, seed: int | None, bloc
     save_image(png, picture)
     click.echo(f"wrote {png}: {'arm camera and overview' if view == 'both' else view} "
                f"({picture.shape[1]}x{picture.shape[0]}): {caption}")
+
+
+def _arena_snapshot(arena: Arena, png: Path, config: str) -> None:
+    from busarm.arm.config import load_arm_config
+    from busarm.robot.lidar_port import twin_lidar
+    from busarm.twin.arena_picture import arena_picture
+    from busarm.twin.snapshot import with_caption
+    from busarm.twin.twin import Twin
+    from busarm.vision.annotate import IMAGE_EXTENSIONS, save_image
+
+    if png.suffix.lower() not in IMAGE_EXTENSIONS:  # before rendering anything
+        raise ConfigError(f"--png {png}: extension {png.suffix or '(none)'!r} is not one of "
+                          f"{', '.join(IMAGE_EXTENSIONS)}")
+    with Twin(load_arm_config(config), arena=arena, realtime=False) as tw:
+        with twin_lidar(tw) as device:
+            one = device.read_scan(2.0)
+        picture = arena_picture(tw, scan=one, title=f"{arena.name}, seen from above")
+    caption = (f"busarm twin snapshot --arena: {arena.source} ({len(arena.tables)} tables, "
+               f"{len(arena.boxes)} boxes, {len(arena.blocks)} blocks, "
+               f"{len(arena.lines)} taped line(s)), room {arena.room.size_m[0]:g} x "
+               f"{arena.room.size_m[1]:g} m; {datetime.now().astimezone():%Y-%m-%d %H:%M:%S %Z}")
+    picture = with_caption(picture, [caption])
+    save_image(png, picture)
+    click.echo(f"wrote {png}: the arena from above ({picture.shape[1]}x{picture.shape[0]}): "
+               f"{caption}")
 
 
 @twin.command()

@@ -30,6 +30,7 @@ from busarm.protocol.rplidar import (
     A1_RANGE_MIN_M,
     HEALTH_DESCRIPTOR,
     INFO_DESCRIPTOR,
+    NODE_SIZE,
     RPLIDAR_BAUDRATE,
     SCAN_DESCRIPTOR,
     Cmd,
@@ -211,10 +212,13 @@ class RplidarA1:
 
     def _feed(self, data: bytes) -> None:
         at = self.clock.now() - self.transport.latency_s
-        for node in self._parser.feed(data):
-            # An angle past 360 degrees is noise that passed the check bits.
-            if node.angle_q6 < 360 * 64:
-                self._queue.append((node, at))
+        # An angle past 360 degrees is noise that passed the check bits.
+        nodes = [n for n in self._parser.feed(data) if n.angle_q6 < 360 * 64]
+        # Nodes read together arrived one after another: each is dated back by the line
+        # time of the nodes behind it (a long read would otherwise give a revolution 0 s).
+        node_s = NODE_SIZE * 10.0 / self.transport.baudrate if self.transport.baudrate else 0.0
+        for k, node in enumerate(nodes):
+            self._queue.append((node, at - (len(nodes) - 1 - k) * node_s))
 
     def _next_revolution(self, timeout_s: float) -> LaserScan:
         deadline = self.clock.now() + timeout_s

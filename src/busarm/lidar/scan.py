@@ -18,7 +18,7 @@ import numpy.typing as npt
 from busarm.errors import ConfigError
 
 if TYPE_CHECKING:
-    from busarm.base.config import LidarMount
+    from busarm.base.config import Mount
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -83,7 +83,7 @@ class LaserScan:
         return float(self.ranges_m[i]), bearing
 
 
-def to_points(scan: LaserScan, mount: LidarMount) -> FloatArray:
+def to_points(scan: LaserScan, mount: Mount) -> FloatArray:
     """The scan's returns as base-frame x, y points (m), shape (N, 2), for a Lidar
     mounted at ``mount`` (its x_m, y_m and yaw_rad on the base; z is ignored). Beams
     without a return give no point."""

@@ -14,8 +14,11 @@ stale, and on a twin made there when missing or stale.
 
 The twin is handed out (``robot.twin``) to whoever opened the robot: ground truth for
 benchmarks and tests, the overview camera for reports. Nothing else reaches for it.
-Parts the robot does not have yet (the mecanum base, the Lidar, more cameras) join as
-more attributes and more entries of ``robot.cameras``.
+
+The mobile robot: ``robot.base`` (busarm.base.Base: the mecanum wheels on the controller
+board, so only on a ``board://`` port) and ``robot.lidar`` (a ``LidarSource``), each None
+when the robot has none. A twin with an arena (``board://twin?family=arena&seed=N``) has
+both; on hardware the base comes with a chassis config and the Lidar with its port.
 """
 
 from __future__ import annotations
@@ -31,7 +34,10 @@ from urllib.parse import parse_qs, urlsplit
 from busarm.arm.arm import Arm
 from busarm.arm.calibration import Calibration, load_calibration
 from busarm.arm.config import ArmConfig, load_arm_config
-from busarm.bus.driver import servo_bus_on
+from busarm.base.base import Base
+from busarm.base.config import ChassisConfig, load_chassis_config
+from busarm.bus.board_bus import BoardServoBus
+from busarm.bus.driver import ServoBus, servo_bus_on
 from busarm.bus.transport import (
     DEFAULT_BAUDRATE,
     Transport,
@@ -41,8 +47,10 @@ from busarm.bus.transport import (
 )
 from busarm.clock import Clock
 from busarm.errors import ConfigError
+from busarm.lidar.scan import LidarSource
 from busarm.progress import Progress, quiet
 from busarm.robot.calibration_store import CalibrationStore, MadeFor, StaleCalibration
+from busarm.robot.lidar_port import open_any_lidar, twin_lidar
 from busarm.robot.locate import NOT_BLOCK_COLORS, BlockLocator
 from busarm.robot.twin_calibration import TwinCalibration, calibrate_twin_camera
 from busarm.twin.camera import TwinCamera
@@ -98,9 +106,14 @@ class Robot:
 
     def __init__(self, arm: Arm, *, camera: CameraSource | None = None,
                  calibration: CameraCalibration | None = None, bins: Bins | None = None,
-                 twin: Twin | None = None) -> None:
+                 twin: Twin | None = None, base: Base | None = None,
+                 lidar: LidarSource | None = None) -> None:
         self.arm = arm
         self.twin = twin
+        self.base = base
+        """The mobile base (on a controller board with a chassis config), else None."""
+        self.lidar = lidar
+        """The 2D Lidar (given, or the twin's in an arena), else None."""
         self.port = arm.bus.transport.name
         """What it was opened on (``Robot.open``'s port)."""
         self.cameras: dict[str, CameraSource] = {}
@@ -127,6 +140,7 @@ class Robot:
              calibration_store: CalibrationStore | None = None, board: str | None = None,
              scene: Scene | None = None, needs: Collection[str] = (),
              baudrate: int = DEFAULT_BAUDRATE, progress: Progress = quiet,
+             chassis: ChassisConfig | str | Path | None = None, lidar: str | None = None,
              **bus_options: Any) -> Robot:
         """Open the robot on ``port`` (see the module docstring).
 
@@ -141,6 +155,11 @@ class Robot:
         the port is opened (after a device path is checked to exist). ``bus_options`` go
         to ``ServoBus`` (echo, retries, timeout_margin_s). Everything is checked before the
         arm moves; a failure closes what was opened.
+
+        The mobile parts: ``chassis`` (a config, its name or file) gives the robot a
+        ``base`` on a controller board's port; a twin with an arena has one by itself on
+        ``board://twin?family=arena...``. ``lidar``: the Lidar's port; a twin with an arena
+        has its own.
         """
         behind = board_target(port)  # the twin behind a simulated controller board
         twin_port = behind if behind is not None and is_twin_url(behind) else port
@@ -183,7 +202,16 @@ class Robot:
                 store.robot, source, cfg, twin)
             calibration = _camera_calibration(twin, intrinsics, hand_eye, calibrate,
                                               calibration_dir, progress, store, made_for)
-            robot = cls(arm, camera=source, calibration=calibration, bins=bins, twin=twin)
+            base = _open_base(bus, twin, chassis)
+            if base is not None:
+                opened.append(base)
+            lidar_source = (twin_lidar(twin) if lidar is None and twin is not None
+                            and twin.arena is not None
+                            else open_any_lidar(lidar) if lidar is not None else None)
+            if lidar_source is not None:
+                opened.append(lidar_source)
+            robot = cls(arm, camera=source, calibration=calibration, bins=bins, twin=twin,
+                        base=base, lidar=lidar_source)
             robot.port = port
             return robot
         except BaseException:
@@ -252,20 +280,45 @@ class Robot:
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
         try:
+            if self.base is not None:
+                self.base.close()  # the wheels stop, whatever happens next
             self.arm.__exit__(exc_type, exc, tb)  # first stop and hold on an exception
         finally:
             for source in self.cameras.values():
                 source.close()
+            if self.lidar is not None:
+                self.lidar.close()
 
     def __repr__(self) -> str:
         where = "twin" if self.twin is not None else self.arm.bus.transport.name
-        return f"Robot({self.config.name!r} on {where}, cameras={sorted(self.cameras)})"
+        parts = "".join(f", {name}" for name, part in (("base", self.base),
+                                                       ("lidar", self.lidar)) if part)
+        return (f"Robot({self.config.name!r} on {where}, cameras={sorted(self.cameras)}"
+                f"{parts})")
 
 
 NEEDS = {"camera": "the wrist camera (--camera)",
          "camera_calibration": "the camera's calibration files (--intrinsics from busarm "
                                "camera calibrate, --hand-eye from busarm camera handeye)",
          "bins": "where the bins are (--bins COLOUR=X,Y;...)"}
+
+
+def _open_base(bus: ServoBus, twin: Twin | None,
+               chassis: ChassisConfig | str | Path | None) -> Base | None:
+    """The base on a controller board's wheels: with a chassis config given, or the
+    twin's chassis; None without one. A chassis needs a board (the wheels are on it)."""
+    config = (chassis if isinstance(chassis, ChassisConfig | None)
+              else load_chassis_config(chassis))
+    if config is None and twin is not None and twin.mobile is not None and isinstance(
+            bus, BoardServoBus):
+        config = twin.chassis  # on twin://?family=arena (no board) the base stands still
+    if config is None:
+        return None
+    if not isinstance(bus, BoardServoBus):
+        raise ConfigError(f"a base drives its wheels through the controller board: open "
+                          f"the robot on a board:// port (e.g. board:///dev/ttyACM0, or "
+                          f"board://twin?family=arena), not {bus.transport.name}")
+    return Base(bus.link, config)
 
 
 def _check_needs(needs: Collection[str], port: str, on_twin: bool, camera: str | None,

@@ -142,6 +142,9 @@ class SimBoard:
         """Whether the gyro's z also reads the yaw rate the wheels give a JetAuto base (a
         board on a base with no twin); a mobile twin turns this off and sets the gyro."""
         self.imu_accel_mps2 = (0.0, 0.0, 9.80665)
+        self.encoder_noise_ticks = 0.0
+        """Standard deviation of a count's jitter in each report (a mobile twin sets it);
+        it does not accumulate: the counter itself stays true to the wheel."""
         self.log = BoardLog()
         self._rng = random.Random(seed)
         self._fault_rng = random.Random(self.faults.seed)
@@ -312,6 +315,14 @@ class SimBoard:
             data[rng.randrange(2, len(data))] ^= rng.randrange(1, 256)
         return bytes(data)
 
+    def motor_rev_s(self, now: float) -> tuple[float, float, float, float]:
+        """Each motor's actual speed at ``now`` (rev/s, as mounted), its speed loop and
+        encoder brought up to then (a mobile twin moves the base by them)."""
+        with self._lock:
+            self._advance_wheels(now)
+            a, b, c, d = (w.rev_s for w in self.wheels)
+            return a, b, c, d
+
     def _advance_wheels(self, now: float) -> None:
         dt = now - self._wheels_at
         if dt > 0:
@@ -337,7 +348,9 @@ class SimBoard:
         if name == "battery":
             return Battery(round(self.battery_v + gauss(0.0, 0.01), 3)).encode()
         if name == "encoders":
-            a, b, c, d = (_int32(w.encoder_ticks) for w in self.wheels)
+            noise = self.encoder_noise_ticks
+            a, b, c, d = (_int32(w.encoder_ticks + (round(gauss(0.0, noise)) if noise else 0))
+                          for w in self.wheels)
             return MotorEncoders((a, b, c, d)).encode()
         ax, ay, az = self.imu_accel_mps2
         gx, gy, gz = self.imu_gyro_rad_s

@@ -67,6 +67,8 @@ ARM_RGBA = "0.13 0.13 0.14 1"
 TABLE_RGB = (0.78, 0.76, 0.72)
 TABLE_THICKNESS_MM = 20.0
 LINK_MASS_KG = (0.25, 0.15, 0.12, 0.10, 0.15)
+ROBOT_GROUP = 2
+"""The robot's own geoms are in this geom group (drawn; a Lidar's rays skip them)."""
 
 
 AS_BUILT_MOUNT_ERROR = ((1.8, -2.4, 1.1), (1.3, -0.9, 0.6))
@@ -229,7 +231,8 @@ def _head(scene: Scene, spec: TwinModelSpec) -> list[str]:
     w('  <default>')
     w(f'    <default class="arm"><joint damping="{JOINT_DAMPING:.6g}" armature="{JOINT_ARMATURE}" '
       'frictionloss="0.05"/>')
-    w(f'      <geom contype="2" conaffinity="1" rgba="{ARM_RGBA}" density="0"/></default>')
+    w(f'      <geom contype="2" conaffinity="1" group="{ROBOT_GROUP}" rgba="{ARM_RGBA}" '
+      'density="0"/></default>')
     w('    <default class="object"><geom contype="1" conaffinity="1" condim="4" '
       f'friction="{OBJECT_FRICTION} 0.01 0.001" solref="0.004 1"/></default>')
     w('  </default>')
@@ -291,6 +294,20 @@ def _bin_body(i: int, x_mm: float, y_mm: float, size_mm: float, wall_mm: float,
 
 def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
     """The whole world as MJCF text (assets, if any, are passed to MuJoCo separately)."""
+    out = _head(scene, spec)
+    out.append('  <worldbody>')
+    out += _lights(scene.lighting)
+    out += _table_and_things(scene, spec, config.table_z_mm * M_PER_MM)
+    out += arm_bodies(config, spec)
+    out.append('  </worldbody>')
+    out += arm_actuators(config)
+    out.append('</mujoco>')
+    return "\n".join(line for line in out if line)
+
+
+def arm_bodies(config: ArmConfig, spec: TwinModelSpec) -> list[str]:
+    """The arm's base, links, camera and gripper, in the frame of whatever holds it (the
+    world for an arm on a table, the chassis for the mobile robot)."""
     g = config.geometry
     m = M_PER_MM
     lim = [(math.radians(j.min_deg), math.radians(j.max_deg)) for j in config.joints]
@@ -301,13 +318,7 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
         * config.gripper.gap_mm_per_pulse / 2 * m
     cam = spec.mount.cam2link
     cam_quat = quat_from_matrix(cam[:3, :3] @ MJ_FROM_CV)
-    # Servo angle per metre of one finger's travel (the gripper actuator's gear).
-    finger_gear = -1.0 / (config.gripper.gap_mm_per_pulse / 2 * m / math.radians(0.24))
-
-    out = _head(scene, spec)
-    out.append('  <worldbody>')
-    out += _lights(scene.lighting)
-    out += _table_and_things(scene, spec, table_z)
+    out: list[str] = []
     w = out.append
 
     # The arm: modified DH, body i at RotX(alpha) TransX(a) TransZ(d), turning about z.
@@ -377,7 +388,18 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
     for _ in range(5):
         indent = indent[:-2]
         w(f'{indent}</body>')
-    w('  </worldbody>')
+    return out
+
+
+def arm_actuators(config: ArmConfig) -> list[str]:
+    """The finger coupling and the servos' actuators."""
+    names = [j.name for j in config.joints]
+    lim = [(math.radians(j.min_deg), math.radians(j.max_deg)) for j in config.joints]
+    m = M_PER_MM
+    # Servo angle per metre of one finger's travel (the gripper actuator's gear).
+    finger_gear = -1.0 / (config.gripper.gap_mm_per_pulse / 2 * m / math.radians(0.24))
+    out: list[str] = []
+    w = out.append
     w('  <equality><joint joint1="finger_right" joint2="finger_left" polycoef="0 1 0 0 0" '
       'solref="0.004 1"/></equality>')
     w('  <actuator>')
@@ -389,5 +411,4 @@ def build_mjcf(config: ArmConfig, scene: Scene, spec: TwinModelSpec) -> str:
       f'kp="{SERVO_KP_NM_PER_RAD}" ctrllimited="false" '
       f'forcerange="{-GRIPPER_TORQUE_NM:.6g} {GRIPPER_TORQUE_NM:.6g}"/>')
     w('  </actuator>')
-    w('</mujoco>')
-    return "\n".join(line for line in out if line)
+    return out

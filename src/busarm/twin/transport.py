@@ -6,7 +6,15 @@ URL query parameters (all optional):
 ``family``  the seeded scenes: ``random`` (blocks spread out) or         random
             ``clutter`` (a table like a real one: rows, clusters,
             touching blocks, distractors, a lamp's light; see
-            busarm.twin.clutter)
+            busarm.twin.clutter), or ``arena``: the mobile robot in a
+            seeded room (busarm.twin.arena_gen; its base moves with
+            the board's wheels: ``board://twin?family=arena``)
+``arena``   an arena file (TOML, busarm.twin.arena) instead              (none)
+``chassis`` the mobile robot's chassis config (arena twins)             jetauto
+``slip``    0 = the wheels never slip and the sensors are ideal         1
+            (arena twins; busarm.twin.mobile.SlipModel)
+``lidar_noise`` 0 = the twin's Lidar measures without noise or          1
+            dropouts (busarm.twin.lidar.LidarNoise)
 ``seed``    seed of the seeded scene                                    0
 ``blocks``  how many blocks in the random scene (0..8); in a clutter    5; clutter: 8
             scene, the most it holds (0..12)
@@ -38,23 +46,29 @@ from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
 from busarm.arm.config import ArmConfig, load_arm_config
+from busarm.base.config import load_chassis_config
 from busarm.clock import SimClock
 from busarm.errors import ConfigError
-from busarm.sim.board import SimBoard, board_from_query, split_board_keys
-from busarm.sim.bus import WireTiming
+from busarm.sim.board import board_from_query, split_board_keys
+from busarm.sim.bus import SimLine, WireTiming
 from busarm.sim.transport import SimTransport, query_flag, query_float
+from busarm.twin.arena import Arena, load_arena
+from busarm.twin.arena_gen import random_arena
 from busarm.twin.boards import BOARD_SPECS, calibration_board
 from busarm.twin.clutter import CLUTTER_DEFAULT_BLOCKS, CLUTTER_MAX_BLOCKS, clutter_scene
 from busarm.twin.lens import lens_by_name
+from busarm.twin.lidar import LidarNoise
+from busarm.twin.mobile import SlipModel
 from busarm.twin.scene import COLORS, MAX_BLOCKS, Scene, load_scene, random_scene
 from busarm.twin.twin import CONTROL_PERIOD_S, Twin
 from busarm.units import listing
 
 _KNOWN = {"family", "seed", "blocks", "colors", "scene", "config", "echo", "timing", "board",
-          "lens", "pace", "realtime"}
+          "lens", "pace", "realtime", "arena", "chassis", "slip", "lidar_noise"}
+_ARENA_KEYS = {"arena", "chassis", "slip", "lidar_noise"}
 _TABLE_KEYS = {"family", "seed", "blocks", "colors", "board"}
 """The keys that draw a seeded scene (instead of ``scene=``)."""
-FAMILIES = ("random", "clutter")
+FAMILIES = ("random", "clutter", "arena")
 
 
 def twin_query(url: str) -> dict[str, str]:
@@ -71,6 +85,28 @@ def twin_query(url: str) -> dict[str, str]:
         raise ConfigError(f"twin URL: unknown parameter(s) {listing(sorted(unknown))}; "
                           f"known: {listing(sorted(_KNOWN))}")
     return {k: v[-1] for k, v in raw.items()}
+
+
+def is_arena_query(q: dict[str, str]) -> bool:
+    """Whether a twin URL asks for the mobile robot in an arena."""
+    return q.get("family") == "arena" or "arena" in q
+
+
+def arena_from_query(q: dict[str, str]) -> Arena:
+    """The arena a twin URL asks for: a file (``arena=``), or ``family=arena&seed=N``."""
+    if "arena" in q:
+        if q.get("family", "arena") != "arena" or {"seed", "blocks", "colors", "board",
+                                                     "scene"} & set(q):
+            raise ConfigError("twin URL: arena=FILE is the whole arena; give no "
+                              "family=/seed=/blocks=/colors=/board=/scene= with it")
+        return load_arena(q["arena"])
+    if {"blocks", "colors", "board", "scene"} & set(q):
+        raise ConfigError("twin URL: family=arena takes seed= only (its blocks are the "
+                          "arena's): no blocks=/colors=/board=/scene=")
+    seed = query_float(q, "seed", 0.0, "twin URL")
+    if not (seed.is_integer() and 0 <= seed <= 2**32 - 1):
+        raise ConfigError(f"twin URL: seed={q['seed']!r} must be a whole number 0..{2**32 - 1}")
+    return random_arena(int(seed))
 
 
 def scene_from_query(q: dict[str, str]) -> Scene:
@@ -120,9 +156,13 @@ def twin_from_url(url: str, baudrate: int = 115200, *, realtime: bool = False,
     given, is the arm it builds (else the URL's ``config=``, else the JetAuto Pro);
     ``scene``, if given, what stands on its table (else the URL's)."""
     q = twin_query(url)
-    if scene is not None and ({"scene"} | _TABLE_KEYS) & set(q):
+    if scene is not None and ({"scene", "arena"} | _TABLE_KEYS) & set(q):
         raise ConfigError(f"{url}: the table is given twice (in the URL and as a scene)")
-    scene = scene if scene is not None else scene_from_query(q)
+    arena = arena_from_query(q) if scene is None and is_arena_query(q) else None
+    if arena is None and _ARENA_KEYS & set(q):
+        raise ConfigError(f"twin URL: {listing(sorted(_ARENA_KEYS & set(q)))} are for the "
+                          "mobile robot's arena (family=arena or arena=FILE)")
+    scene = scene if scene is not None or arena is not None else scene_from_query(q)
     in_url = load_arm_config(q["config"]) if q.get("config") else None
     if config is not None and in_url is not None and replace(in_url, source="") != replace(
             config, source=""):
@@ -137,17 +177,24 @@ def twin_from_url(url: str, baudrate: int = 115200, *, realtime: bool = False,
                           "the wall clock")
     # Unpaced, the twin makes its own simulated clock.
     clock = None if realtime or pace is None else SimClock(step_s=CONTROL_PERIOD_S, pace=pace)
-    return Twin(config, scene, lens=lens_by_name(q.get("lens", "wide")), timing=timing,
+    mobile: dict[str, Any] = {}
+    if arena is not None:
+        mobile = {"arena": arena, "chassis": load_chassis_config(q.get("chassis", "jetauto")),
+                  "slip": None if query_flag(q, "slip", True, "twin URL") else SlipModel.none()}
+    twin = Twin(config, scene, lens=lens_by_name(q.get("lens", "wide")), timing=timing,
                 echo=query_flag(q, "echo", False, "twin URL"), realtime=realtime,
-                clock=clock)
+                clock=clock, **mobile)
+    if not query_flag(q, "lidar_noise", True, "twin URL"):
+        twin.lidar_noise = LidarNoise.none()
+    return twin
 
 
 class TwinTransport(SimTransport):
-    """A transport to a twin's simulated bus, or to a simulated controller board in front
-    of it (``board``); closing it closes the twin."""
+    """A transport to a twin's simulated bus, or to another simulated line of it (``line``:
+    a controller board in front of its servos, its Lidar); closing it closes the twin."""
 
-    def __init__(self, twin: Twin, name: str = "twin", *, board: SimBoard | None = None) -> None:
-        super().__init__(board if board is not None else twin.bus, name)
+    def __init__(self, twin: Twin, name: str = "twin", *, line: SimLine | None = None) -> None:
+        super().__init__(line if line is not None else twin.bus, name)
         self.twin = twin
 
     def close(self) -> None:
@@ -166,7 +213,10 @@ def twin_behind_board(url: str, baudrate: int = 115200, **kwargs: Any) -> TwinTr
     inner, keys = split_board_keys(url)
     twin = twin_from_url(inner, baudrate, **kwargs)
     try:
-        return TwinTransport(twin, name=url, board=board_from_query(twin.bus, keys))
+        board = board_from_query(twin.bus, keys)
+        if twin.mobile is not None:
+            twin.mobile.attach(board)
+        return TwinTransport(twin, name=url, line=board)
     except BaseException:
         twin.close()
         raise

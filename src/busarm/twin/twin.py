@@ -41,13 +41,18 @@ import numpy.typing as npt
 from busarm.arm.camera_mount import CameraMount
 from busarm.arm.config import ArmConfig, load_arm_config
 from busarm.arm.kinematics import ArmKinematics
+from busarm.base.config import ChassisConfig, load_chassis_config
 from busarm.clock import WALL_CLOCK, Clock, SimClock
 from busarm.errors import ConfigError, TwinError
 from busarm.protocol import Command, Request
 from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.servo import ServoParams, SimServo
+from busarm.twin.arena import Arena
+from busarm.twin.arena_model import build_arena_mjcf, floor_texture
 from busarm.twin.boards import board2base, check_boards_fit, scene_textures
 from busarm.twin.lens import LensSpec
+from busarm.twin.lidar import LidarNoise
+from busarm.twin.mobile import MobileBase, SlipModel
 from busarm.twin.model import (
     AS_BUILT_MOUNT_ERROR,
     GRIPPER_TORQUE_NM,
@@ -137,10 +142,18 @@ class Twin:
         clock: SimClock | None = None,
         timing: WireTiming | None = None,
         echo: bool = False,
+        arena: Arena | None = None,
+        chassis: ChassisConfig | None = None,
+        slip: SlipModel | None = None,
     ) -> None:
         self.mujoco = _import_mujoco()
         self.config = config if config is not None else load_arm_config()
-        self.scene = scene if scene is not None else random_scene(0)
+        if arena is not None and scene is not None:
+            raise ConfigError("a twin has an arena (the mobile robot) or a table scene, not both")
+        self.arena = arena
+        """The mobile robot's arena (None: the arm on a table)."""
+        self.chassis = chassis if chassis is not None or arena is None else load_chassis_config()
+        self.scene = scene if scene is not None else Scene() if arena else random_scene(0)
         self.lens = lens if lens is not None else LensSpec()
         self.mount = mount if mount is not None else CameraMount.from_config(
             self.config.camera).offset(*AS_BUILT_MOUNT_ERROR)
@@ -157,11 +170,15 @@ class Twin:
         check_boards_fit(self.scene, cfg.table_z_mm)
         width, height, fovy = self.lens.render_geometry()
         spec = TwinModelSpec(self.mount, fovy, (width, height), textures=tuple(board_textures))
-        self.mjcf = build_mjcf(cfg, self.scene, spec)
+        assets = {name: data for name, data, _w, _h, _pose in board_textures}
+        if arena is None or self.chassis is None:
+            self.mjcf = build_mjcf(cfg, self.scene, spec)
+        else:
+            self.mjcf = build_arena_mjcf(cfg, self.chassis, arena, spec)
+            assets.update([floor_texture(arena)])
         mj = self.mujoco
         try:
-            self.model = mj.MjModel.from_xml_string(
-                self.mjcf, {name: data for name, data, _w, _h, _pose in board_textures})
+            self.model = mj.MjModel.from_xml_string(self.mjcf, assets)
         except ValueError as exc:
             raise TwinError(f"MuJoCo rejected the generated model: {exc}") from exc
         self.data = mj.MjData(self.model)
@@ -191,6 +208,11 @@ class Twin:
 
         # Start: arm at rest in the start pose, servos holding it, blocks settled.
         d = self.data
+        self.lidar_noise = LidarNoise()
+        """What the twin's Lidar adds to the truth (busarm.twin.lidar)."""
+        self.mobile = None if arena is None or self.chassis is None else MobileBase(
+            m, d, self.chassis, arena.start, slip, seed=arena.seed or 0)
+        """The base's coupling to a simulated board (an arena twin only)."""
         for adr, act, angle in zip(self._joint_qpos, self._joint_act, start, strict=True):
             d.qpos[adr] = math.radians(angle)
             d.ctrl[act] = math.radians(angle)
@@ -247,6 +269,11 @@ class Twin:
         # Renderers of threads that did not release theirs: their GL context cannot be
         # made current here, so they are left to the process's exit.
         self._renderers.clear()
+
+    @property
+    def lock(self) -> threading.RLock:
+        """Held while physics steps: hold it to read ``data`` consistently."""
+        return self._lock
 
     @property
     def is_closed(self) -> bool:
@@ -325,6 +352,8 @@ class Twin:
                 ramps.append((self._joint_act[k], start, target,
                               rate * SERVO_KV_NM_S_PER_RAD / SERVO_KP_NM_PER_RAD))
                 self._set_loaded(k, servo.is_loaded)
+            if self.mobile is not None:
+                self.mobile.before_physics(d, now)
             grip = self.servos[-1]
             grip.advance(now)
             d.ctrl[self._grip_act] = self._grip_ctrl(self._half_gap_m(grip.physical_pulses))
@@ -338,6 +367,8 @@ class Twin:
                     d.ctrl[act] = start + (end - start) * done / steps + lead
                 mj.mj_step(m, d, nstep=n)
             self._read_sensors()
+            if self.mobile is not None:
+                self.mobile.after_physics(d)
             for k, servo in enumerate(self.servos):
                 if not self._loaded[k]:
                     continue

@@ -1,0 +1,130 @@
+"""The mobile twin's base: the simulated board's wheels move the chassis, as a floor would.
+
+Every control tick, before physics steps, the wheels' actual speeds (the simulated
+board's speed loops, brought up to now) become the body's twist through the chassis's
+mecanum kinematics; the floor takes less than that (``SlipModel``: a share lost forward,
+more sideways, where mecanum rollers scrub, and in turns, plus a slowly wandering extra
+share), and the chassis's velocity actuators are set to it in the arena's frame. After
+physics, the IMU's gyro reads the chassis's true yaw rate plus a bias, and the encoders
+count the wheels' own turns (with jitter): so odometry from them drifts as a real one
+does, and the twin knows where the robot really is (``pose``, ``path``).
+
+Without a board attached (an arena twin on a plain servo bus) the base stands still.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from dataclasses import dataclass
+from typing import Any
+
+from busarm.base.config import ChassisConfig
+from busarm.base.kinematics import MecanumKinematics
+from busarm.base.odometry import Pose2D, wrap_rad
+from busarm.sim.board import SimBoard
+from busarm.twin.arena import StartPose
+
+PATH_PERIOD_S = 0.05
+"""How often the true path is sampled (for pictures and benchmarks)."""
+MAX_PATH_POINTS = 200_000
+
+
+@dataclass(frozen=True)
+class SlipModel:
+    """How the floor takes the wheels' motion, and the sensors' imperfections.
+
+    Shares are of the motion the wheels' turning would give; the defaults are plausible
+    for rubber mecanum rollers on a hard floor (grade C: not measured on a robot).
+    """
+
+    forward: float = 0.015
+    sideways: float = 0.05
+    turn: float = 0.03
+    jitter: float = 0.01
+    """Standard deviation of the extra share lost, wandering with ``jitter_time_s``."""
+    jitter_time_s: float = 0.5
+    encoder_noise_ticks: float = 2.0
+    gyro_bias_rad_s: float = 0.003
+
+    @classmethod
+    def none(cls) -> SlipModel:
+        """An ideal floor and ideal sensors."""
+        return cls(0.0, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0)
+
+
+class MobileBase:
+    """The chassis's planar joints in a twin's model, driven by an attached SimBoard."""
+
+    def __init__(self, model: Any, data: Any, chassis: ChassisConfig, start: StartPose,
+                 slip: SlipModel | None = None, seed: int = 0) -> None:
+        self.kinematics = MecanumKinematics(chassis)
+        self.slip = slip if slip is not None else SlipModel()
+        self.board: SimBoard | None = None
+        names = ("chassis_x", "chassis_y", "chassis_yaw")
+        joints = [model.joint(name) for name in names]
+        self._qpos = [int(j.qposadr[0]) for j in joints]
+        self._dof = [int(j.dofadr[0]) for j in joints]
+        self._act = [int(model.actuator(name).id) for name in names]
+        self._rng = random.Random(seed)
+        self._jitter = [0.0, 0.0, 0.0]
+        self._last_s: float | None = None
+        self.path: list[tuple[float, float, float]] = []
+        """The true path: (simulated s, x m, y m), every ``PATH_PERIOD_S``."""
+        self._path_due = 0.0
+        for adr, value in zip(self._qpos, (start.x_m, start.y_m, math.radians(start.yaw_deg)),
+                              strict=True):
+            data.qpos[adr] = value
+
+    def attach(self, board: SimBoard) -> None:
+        """Drive the base by ``board``'s wheels; its gyro and encoders become the twin's."""
+        board.imu_follows_wheels = False
+        board.encoder_noise_ticks = self.slip.encoder_noise_ticks
+        self.board = board
+
+    def pose(self, data: Any) -> Pose2D:
+        """Where the chassis really is (arena frame; ground truth)."""
+        x, y, yaw = (float(data.qpos[a]) for a in self._qpos)
+        return Pose2D(x, y, wrap_rad(yaw))
+
+    def speed(self, data: Any) -> tuple[float, float, float]:
+        """The chassis's true velocity: m/s in x, y of the arena, rad/s."""
+        vx, vy, wz = (float(data.qvel[a]) for a in self._dof)
+        return vx, vy, wz
+
+    def before_physics(self, data: Any, now: float) -> None:
+        """Set the chassis's velocity from the wheels at ``now``."""
+        if self.board is None:
+            for act in self._act:
+                data.ctrl[act] = 0.0
+            return
+        dt = 0.0 if self._last_s is None else max(0.0, now - self._last_s)
+        self._last_s = now
+        s = self.slip
+        if s.jitter > 0 and dt > 0:
+            keep = math.exp(-dt / s.jitter_time_s)
+            spread = s.jitter * math.sqrt(1.0 - keep * keep)
+            self._jitter = [j * keep + self._rng.gauss(0.0, spread) for j in self._jitter]
+        motors = self.board.motor_rev_s(now)
+        twist = self.kinematics.twist_from_rev_s(self.kinematics.wheels_from_motors(
+            {k + 1: rev_s for k, rev_s in enumerate(motors)}))
+        jx, jy, jw = (abs(j) for j in self._jitter)
+        vx = twist.vx_m_s * max(0.0, 1.0 - s.forward - jx)
+        vy = twist.vy_m_s * max(0.0, 1.0 - s.sideways - jy)
+        wz = twist.wz_rad_s * max(0.0, 1.0 - s.turn - jw)
+        yaw = float(data.qpos[self._qpos[2]])
+        c, sn = math.cos(yaw), math.sin(yaw)
+        data.ctrl[self._act[0]] = vx * c - vy * sn
+        data.ctrl[self._act[1]] = vx * sn + vy * c
+        data.ctrl[self._act[2]] = wz
+
+    def after_physics(self, data: Any) -> None:
+        """Give the gyro the true yaw rate (plus its bias); sample the path."""
+        if self.board is not None:
+            wz = float(data.qvel[self._dof[2]])
+            self.board.imu_gyro_rad_s = (0.0, 0.0, wz + self.slip.gyro_bias_rad_s)
+        t = float(data.time)
+        if t >= self._path_due and len(self.path) < MAX_PATH_POINTS:
+            p = self.pose(data)
+            self.path.append((t, p.x_m, p.y_m))
+            self._path_due = t + PATH_PERIOD_S
