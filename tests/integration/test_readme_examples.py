@@ -66,6 +66,7 @@ SMALLER = {
         f"{BUSARM} bench vision --pictures 2 --seconds 0.5 ; {BUSARM} bench locate "
         "--placements 20",
     f"{BUSARM} bench dashboard": f"{BUSARM} bench dashboard --seconds 1 --tries 2",
+    f"{BUSARM} bench mobile": f"{BUSARM} bench mobile --squares 1 --scans 2 --seconds 2",
 }
 """README line (without its comment) -> the smaller run of the same commands."""
 INTERACTIVE = {f"{BUSARM} arm calibrate": "y\n" * 4}

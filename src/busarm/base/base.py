@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import threading
+from collections import deque
 from contextlib import suppress
 from dataclasses import dataclass
 from types import TracebackType
@@ -29,7 +30,13 @@ from busarm.base.odometry import Odometry, Pose2D, wrap_rad
 from busarm.bus.board import BoardLink
 from busarm.clock import SimClock
 from busarm.errors import BusArmError, ConfigError
-from busarm.protocol.board import MOTOR_COUNT, ImuSample, MotorSpeeds
+from busarm.protocol.board import (
+    MOTOR_COUNT,
+    BoardReport,
+    ImuSample,
+    MotorEncoders,
+    MotorSpeeds,
+)
 from busarm.units import check_range, range_text
 
 CONTROL_PERIOD_S = 0.02
@@ -52,6 +59,9 @@ SETTLE_S = 2.0
 COMMANDS_STOP_S = 0.3
 """Without encoders, how long ``wait_stopped`` allows the firmware's speed loop to stop
 the wheels (the simulated one takes about 0.25 s from full speed to 1%)."""
+ODOMETRY_PERIOD_S = 0.02
+"""How often the base reads the board's reports when nothing else does."""
+MAX_PENDING_REPORTS = 20_000
 MOVE_MAX_M = 100.0
 MOVE_MAX_DEG = 3600.0
 _INT32 = 2**32
@@ -88,6 +98,10 @@ class Base:
         self._last_ticks: tuple[int, ...] | None = None
         self._integrated_to_s = self.clock.now()
         self._closed = threading.Event()
+        self._reports: deque[tuple[BoardReport, float]] = deque(maxlen=MAX_PENDING_REPORTS)
+        self._gyro, self._gyro_at_s = 0.0, -math.inf
+        self._polled_at_s = self.clock.now()
+        link.add_listener(self._on_report)
         self.odometry_source = self._detect_source()
         self._update()
         self._thread: threading.Thread | None = None
@@ -285,29 +299,48 @@ class Base:
         return "commands"
 
     def _update(self, *, poll: bool = True) -> Odometry:
-        """Fold in what the board has reported (or the commands since the last update)."""
+        """Fold in every report the board has sent since the last update, in order (and
+        with the stock firmware, the commanded speeds up to now)."""
         with self._lock:
-            link = self.link
             if poll:
-                link.poll()
-            r = link.readings
-            gyro = (r.imu.gyro_rad_s[2] if r.imu is not None
-                    and self.clock.now() - r.imu_at_s < IMU_FRESH_S else None)
-            if self.odometry_source == "encoders":
-                if r.encoders is None or r.encoders_at_s <= self._integrated_to_s:
-                    return self._odometry
-                self._count_ticks(r.encoders.ticks)
-                at_s = r.encoders_at_s
-            else:
-                at_s = self.clock.now()
-                wheels = self.kinematics.wheels_from_motors(
-                    {m: link.wheel_targets_rev_s.get(m, 0.0) for m in range(1, MOTOR_COUNT + 1)})
-                dt = max(at_s - self._integrated_to_s, 0.0)
-                self._turns = [t + w * dt for t, w in zip(self._turns, wheels, strict=True)]
-            self._integrated_to_s = at_s
-            turns: WheelSpeeds = (self._turns[0], self._turns[1], self._turns[2], self._turns[3])
-            self._odometry.update(turns, at_s, gyro)
+                self.link.poll()
+            self._fold_reports()
+            if self.odometry_source == "commands":
+                self._fold_commands(self.clock.now())
             return self._odometry
+
+    def _fold_reports(self) -> None:
+        while self._reports:
+            report, at_s = self._reports.popleft()
+            if isinstance(report, ImuSample):
+                self._gyro, self._gyro_at_s = report.gyro_rad_s[2], at_s
+                if self.odometry_source == "commands":
+                    self._fold_commands(at_s)
+            elif isinstance(report, MotorEncoders) and self.odometry_source == "encoders":
+                if at_s > self._integrated_to_s:
+                    self._count_ticks(report.ticks)
+                    self._fold(at_s)
+
+    def _fold_commands(self, at_s: float) -> None:
+        """The wheels' travel from their commanded speeds up to ``at_s``."""
+        wheels = self.kinematics.wheels_from_motors(
+            {m: self.link.wheel_targets_rev_s.get(m, 0.0) for m in range(1, MOTOR_COUNT + 1)})
+        dt = max(at_s - self._integrated_to_s, 0.0)
+        self._turns = [t + w * dt for t, w in zip(self._turns, wheels, strict=True)]
+        self._fold(at_s)
+
+    def _fold(self, at_s: float) -> None:
+        self._integrated_to_s = max(self._integrated_to_s, at_s)
+        gyro = self._gyro if at_s - self._gyro_at_s < IMU_FRESH_S else None
+        # At rest: nothing commanded for long enough that the speed loops have stopped.
+        at_rest = self._command.is_zero and at_s - self._command_at_s > COMMANDS_STOP_S
+        turns: WheelSpeeds = (self._turns[0], self._turns[1], self._turns[2], self._turns[3])
+        self._odometry.update(turns, at_s, gyro, at_rest=at_rest)
+
+    def _on_report(self, report: BoardReport, at_s: float) -> None:
+        """The link's listener: takes note only (it runs with the link in use)."""
+        if isinstance(report, ImuSample | MotorEncoders):
+            self._reports.append((report, at_s))
 
     def _count_ticks(self, ticks: tuple[int, int, int, int]) -> None:
         last, self._last_ticks = self._last_ticks, ticks
@@ -325,23 +358,32 @@ class Base:
         return self.clock.now() > self._deadline_s
 
     def _watch(self) -> None:
-        """The wall clock's watchdog thread."""
-        period_s = self.config.command_timeout_s / 5.0
+        """The wall clock's watchdog thread; it also keeps the odometry up to date (every
+        report folded in while it is fresh, whoever else reads the link or not)."""
+        period_s = min(self.config.command_timeout_s / 5.0, ODOMETRY_PERIOD_S)
         while not self._closed.wait(period_s):
-            if self._expired():
-                with self._lock:
-                    if self._expired():
-                        with suppress(BusArmError):
-                            self._watchdog_stop()
+            with self._lock:
+                with suppress(BusArmError):
+                    self._update()
+                if self._expired():
+                    with suppress(BusArmError):
+                        self._watchdog_stop()
 
     def _on_sim_step(self) -> None:
         """The simulated clock's watchdog: after each step of simulated time. It runs in
         whichever thread waits on the clock, holding the clock: it takes no lock another
         thread may hold while it waits on the clock (it tries the Base's, and writes the
         stop frame on the transport itself, not through the link's lock)."""
-        if not self._expired() or not self._lock.acquire(blocking=False):
+        now = self.clock.now()
+        due = now - self._polled_at_s >= ODOMETRY_PERIOD_S
+        if not (due or self._expired()) or not self._lock.acquire(blocking=False):
             return
         try:
+            if due:  # read the reports as they come, as the wall clock's thread does
+                self._polled_at_s = now
+                with suppress(BusArmError):
+                    self.link.poll_if_idle()
+                self._fold_reports()
             if self._expired():
                 self._integrate_commands_to_now()
                 stop = MotorSpeeds(tuple((m, 0.0) for m in range(1, MOTOR_COUNT + 1)))

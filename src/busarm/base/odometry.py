@@ -15,7 +15,11 @@ from dataclasses import dataclass
 from busarm.base.kinematics import MecanumKinematics, Twist, WheelSpeeds
 
 STILL_M = 1e-5
-"""Wheel travel (m) below which, over one update, the base is taken to stand still."""
+"""Wheel travel (m) below which, over one update, the base is taken to stand still..."""
+TWIST_SMOOTHING_S = 0.05
+"""The velocity estimate's time constant."""
+STILL_TICKS = 3
+"""... or below this many encoder counts, if more (a count may dither at rest)."""
 BIAS_GAIN = 0.05
 """How much of the gyro's reading while still goes into its bias at each update."""
 
@@ -60,6 +64,10 @@ class Odometry:
         self.twist = Twist()
         """The latest velocity estimate, in the base's frame."""
         self.gyro_bias_rad_s = 0.0
+        cfg = kinematics.config
+        # Still: less than STILL_TICKS of travel (an encoder at rest can dither by a count).
+        self._still_m = max(STILL_M, STILL_TICKS / cfg.encoder_ticks_per_rev
+                            * cfg.wheel_circumference_m)
         self._turns: WheelSpeeds | None = None
         self._gyro: float | None = None
         self._at_s: float | None = None
@@ -70,9 +78,11 @@ class Odometry:
         self.twist = Twist()
 
     def update(self, wheel_turns: WheelSpeeds, t_s: float,
-               gyro_z_rad_s: float | None = None) -> Pose2D:
+               gyro_z_rad_s: float | None = None, *, at_rest: bool | None = None) -> Pose2D:
         """Take each wheel's total turns so far (revolutions, positive forward) at time
-        ``t_s``, and the gyro's yaw rate then if there is one; return the new pose."""
+        ``t_s``, and the gyro's yaw rate then if there is one; return the new pose.
+        ``at_rest``: whether the base is known to stand (nothing commanded); None: judged
+        from the wheels alone. The gyro's bias is learnt only while at rest and still."""
         last, last_gyro, last_t = self._turns, self._gyro, self._at_s
         self._turns, self._gyro, self._at_s = wheel_turns, gyro_z_rad_s, t_s
         if last is None or last_t is None or t_s <= last_t:
@@ -85,9 +95,15 @@ class Odometry:
         dyaw = moved.wz_rad_s  # the wheels' own heading change (a displacement here)
         if gyro_z_rad_s is not None:
             rate = gyro_z_rad_s if last_gyro is None else (gyro_z_rad_s + last_gyro) / 2.0
-            if max(abs(d) for d in travel) < STILL_M:
+            if at_rest is not False and max(abs(d) for d in travel) < self._still_m:
                 self.gyro_bias_rad_s += BIAS_GAIN * (rate - self.gyro_bias_rad_s)
             dyaw = (rate - self.gyro_bias_rad_s) * dt
         self.pose = self.pose.moved_by(moved.vx_m_s, moved.vy_m_s, dyaw)
-        self.twist = Twist(moved.vx_m_s / dt, moved.vy_m_s / dt, dyaw / dt)
+        # Smoothed over about TWIST_SMOOTHING_S: one update's travel is a few encoder
+        # counts, and a count more or less is a speed of several mm/s.
+        k = dt / (TWIST_SMOOTHING_S + dt)
+        old = self.twist
+        self.twist = Twist(old.vx_m_s + k * (moved.vx_m_s / dt - old.vx_m_s),
+                           old.vy_m_s + k * (moved.vy_m_s / dt - old.vy_m_s),
+                           old.wz_rad_s + k * (dyaw / dt - old.wz_rad_s))
         return self.pose

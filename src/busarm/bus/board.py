@@ -20,6 +20,8 @@ import math
 import struct
 import threading
 from collections import deque
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 from busarm.bus.transport import Transport
@@ -98,6 +100,9 @@ class BoardLink:
         """What each wheel motor was last told on this link (rev/s), by motor number."""
         self._parser = BoardFrameParser(max_data_len=REPORT_MAX_DATA)
         self._lock = threading.RLock()
+        self._depth = 0  # how deep the link is in use (its lock is re-entrant)
+        self._listeners: list[Callable[[BoardReport, float], None]] = []
+        self._last_report_s = -math.inf
         self._host_byte_s = 10.0 / transport.baudrate
         self.servo_byte_s = 10.0 / SERVO_LINE_BAUDRATE
         self._attempt_s = {sub: self._attempt_deadline_s(sub) for sub in READ_FORMATS}
@@ -107,7 +112,7 @@ class BoardLink:
     def write(self, request: BoardRequest) -> None:
         """Send one request (encoded first: a bad value raises before anything is sent)."""
         data = request.encode()
-        with self._lock:
+        with self._held():
             self.transport.write(data)
 
     def set_motor_speeds(self, speeds_rev_s: dict[int, float]) -> None:
@@ -176,7 +181,7 @@ class BoardLink:
         attempts = (self.retries if retries is None else retries) + 1
         problems: list[str] = []
         garbled = False
-        with self._lock:
+        with self._held():
             for _ in range(attempts):
                 self.poll()  # what came before is not the answer: keep its reports
                 damaged_before = self._damaged()
@@ -227,20 +232,46 @@ class BoardLink:
         raise BusTimeoutError(text, servo_id=servo_id, command=int(LX_COMMANDS[sub]),
                               timeout_s=self.attempt_s(sub))
 
+    @contextmanager
+    def _held(self) -> Iterator[None]:
+        with self._lock:
+            self._depth += 1
+            try:
+                yield
+            finally:
+                self._depth -= 1
+
+    def add_listener(self, listener: Callable[[BoardReport, float], None]) -> None:
+        """Call ``listener(report, at_s)`` for every report the board sends, in order,
+        whoever reads it (a servo read, a poll): odometry must see every encoder and IMU
+        report, not only the latest. It runs with the link in use: it must only take note
+        (no lock another thread may hold, no link call)."""
+        self._listeners.append(listener)
+
+    def poll_if_idle(self) -> list[BoardReport] | None:
+        """``poll()`` unless the link is in use, by another thread or by this one further
+        up its stack (a callback run while it waits on a simulated clock): None then."""
+        if not self._lock.acquire(blocking=False):
+            return None
+        try:
+            return None if self._depth else self.poll()
+        finally:
+            self._lock.release()
+
     def poll(self, timeout_s: float = 0.0) -> list[BoardReport]:
         """Read what the board has sent (waiting up to ``timeout_s`` for the first bytes);
         keep its reports; return them."""
         out: list[BoardReport] = []
-        with self._lock:
-            chunk = self.transport.read(_READ_CHUNK, timeout_s)
-            taken = 0
+        with self._held():
+            chunks = [self.transport.read(_READ_CHUNK, timeout_s)]
+            taken = len(chunks[0])
             # Bounded: a board reporting faster than this loop parses must not hold it.
-            while chunk and taken < _POLL_MAX_BYTES:
-                out += self._take(chunk)
-                taken += len(chunk)
-                chunk = self.transport.read(_READ_CHUNK, 0.0)
-            if chunk:
-                out += self._take(chunk)
+            while chunks[-1] and taken < _POLL_MAX_BYTES:
+                chunks.append(self.transport.read(_READ_CHUNK, 0.0))
+                taken += len(chunks[-1])
+            # Parsed as one: chunks read at one instant are dated back together (each
+            # dated on its own, a full chunk's last frame would be dated after the next's).
+            out += self._take(b"".join(chunks))
             # No read waits while polling: a servo reply here is a late or stray one.
             self.readings.stray_replies += sum(isinstance(r, ServoReply) for r in out)
         return out
@@ -269,7 +300,7 @@ class BoardLink:
     def key_events(self) -> list[KeyEvent]:
         """The board's button presses since the last call."""
         self.poll()
-        with self._lock:
+        with self._held():
             keys = list(self.readings.keys)
             self.readings.keys.clear()
         return keys
@@ -277,7 +308,7 @@ class BoardLink:
     def _next_report(self, kind: type, what: str, timeout_s: float) -> BoardReport:
         """The next report of ``kind`` the board sends (``object``: any)."""
         check_range("timeout_s", timeout_s, 0.0, 60.0, "s")
-        with self._lock:
+        with self._held():
             before = self.readings.reports
             deadline = self.clock.now() + timeout_s
             while True:
@@ -297,18 +328,30 @@ class BoardLink:
         out: list[BoardReport] = []
         r = self.readings
         now = self.clock.now()
-        for frame in self._parser.feed(chunk):
+        frames = self._parser.feed(chunk)
+        # Frames read together came one after another: each is dated back by the line time
+        # of those behind it (a long read would otherwise stamp a burst all at once).
+        byte_s = 10.0 / self.transport.baudrate if self.transport.baudrate else 0.0
+        behind = [0] * len(frames)
+        for k in range(len(frames) - 2, -1, -1):
+            behind[k] = behind[k + 1] + len(frames[k + 1].data) + FRAME_OVERHEAD
+        for frame, after in zip(frames, behind, strict=True):
             try:
                 report = decode_report(frame)
             except ProtocolError:
                 continue  # a frame no board sends: noise that happened to pass the CRC
+            # Never before the last report: a read cut short by its size leaves the rest
+            # of a burst to the next read, at the same instant, dated back less far.
+            at = self._last_report_s = max(now - after * byte_s, self._last_report_s)
+            for listener in self._listeners:
+                listener(report, at)
             r.reports += 1
             if isinstance(report, ImuSample):
-                r.imu, r.imu_at_s = report, now
+                r.imu, r.imu_at_s = report, at
             elif isinstance(report, Battery):
-                r.battery_v, r.battery_at_s = report.voltage_v, now
+                r.battery_v, r.battery_at_s = report.voltage_v, at
             elif isinstance(report, MotorEncoders):
-                r.encoders, r.encoders_at_s = report, now
+                r.encoders, r.encoders_at_s = report, at
             elif isinstance(report, KeyEvent):
                 r.keys.append(report)
             out.append(report)

@@ -28,6 +28,7 @@ if TYPE_CHECKING:
     from busarm.bench.dashboard import DashboardBenchReport
     from busarm.bench.ik import IkBenchReport
     from busarm.bench.locate import LocateBenchReport
+    from busarm.bench.mobile import MobileBenchReport
     from busarm.bench.pick import PickBenchReport
     from busarm.bench.vision import VisionBenchReport
 
@@ -424,3 +425,78 @@ def _print_pick(settings: Settings, report: PickBenchReport) -> None:
         + ("" if report.clock == "wall" else
            f" ({_verdict(report.speedup >= TARGET_SPEEDUP)} "
            f">= {TARGET_SPEEDUP:g}x)"))
+
+
+@bench.command("mobile")
+@click.option("--squares", type=click.IntRange(1, 100), default=5, show_default=True,
+              help="2 m squares driven (each with its own slip noise seed).")
+@click.option("--scans", type=click.IntRange(1, 1000), default=20, show_default=True,
+              help="Lidar scans compared with the ray-cast truth (noise off, then on).")
+@click.option("--seconds", type=click.FloatRange(1.0, 600.0), default=20.0, show_default=True,
+              help="Simulated seconds of the real-time run.")
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
+              help="Seed of the arenas and of the first square's noise.")
+@click.option("--png", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Also draw the first square: the true path and the odometry's.")
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
+@pass_settings
+@no_servos
+def bench_mobile(settings: Settings, squares: int, scans: int, seconds: float, seed: int,
+                 png: Path | None, as_json: bool) -> None:
+    """The mobile twin (base, Lidar, arm and camera in an arena) against its ground truth.
+
+    Odometry: 2 m squares by move_by with wheel slip on; the Lidar: every beam against the
+    ray-cast truth; speed: driving, arm moving, camera at 10 fps and Lidar, in simulated
+    seconds per wall second. About a minute.
+    """
+    from busarm.bench.mobile import run_mobile_bench
+
+    report = run_mobile_bench(squares=squares, scans=scans, seconds=seconds, seed=seed,
+                              picture=png,
+                              progress=lambda text: settings.err.print(text, highlight=False))
+    _judged(settings, as_json, report.to_dict(), lambda shown: _print_mobile(shown, report))
+
+
+def _print_mobile(settings: Settings, report: MobileBenchReport) -> None:
+    from busarm.bench.mobile import (
+        SIDE_M,
+        TARGET_HEADING_DEG,
+        TARGET_LIDAR_HZ,
+        TARGET_LIDAR_M,
+        TARGET_POSITION_SHARE,
+        TARGET_REALTIME,
+    )
+
+    m = report.machine
+    out = settings.out
+    out.print(f"[bold]busarm bench mobile[/] (twin, slip and sensor noise on)\n"
+              f"machine: {m['cpu']}, {m['cores']} cores, Python {m['python']}, {m['os']}")
+    table = Table(title=f"odometry: {SIDE_M:g} m squares by move_by (encoders + IMU)")
+    for col in ("seed", "driven", "position error", "share", "heading error"):
+        table.add_column(col, justify="right")
+    for run in report.squares:
+        table.add_row(str(run.seed), f"{run.driven_m:g} m", f"{run.position_error_m * 100:.1f} cm",
+                      f"{run.position_share:.2%} "
+                      f"{_verdict(run.position_share <= TARGET_POSITION_SHARE)}",
+                      f"{run.heading_error_deg:.2f} deg "
+                      f"{_verdict(run.heading_error_deg <= TARGET_HEADING_DEG)}")
+    out.print(table)
+    out.print(f"targets: position <= {TARGET_POSITION_SHARE:.0%} of the distance, heading <= "
+              f"{TARGET_HEADING_DEG:g} deg"
+              + (f"; picture of seed {report.squares[0].seed}: {report.picture}"
+                 if report.picture else ""))
+    a, r = report.lidar, report.realtime
+    out.print(f"Lidar (seeded arena {a.seed}, robot standing, {a.scans} scans, {a.beams} beams "
+              f"with a surface in reach): noise off, largest error {a.max_error_m * 1000:.2f} mm "
+              f"({_verdict(a.max_error_m <= TARGET_LIDAR_M)} <= {TARGET_LIDAR_M * 1000:g} mm); "
+              f"noise on, residual RMS {a.sigma_ratio:.2f} x the model's sigma, dropouts "
+              f"{a.dropout_share:.1%}")
+    out.print(f"real time: {r.sim_s:.1f} simulated s in {r.wall_s:.1f} s: {r.factor:.1f}x "
+              f"({_verdict(r.factor >= TARGET_REALTIME)} >= {TARGET_REALTIME:g}x) with the base "
+              f"driving, the arm moving, the wrist camera streamed {r.camera_fps:.1f} frames "
+              f"and the Lidar {r.lidar_hz:.1f} scans a simulated second "
+              f"({_verdict(r.lidar_hz >= TARGET_LIDAR_HZ)} >= {TARGET_LIDAR_HZ:g} Hz)")
+    v = report.realtime_vision
+    out.print(f"with the camera drawn as vision's pictures (antialiased) instead: "
+              f"{v.factor:.1f}x ({v.camera_fps:.1f} frames, {v.lidar_hz:.1f} scans a "
+              "simulated second)")

@@ -624,6 +624,22 @@ def alarm_names(mask: AlarmFlag) -> str:
     return ", ".join(names) or "none"
 
 
+def lidar_port_or_default(given: str | None) -> str:
+    """--lidar if given, else the Lidar of a running ``twin serve --arena``, else the
+    simulated A1 in this process."""
+    from busarm.cli.sessions import running_sessions
+    from busarm.lidar.rplidar import SIM_LIDAR
+
+    if given:
+        return given
+    session = next((s for s in running_sessions() if s.lidar), None)
+    if session is None or session.lidar is None:
+        return SIM_LIDAR
+    click.echo(f"note: no --lidar given: using the Lidar of `busarm {session.kind} serve` "
+               f"(pid {session.pid}) on {session.lidar}", err=True)
+    return session.lidar
+
+
 def serve_until_stopped(server: PtyServer) -> None:
     """Serve until SIGINT or SIGTERM, then stop the server (which powers the servos off)."""
     restore = interrupt_on_signals()

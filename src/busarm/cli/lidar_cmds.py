@@ -13,7 +13,7 @@ from pathlib import Path
 
 import click
 
-from busarm.cli.common import RangeType, serve_until_stopped
+from busarm.cli.common import RangeType, lidar_port_or_default, serve_until_stopped
 
 LIDAR_OPTION = click.option(
     "--lidar", "lidar_port", default=None, envvar="BUSARM_LIDAR",
@@ -21,16 +21,6 @@ LIDAR_OPTION = click.option(
          "or $BUSARM_LIDAR); lidar://sim[?hz=10] for the simulated A1 in a room, or "
          "twin://?family=arena[&seed=N] for a twin's, in this process. [default: the Lidar "
          "of a running `busarm twin serve --arena`, else lidar://sim]")
-
-
-def lidar_port_or_default(given: str | None) -> str:
-    """--lidar if given, else a running twin's Lidar, else the simulated A1."""
-    from busarm.cli.sessions import running_sessions
-    from busarm.lidar.rplidar import SIM_LIDAR
-
-    if given:
-        return given
-    return next((s.lidar for s in running_sessions() if s.lidar), SIM_LIDAR)
 
 
 @click.group()

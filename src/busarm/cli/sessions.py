@@ -55,8 +55,10 @@ class Session:
     """The Lidar's serial port (a pty path) of a twin with an arena; else None."""
 
     def describe(self) -> str:
-        """``the arm of `busarm sim serve` (pid 1234) on /dev/pts/7``."""
-        return f"the arm of `busarm {self.kind} serve` (pid {self.pid}) on {self.port}"
+        """``the arm of `busarm sim serve` (pid 1234) on /dev/pts/7`` (``the robot of``
+        a twin with an arena: it has a base and a Lidar too)."""
+        what = "robot" if self.lidar else "arm"
+        return f"the {what} of `busarm {self.kind} serve` (pid {self.pid}) on {self.port}"
 
 
 def runtime_dir() -> Path:

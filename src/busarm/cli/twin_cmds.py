@@ -175,7 +175,7 @@ def snapshot(ctx: click.Context, scene_file: Path | None, seed: int | None, bloc
             name) is not click.core.ParameterSource.DEFAULT]
         if given:
             raise ConfigError(f"--arena draws the arena from above: {', '.join(given)} "
-                              "do not apply to it")
+                              f"{'does' if len(given) == 1 else 'do'} not apply to it")
         _arena_snapshot(_arena(arena_spec), png, config)
         return
 
@@ -242,8 +242,9 @@ def _arena_snapshot(arena: Arena, png: Path, config: str) -> None:
         picture = arena_picture(tw, scan=one, title=f"{arena.name}, seen from above")
     caption = (f"busarm twin snapshot --arena: {arena.source} ({len(arena.tables)} tables, "
                f"{len(arena.boxes)} boxes, {len(arena.blocks)} blocks, "
-               f"{len(arena.lines)} taped line(s)), room {arena.room.size_m[0]:g} x "
-               f"{arena.room.size_m[1]:g} m; {datetime.now().astimezone():%Y-%m-%d %H:%M:%S %Z}")
+               f"{len(arena.lines)} taped line{'' if len(arena.lines) == 1 else 's'}), room "
+               f"{arena.room.size_m[0]:g} x {arena.room.size_m[1]:g} m; "
+               f"{datetime.now().astimezone():%Y-%m-%d %H:%M:%S %Z}")
     picture = with_caption(picture, [caption])
     save_image(png, picture)
     click.echo(f"wrote {png}: the arena from above ({picture.shape[1]}x{picture.shape[0]}): "

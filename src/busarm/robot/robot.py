@@ -53,6 +53,7 @@ from busarm.robot.calibration_store import CalibrationStore, MadeFor, StaleCalib
 from busarm.robot.lidar_port import open_any_lidar, twin_lidar
 from busarm.robot.locate import NOT_BLOCK_COLORS, BlockLocator
 from busarm.robot.twin_calibration import TwinCalibration, calibrate_twin_camera
+from busarm.twin.arena import Arena
 from busarm.twin.camera import TwinCamera
 from busarm.twin.scene import Scene
 from busarm.twin.transport import TwinTransport, is_twin_url, twin_behind_board, twin_from_url
@@ -141,7 +142,7 @@ class Robot:
              scene: Scene | None = None, needs: Collection[str] = (),
              baudrate: int = DEFAULT_BAUDRATE, progress: Progress = quiet,
              chassis: ChassisConfig | str | Path | None = None, lidar: str | None = None,
-             **bus_options: Any) -> Robot:
+             arena: Arena | None = None, **bus_options: Any) -> Robot:
         """Open the robot on ``port`` (see the module docstring).
 
         ``camera``: a camera source (default on a twin: its wrist camera; ``twin`` there
@@ -150,7 +151,8 @@ class Robot:
         if given. ``calibration_store``: when neither file is given, the calibration
         kept there (refused if stale; on a twin made into it when missing or stale).
         ``board``: on a twin, lay this calibration board on its table;
-        ``scene``: what stands on a twin's table (else the URL's). ``needs``: what the job
+        ``scene``: what stands on a twin's table (else the URL's); ``arena``: a twin's
+        arena, the mobile robot's world (else the URL's). ``needs``: what the job
         cannot do without (``camera``, ``camera_calibration``, ``bins``), checked before
         the port is opened (after a device path is checked to exist). ``bus_options`` go
         to ``ServoBus`` (echo, retries, timeout_margin_s). Everything is checked before the
@@ -164,9 +166,9 @@ class Robot:
         behind = board_target(port)  # the twin behind a simulated controller board
         twin_port = behind if behind is not None and is_twin_url(behind) else port
         on_twin = is_twin_url(twin_port)
-        if scene is not None and not on_twin:
-            raise ConfigError(f"a scene is for the twin; {port} is not one (use --port twin, "
-                              "or no --port)")
+        if (scene is not None or arena is not None) and not on_twin:
+            raise ConfigError(f"a scene or an arena is for the twin; {port} is not one (use "
+                              "--port twin, or no --port)")
         if calibration_store is not None and calibration_dir is not None:
             raise ConfigError("give a calibration_store or a calibration_dir, not both")
         store = calibration_store if intrinsics is None and hand_eye is None else None
@@ -182,10 +184,11 @@ class Robot:
         if on_twin:  # the arm is the twin's (its URL's config=, if the program gave none)
             url = with_board(twin_port, board) if board else twin_port
             if twin_port is behind:
-                transport = twin_behind_board(url, baudrate, config=given, scene=scene)
+                transport = twin_behind_board(url, baudrate, config=given, scene=scene,
+                                              arena=arena)
                 twin = transport.twin
             else:
-                twin = twin_from_url(url, baudrate, config=given, scene=scene)
+                twin = twin_from_url(url, baudrate, config=given, scene=scene, arena=arena)
                 transport = TwinTransport(twin)
             cfg = twin.config
         else:

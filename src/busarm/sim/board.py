@@ -48,7 +48,7 @@ from busarm.protocol.board import (
     decode_request,
 )
 from busarm.protocol.commands import SPECS
-from busarm.sim.bus import SimBus, WireTiming
+from busarm.sim.bus import DUE_EPS_S, SimBus, WireTiming
 from busarm.sim.transport import SimTransport, query_flag, query_float, sim_bus_from_url
 from busarm.units import check_range
 
@@ -71,7 +71,6 @@ TX_QUEUE_S = 0.002
 for the line is skipped, so reports asked for faster than the line carries cost reports,
 not a backlog that delays every reply behind it."""
 _MAX_CATCH_UP_S = 0.2  # streams restart from now after a longer gap, not with a burst
-_EPS_S = 1e-9  # "due now": a simulated clock may stop a rounding error short of a time
 
 
 @dataclass
@@ -187,7 +186,7 @@ class SimBoard:
     def pop_output(self, max_bytes: int | None = None) -> bytes:
         """The bytes due on the host's side by now."""
         with self._lock:
-            now = self.clock.now() + _EPS_S
+            now = self.clock.now() + DUE_EPS_S
             self._pump(now)
             out = bytearray()
             while self._out and self._out[0][0] <= now:
@@ -203,7 +202,7 @@ class SimBoard:
     def next_output_at(self) -> float | None:
         """When something is next due: a reply, a report, or a servo's answer to relay."""
         with self._lock:
-            self._pump(self.clock.now() + _EPS_S)
+            self._pump(self.clock.now() + DUE_EPS_S)
             due = [t for t in self._next.values() if not self.faults.silent and t > 0]
             if self._out:
                 due.append(self._out[0][0])

@@ -115,12 +115,17 @@ def _uart_bytes(line: list[int]) -> bytes:
     return bytes(out)
 
 
+DUE_EPS_S = 1e-9
+"""Bytes due this close after now count as due: a simulated clock may stop a rounding
+error short of a time, and a reader waiting for them would then wait for nothing."""
+
+
 def pop_due(queue: list[tuple[float, bytes]], now: float, max_bytes: int | None = None
             ) -> bytes:
     """Take from ``queue`` (due time, bytes; in time order) the bytes due by ``now``, at
     most ``max_bytes`` (the rest of a cut item stays at its place)."""
     out = bytearray()
-    while queue and queue[0][0] <= now:
+    while queue and queue[0][0] <= now + DUE_EPS_S:
         when, data = queue.pop(0)
         if max_bytes is not None and len(out) + len(data) > max_bytes:
             keep = max_bytes - len(out)

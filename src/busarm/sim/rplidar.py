@@ -48,7 +48,8 @@ from busarm.units import check_range, listing
 
 World = Callable[[float], float]
 """Bearing (rad, counter-clockwise from the Lidar's forward axis) -> range (m); inf or
-NaN where nothing is in reach."""
+NaN where nothing is in reach. A world that also has ``ranges(bearings) -> ranges`` is
+asked for each batch of nodes at once (a ray caster casts them together)."""
 
 A1_SAMPLE_HZ = 2000.0
 """The A1's standard-scan sample rate."""
@@ -171,15 +172,27 @@ class SimRplidar:
 
     def node(self, index: int) -> Node:
         """The node with global index ``index`` (the same every revolution)."""
-        k = index % self.nodes_per_rev
+        return self._nodes([index])[0]
+
+    def _nodes(self, indices: list[int]) -> list[Node]:
+        """The nodes of these global indices, their ranges asked of the world together
+        when it can answer several bearings at once (``ranges``: one ray cast for all)."""
+        ks = [index % self.nodes_per_rev for index in indices]
         # Clockwise on the wire: wire angle a is bearing -a in the Lidar's own frame.
-        wire_rad = 2.0 * math.pi * k / self.nodes_per_rev
-        exact = node_from_si(k == 0, GOOD_QUALITY, wire_rad, 1.0)
-        bearing_rad = -math.radians(exact.angle_q6 / 64.0)
-        range_m = float(self.world(bearing_rad))
-        if not (math.isfinite(range_m) and A1_RANGE_MIN_M <= range_m <= A1_RANGE_MAX_M):
-            return Node(k == 0, 0, exact.angle_q6, 0)
-        return node_from_si(k == 0, GOOD_QUALITY, wire_rad, range_m)
+        wires = [2.0 * math.pi * k / self.nodes_per_rev for k in ks]
+        exact = [node_from_si(k == 0, GOOD_QUALITY, w, 1.0) for k, w in zip(ks, wires,
+                                                                              strict=True)]
+        bearings = [-math.radians(e.angle_q6 / 64.0) for e in exact]
+        batch = getattr(self.world, "ranges", None)
+        ranges = batch(bearings) if batch is not None else [self.world(b) for b in bearings]
+        out = []
+        for k, wire, e, range_m in zip(ks, wires, exact, ranges, strict=True):
+            range_m = float(range_m)
+            if not (math.isfinite(range_m) and A1_RANGE_MIN_M <= range_m <= A1_RANGE_MAX_M):
+                out.append(Node(k == 0, 0, e.angle_q6, 0))
+            else:
+                out.append(node_from_si(k == 0, GOOD_QUALITY, wire, range_m))
+        return out
 
     # ------------------------------------------------------------------ internals
 
@@ -211,14 +224,15 @@ class SimRplidar:
         oldest = due_last - int(MAX_BACKLOG_S * self.sample_hz)
         self._next_node = max(self._next_node, oldest)
         chunk = bytearray()
-        while self._next_node <= due_last:
+        indices = list(range(self._next_node, due_last + 1))
+        for node in self._nodes(indices) if indices else []:
             if self._pending_garbage:
                 chunk += self._pending_garbage
                 self._pending_garbage = b""
             if self.garbage_rate and self._rng.random() < self.garbage_rate:
                 chunk += self._rng.randbytes(self._rng.randint(1, 6))
-            chunk += self.node(self._next_node).encode()
-            self._next_node += 1
+            chunk += node.encode()
+        self._next_node = max(self._next_node, due_last + 1)
         if chunk:
             self._schedule(self._node_time(due_last), bytes(chunk))
 

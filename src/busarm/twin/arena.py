@@ -176,7 +176,8 @@ def check_arena(arena: Arena) -> None:
     for kind, solids in (("table", arena.tables), ("box", arena.boxes)):
         for i, s in enumerate(solids):
             name = f"{kind} {i}"
-            for key, lo, hi in (("size_x_m", 0.02, 10.0), ("size_y_m", 0.02, 10.0),
+            for key, lo, hi in (("x_m", -100.0, 100.0), ("y_m", -100.0, 100.0),
+                                ("size_x_m", 0.02, 10.0), ("size_y_m", 0.02, 10.0),
                                 ("height_m", *HEIGHT_M), ("yaw_deg", -360.0, 360.0)):
                 _number(arena, f"{name} {key}", getattr(s, key), lo, hi,
                         "deg" if key == "yaw_deg" else "m")
@@ -184,7 +185,9 @@ def check_arena(arena: Arena) -> None:
             floor.append((name, s.footprint()))
     _check_blocks(arena, floor)
     start = arena.start
-    _number(arena, "start yaw_deg", start.yaw_deg, -360.0, 360.0, "deg")
+    for key, lo, hi, unit in (("x_m", -100.0, 100.0, "m"), ("y_m", -100.0, 100.0, "m"),
+                              ("yaw_deg", -360.0, 360.0, "deg")):
+        _number(arena, f"start {key}", getattr(start, key), lo, hi, unit)
     robot = Footprint.disc(start.x_m * 1000, start.y_m * 1000, ROBOT_RADIUS_M * 2000)
     _inside_room(arena, "the robot at its start", robot)
     floor.append(("the robot at its start", robot))
@@ -198,6 +201,9 @@ def _check_blocks(arena: Arena, floor: list[tuple[str, Footprint]]) -> None:
         name = f"block {i}"
         if b.color not in COLORS:
             raise _fail(arena, f"{name} color {b.color!r}; allowed: {', '.join(COLORS)}")
+        # Its place too: a nan would pass every comparison with its table.
+        _number(arena, f"{name} x_m", b.x_m, -100.0, 100.0, "m")
+        _number(arena, f"{name} y_m", b.y_m, -100.0, 100.0, "m")
         _number(arena, f"{name} size_mm", b.size_mm, *BLOCK_SIZE_MM, "mm")
         _number(arena, f"{name} yaw_deg", b.yaw_deg, -360.0, 360.0, "deg")
         fp = b.footprint()
@@ -326,6 +332,7 @@ def arena_from_toml(text: str, source: str = "<string>") -> Arena:
 
 
 def load_arena(path: str | Path) -> Arena:
+    """Read and check the arena file at ``path``."""
     data, source = load_toml(Path(path), what="arena", package="busarm.twin", shipped=())
     return _Reader(source).arena(data)
 

@@ -9,7 +9,8 @@ the wheels' slip is modelled in software instead (busarm.twin.mobile).
 
 Collision bits: the floor and things on it are ``object`` (contype 1); things the chassis
 can hit (walls, tables, boxes, blocks) also carry bit 8, which only the chassis listens
-to, so the chassis slides over the floor without touching it and hits everything else.
+to, so the chassis slides over the floor without touching it and hits everything else;
+boxes listen only to the chassis, the arm and blocks (``BOX_HIT``).
 Tape is printed on the floor's texture (no geoms: a frame costs no more). Body
 names: ``chassis``, ``box<i>`` (mocap: the twin can move it), ``block<i>``; geoms
 ``wall0``..``wall3``, ``table<i>``, ``box<i>``; the site ``lidar``; cameras ``overview``
@@ -49,7 +50,13 @@ FLOOR_RGB = (0.74, 0.72, 0.68)
 FLOOR_M_PER_PX = 0.0025
 FLOOR_MAX_PX = 4096
 HIT = 'contype="9" conaffinity="1"'
-"""Things the chassis collides with (see the module docstring)."""
+"""Static things the chassis collides with (see the module docstring)."""
+BLOCK_HIT = 'contype="25" conaffinity="1"'
+"""Blocks: also bit 16, which the boxes listen to."""
+BOX_HIT = 'contype="8" conaffinity="18"'
+"""Boxes (moved by the twin): hit by the chassis (8), the arm (2) and blocks (16), never
+paired with the floor or the walls (a box is placed, not simulated: pairs that never
+matter cost a third of a step)."""
 
 
 def arena_view_extent_m(arena: Arena) -> float:
@@ -74,12 +81,13 @@ def _yaw_quat(yaw_rad: float) -> tuple[float, float, float, float]:
     return math.cos(yaw_rad / 2), 0.0, 0.0, math.sin(yaw_rad / 2)
 
 
-def _solid_geom(name: str, solid: Solid, material: str, pos_z: float | None = None) -> str:
+def _solid_geom(name: str, solid: Solid, material: str, pos_z: float | None = None,
+                hit: str = HIT) -> str:
     half = (solid.size_x_m / 2, solid.size_y_m / 2, solid.height_m / 2)
     yaw = math.radians(solid.yaw_deg)
     pos = (solid.x_m, solid.y_m, solid.height_m / 2) if pos_z is None else (0, 0, pos_z)
     quat = "" if pos_z is not None else f' quat="{_fmt(_yaw_quat(yaw))}"'
-    return (f'    <geom name="{name}" class="object" {HIT} type="box" material="{material}" '
+    return (f'    <geom name="{name}" class="object" {hit} type="box" material="{material}" '
             f'pos="{_fmt(pos)}"{quat} size="{_fmt(half)}"/>')
 
 
@@ -138,7 +146,7 @@ def _things(arena: Arena) -> list[str]:
         yaw = math.radians(box.yaw_deg)
         out += [f'    <body name="box{i}" mocap="true" pos="{_fmt((box.x_m, box.y_m, 0))}" '
                 f'quat="{_fmt(_yaw_quat(yaw))}">',
-                "  " + _solid_geom(f"box{i}", box, "box", pos_z=box.height_m / 2),
+                "  " + _solid_geom(f"box{i}", box, "box", box.height_m / 2, BOX_HIT),
                 '    </body>']
     for i, block in enumerate(arena.blocks):
         half = block.size_mm / 2000
@@ -147,7 +155,7 @@ def _things(arena: Arena) -> list[str]:
         out += [f'    <body name="block{i}" pos="{_fmt(pos)}" '
                 f'quat="{_fmt(_yaw_quat(yaw))}">',
                 f'      <freejoint name="block{i}"/>',
-                f'      <geom name="block{i}" class="object" {HIT} type="box" '
+                f'      <geom name="block{i}" class="object" {BLOCK_HIT} type="box" '
                 f'material="{block.color}" size="{_fmt((half, half, half))}" '
                 f'mass="{0.74 * (block.size_mm / 10) ** 3 / 1000:.6g}"/>',
                 '    </body>']

@@ -17,7 +17,7 @@ by the same driver as a real one (busarm.lidar.rplidar).
 from __future__ import annotations
 
 import math
-import random
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -64,12 +64,10 @@ class TwinLidarWorld:
                               "with family=arena or arena=FILE")
         self.twin = twin
         self.noise = noise if noise is not None else LidarNoise()
-        self._rng = random.Random(seed)
+        self._np_rng = np.random.default_rng(seed)
         self._site = twin.model.site("lidar").id
         self._groups = np.ones(6, dtype=np.uint8)
         self._groups[ROBOT_GROUP] = 0
-        self._geom = np.zeros(1, dtype=np.int32)
-        self._normal = np.zeros(3)
 
     def _origin(self) -> tuple[FloatArray, FloatArray]:
         d = self.twin.data
@@ -77,32 +75,39 @@ class TwinLidarWorld:
                 np.array(d.site_xmat[self._site]).reshape(3, 3))
 
     def __call__(self, bearing_rad: float) -> float:
-        mj = self.twin.mujoco
-        with self.twin.lock:
-            origin, rot = self._origin()
-            direction = rot @ np.array([math.cos(bearing_rad), math.sin(bearing_rad), 0.0])
-            dist = mj.mj_ray(self.twin.model, self.twin.data, origin, direction, self._groups,
-                             1, -1, self._geom, self._normal)
-        if dist < 0 or dist > A1_RANGE_MAX_M:
-            return math.nan
-        n = self.noise
-        incidence = math.degrees(math.acos(min(1.0, abs(float(self._normal @ direction)))))
-        if incidence > n.grazing_deg or (n.dropout and self._rng.random() < n.dropout):
-            return math.nan
-        sigma = n.sigma_m + n.sigma_share * dist
-        return float(dist + self._rng.gauss(0.0, sigma)) if sigma > 0 else float(dist)
+        return self.ranges([bearing_rad])[0]
 
-    def true_ranges(self, bearings_rad: npt.ArrayLike) -> FloatArray:
-        """Noise-free ranges (m, NaN: nothing within the A1's reach) at each bearing, now."""
-        b = np.asarray(bearings_rad, dtype=np.float64).ravel()
+    def ranges(self, bearings_rad: Sequence[float]) -> list[float]:
+        """Measured ranges at several bearings, cast together (the simulated A1 asks for
+        a batch of nodes at once): as ``__call__`` for each, one ray cast for all."""
+        dist, normals, vec = self._cast(np.asarray(bearings_rad, dtype=np.float64))
+        n = self.noise
+        keep = (dist >= 0) & (dist <= A1_RANGE_MAX_M)
+        if n.grazing_deg < 90.0:
+            cos_inc = np.abs(np.einsum("ij,ij->i", normals, vec))
+            keep &= cos_inc >= math.cos(math.radians(n.grazing_deg))
+        if n.dropout:
+            keep &= self._np_rng.random(len(dist)) >= n.dropout
+        sigma = n.sigma_m + n.sigma_share * dist
+        noisy = dist + self._np_rng.standard_normal(len(dist)) * sigma
+        return [float(v) for v in np.where(keep, noisy, np.nan)]
+
+    def _cast(self, b: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Distances (-1: no hit), surface normals and unit directions of rays at ``b``."""
         mj = self.twin.mujoco
         dist = np.empty(len(b))
         geoms = np.empty(len(b), dtype=np.int32)
+        normals = np.zeros(3 * len(b))
         with self.twin.lock:
             origin, rot = self._origin()
-            vec = (rot @ np.stack([np.cos(b), np.sin(b), np.zeros_like(b)])).T.ravel().copy()
-            mj.mj_multiRay(self.twin.model, self.twin.data, origin, vec, self._groups, 1, -1,
-                           geoms, dist, None, len(b), A1_RANGE_MAX_M)
+            vec = (rot @ np.stack([np.cos(b), np.sin(b), np.zeros_like(b)])).T.copy()
+            mj.mj_multiRay(self.twin.model, self.twin.data, origin, vec.ravel(), self._groups,
+                           1, -1, geoms, dist, normals, len(b), A1_RANGE_MAX_M)
+        return dist, normals.reshape(-1, 3), vec
+
+    def true_ranges(self, bearings_rad: npt.ArrayLike) -> FloatArray:
+        """Noise-free ranges (m, NaN: nothing within the A1's reach) at each bearing, now."""
+        dist, _normals, _vec = self._cast(np.asarray(bearings_rad, dtype=np.float64).ravel())
         return np.where((dist < 0) | (dist > A1_RANGE_MAX_M), np.nan, dist)
 
 

@@ -44,7 +44,8 @@ class SlipModel:
     jitter: float = 0.01
     """Standard deviation of the extra share lost, wandering with ``jitter_time_s``."""
     jitter_time_s: float = 0.5
-    encoder_noise_ticks: float = 2.0
+    encoder_noise_ticks: float = 0.5
+    """A count may read one off now and then (an edge dithering); it never accumulates."""
     gyro_bias_rad_s: float = 0.003
 
     @classmethod

@@ -150,18 +150,25 @@ def is_twin_url(port: str) -> bool:
 
 
 def twin_from_url(url: str, baudrate: int = 115200, *, realtime: bool = False,
-                  config: ArmConfig | None = None, scene: Scene | None = None) -> Twin:
+                  config: ArmConfig | None = None, scene: Scene | None = None,
+                  arena: Arena | None = None) -> Twin:
     """A twin configured by a ``twin://?...`` URL: on a simulated clock (paced by
     ``pace=``), or on the wall clock with ``realtime`` (``twin serve``). ``config``, if
     given, is the arm it builds (else the URL's ``config=``, else the JetAuto Pro);
-    ``scene``, if given, what stands on its table (else the URL's)."""
+    ``scene``, if given, what stands on its table (else the URL's); ``arena``, if given,
+    the mobile robot's arena (the URL may still give chassis=, slip=, lidar_noise=)."""
     q = twin_query(url)
-    if scene is not None and ({"scene", "arena"} | _TABLE_KEYS) & set(q):
-        raise ConfigError(f"{url}: the table is given twice (in the URL and as a scene)")
-    arena = arena_from_query(q) if scene is None and is_arena_query(q) else None
+    if (scene is not None or arena is not None) and ({"scene", "arena"} | _TABLE_KEYS) & set(q):
+        raise ConfigError(f"{url}: the world is given twice (in the URL and as a "
+                          f"{'scene' if scene is not None else 'arena'})")
+    if scene is not None and arena is not None:
+        raise ConfigError("a twin has an arena (the mobile robot) or a table scene, not both")
+    if arena is None and scene is None and is_arena_query(q):
+        arena = arena_from_query(q)
     if arena is None and _ARENA_KEYS & set(q):
-        raise ConfigError(f"twin URL: {listing(sorted(_ARENA_KEYS & set(q)))} are for the "
-                          "mobile robot's arena (family=arena or arena=FILE)")
+        keys = sorted(_ARENA_KEYS & set(q))
+        raise ConfigError(f"twin URL: {listing(keys)} {'is' if len(keys) == 1 else 'are'} "
+                          "for the mobile robot's arena (family=arena or arena=FILE)")
     scene = scene if scene is not None or arena is not None else scene_from_query(q)
     in_url = load_arm_config(q["config"]) if q.get("config") else None
     if config is not None and in_url is not None and replace(in_url, source="") != replace(
