@@ -26,7 +26,7 @@ from types import TracebackType
 
 from busarm.base.config import ChassisConfig
 from busarm.base.kinematics import MecanumKinematics, Twist, WheelSpeeds
-from busarm.base.odometry import Odometry, Pose2D, wrap_rad
+from busarm.base.odometry import GyroTurn, Odometry, Pose2D, wrap_rad
 from busarm.bus.board import BoardLink
 from busarm.clock import SimClock
 from busarm.errors import BusArmError, ConfigError
@@ -48,6 +48,12 @@ DETECT_S = 0.3
 """How long a new Base listens for encoder reports before it integrates commands."""
 IMU_FRESH_S = 0.1
 """An IMU sample older than this is not used for the heading."""
+REPORT_PERIOD_S = 0.01
+"""The board's IMU and encoder report period until its own is measured (100 Hz)."""
+MEASURE_S = 0.1
+"""A report stream's period is measured over at least this long."""
+BREAK_S = 0.2
+"""A longer silence breaks a report stream (its period is measured anew after it)."""
 GAIN_PER_S = 3.0
 """``move_by``'s feedback on the odometry's error (m/s per m, rad/s per rad)."""
 PROFILE_MARGIN = 0.8
@@ -65,6 +71,31 @@ MAX_PENDING_REPORTS = 20_000
 MOVE_MAX_M = 100.0
 MOVE_MAX_DEG = 3600.0
 _INT32 = 2**32
+
+
+class ReportStream:
+    """A stream of periodic reports (the board's IMU, its encoders): how long each one
+    stands for. That is the board's sample period, measured as the mean spacing of the
+    reports since the stream last broke off, not the time since the last one arrived:
+    reports read together arrive together. A break (longer than ``BREAK_S``: reports
+    lost, or none read) stands for itself, up to ``stale_s``."""
+
+    def __init__(self, period_s: float, stale_s: float = IMU_FRESH_S) -> None:
+        self.period_s = period_s
+        self.stale_s = stale_s
+        self._first_s = self._last_s = -math.inf
+        self._count = 0
+
+    def span_s(self, at_s: float) -> float:
+        gap = at_s - self._last_s
+        self._last_s = at_s
+        if gap > BREAK_S:
+            self._first_s, self._count = at_s, 0
+            return min(gap, self.stale_s) if math.isfinite(gap) else self.period_s
+        self._count += 1
+        if at_s - self._first_s >= MEASURE_S:
+            self.period_s = (at_s - self._first_s) / self._count
+        return self.period_s
 
 
 @dataclass(frozen=True)
@@ -99,7 +130,11 @@ class Base:
         self._integrated_to_s = self.clock.now()
         self._closed = threading.Event()
         self._reports: deque[tuple[BoardReport, float]] = deque(maxlen=MAX_PENDING_REPORTS)
-        self._gyro, self._gyro_at_s = 0.0, -math.inf
+        self._gyro_at_s = -math.inf
+        self._gyro_turned_rad = self._gyro_time_s = 0.0
+        self._imu_stream = ReportStream(REPORT_PERIOD_S)
+        self._encoder_stream = ReportStream(REPORT_PERIOD_S, stale_s=math.inf)
+        self._encoder_time_s = 0.0
         self._polled_at_s = self.clock.now()
         link.add_listener(self._on_report)
         self.odometry_source = self._detect_source()
@@ -291,12 +326,13 @@ class Base:
         samples = 0
         while self.clock.now() < end:
             for report in link.poll(min(0.02, max(end - self.clock.now(), 0.0))):
-                samples += isinstance(report, ImuSample)
-            if link.readings.encoders is not None:
+                if isinstance(report, ImuSample):
+                    samples += 1
+            if link.readings.encoders is not None and samples >= 3:
                 return "encoders"
             if samples >= 3 and link.readings.imu_at_s > imu_before:
                 return "commands"  # encoders come at the IMU's rate when they come at all
-        return "commands"
+        return "encoders" if link.readings.encoders is not None else "commands"
 
     def _update(self, *, poll: bool = True) -> Odometry:
         """Fold in every report the board has sent since the last update, in order (and
@@ -313,13 +349,14 @@ class Base:
         while self._reports:
             report, at_s = self._reports.popleft()
             if isinstance(report, ImuSample):
-                self._gyro, self._gyro_at_s = report.gyro_rad_s[2], at_s
+                self._take_gyro(report.gyro_rad_s[2], at_s)
                 if self.odometry_source == "commands":
                     self._fold_commands(at_s)
             elif isinstance(report, MotorEncoders) and self.odometry_source == "encoders":
-                if at_s > self._integrated_to_s:
-                    self._count_ticks(report.ticks)
-                    self._fold(at_s)
+                # Every one, in order: counts are totals, and each stands for a period.
+                self._count_ticks(report.ticks)
+                self._encoder_time_s += self._encoder_stream.span_s(at_s)
+                self._fold(at_s, self._encoder_time_s)
 
     def _fold_commands(self, at_s: float) -> None:
         """The wheels' travel from their commanded speeds up to ``at_s``."""
@@ -327,15 +364,27 @@ class Base:
             {m: self.link.wheel_targets_rev_s.get(m, 0.0) for m in range(1, MOTOR_COUNT + 1)})
         dt = max(at_s - self._integrated_to_s, 0.0)
         self._turns = [t + w * dt for t, w in zip(self._turns, wheels, strict=True)]
-        self._fold(at_s)
+        self._fold(at_s, at_s)
 
-    def _fold(self, at_s: float) -> None:
+    def _take_gyro(self, rate_rad_s: float, at_s: float) -> None:
+        """One gyro sample: its rate counts for the time it stands for (up to where the
+        gyro goes stale)."""
+        span = min(self._imu_stream.span_s(at_s), IMU_FRESH_S)
+        self._gyro_turned_rad += rate_rad_s * span
+        self._gyro_time_s += span
+        self._gyro_at_s = at_s
+
+    def _fold(self, at_s: float, travel_at_s: float) -> None:
+        """Fold the wheels' turns as of ``at_s`` into the odometry (``travel_at_s``: the
+        time the travel is reckoned on: the encoders' own sample times)."""
         self._integrated_to_s = max(self._integrated_to_s, at_s)
-        gyro = self._gyro if at_s - self._gyro_at_s < IMU_FRESH_S else None
+        gyro = (GyroTurn(self._gyro_turned_rad, self._gyro_time_s)
+                if at_s - self._gyro_at_s < IMU_FRESH_S else None)
+        self._gyro_turned_rad = self._gyro_time_s = 0.0
         # At rest: nothing commanded for long enough that the speed loops have stopped.
         at_rest = self._command.is_zero and at_s - self._command_at_s > COMMANDS_STOP_S
         turns: WheelSpeeds = (self._turns[0], self._turns[1], self._turns[2], self._turns[3])
-        self._odometry.update(turns, at_s, gyro, at_rest=at_rest)
+        self._odometry.update(turns, travel_at_s, gyro, at_rest=at_rest)
 
     def _on_report(self, report: BoardReport, at_s: float) -> None:
         """The link's listener: takes note only (it runs with the link in use)."""

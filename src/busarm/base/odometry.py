@@ -25,6 +25,15 @@ BIAS_GAIN = 0.05
 
 
 @dataclass(frozen=True)
+class GyroTurn:
+    """What the gyro measured over a stretch: the sum of its samples' rate x sample
+    period (rad, bias included), over how long (s)."""
+
+    turned_rad: float
+    time_s: float
+
+
+@dataclass(frozen=True)
 class Pose2D:
     """A pose on the floor: metres, and yaw counter-clockwise in radians (-pi..pi)."""
 
@@ -69,7 +78,6 @@ class Odometry:
         self._still_m = max(STILL_M, STILL_TICKS / cfg.encoder_ticks_per_rev
                             * cfg.wheel_circumference_m)
         self._turns: WheelSpeeds | None = None
-        self._gyro: float | None = None
         self._at_s: float | None = None
 
     def reset(self, pose: Pose2D | None = None) -> None:
@@ -77,14 +85,15 @@ class Odometry:
         self.pose = pose or Pose2D()
         self.twist = Twist()
 
-    def update(self, wheel_turns: WheelSpeeds, t_s: float,
-               gyro_z_rad_s: float | None = None, *, at_rest: bool | None = None) -> Pose2D:
+    def update(self, wheel_turns: WheelSpeeds, t_s: float, gyro: GyroTurn | None = None,
+               *, at_rest: bool | None = None) -> Pose2D:
         """Take each wheel's total turns so far (revolutions, positive forward) at time
-        ``t_s``, and the gyro's yaw rate then if there is one; return the new pose.
-        ``at_rest``: whether the base is known to stand (nothing commanded); None: judged
-        from the wheels alone. The gyro's bias is learnt only while at rest and still."""
-        last, last_gyro, last_t = self._turns, self._gyro, self._at_s
-        self._turns, self._gyro, self._at_s = wheel_turns, gyro_z_rad_s, t_s
+        ``t_s``, and what the gyro measured since the last update if it reports; return
+        the new pose. ``at_rest``: whether the base is known to stand (nothing
+        commanded); None: judged from the wheels alone. The gyro's bias is learnt only
+        while at rest and still."""
+        last, last_t = self._turns, self._at_s
+        self._turns, self._at_s = wheel_turns, t_s
         if last is None or last_t is None or t_s <= last_t:
             return self.pose
         dt = t_s - last_t
@@ -93,11 +102,11 @@ class Odometry:
                        for now, before in zip(wheel_turns, last, strict=True))
         moved = self.kinematics.twist((travel[0], travel[1], travel[2], travel[3]))
         dyaw = moved.wz_rad_s  # the wheels' own heading change (a displacement here)
-        if gyro_z_rad_s is not None:
-            rate = gyro_z_rad_s if last_gyro is None else (gyro_z_rad_s + last_gyro) / 2.0
+        if gyro is not None and gyro.time_s > 0:
             if at_rest is not False and max(abs(d) for d in travel) < self._still_m:
+                rate = gyro.turned_rad / gyro.time_s
                 self.gyro_bias_rad_s += BIAS_GAIN * (rate - self.gyro_bias_rad_s)
-            dyaw = (rate - self.gyro_bias_rad_s) * dt
+            dyaw = gyro.turned_rad - self.gyro_bias_rad_s * gyro.time_s
         self.pose = self.pose.moved_by(moved.vx_m_s, moved.vy_m_s, dyaw)
         # Smoothed over about TWIST_SMOOTHING_S: one update's travel is a few encoder
         # counts, and a count more or less is a speed of several mm/s.

@@ -200,6 +200,7 @@ def run_realtime(seed: int, seconds: float, *, live: bool = True) -> RealTimeRun
         camera.read()  # the renderer is made before the clock starts
         wall0, sim0 = time.perf_counter(), clock.now()
         next_frame, next_move, k = sim0, sim0, 0
+        stamps: list[float] = []
         while clock.now() - sim0 < seconds:
             now = clock.now()
             base.drive(0.05, 0.0, 0.5)
@@ -210,12 +211,14 @@ def run_realtime(seed: int, seconds: float, *, live: bool = True) -> RealTimeRun
                 camera.read()
                 out.frames += 1
                 next_frame += 1.0 / CAMERA_FPS
-            lidar.read_scan(1.0)
+            stamps.append(lidar.read_scan(1.0).stamp_s)
             out.scans += 1
         out.wall_s = time.perf_counter() - wall0
         out.sim_s = clock.now() - sim0
         base.stop()
-    out.lidar_hz = out.scans / out.sim_s
+    # Revolutions a second from the scans' own start times (a count over the run would
+    # include the part of a revolution the run began in).
+    out.lidar_hz = (len(stamps) - 1) / (stamps[-1] - stamps[0]) if len(stamps) > 1 else 0.0
     out.camera_fps = out.frames / out.sim_s
     return out
 

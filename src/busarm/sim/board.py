@@ -141,6 +141,10 @@ class SimBoard:
         """Whether the gyro's z also reads the yaw rate the wheels give a JetAuto base (a
         board on a base with no twin); a mobile twin turns this off and sets the gyro."""
         self.imu_accel_mps2 = (0.0, 0.0, 9.80665)
+        self.imu_heading_rad: float | None = None
+        """The heading the gyro integrates to (rad, unwrapped; a mobile twin sets it every
+        step): each IMU sample adds its mean rate since the last sample to the gyro's z."""
+        self._heading_seen = (0.0, -math.inf)
         self.encoder_noise_ticks = 0.0
         """Standard deviation of a count's jitter in each report (a mobile twin sets it);
         it does not accumulate: the counter itself stays true to the wheel."""
@@ -315,10 +319,14 @@ class SimBoard:
         return bytes(data)
 
     def motor_rev_s(self, now: float) -> tuple[float, float, float, float]:
-        """Each motor's actual speed at ``now`` (rev/s, as mounted), its speed loop and
-        encoder brought up to then (a mobile twin moves the base by them)."""
+        """Each motor's actual speed at ``now`` (rev/s, as mounted), the board brought up
+        to then: its speed loops, encoders and report streams (a mobile twin moves the
+        base by them every step, so reports carry the state of their own time). Servo
+        traffic waits for the host's side, as before."""
         with self._lock:
             self._advance_wheels(now)
+            if not self.faults.silent:
+                self._stream(now)
             a, b, c, d = (w.rev_s for w in self.wheels)
             return a, b, c, d
 
@@ -338,11 +346,11 @@ class SimBoard:
                 due = now - _MAX_CATCH_UP_S
             while due <= now:
                 if self._line_out_free - due <= TX_QUEUE_S:
-                    self._send(due, self._report(name), stream=True)
+                    self._send(due, self._report(name, due), stream=True)
                 due += period
             self._next[name] = due
 
-    def _report(self, name: str) -> bytes:
+    def _report(self, name: str, at_s: float) -> bytes:
         gauss = self._rng.gauss
         if name == "battery":
             return Battery(round(self.battery_v + gauss(0.0, 0.01), 3)).encode()
@@ -353,6 +361,13 @@ class SimBoard:
             return MotorEncoders((a, b, c, d)).encode()
         ax, ay, az = self.imu_accel_mps2
         gx, gy, gz = self.imu_gyro_rad_s
+        if self.imu_heading_rad is not None:
+            # The rate of turn since the last sample, as an IMU's filter averages it: no
+            # turn between two samples goes unseen.
+            heading, since = self._heading_seen
+            if at_s > since:
+                gz += (self.imu_heading_rad - heading) / (at_s - since)
+            self._heading_seen = (self.imu_heading_rad, at_s)
         if self.imu_follows_wheels:
             gz += (sum(w.rev_s for w in self.wheels) * math.pi * WHEEL_DIAMETER_M
                    / (4.0 * HALF_SPREAD_M))

@@ -5,7 +5,8 @@ board's speed loops, brought up to now) become the body's twist through the chas
 mecanum kinematics; the floor takes less than that (``SlipModel``: a share lost forward,
 more sideways, where mecanum rollers scrub, and in turns, plus a slowly wandering extra
 share), and the chassis's velocity actuators are set to it in the arena's frame. After
-physics, the IMU's gyro reads the chassis's true yaw rate plus a bias, and the encoders
+physics, the IMU's gyro reads the chassis's true yaw rate (its mean since the last
+sample) plus a bias, and the encoders
 count the wheels' own turns (with jitter): so odometry from them drifts as a real one
 does, and the twin knows where the robot really is (``pose``, ``path``).
 
@@ -120,10 +121,10 @@ class MobileBase:
         data.ctrl[self._act[2]] = wz
 
     def after_physics(self, data: Any) -> None:
-        """Give the gyro the true yaw rate (plus its bias); sample the path."""
+        """Give the gyro the true heading (plus its bias's drift); sample the path."""
         if self.board is not None:
-            wz = float(data.qvel[self._dof[2]])
-            self.board.imu_gyro_rad_s = (0.0, 0.0, wz + self.slip.gyro_bias_rad_s)
+            yaw = float(data.qpos[self._qpos[2]])
+            self.board.imu_heading_rad = yaw + self.slip.gyro_bias_rad_s * float(data.time)
         t = float(data.time)
         if t >= self._path_due and len(self.path) < MAX_PATH_POINTS:
             p = self.pose(data)
