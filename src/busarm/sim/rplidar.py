@@ -31,6 +31,7 @@ from busarm.protocol.rplidar import (
     A1_RANGE_MIN_M,
     HEALTH_DESCRIPTOR,
     INFO_DESCRIPTOR,
+    MAX_DISTANCE_Q2,
     RPLIDAR_BAUDRATE,
     SCAN_DESCRIPTOR,
     Cmd,
@@ -59,8 +60,9 @@ A1_INFO = DeviceInfo(model=0x18, firmware=(1, 29), hardware=7,
                      serial_number=bytes.fromhex("B2E0F8C3F3E29BD4C2E59EF70A5F4313"))
 RESET_BANNER = b"RP LIDAR System.\r\nFirmware Ver 1.29 - rtm, HW Ver 7\r\nModel: 18\r\n"
 """What an A1 prints after RESET (text the host must skip)."""
-BATCH_NODES = 16
-"""Nodes delivered together (8 ms at 2000/s), as a USB serial adapter batches them."""
+BATCH_NODES = 32
+"""Nodes delivered together (16 ms at 2000/s), as a USB serial adapter's latency timer
+batches them (16 ms by default on FTDI's; the A1's CP2102 batches too)."""
 MAX_BACKLOG_S = 0.5
 """Unread scan data older than this is lost, as a full serial buffer loses it."""
 
@@ -104,6 +106,12 @@ class SimRplidar:
         self.scan_hz = check_range("scan_hz", scan_hz, 2.0, 10.0, "Hz")
         self.sample_hz = check_range("sample_hz", sample_hz, 100.0, 2300.0, "Hz")
         self.nodes_per_rev = round(self.sample_hz / self.scan_hz)
+        # Each node's wire angle (q6) and bearing, the same every revolution. Clockwise on
+        # the wire: wire angle a is bearing -a in the Lidar's own frame.
+        self._angles_q6 = [node_from_si(k == 0, GOOD_QUALITY, 2.0 * math.pi * k
+                                        / self.nodes_per_rev, 1.0).angle_q6
+                           for k in range(self.nodes_per_rev)]
+        self._bearings = [-math.radians(q6 / 64.0) for q6 in self._angles_q6]
         self.clock: Clock = clock or SimClock(step_s=0.002)
         self.timing = WireTiming(RPLIDAR_BAUDRATE, 0.001)
         self.health = health or Health(HealthStatus.GOOD, 0)
@@ -178,20 +186,17 @@ class SimRplidar:
         """The nodes of these global indices, their ranges asked of the world together
         when it can answer several bearings at once (``ranges``: one ray cast for all)."""
         ks = [index % self.nodes_per_rev for index in indices]
-        # Clockwise on the wire: wire angle a is bearing -a in the Lidar's own frame.
-        wires = [2.0 * math.pi * k / self.nodes_per_rev for k in ks]
-        exact = [node_from_si(k == 0, GOOD_QUALITY, w, 1.0) for k, w in zip(ks, wires,
-                                                                              strict=True)]
-        bearings = [-math.radians(e.angle_q6 / 64.0) for e in exact]
+        bearings = [self._bearings[k] for k in ks]
         batch = getattr(self.world, "ranges", None)
         ranges = batch(bearings) if batch is not None else [self.world(b) for b in bearings]
         out = []
-        for k, wire, e, range_m in zip(ks, wires, exact, ranges, strict=True):
+        for k, range_m in zip(ks, ranges, strict=True):
             range_m = float(range_m)
-            if not (math.isfinite(range_m) and A1_RANGE_MIN_M <= range_m <= A1_RANGE_MAX_M):
-                out.append(Node(k == 0, 0, e.angle_q6, 0))
+            if math.isfinite(range_m) and A1_RANGE_MIN_M <= range_m <= A1_RANGE_MAX_M:
+                out.append(Node(k == 0, GOOD_QUALITY, self._angles_q6[k],
+                                min(round(range_m * 4000.0), MAX_DISTANCE_Q2)))
             else:
-                out.append(node_from_si(k == 0, GOOD_QUALITY, wire, range_m))
+                out.append(Node(k == 0, 0, self._angles_q6[k], 0))
         return out
 
     # ------------------------------------------------------------------ internals

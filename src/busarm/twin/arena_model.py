@@ -97,8 +97,10 @@ def _room(arena: Arena) -> list[str]:
     w, h = r.size_m
     t, wh = WALL_THICKNESS_M, WALL_HEIGHT_M
     x0, x1, y0, y1 = _floor_extent(arena)
+    # One quad (a plane's third size is its render grid): the lights are directional.
+    size = ((x1 - x0) / 2, (y1 - y0) / 2, max(x1 - x0, y1 - y0))
     out = [f'    <geom name="floor" class="object" type="plane" material="floor" '
-           f'pos="{_fmt((cx, cy, 0))}" size="{_fmt(((x1 - x0) / 2, (y1 - y0) / 2, 0.05))}"/>']
+           f'pos="{_fmt((cx, cy, 0))}" size="{_fmt(size)}"/>']
     walls = (((cx, r.y_max_m + t / 2), (w / 2 + t, t / 2)),
              ((cx, r.y_min_m - t / 2), (w / 2 + t, t / 2)),
              ((r.x_max_m + t / 2, cy), (t / 2, h / 2)),
