@@ -24,7 +24,8 @@ UNIT = re.compile(r"\b(mm|deg|deg/s|mm/s|s|ms|V|C|Hz|bit/s|pixels|px|cm2|%|0\.\.
                   r"|\bfactor\b|seconds|frames/s")
 COUNTS = {"--views", "--seed", "--scenes", "--workers", "--reads", "--scans", "--loops",
           "--frames", "--count", "--retries", "--blocks", "--pictures", "--placements", "--n",
-          "--batch-n", "--distractors", "--camera-port", "--baud", "--http-port", "--tries"}
+          "--batch-n", "--distractors", "--camera-port", "--baud", "--http-port", "--tries",
+          "--squares"}
 """Number options that are counts, seeds or port numbers: no unit to give."""
 
 

@@ -55,6 +55,9 @@ class SquareRun:
     heading_error_deg: float
     odometry_end: tuple[float, float, float]
     true_end: tuple[float, float, float]
+    worst_corner_share: float = 0.0
+    """The largest error at a corner over the distance driven to it: the drift along the
+    way (a closed square hands much of it back by the end)."""
 
     @property
     def position_share(self) -> float:
@@ -129,10 +132,14 @@ def run_square(seed: int, picture: Path | None = None) -> SquareRun:
         robot.clock.sleep(STILL_S)
         start = twin.mobile.pose(twin.data)
         corners = [(start.x_m, start.y_m)]
-        for _ in range(4):
+        worst = 0.0
+        for side in range(4):
             base.move_by(SIDE_M, 0.0, 0.0)
             base.move_by(0.0, 0.0, 90.0)
             corners.append(_odometry_in_arena(start, base.odometry().pose))
+            truth = twin.mobile.pose(twin.data)
+            off = math.dist(corners[-1], (truth.x_m, truth.y_m))
+            worst = max(worst, off / (SIDE_M * (side + 1)))
         odom = base.odometry().pose
         true = _relative(start, twin.mobile.pose(twin.data))
         if picture is not None:
@@ -145,7 +152,7 @@ def run_square(seed: int, picture: Path | None = None) -> SquareRun:
     heading = math.degrees(abs(wrap_rad(odom.yaw_rad - true.yaw_rad)))
     return SquareRun(seed, 4 * SIDE_M, math.hypot(odom.x_m - true.x_m, odom.y_m - true.y_m),
                      heading, (odom.x_m, odom.y_m, odom.yaw_deg),
-                     (true.x_m, true.y_m, true.yaw_deg))
+                     (true.x_m, true.y_m, true.yaw_deg), worst)
 
 
 def _odometry_in_arena(start: Pose2D, odom: Pose2D) -> tuple[float, float]:

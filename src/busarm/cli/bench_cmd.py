@@ -432,8 +432,8 @@ def _print_pick(settings: Settings, report: PickBenchReport) -> None:
               help="2 m squares driven (each with its own slip noise seed).")
 @click.option("--scans", type=click.IntRange(1, 1000), default=20, show_default=True,
               help="Lidar scans compared with the ray-cast truth (noise off, then on).")
-@click.option("--seconds", type=click.FloatRange(1.0, 600.0), default=20.0, show_default=True,
-              help="Simulated seconds of the real-time run.")
+@click.option("--seconds", type=RangeType("seconds", 1.0, 600.0, "s"), default=20.0,
+              show_default=True, help="Simulated time of the real-time run, in s.")
 @click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
               help="Seed of the arenas and of the first square's noise.")
 @click.option("--png", type=click.Path(dir_okay=False, path_type=Path), default=None,
@@ -472,17 +472,20 @@ def _print_mobile(settings: Settings, report: MobileBenchReport) -> None:
     out.print(f"[bold]busarm bench mobile[/] (twin, slip and sensor noise on)\n"
               f"machine: {m['cpu']}, {m['cores']} cores, Python {m['python']}, {m['os']}")
     table = Table(title=f"odometry: {SIDE_M:g} m squares by move_by (encoders + IMU)")
-    for col in ("seed", "driven", "position error", "share", "heading error"):
+    for col in ("seed", "driven", "position error", "share", "heading error",
+                "worst corner"):
         table.add_column(col, justify="right")
     for run in report.squares:
         table.add_row(str(run.seed), f"{run.driven_m:g} m", f"{run.position_error_m * 100:.1f} cm",
                       f"{run.position_share:.2%} "
                       f"{_verdict(run.position_share <= TARGET_POSITION_SHARE)}",
                       f"{run.heading_error_deg:.2f} deg "
-                      f"{_verdict(run.heading_error_deg <= TARGET_HEADING_DEG)}")
+                      f"{_verdict(run.heading_error_deg <= TARGET_HEADING_DEG)}",
+                      f"{run.worst_corner_share:.2%}")
     out.print(table)
     out.print(f"targets: position <= {TARGET_POSITION_SHARE:.0%} of the distance, heading <= "
-              f"{TARGET_HEADING_DEG:g} deg"
+              f"{TARGET_HEADING_DEG:g} deg at the end (worst corner: the error at a corner "
+              "over the distance to it, the drift a closed square partly hands back)"
               + (f"; picture of seed {report.squares[0].seed}: {report.picture}"
                  if report.picture else ""))
     a, r = report.lidar, report.realtime

@@ -167,8 +167,8 @@ class Robot:
         twin_port = behind if behind is not None and is_twin_url(behind) else port
         on_twin = is_twin_url(twin_port)
         if (scene is not None or arena is not None) and not on_twin:
-            raise ConfigError(f"a scene or an arena is for the twin; {port} is not one (use "
-                              "--port twin, or no --port)")
+            raise ConfigError(f"{'a scene' if scene is not None else 'an arena'} is for the "
+                              f"twin; {port} is not one (use --port twin, or no --port)")
         if calibration_store is not None and calibration_dir is not None:
             raise ConfigError("give a calibration_store or a calibration_dir, not both")
         store = calibration_store if intrinsics is None and hand_eye is None else None
