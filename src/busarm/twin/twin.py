@@ -524,29 +524,43 @@ class Twin:
             self._renderers.append(cache[key])
         return cache[key]
 
-    def render_ideal(self, camera: str = "arm_camera", *, live: bool = False) -> ImageArray:
+    def snapshot(self) -> Any:
+        """A copy of the simulation's state now (an ``MjData``), to render from later or
+        in another thread while physics goes on (``render_ideal(data=...)``)."""
+        if self.realtime:
+            self.sync()
+        with self._lock:
+            copy_ = self.mujoco.MjData(self.model)
+            self.mujoco.mj_copyData(copy_, self.model, self.data)
+        return copy_
+
+    def render_ideal(self, camera: str = "arm_camera", *, live: bool = False,
+                     data: Any = None) -> ImageArray:
         """The ideal pinhole render (RGB) of a camera: no lens (``overview`` is 640x480).
 
         ``live``: a view for a person, drawn without shadows or antialiasing (on a CPU
         those are most of a frame's cost: several times cheaper); the pictures vision
-        works on keep them.
+        works on keep them. ``data``: a ``snapshot()`` to draw instead of now.
         """
         size = self._render_size if camera == "arm_camera" else (640, 480)
         renderer = self._renderer(*size, live)
-        if self.realtime:
-            self.sync()
-        with self._lock:
-            renderer.update_scene(self.data, camera=camera)
+        if data is not None:
+            renderer.update_scene(data, camera=camera)
+        else:
+            if self.realtime:
+                self.sync()
+            with self._lock:
+                renderer.update_scene(self.data, camera=camera)
         renderer.scene.flags[self.mujoco.mjtRndFlag.mjRND_SHADOW] = not live
         image: ImageArray = renderer.render()
         return image
 
-    def render_camera(self, *, live: bool = False) -> ImageArray:
+    def render_camera(self, *, live: bool = False, data: Any = None) -> ImageArray:
         """The arm camera's image as the vision layer gets it: BGR, through the lens
-        (``live``: see ``render_ideal``)."""
+        (``live``, ``data``: see ``render_ideal``)."""
         import cv2
 
-        bgr = np.asarray(cv2.cvtColor(self.render_ideal("arm_camera", live=live),
+        bgr = np.asarray(cv2.cvtColor(self.render_ideal("arm_camera", live=live, data=data),
                                       cv2.COLOR_RGB2BGR), dtype=np.uint8)
         return self.lens.apply(bgr)
 
