@@ -26,6 +26,8 @@ from busarm.base.odometry import Pose2D, wrap_rad
 from busarm.sim.board import SimBoard
 from busarm.twin.arena import StartPose
 
+Motors = tuple[float, float, float, float]
+"""The board's four motor speeds (rev/s, as mounted)."""
 PATH_PERIOD_S = 0.05
 """How often the true path is sampled (for pictures and benchmarks)."""
 MAX_PATH_POINTS = 200_000
@@ -94,9 +96,15 @@ class MobileBase:
         vx, vy, wz = (float(data.qvel[a]) for a in self._dof)
         return vx, vy, wz
 
-    def before_physics(self, data: Any, now: float) -> None:
-        """Set the chassis's velocity from the wheels at ``now``."""
-        if self.board is None:
+    def read_wheels(self, now: float) -> Motors | None:
+        """The board's motor speeds at ``now`` (None without a board). Called before the
+        twin takes the servo line's lock: the board takes that lock under its own when
+        it relays a servo's reply, so taking the board's under it could deadlock."""
+        return None if self.board is None else self.board.motor_rev_s(now)
+
+    def before_physics(self, data: Any, now: float, motors: Motors | None) -> None:
+        """Set the chassis's velocity from the wheels' speeds (``read_wheels``)."""
+        if motors is None:
             for act in self._act:
                 data.ctrl[act] = 0.0
             return
@@ -107,7 +115,6 @@ class MobileBase:
             keep = math.exp(-dt / s.jitter_time_s)
             spread = s.jitter * math.sqrt(1.0 - keep * keep)
             self._jitter = [j * keep + self._rng.gauss(0.0, spread) for j in self._jitter]
-        motors = self.board.motor_rev_s(now)
         twist = self.kinematics.twist_from_rev_s(self.kinematics.wheels_from_motors(
             {k + 1: rev_s for k, rev_s in enumerate(motors)}))
         jx, jy, jw = (abs(j) for j in self._jitter)

@@ -322,6 +322,7 @@ class Twin:
     def _tick(self) -> None:
         """Bring physics up to the clock, following the servos' commands."""
         mj, m, d = self.mujoco, self.model, self.data
+        motors = None if self.mobile is None else self.mobile.read_wheels(self.clock.now())
         with self.bus.lock, self._lock:
             now = self.clock.now()
             behind = now - self._t0 - d.time
@@ -353,7 +354,7 @@ class Twin:
                               rate * SERVO_KV_NM_S_PER_RAD / SERVO_KP_NM_PER_RAD))
                 self._set_loaded(k, servo.is_loaded)
             if self.mobile is not None:
-                self.mobile.before_physics(d, now)
+                self.mobile.before_physics(d, now, motors)
             grip = self.servos[-1]
             grip.advance(now)
             d.ctrl[self._grip_act] = self._grip_ctrl(self._half_gap_m(grip.physical_pulses))
