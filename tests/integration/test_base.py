@@ -152,10 +152,10 @@ def test_cli_move_by_and_drive_on_a_simulated_board() -> None:
     assert done.returncode == 0, done.stderr
     assert "x +0.20" in done.stdout and "y -0.10" in done.stdout and "yaw -30." in done.stdout
     assert "from encoders" in done.stdout and "wheels stopped" in done.stdout
-    done = busarm("--port", "board://sim?encoders=0", "base", "drive", "5", "0", "0",
+    done = busarm("--port", "board://sim?encoders=0", "base", "drive", "0.4", "0", "0",
                   "--time", "0.3")
     assert done.returncode == 0, done.stderr
-    assert "vx +0.2" in done.stdout  # ramping up at 0.8 m/s^2, never beyond 0.4 m/s
+    assert "vx +0.2" in done.stdout  # ramping up at 0.8 m/s^2
     assert "from commands" in done.stdout
 
 
@@ -171,6 +171,12 @@ def test_cli_odom_and_stop() -> None:
     (["--port", "sim", "base", "stop"], "not a controller board's port"),
     (["--port", "board://sim", "base", "drive", "nan", "0", "0"], "'nan' is not a finite"),
     (["--port", "board://sim", "base", "move-by", "0", "0", "9999"], "-3600..3600"),
+    (["--port", "board://sim", "base", "drive", "5", "0", "0"],
+     "vx = 5 m/s is beyond the chassis's limit; allowed: -0.4..0.4 m/s"),
+    (["--port", "board://sim", "base", "drive", "0", "0", "-200"],
+     "wz = -200 deg/s is beyond the chassis's limit; allowed: -120..120 deg/s"),
+    (["--port", "board://sim", "base", "drive", "0.4", "0.4", "120"],
+     "together need a wheel at"),
 ])
 def test_cli_bad_input_is_one_error(args: list[str], said: str) -> None:
     done = busarm(*args)

@@ -14,6 +14,7 @@ from busarm.base.config import load_chassis_config
 from busarm.base.kinematics import MecanumKinematics, Twist
 from busarm.bus.board import BoardLink
 from busarm.clock import SimClock
+from busarm.errors import ConfigError
 from busarm.protocol.board import (
     BoardFrameParser,
     MotorEncoders,
@@ -93,3 +94,16 @@ def test_no_command_beyond_the_limits_reaches_the_board(
             assert (abs(twist.wz_rad_s - last.wz_rad_s)
                     <= CONFIG.max_yaw_accel_rad_s2 * dt + 10 * slack)
         last_t, last = t, twist
+
+
+@given(SPEED, SPEED, SPEED)
+def test_a_persons_command_is_refused_exactly_when_it_is_beyond_a_limit(
+        vx: float, vy: float, wz: float) -> None:
+    twist = Twist(vx, vy, wz)
+    try:
+        KIN.check_limits(twist)
+    except ConfigError as exc:
+        assert not KIN.within_limits(twist, slack=-1e-9), exc
+        assert "beyond the chassis's limit" in str(exc) or "need a wheel at" in str(exc)
+    else:
+        assert KIN.within_limits(twist)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 from busarm.base.config import ChassisConfig
 from busarm.errors import ConfigError
+from busarm.units import range_text
 
 WheelSpeeds = tuple[float, float, float, float]
 """Per wheel, in busarm.base.config.WHEELS order (front_left, rear_left, front_right,
@@ -93,6 +94,28 @@ class MecanumKinematics:
         ratios += [abs(v) / cfg.max_wheel_m_s for v in self.wheel_speeds_m_s(twist)]
         worst = max(ratios)
         return twist if worst <= 1.0 else twist.scaled(1.0 / worst)
+
+    def check_limits(self, twist: Twist) -> None:
+        """ConfigError naming the first value beyond a body limit, or the wheel speed a
+        combination of them would need (for a person's command: refused, not scaled)."""
+        cfg = self.config
+        self.limit_twist(twist)  # a value that is not a number: its own error
+        for name, value, limit, unit in (
+                ("vx", twist.vx_m_s, cfg.max_speed_m_s, "m/s"),
+                ("vy", twist.vy_m_s, cfg.max_speed_m_s, "m/s"),
+                ("wz", math.degrees(twist.wz_rad_s),
+                 round(math.degrees(cfg.max_yaw_rate_rad_s), 6), "deg/s")):
+            if abs(value) > limit * (1 + 1e-9):
+                raise ConfigError(f"{name} = {value:g} {unit} is beyond the chassis's limit; "
+                                  f"allowed: {range_text(-limit, limit, unit)}")
+        fastest_m_s = max(abs(v) for v in self.wheel_speeds_m_s(twist))
+        if fastest_m_s > cfg.max_wheel_m_s * (1 + 1e-9):
+            raise ConfigError(
+                f"vx {twist.vx_m_s:g} m/s, vy {twist.vy_m_s:g} m/s and wz "
+                f"{math.degrees(twist.wz_rad_s):g} deg/s together need a wheel at "
+                f"{fastest_m_s / cfg.wheel_circumference_m:.2f} rev/s; the wheels turn at most "
+                f"{cfg.max_wheel_rev_s:g} rev/s (in this direction at most "
+                f"{cfg.max_wheel_m_s / fastest_m_s:.0%} as fast)")
 
     def within_limits(self, twist: Twist, slack: float = 1e-9) -> bool:
         """Whether ``twist`` exceeds no body and no wheel limit."""

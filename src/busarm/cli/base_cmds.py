@@ -11,6 +11,7 @@ import click
 
 from busarm.base.base import CONTROL_PERIOD_S, Base, BaseOdometry
 from busarm.base.config import DEFAULT_CHASSIS, load_chassis_config
+from busarm.base.kinematics import MecanumKinematics, Twist
 from busarm.cli.common import RangeType, Settings, pass_settings
 
 chassis_option = click.option(
@@ -22,8 +23,8 @@ chassis_option = click.option(
 def base() -> None:
     """The mobile base through the controller board (--port board://..., e.g. board://sim).
 
-    Speeds beyond the chassis's limits are scaled down to them; the wheels stop at the end,
-    on Ctrl+C, and whenever commands stop coming (the watchdog).
+    Speeds beyond the chassis's limits are refused; the wheels stop at the end, on Ctrl+C,
+    and whenever commands stop coming (the watchdog).
     """
 
 
@@ -56,7 +57,9 @@ NEGATIVE_OK = {"ignore_unknown_options": True}
 def drive(settings: Settings, vx: float, vy: float, wz_deg_s: float, time_s: float,
           chassis: str) -> None:
     """Drive at VX m/s forward, VY m/s left, WZ_DEG_S deg/s counter-clockwise for --time
-    seconds, then stop."""
+    seconds, then stop. Speeds beyond the chassis's limits are refused, nothing sent."""
+    config = load_chassis_config(chassis)
+    MecanumKinematics(config).check_limits(Twist(vx, vy, math.radians(wz_deg_s)))
     with _open_base(settings, chassis) as the_base:
         end = the_base.clock.now() + time_s
         command = the_base.command
@@ -68,7 +71,7 @@ def drive(settings: Settings, vx: float, vy: float, wz_deg_s: float, time_s: flo
         odom = the_base.odometry()
     settings.out.print(f"drove {time_s:g} s at vx {command.vx_m_s:+.3f} m/s, vy "
                        f"{command.vy_m_s:+.3f} m/s, wz {math.degrees(command.wz_rad_s):+.1f} "
-                       f"deg/s (within the limits); wheels stopped")
+                       f"deg/s (reached at the acceleration limits); wheels stopped")
     settings.out.print(_odom_text(odom))
 
 
