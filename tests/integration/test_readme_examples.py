@@ -41,6 +41,8 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -227,14 +229,30 @@ def test_the_using_it_section_has_examples_of_each_kind() -> None:
     assert not stale, f"rules for lines the README no longer has: {sorted(stale)}"
 
 
+BLOCKS_AT_ONCE = 2
+"""Blocks run side by side (each in its own folder, runtime folder and configuration:
+they share nothing), so that the section takes about half as long on two cores."""
+
+
+@pytest.fixture(scope="module")
+def block_runs(tmp_path_factory: pytest.TempPathFactory, twin_calibration: tuple[Path, Path]
+               ) -> Iterator[list[Future[tuple[Run, float]]]]:
+    """Every block started at once on BLOCKS_AT_ONCE workers; each test waits for its own."""
+    def one(number: int) -> tuple[Run, float]:
+        start = time.monotonic()
+        folder = tmp_path_factory.mktemp(f"block{number + 1}")
+        return run_block(BLOCKS[number], folder, twin_calibration), time.monotonic() - start
+
+    with ThreadPoolExecutor(BLOCKS_AT_ONCE) as pool:
+        yield [pool.submit(one, number) for number in range(len(BLOCKS))]
+
+
 @pytest.mark.slow
-@pytest.mark.timeout(600)
+@pytest.mark.timeout(900)
 @pytest.mark.parametrize("number", range(len(BLOCKS)), ids=lambda n: f"block{n + 1}")
-def test_readme_block_runs_as_written(number: int, tmp_path: Path,
-                                      twin_calibration: tuple[Path, Path]) -> None:
-    start = time.monotonic()
-    run = run_block(BLOCKS[number], tmp_path, twin_calibration)
-    took = time.monotonic() - start
+def test_readme_block_runs_as_written(number: int,
+                                      block_runs: list[Future[tuple[Run, float]]]) -> None:
+    run, took = block_runs[number].result()
     report = [f"block {number + 1}: {len(run.ran)} run, {len(run.skipped)} skipped (hardware), "
               f"{len(run.smaller)} smaller, {took:.1f} s"]
     report += [f"  {seconds:5.1f} s  {line}" for line, seconds in run.ran]
