@@ -1,0 +1,1 @@
+"""Navigation: occupancy grids and their map files (pure numpy, no robot I/O)."""
