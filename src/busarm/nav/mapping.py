@@ -1,0 +1,82 @@
+"""Building a map while driving: each scan placed where it fits what is mapped so far.
+
+``MapBuilder.add(bearings, ranges, odometry)`` predicts the base's pose from the last
+corrected pose and the odometry's motion since the last scan, corrects it by matching the
+scan against the map (busarm.nav.scan_match), and folds the scan in at the corrected
+pose: the odometry's drift stops at the map. A match that fits too few returns (a scan
+of an unmapped place) is not trusted: the prediction stands.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy.typing as npt
+
+from busarm.base.config import Mount
+from busarm.base.odometry import Pose2D, wrap_rad
+from busarm.nav.grid import GridSpec, OccupancyGrid
+from busarm.nav.scan_match import LikelihoodField, match_scan
+
+MIN_MATCHED_SHARE = 0.5
+"""A correction is taken only if at least this share of the returns lands on the map."""
+
+
+def compose(a: Pose2D, b: Pose2D) -> Pose2D:
+    """``b`` (given in ``a``'s frame) in the frame ``a`` is given in."""
+    c, s = math.cos(a.yaw_rad), math.sin(a.yaw_rad)
+    return Pose2D(a.x_m + c * b.x_m - s * b.y_m, a.y_m + s * b.x_m + c * b.y_m,
+                  wrap_rad(a.yaw_rad + b.yaw_rad))
+
+
+def inverse(a: Pose2D) -> Pose2D:
+    c, s = math.cos(a.yaw_rad), math.sin(a.yaw_rad)
+    return Pose2D(-(c * a.x_m + s * a.y_m), s * a.x_m - c * a.y_m, wrap_rad(-a.yaw_rad))
+
+
+@dataclass
+class MapBuilder:
+    """A map grown scan by scan; poses in the map's frame (where the base started, unless
+    ``start`` says where that is)."""
+
+    spec: GridSpec
+    lidar: Mount
+    start: Pose2D = field(default_factory=Pose2D)
+    min_matched_share: float = MIN_MATCHED_SHARE
+
+    def __post_init__(self) -> None:
+        self.grid = OccupancyGrid(self.spec)
+        self.poses: list[Pose2D] = []
+        """The base's corrected pose at each scan."""
+        self.corrections = 0
+        self._last_odometry: Pose2D | None = None
+
+    @property
+    def mount(self) -> Pose2D:
+        return Pose2D(self.lidar.x_m, self.lidar.y_m, self.lidar.yaw_rad)
+
+    def add(self, bearings_rad: npt.ArrayLike, ranges_m: npt.ArrayLike,
+            odometry: Pose2D) -> Pose2D:
+        """Fold in one scan taken where the odometry says ``odometry``; returns the base's
+        corrected pose (map frame)."""
+        if self._last_odometry is None:
+            self._last_odometry = odometry
+            base = compose(self.start, odometry)
+        else:
+            moved = compose(inverse(self._last_odometry), odometry)
+            self._last_odometry = odometry
+            predicted = compose(self.poses[-1], moved)
+            base = self._corrected(predicted, bearings_rad, ranges_m)
+        self.grid.insert(compose(base, self.mount), bearings_rad, ranges_m)
+        self.poses.append(base)
+        return base
+
+    def _corrected(self, predicted: Pose2D, bearings_rad: npt.ArrayLike,
+                   ranges_m: npt.ArrayLike) -> Pose2D:
+        sensor = compose(predicted, self.mount)
+        found = match_scan(LikelihoodField(self.grid), bearings_rad, ranges_m, sensor)
+        if found.matched_share < self.min_matched_share:
+            return predicted
+        self.corrections += 1
+        return compose(found.pose, inverse(self.mount))
