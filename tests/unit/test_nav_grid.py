@@ -31,7 +31,7 @@ def room_scan(sensor: Pose2D, half_m: float = 1.0, beams: int = 360
     bearings = np.linspace(0, 2 * math.pi, beams, endpoint=False)
     world = bearings + sensor.yaw_rad
     c, s = np.cos(world), np.sin(world)
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide="ignore", over="ignore"):
         tx = np.where(c > 0, (half_m - sensor.x_m) / c, (-half_m - sensor.x_m) / c)
         ty = np.where(s > 0, (half_m - sensor.y_m) / s, (-half_m - sensor.y_m) / s)
     return bearings, np.minimum(np.abs(tx), np.abs(ty))
