@@ -34,6 +34,7 @@ from busarm.cli import (
     help_style,
     lidar_cmds,
     locate_cmd,
+    map_cmds,
     motor_cmd,
     option_places,
     pick_cmd,
@@ -220,7 +221,7 @@ def cli(
 for _module in (
     bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, twin_cmds, camera_cmds,
     vision_cmds, pick_cmd, demo, motor_cmd, dashboard_cmd, board_cmds, base_cmds,
-    lidar_cmds,
+    lidar_cmds, map_cmds,
 ):
     for _command in _module.COMMANDS:
         cli.add_command(_command)

@@ -1,0 +1,39 @@
+"""A map for people: the grid's picture enlarged, its origin's axes and a scale bar."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from busarm.nav.grid import OccupancyGrid
+from busarm.nav.map_files import grid_pixels
+
+MIN_SIDE_PX = 600
+AXIS_M = 0.5
+
+
+def map_picture(grid: OccupancyGrid) -> npt.NDArray[np.uint8]:
+    """BGR: occupied black, free white, unknown grey (as the PGM), enlarged so that its
+    longer side is at least MIN_SIDE_PX; the map origin's x (red) and y (green) axes
+    AXIS_M long, and a 1 m scale bar."""
+    pixels = grid_pixels(grid)
+    h, w = pixels.shape
+    scale = max(1, math.ceil(MIN_SIDE_PX / max(h, w)))
+    image = cv2.cvtColor(np.repeat(np.repeat(pixels, scale, 0), scale, 1), cv2.COLOR_GRAY2BGR)
+    s = grid.spec
+    px_per_m = scale / s.resolution_m
+
+    def px(x_m: float, y_m: float) -> tuple[int, int]:
+        return (round((x_m - s.origin_x_m) * px_per_m),
+                round(h * scale - (y_m - s.origin_y_m) * px_per_m))
+
+    for (dx, dy), bgr in (((AXIS_M, 0.0), (40, 40, 230)), ((0.0, AXIS_M), (40, 170, 40))):
+        cv2.arrowedLine(image, px(0.0, 0.0), px(dx, dy), bgr, 2, cv2.LINE_AA, tipLength=0.2)
+    bar_y = h * scale - 12
+    cv2.line(image, (10, bar_y), (10 + round(px_per_m), bar_y), (200, 80, 0), 3)
+    cv2.putText(image, "1 m", (12, bar_y - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (200, 80, 0), 1,
+                cv2.LINE_AA)
+    return np.asarray(image, dtype=np.uint8)
