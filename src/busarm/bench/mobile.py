@@ -31,8 +31,9 @@ from typing import Any
 
 import numpy as np
 
-from busarm.base.odometry import Pose2D, wrap_rad
+from busarm.base.odometry import wrap_rad
 from busarm.bench.common import machine_info
+from busarm.nav.mapping import compose
 from busarm.progress import Progress, quiet
 from busarm.robot import Robot
 from busarm.twin.arena import Arena, Room, StartPose
@@ -120,13 +121,6 @@ def square_arena(seed: int) -> Arena:
                  name="empty room", seed=seed, source=f"empty room, seed {seed}")
 
 
-def _relative(start: Pose2D, now: Pose2D) -> Pose2D:
-    """``now`` in the frame of ``start``."""
-    c, s = math.cos(start.yaw_rad), math.sin(start.yaw_rad)
-    dx, dy = now.x_m - start.x_m, now.y_m - start.y_m
-    return Pose2D(c * dx + s * dy, -s * dx + c * dy, wrap_rad(now.yaw_rad - start.yaw_rad))
-
-
 def run_square(seed: int, picture: Path | None = None) -> SquareRun:
     """One 2 m square with the slip model on; its end by odometry and by the twin."""
     with Robot.open("board://twin", arena=square_arena(seed), calibrate=False) as robot:
@@ -139,12 +133,13 @@ def run_square(seed: int, picture: Path | None = None) -> SquareRun:
         for side in range(4):
             base.move_by(SIDE_M, 0.0, 0.0)
             base.move_by(0.0, 0.0, 90.0)
-            corners.append(_odometry_in_arena(start, base.odometry().pose))
+            believed = compose(start, base.odometry().pose)
+            corners.append((believed.x_m, believed.y_m))
             truth = twin.mobile.pose(twin.data)
             off = math.dist(corners[-1], (truth.x_m, truth.y_m))
             worst = max(worst, off / (SIDE_M * (side + 1)))
         odom = base.odometry().pose
-        true = _relative(start, twin.mobile.pose(twin.data))
+        true = twin.mobile.pose(twin.data).relative_to(start)
         if picture is not None:
             from busarm.twin.arena_picture import arena_picture
             from busarm.vision.annotate import save_image
@@ -156,11 +151,6 @@ def run_square(seed: int, picture: Path | None = None) -> SquareRun:
     return SquareRun(seed, 4 * SIDE_M, math.hypot(odom.x_m - true.x_m, odom.y_m - true.y_m),
                      heading, (odom.x_m, odom.y_m, odom.yaw_deg),
                      (true.x_m, true.y_m, true.yaw_deg), worst)
-
-
-def _odometry_in_arena(start: Pose2D, odom: Pose2D) -> tuple[float, float]:
-    c, s = math.cos(start.yaw_rad), math.sin(start.yaw_rad)
-    return start.x_m + c * odom.x_m - s * odom.y_m, start.y_m + s * odom.x_m + c * odom.y_m
 
 
 def run_lidar_accuracy(seed: int, scans: int) -> LidarAccuracy:
