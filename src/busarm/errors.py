@@ -186,3 +186,8 @@ __all__ = [
     "UnreliableLineError",
     "VisionError",
 ]
+
+
+class NavigationError(BusArmError):
+    """A mobile job could not go on: no path, lost localisation, a Lidar that stopped
+    sending, an obstacle that did not go away. The base is stopped when it is raised."""

@@ -104,3 +104,9 @@ class TomlReader:
         if not isinstance(name, str) or not name.strip():
             raise self.fail("name", f"must be a non-empty string, got {name!r}")
         return name
+
+
+def toml_string(text: str) -> str:
+    """``text`` as a TOML basic string: quotes, backslashes and control characters escaped."""
+    return '"' + "".join(f"\\u{ord(c):04x}" if c in '"\\' or ord(c) < 0x20 or ord(c) == 0x7F
+                         else c for c in text) + '"'

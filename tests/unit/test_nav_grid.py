@@ -51,9 +51,11 @@ def test_a_room_scan_marks_its_walls_occupied_and_the_inside_free() -> None:
     assert np.allclose(p[rows, cols], 0.5)  # behind the walls: unknown
 
 
-def test_a_beam_with_no_return_only_clears() -> None:
+def test_a_beam_with_no_return_clears_nothing_unless_asked_to() -> None:
     grid = OccupancyGrid(GridSpec.covering(-4, 4, -4, 4, 0.1))
-    grid.insert(Pose2D(), [0.0], [math.nan])
+    grid.insert(Pose2D(), [0.0], [math.nan])  # a dropout at a wall must not open it
+    assert not grid.log_odds.any()
+    grid.insert(Pose2D(), [0.0], [math.nan], no_return_clears_m=3.0)
     assert grid.log_odds.max() == 0.0 and grid.log_odds.min() < 0.0
     rows, cols = grid.spec.cells([(2.5, 0.0), (3.5, 0.0)])
     assert grid.log_odds[rows[0], cols[0]] < 0 and grid.log_odds[rows[1], cols[1]] == 0

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 import click
 
 from busarm.cli.common import Settings, announced, make_scene, pass_settings, scene_options
+from busarm.cli.mobile_common import arena_from_spec
 from busarm.errors import ConfigError
 from busarm.twin.scene import MAX_BLOCKS
 
@@ -70,7 +71,7 @@ def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks:
                                    or colors is not None):
         raise ConfigError("--arena is the whole world: give it or --scene/--seed/--blocks/"
                           "--colors, not both")
-    arena = _arena(arena_spec) if arena_spec is not None else None
+    arena = arena_from_spec(arena_spec) if arena_spec is not None else None
     board = board or arena is not None
     if board and echo:
         raise ConfigError("--echo: a controller board's link does not echo (give one of "
@@ -103,18 +104,6 @@ def serve(settings: Settings, scene_file: Path | None, seed: int | None, blocks:
             if lidar is not None:
                 lidar.stop()
     click.echo("twin stopped", err=True)
-
-
-def _arena(spec: str) -> Arena:
-    """--arena's value: a seed (digits) or an arena file."""
-    from busarm.twin.arena import load_arena
-    from busarm.twin.arena_gen import random_arena
-
-    if spec.isdigit():
-        if int(spec) > 2**32 - 1:
-            raise ConfigError(f"--arena {spec}: a seed must be 0..{2**32 - 1}")
-        return random_arena(int(spec))
-    return load_arena(spec)
 
 
 def _say_serving(tw: Twin, path: str, url: str, lidar_path: str | None) -> None:
@@ -176,7 +165,7 @@ def snapshot(ctx: click.Context, scene_file: Path | None, seed: int | None, bloc
         if given:
             raise ConfigError(f"--arena draws the arena from above: {', '.join(given)} "
                               f"{'does' if len(given) == 1 else 'do'} not apply to it")
-        _arena_snapshot(_arena(arena_spec), png, config)
+        _arena_snapshot(arena_from_spec(arena_spec), png, config)
         return
 
     from busarm.arm.config import load_arm_config

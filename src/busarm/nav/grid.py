@@ -4,9 +4,11 @@ Cells are ``resolution_m`` squares; cell (row, col) covers x from ``origin.x_m +
 resolution_m`` and y from ``origin.y_m + row * resolution_m`` (row 0 at the lowest y, as
 ROS's ``nav_msgs/OccupancyGrid`` stores it; the map files flip it for the picture). A
 scan's beams make the cells they cross more likely free and the cell each one ends in
-more likely occupied (a beam with no return clears up to ``FREE_RANGE_M``: nothing was
-there). Probabilities are kept as log-odds, clamped so that a moved obstacle can be
-unlearnt.
+more likely occupied. A beam with no return clears nothing: the A1 also misses surfaces
+it meets at a grazing angle or that are dark, and clearing along such a beam would open
+holes in walls (``insert(..., no_return_clears_m=...)`` chooses otherwise, for a hall
+larger than the Lidar's range). Probabilities are kept as log-odds, clamped so that a
+moved obstacle can be unlearnt.
 """
 
 from __future__ import annotations
@@ -26,8 +28,6 @@ FloatArray = npt.NDArray[np.float64]
 HIT_LOG_ODDS = 0.85
 MISS_LOG_ODDS = -0.4
 CLAMP_LOG_ODDS = 4.0
-FREE_RANGE_M = 3.0
-"""A beam with no return clears this far (the A1 sees 12 m, but not every surface)."""
 MAX_CELLS = 4000 * 4000
 
 
@@ -94,15 +94,16 @@ class OccupancyGrid:
         return out
 
     def insert(self, sensor: Pose2D, bearings_rad: npt.ArrayLike,
-               ranges_m: npt.ArrayLike) -> None:
+               ranges_m: npt.ArrayLike, no_return_clears_m: float = 0.0) -> None:
         """Fold in one scan taken from ``sensor`` (the Lidar's pose in the grid's frame):
-        beam bearings in the Lidar's frame, ranges in m (NaN: no return)."""
+        beam bearings in the Lidar's frame, ranges in m (NaN: no return, which clears
+        ``no_return_clears_m``)."""
         b = np.asarray(bearings_rad, dtype=np.float64).ravel() + sensor.yaw_rad
         r = np.asarray(ranges_m, dtype=np.float64).ravel()
         if b.shape != r.shape:
             raise ConfigError(f"{len(b)} bearings and {len(r)} ranges: one each per beam")
         hit = np.isfinite(r)
-        reach = np.where(hit, r, FREE_RANGE_M)
+        reach = np.where(hit, r, no_return_clears_m)
         step = self.spec.resolution_m / 2.0
         samples = max(1, math.ceil(float(reach.max(initial=0.0)) / step))
         # Points along every beam up to just short of its end (free), then its end (hit).
@@ -126,3 +127,17 @@ class OccupancyGrid:
             flat = np.setdiff1d(flat, er[ek] * self.spec.width + ec[ek], assume_unique=False)
         view = self.log_odds.reshape(-1)
         view[flat] = np.clip(view[flat] + amount, -CLAMP_LOG_ODDS, CLAMP_LOG_ODDS)
+
+
+def cropped(grid: OccupancyGrid, margin_m: float = 0.25) -> OccupancyGrid:
+    """The part of ``grid`` around its known cells (plus ``margin_m``): what to save."""
+    known = np.nonzero(grid.log_odds != 0.0)
+    if len(known[0]) == 0:
+        return grid
+    s = grid.spec
+    pad = math.ceil(margin_m / s.resolution_m)
+    r0, r1 = max(0, known[0].min() - pad), min(s.height, known[0].max() + pad + 1)
+    c0, c1 = max(0, known[1].min() - pad), min(s.width, known[1].max() + pad + 1)
+    spec = GridSpec(s.origin_x_m + c0 * s.resolution_m, s.origin_y_m + r0 * s.resolution_m,
+                    s.resolution_m, int(c1 - c0), int(r1 - r0))
+    return OccupancyGrid(spec, grid.log_odds[r0:r1, c0:c1].copy())

@@ -21,6 +21,11 @@ from busarm.nav.scan_match import LikelihoodField, match_scan
 
 MIN_MATCHED_SHARE = 0.5
 """A correction is taken only if at least this share of the returns lands on the map."""
+INSERT_MOVED_M = 0.05
+INSERT_TURNED_RAD = math.radians(2.0)
+"""A scan is folded into the map only when the base has moved or turned this much since
+the last one that was (each fold of a slightly misplaced scan blurs the map a little;
+standing still adds nothing new). Every scan still corrects the pose."""
 
 
 def compose(a: Pose2D, b: Pose2D) -> Pose2D:
@@ -51,6 +56,7 @@ class MapBuilder:
         """The base's corrected pose at each scan."""
         self.corrections = 0
         self._last_odometry: Pose2D | None = None
+        self._inserted: Pose2D | None = None
 
     @property
     def mount(self) -> Pose2D:
@@ -68,7 +74,9 @@ class MapBuilder:
             self._last_odometry = odometry
             predicted = compose(self.poses[-1], moved)
             base = self._corrected(predicted, bearings_rad, ranges_m)
-        self.grid.insert(compose(base, self.mount), bearings_rad, ranges_m)
+        if self._inserted is None or _moved(self._inserted, base):
+            self.grid.insert(compose(base, self.mount), bearings_rad, ranges_m)
+            self._inserted = base
         self.poses.append(base)
         return base
 
@@ -80,3 +88,8 @@ class MapBuilder:
             return predicted
         self.corrections += 1
         return compose(found.pose, inverse(self.mount))
+
+
+def _moved(a: Pose2D, b: Pose2D) -> bool:
+    return (math.hypot(b.x_m - a.x_m, b.y_m - a.y_m) >= INSERT_MOVED_M
+            or abs(wrap_rad(b.yaw_rad - a.yaw_rad)) >= INSERT_TURNED_RAD)

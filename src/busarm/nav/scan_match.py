@@ -101,7 +101,7 @@ def _search(field: LikelihoodField, local: FloatArray, guess: Pose2D, half_m: fl
 
 def match_scan(field: LikelihoodField, bearings_rad: npt.ArrayLike, ranges_m: npt.ArrayLike,
                guess: Pose2D, *, window_m: float = 0.15, window_deg: float = 6.0,
-               max_points: int = 120) -> Match:
+               max_points: int = 180) -> Match:
     """The sensor pose near ``guess`` (within ``window_m`` and ``window_deg``) at which the
     scan fits the map best."""
     local = scan_points(bearings_rad, ranges_m)
@@ -114,4 +114,6 @@ def match_scan(field: LikelihoodField, bearings_rad: npt.ArrayLike, ranges_m: np
                                 math.radians(1.0))
     pose, score, near = _search(field, local, pose, res, res / 4, math.radians(1.0),
                                 math.radians(0.25))
+    pose, score, near = _search(field, local, pose, res / 4, res / 16, math.radians(0.25),
+                                math.radians(0.0625))
     return Match(pose, score, near)

@@ -23,7 +23,7 @@ from typing import Any
 
 from busarm.errors import ConfigError
 from busarm.fileio import write_text_atomic
-from busarm.tomlfile import TomlReader, load_toml, parse_toml
+from busarm.tomlfile import TomlReader, load_toml, parse_toml, toml_string
 from busarm.twin.footprints import Footprint, overlaps
 from busarm.twin.scene import BLOCK_SIZE_MM, COLORS, DEFAULT_BLOCK_MM
 
@@ -337,17 +337,11 @@ def load_arena(path: str | Path) -> Arena:
     return _Reader(source).arena(data)
 
 
-def _toml_string(text: str) -> str:
-    """``text`` as a TOML basic string: quotes, backslashes and control characters escaped."""
-    return '"' + "".join(f"\\u{ord(c):04x}" if c in '"\\' or ord(c) < 0x20 or ord(c) == 0x7F
-                         else c for c in text) + '"'
-
-
 def _toml_value(v: object) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, str):
-        return _toml_string(v)
+        return toml_string(v)
     # A float's repr is its shortest exact digits (read back to the same float) and valid
     # TOML; float() first for a numpy float, whose repr names its type.
     return repr(float(v)) if isinstance(v, float) else str(v)
@@ -361,7 +355,7 @@ def arena_to_toml(arena: Arena) -> str:
     """The arena as a file ``load_arena`` reads back to the same arena."""
     r, s = arena.room, arena.start
     out = [f'format = "{FORMAT_NAME}"', f"version = {FORMAT_VERSION}",
-           f"name = {_toml_string(arena.name)}", "",
+           f"name = {toml_string(arena.name)}", "",
            f"room = {{ {_fields(dict(x_min_m=r.x_min_m, x_max_m=r.x_max_m, y_min_m=r.y_min_m, y_max_m=r.y_max_m))} }}",  # noqa: E501
            f"start = {{ {_fields(dict(x_m=s.x_m, y_m=s.y_m, yaw_deg=s.yaw_deg))} }}", ""]
     for key, solids in (("tables", arena.tables), ("boxes", arena.boxes)):

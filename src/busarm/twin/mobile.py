@@ -76,6 +76,12 @@ class MobileBase:
         self.path: list[tuple[float, float, float]] = []
         """The true path: (simulated s, x m, y m), every ``PATH_PERIOD_S``."""
         self._path_due = 0.0
+        self._model = model
+        self._chassis_geom = int(model.geom("chassis").id)
+        self._touching: frozenset[int] = frozenset()
+        self.contacts: list[tuple[float, str]] = []
+        """Every time something began to touch the chassis: (simulated s, its geom's name);
+        ground truth for benches (a wall, a table, a box, a block)."""
         for adr, value in zip(self._qpos, (start.x_m, start.y_m, math.radians(start.yaw_deg)),
                               strict=True):
             data.qpos[adr] = value
@@ -133,7 +139,16 @@ class MobileBase:
             yaw = float(data.qpos[self._qpos[2]])
             self.board.imu_heading_rad = yaw + self.slip.gyro_bias_rad_s * float(data.time)
         t = float(data.time)
+        self._note_contacts(data, t)
         if t >= self._path_due and len(self.path) < MAX_PATH_POINTS:
             p = self.pose(data)
             self.path.append((t, p.x_m, p.y_m))
             self._path_due = t + PATH_PERIOD_S
+
+    def _note_contacts(self, data: Any, t: float) -> None:
+        pairs = data.contact.geom[: data.ncon]
+        g = self._chassis_geom
+        touching = frozenset(int(o) for a, b in pairs if g in (a, b) for o in (a, b) if o != g)
+        for other in touching - self._touching:
+            self.contacts.append((t, self._model.geom(other).name or f"geom {other}"))
+        self._touching = touching

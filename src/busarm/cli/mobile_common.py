@@ -1,0 +1,86 @@
+"""What the mobile jobs' commands share: the arena option, and opening the mobile robot.
+
+Without ``--port`` a mobile job runs on a twin of its own in an arena (``--arena SEED|FILE``),
+as pick-sort runs on its own table; with ``--port board://...`` it runs on that robot,
+its Lidar on ``--lidar`` (or the Lidar of a running ``twin serve --arena``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import TYPE_CHECKING, Any
+
+import click
+
+from busarm.cli.common import Settings, lidar_port_or_default
+from busarm.errors import ConfigError
+
+if TYPE_CHECKING:
+    from busarm.robot import Robot
+    from busarm.twin.arena import Arena
+
+MAX_SEED = 2**32 - 1
+
+
+def arena_from_spec(spec: str) -> Arena:
+    """--arena's value: a seed (digits) or an arena file."""
+    from busarm.twin.arena import load_arena
+    from busarm.twin.arena_gen import random_arena
+
+    if spec.isdigit():
+        if int(spec) > MAX_SEED:
+            raise ConfigError(f"--arena {spec}: a seed must be 0..{MAX_SEED}")
+        return random_arena(int(spec))
+    return load_arena(spec)
+
+
+def mobile_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """--arena, --chassis, --lidar."""
+    func = click.option(
+        "--lidar", "lidar_port", default=None, envvar="BUSARM_LIDAR",
+        help="With --port: the Lidar's serial port (default: a running `twin serve "
+             "--arena`'s).")(func)
+    func = click.option(
+        "--chassis", default=None,
+        help="With --port: the chassis config (a shipped name, jetauto, or a TOML file).")(func)
+    return click.option(
+        "--arena", "arena_spec", default="0", show_default=True, metavar="SEED|FILE",
+        help="Without --port: the twin's arena, a seed or an arena TOML file.")(func)
+
+
+@contextmanager
+def open_mobile_robot(settings: Settings, arena_spec: str, chassis: str | None,
+                      lidar_port: str | None, *, camera: bool = False) -> Iterator[Robot]:
+    """The robot on --port (a board:// port with a chassis and a Lidar), or without
+    --port a twin of its own in ``arena_spec``'s arena."""
+    from busarm.robot import Robot
+
+    if not settings.port_given:
+        if chassis is not None or lidar_port is not None:
+            raise ConfigError("--chassis and --lidar are for a robot on --port; the twin "
+                              "has its own (--arena chooses its world)")
+        with Robot.open("board://twin", arena=arena_from_spec(arena_spec),
+                        calibrate=camera) as robot:
+            yield robot
+        return
+    if not settings.port.startswith("board://"):
+        raise ConfigError(f"--port {settings.port}: a mobile job drives the base through the "
+                          "controller board: give a board:// port (e.g. board:///dev/rrc)")
+    options: dict[str, Any] = {}
+    if not settings.port.startswith("board://twin") or lidar_port is not None:
+        options["lidar"] = _lidar_port(lidar_port)
+    if chassis is not None:
+        options["chassis"] = chassis
+    with settings.open_robot(**options) as robot:
+        yield robot
+
+
+def _lidar_port(given: str | None) -> str:
+    from busarm.lidar.rplidar import SIM_LIDAR
+
+    port = lidar_port_or_default(given)
+    if port == SIM_LIDAR and given is None:
+        raise ConfigError("a mobile job needs the robot's Lidar: give --lidar PORT (e.g. "
+                          "/dev/ttyUSB1; `busarm ports` lists the serial ports)")
+    return port

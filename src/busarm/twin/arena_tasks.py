@@ -1,0 +1,103 @@
+"""Mobile jobs set up in a twin's arena, as a person would set them up in a room.
+
+For navigation transport a person writes a points file: where to stand to pick (in front
+of the block) and where to put it. Here those points come from the arena (which the code
+under test never reads): ``transport_points`` picks a floor block and a clear spot, and
+gives both stands in the map's frame (the frame of the pose the map was started from).
+"""
+
+from __future__ import annotations
+
+import math
+import random
+
+from busarm.base.odometry import Pose2D
+from busarm.errors import ConfigError
+from busarm.nav.mapping import compose, inverse
+from busarm.nav.points import WORK_AHEAD_M, NamedPoint, NamedPoints
+from busarm.twin.arena import ROBOT_RADIUS_M, Arena
+from busarm.twin.arena_gen import random_arena
+from busarm.twin.footprints import Footprint
+
+STANDOFF_M = WORK_AHEAD_M
+"""A pick or place stand is this far behind the block's spot (the arm reaches ahead)."""
+CLEAR_M = 0.08
+"""A stand keeps the base's disc this far from everything the arena has."""
+MIN_TRIP_M = 1.0
+DIRECTIONS = 24
+
+
+def transport_arena(seed: int) -> Arena:
+    """A seeded arena for transport: its tables, boxes and tape, and one block on the
+    floor to fetch (the others stand on the tables)."""
+    return random_arena(seed, floor_blocks=1)
+
+
+def start_pose(arena: Arena) -> Pose2D:
+    s = arena.start
+    return Pose2D(s.x_m, s.y_m, math.radians(s.yaw_deg))
+
+
+def _footprints(arena: Arena, skip_block: int | None) -> list[Footprint]:
+    out = [s.footprint() for s in (*arena.tables, *arena.boxes)]
+    out += [b.footprint() for i, b in enumerate(arena.blocks) if b.on is None and i != skip_block]
+    return out
+
+
+def _clear(arena: Arena, things: list[Footprint], x_m: float, y_m: float, radius_m: float
+           ) -> bool:
+    r = arena.room
+    if not (r.x_min_m + radius_m <= x_m <= r.x_max_m - radius_m
+            and r.y_min_m + radius_m <= y_m <= r.y_max_m - radius_m):
+        return False
+    return all(f.distance_from_mm(x_m * 1000, y_m * 1000) >= radius_m * 1000 for f in things)
+
+
+def _stand(arena: Arena, things: list[Footprint], spot: tuple[float, float],
+           rng: random.Random) -> Pose2D | None:
+    """A pose STANDOFF_M behind ``spot``, facing it, with the base's disc clear."""
+    first = rng.uniform(0, 2 * math.pi)
+    for k in range(DIRECTIONS):
+        a = first + 2 * math.pi * k / DIRECTIONS
+        x, y = spot[0] - STANDOFF_M * math.cos(a), spot[1] - STANDOFF_M * math.sin(a)
+        if _clear(arena, things, x, y, ROBOT_RADIUS_M + CLEAR_M):
+            return Pose2D(x, y, a)
+    return None
+
+
+def transport_points(arena: Arena, map_origin: Pose2D | None = None, seed: int = 0
+                     ) -> tuple[NamedPoints, int, tuple[float, float]]:
+    """Points ``pick`` (facing the first floor block) and ``place`` (facing a clear spot
+    at least MIN_TRIP_M away) in the map's frame (``map_origin``: the arena pose the
+    map's origin is at; default the arena's start); also the block's index and the place
+    spot (arena frame), for checking the outcome."""
+    rng = random.Random(seed)
+    floor = [i for i, b in enumerate(arena.blocks) if b.on is None]
+    if not floor:
+        raise ConfigError(f"{arena.name}: no block on the floor to fetch")
+    index = floor[0]
+    block = arena.blocks[index]
+    things = _footprints(arena, index)
+    pick = _stand(arena, things, (block.x_m, block.y_m), rng)
+    if pick is None:
+        raise ConfigError(f"{arena.name}: no room to stand in front of block {index}")
+    things_and_block = [*things, block.footprint(),
+                        Footprint.disc(pick.x_m * 1000, pick.y_m * 1000, 2000 * ROBOT_RADIUS_M)]
+    for _ in range(2000):
+        x = rng.uniform(arena.room.x_min_m, arena.room.x_max_m)
+        y = rng.uniform(arena.room.y_min_m, arena.room.y_max_m)
+        if math.dist((x, y), (block.x_m, block.y_m)) < MIN_TRIP_M or not _clear(
+                arena, things_and_block, x, y, 0.06):
+            continue
+        place = _stand(arena, things_and_block, (x, y), rng)
+        if place is not None:
+            break
+    else:
+        raise ConfigError(f"{arena.name}: no clear spot to put the block")
+    origin = map_origin if map_origin is not None else start_pose(arena)
+    to_map = inverse(origin)
+    points = NamedPoints(f"transport in {arena.name}", {
+        "pick": NamedPoint("pick", compose(to_map, pick)),
+        "place": NamedPoint("place", compose(to_map, place))}, source=f"{arena.name} points")
+    return points, index, (x, y)
+
