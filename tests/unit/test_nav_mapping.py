@@ -7,6 +7,7 @@ import math
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from nav_world import BEARINGS, mapped, scan_from
 
 from busarm.base.config import Mount
 from busarm.base.odometry import Pose2D
@@ -14,38 +15,7 @@ from busarm.nav.grid import GridSpec, OccupancyGrid
 from busarm.nav.mapping import MapBuilder, compose, inverse
 from busarm.nav.scan_match import LikelihoodField, match_scan
 
-# An L-shaped room (no symmetry to fool the matcher): walls as segments, metres.
-WALLS = [((-2.0, -1.5), (2.0, -1.5)), ((2.0, -1.5), (2.0, 0.5)), ((2.0, 0.5), (0.5, 0.5)),
-         ((0.5, 0.5), (0.5, 1.5)), ((0.5, 1.5), (-2.0, 1.5)), ((-2.0, 1.5), (-2.0, -1.5)),
-         ((-1.0, -0.3), (-0.6, -0.3)), ((-0.6, -0.3), (-0.6, 0.1))]
-BEARINGS = np.linspace(0, 2 * math.pi, 200, endpoint=False)
-
-
-def scan_from(sensor: Pose2D) -> np.ndarray:
-    """Ranges of BEARINGS from ``sensor`` to the nearest wall (NaN beyond 12 m)."""
-    out = np.full(len(BEARINGS), np.nan)
-    for i, b in enumerate(BEARINGS + sensor.yaw_rad):
-        d = np.array([math.cos(b), math.sin(b)])
-        for (ax, ay), (bx, by) in WALLS:
-            e = np.array([bx - ax, by - ay])
-            den = d[0] * (-e[1]) - d[1] * (-e[0])
-            if abs(den) < 1e-12:
-                continue
-            w = np.array([ax - sensor.x_m, ay - sensor.y_m])
-            t = (w[0] * (-e[1]) - w[1] * (-e[0])) / den
-            u = (d[0] * w[1] - d[1] * w[0]) / den
-            if t > 0.05 and 0 <= u <= 1 and not (out[i] <= t):
-                out[i] = t
-    return out
-
-
-def mapped(*sensors: Pose2D) -> OccupancyGrid:
-    grid = OccupancyGrid(GridSpec.covering(-2.5, 2.5, -2.0, 2.0, 0.025))
-    for sensor in sensors:
-        for _ in range(3):
-            grid.insert(sensor, BEARINGS, scan_from(sensor))
-    return grid
-
+# The L-shaped room (no symmetry to fool the matcher) and its scans: nav_world.
 
 FIELD = LikelihoodField(mapped(Pose2D(-1.2, 0.8, 0.0), Pose2D(1.2, -0.8, 1.0)))
 

@@ -49,6 +49,7 @@ from busarm.cli.arm_inputs import (
 )
 from busarm.cli.exits import JobNotDone
 from busarm.cli.help_style import metavar_from_help, unit_metavar
+from busarm.cli.mobile_common import arena_from_spec, mobile_options, open_mobile_robot
 from busarm.cli.sessions import Session, announced, find_session, running_sessions
 from busarm.cli.stopping import (
     add_detail,
@@ -104,6 +105,7 @@ __all__ = ["add_detail", "halt_motor", "no_servos", "report_line", "stop_and_rea
 __all__ += ["check_gap_mm", "gap_report", "joints_in", "joints_to_move",
             "parse_gripper_target", "robot_folder", "target_in"]
 __all__ += ["announced", "find_session"]  # running `sim serve`/`twin serve` (cli.sessions)
+__all__ += ["arena_from_spec", "mobile_options", "open_mobile_robot"]  # cli.mobile_common
 __all__ += ["JobNotDone", "metavar_from_help"]  # exit codes, help style (cli.exits, help_style)
 
 

@@ -1,4 +1,5 @@
-"""What the mobile jobs' commands share: the arena option, and opening the mobile robot.
+"""What the mobile jobs' commands share: the arena option, opening the mobile robot
+(re-exported by busarm.cli.common).
 
 Without ``--port`` a mobile job runs on a twin of its own in an arena (``--arena SEED|FILE``),
 as pick-sort runs on its own table; with ``--port board://...`` it runs on that robot,
@@ -13,10 +14,10 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from busarm.cli.common import Settings, lidar_port_or_default
 from busarm.errors import ConfigError
 
 if TYPE_CHECKING:
+    from busarm.cli.common import Settings
     from busarm.robot import Robot
     from busarm.twin.arena import Arena
 
@@ -77,6 +78,7 @@ def open_mobile_robot(settings: Settings, arena_spec: str, chassis: str | None,
 
 
 def _lidar_port(given: str | None) -> str:
+    from busarm.cli.common import lidar_port_or_default  # common re-exports this module
     from busarm.lidar.rplidar import SIM_LIDAR
 
     port = lidar_port_or_default(given)

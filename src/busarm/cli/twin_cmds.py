@@ -12,8 +12,14 @@ from typing import TYPE_CHECKING
 
 import click
 
-from busarm.cli.common import Settings, announced, make_scene, pass_settings, scene_options
-from busarm.cli.mobile_common import arena_from_spec
+from busarm.cli.common import (
+    Settings,
+    announced,
+    arena_from_spec,
+    make_scene,
+    pass_settings,
+    scene_options,
+)
 from busarm.errors import ConfigError
 from busarm.twin.scene import MAX_BLOCKS
 
