@@ -336,3 +336,15 @@ def test_settings_within_a_chassis_keep_to_its_limits() -> None:
 def test_a_bad_path_or_yaw_is_refused(path: list[Point], yaw: float, message: str) -> None:
     with pytest.raises(ConfigError, match=message):
         PathFollower(path, yaw)
+
+
+def test_a_holonomic_base_turning_as_it_goes_down_a_narrow_corridor_is_not_blocked() -> None:
+    # Walls 0.275 m each side, the base backing out at 0.25 m/s while it turns round: held
+    # in the body that twist is an arc into a wall; a holonomic follower keeps it straight.
+    along = np.arange(-1.0, 1.0, 0.01)
+    walls = np.concatenate([np.column_stack([along, np.full_like(along, side)])
+                            for side in (0.275, -0.275)])
+    twist = Twist(-0.25, 0.0, 1.2)
+    assert blocked(walls, twist, 0.2)
+    assert not blocked(walls, twist, 0.2, holonomic=True)
+    assert blocked(walls, Twist(0.0, 0.25, 1.2), 0.2, holonomic=True)  # sideways into one

@@ -44,6 +44,12 @@ class PickSortSettings:
     """A supply this low stops the run cleanly (LX servos go silent near 6 V)."""
     max_pause_s: float = 600.0
 
+    def gaps_mm(self, block_mm: float) -> list[float]:
+        """How far apart the fingers may open for a grasp of a block ``block_mm`` wide,
+        widest first (down to the least clearance, between close neighbours)."""
+        c, least = self.finger_clearance_mm, self.min_finger_clearance_mm
+        return [block_mm + 2 * k for k in (c, (c + least) / 2, least)]
+
     def __post_init__(self) -> None:
         if self.order not in ORDERS:
             raise ConfigError(f"order = {self.order!r}; allowed: {', '.join(ORDERS)}")

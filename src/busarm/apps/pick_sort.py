@@ -40,6 +40,7 @@ from busarm.apps.bins import (
 )
 from busarm.apps.footprint import Footprint
 from busarm.apps.grasp import GraspPlan, GraspPlanner, NoClearGrasp
+from busarm.apps.gripping import descend_and_grip, lower_and_release, still_holding
 from busarm.apps.pick_outcomes import BlockOutcome, RunReport
 from busarm.apps.pick_settings import ORDERS, PickSortSettings
 from busarm.apps.push import Push, PushPlanner
@@ -54,7 +55,6 @@ from busarm.apps.table_view import (
 from busarm.errors import (
     BusArmError,
     ConfigError,
-    ContactError,
     MotionTimeoutError,
     ServoFaultError,
     UnreachableError,
@@ -139,11 +139,6 @@ class PickSorter:
         return self.view.look_closer(target, always=always)
 
     # ------------------------------------------------------------------ moving
-
-    def _still_holding(self) -> bool:
-        """Whether the gripper still stands short of closed (a dropped block lets it close)."""
-        g = self.arm.config.gripper
-        return abs(self.arm.read_gripper_pulses() - g.closed_pulses) > g.holding_margin_pulses
 
     def check_servos(self) -> None:
         """Pause while a servo is too hot (arm at home, gripper open); a supply too low for
@@ -252,24 +247,15 @@ class PickSorter:
             return False, f"blocked on the way to it ({exc}): backed off", None, plan
         arm.open_gripper(gap_mm=gap)
         self.on_step("above")
-        try:  # watched: fingers landing on something stop, back off, and try again later
-            arm.move_line_guarded(*plan.grasp, pitch, roll, speed_mm_s=s.line_speed_mm_s)
-        except ContactError as exc:
-            if not exc.backed_off:
-                raise  # stopped and holding where it touched: not for a retry
-            arm.open_gripper(wait=False, gap_mm=gap)
-            x, y, z = exc.tool_mm
-            return (False, f"blocked on the way down at {place_text((x, y, z))} "
-                           f"({exc.joint} stopped short): backed off", None, plan)
-        self._holding = target.color  # from the squeeze on: the reading says if it holds
-        grip = arm.grip()
-        self.on_step("grip")
-        if not grip.is_holding:
+
+        def squeezing() -> None:  # from the squeeze on: the reading says if it holds
+            self._holding = target.color
+
+        missed = descend_and_grip(arm, plan, s.line_speed_mm_s, on_squeeze=squeezing,
+                                  on_step=self.on_step)
+        if missed:
             self._holding = None
-            arm.open_gripper(wait=False, gap_mm=gap)
-            arm.move_line(*plan.above, pitch, roll, speed_mm_s=s.line_speed_mm_s)
-            return (False, f"the gripper closed on nothing ({grip.position_pulses} pulses)",
-                    None, plan)
+            return False, missed, None, plan
         arm.move_line(*plan.lift, pitch, roll, speed_mm_s=s.line_speed_mm_s)
         self.on_step("lift")
         if pitch != -90.0 and self.places.next_layer(target.color) == 1:
@@ -288,16 +274,13 @@ class PickSorter:
                                                   release_z)
         carry_z = self._carry(plan, (bx, by), carry_z, square)
         self.on_step("carry")
-        if not self._still_holding():
+        if not still_holding(arm):
             self._holding = None
             arm.open_gripper(wait=False, gap_mm=gap)
             self.places.take_back(target.color)
             return False, "the block slipped out during the carry", None, plan
-        try:
-            arm.move_line(bx, by, release_z, -90.0, square, speed_mm_s=s.line_speed_mm_s)
-        except MotionTimeoutError:  # it rests on something in the bin: let go there
-            arm.stop()
-        arm.open_gripper(gap_mm=gap)
+        # (Resting on something in the bin on the way down, it is let go there.)
+        lower_and_release(arm, (bx, by, release_z), -90.0, square, gap, s.line_speed_mm_s)
         self._holding = None  # only once open: stopped while opening, it still holds it
         self.on_step("release")
         arm.move_line(bx, by, carry_z, -90.0, square, speed_mm_s=s.line_speed_mm_s)
@@ -338,11 +321,8 @@ class PickSorter:
         z0 = self.locator.table_z_mm
         roll = self.planner.roll_squared_deg(*spot, 0.0)
         carry_z = self._carry(plan, spot, z0 + s.carry_mm, roll)
-        try:
-            arm.move_line(*spot, z0 + s.release_mm, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
-        except MotionTimeoutError:  # it rests on something: let go there
-            arm.stop()
-        arm.open_gripper(gap_mm=gap_mm)
+        lower_and_release(arm, (*spot, z0 + s.release_mm), -90.0, roll, gap_mm,
+                          s.line_speed_mm_s)
         self._holding = None  # only once open (see pick_and_place)
         arm.move_line(*spot, carry_z, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
 
@@ -616,10 +596,7 @@ class PickSorter:
 
     def _gaps(self) -> list[float]:
         """How far apart the fingers may open for a grasp, widest first."""
-        s, size = self.settings, self.locator.block_size_mm
-        return [size + 2 * c for c in (s.finger_clearance_mm,
-                                       (s.finger_clearance_mm + s.min_finger_clearance_mm) / 2,
-                                       s.min_finger_clearance_mm)]
+        return self.settings.gaps_mm(self.locator.block_size_mm)
 
 
 def _mm(xy: tuple[float, float]) -> str:

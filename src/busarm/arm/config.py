@@ -13,7 +13,7 @@ model in degrees; the servo position of a joint is
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -272,6 +272,26 @@ class ArmConfig:
 
 
 # ---------------------------------------------------------------------- loading
+
+
+def deck_mounted(config: ArmConfig, joint: str = "shoulder_pitch") -> ArmConfig:
+    """The arm on the mobile base's deck: ``joint`` may turn down to its servo's end.
+
+    The table arm's shoulder stops at horizontal (the vendor's IK limit there: below it the
+    arm would reach under its own table). On the JetAuto's deck, 145 mm above the floor,
+    the fingertips reach the floor only with the shoulder below horizontal, as the
+    vendor's floor games do: up to the servo's end (pulse 0 or 1000, +30 deg here)."""
+    def widened(j: JointConfig) -> JointConfig:
+        if j.name != joint:
+            return j
+        ends = sorted(j.angle_deg_from_pulses(p) for p in (POSITION_MIN_PULSES,
+                                                          POSITION_MAX_PULSES))
+        return replace(j, max_deg=max(j.max_deg, ends[1]))  # downward: the floor ahead
+
+    names = [j.name for j in config.joints]
+    if joint not in names:
+        raise ConfigError(f"{config.name} has no joint {joint!r}; its joints: {', '.join(names)}")
+    return replace(config, joints=tuple(widened(j) for j in config.joints))
 
 
 def load_arm_config(name_or_path: str | Path = DEFAULT_ARM) -> ArmConfig:

@@ -17,6 +17,7 @@ The heading comes from the IMU's gyro when the board reports it (``Odometry``).
 
 from __future__ import annotations
 
+import bisect
 import math
 import threading
 from collections import deque
@@ -68,6 +69,8 @@ the wheels (the simulated one takes about 0.25 s from full speed to 1%)."""
 ODOMETRY_PERIOD_S = 0.02
 """How often the base reads the board's reports when nothing else does."""
 MAX_PENDING_REPORTS = 20_000
+HISTORY_SAMPLES = 300
+"""``pose_at`` looks back this many odometry updates (3 s of encoder reports)."""
 MOVE_MAX_M = 100.0
 MOVE_MAX_DEG = 3600.0
 _INT32 = 2**32
@@ -121,6 +124,7 @@ class Base:
         self.watchdog_stops = 0
         """How many times the watchdog stopped the wheels."""
         self._odometry = Odometry(self.kinematics)
+        self._history: deque[tuple[float, Pose2D]] = deque(maxlen=HISTORY_SAMPLES)
         self._lock = threading.RLock()
         self._command = Twist()
         self._command_at_s = self.clock.now()
@@ -221,11 +225,30 @@ class Base:
             odom = self._update()
             return BaseOdometry(odom.pose, odom.twist, self.clock.now(), self.odometry_source)
 
+    def pose_at(self, at_s: float) -> Pose2D:
+        """The odometry's pose at ``at_s`` (this clock's time, within the last
+        HISTORY_SAMPLES reports; interpolated between them): where the base was when a
+        sensor measured something."""
+        with self._lock:
+            self._update()
+            history = list(self._history)
+        if not history or at_s >= history[-1][0]:
+            return self._odometry.pose
+        if at_s <= history[0][0]:
+            return history[0][1]
+        times = [t for t, _ in history]
+        k = bisect.bisect_right(times, at_s)
+        (t0, a), (t1, b) = history[k - 1], history[k]
+        f = (at_s - t0) / (t1 - t0) if t1 > t0 else 1.0
+        return Pose2D(a.x_m + f * (b.x_m - a.x_m), a.y_m + f * (b.y_m - a.y_m),
+                      wrap_rad(a.yaw_rad + f * wrap_rad(b.yaw_rad - a.yaw_rad)))
+
     def reset_odometry(self, pose: Pose2D | None = None) -> None:
         """Count the pose from ``pose`` (default the origin) from now on."""
         with self._lock:
             self._update()
             self._odometry.reset(pose)
+            self._history.clear()
 
     @property
     def command(self) -> Twist:
@@ -385,6 +408,7 @@ class Base:
         at_rest = self._command.is_zero and at_s - self._command_at_s > COMMANDS_STOP_S
         turns: WheelSpeeds = (self._turns[0], self._turns[1], self._turns[2], self._turns[3])
         self._odometry.update(turns, travel_at_s, gyro, at_rest=at_rest)
+        self._history.append((at_s, self._odometry.pose))
 
     def _on_report(self, report: BoardReport, at_s: float) -> None:
         """The link's listener: takes note only (it runs with the link in use)."""

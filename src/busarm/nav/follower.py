@@ -278,10 +278,13 @@ def sweep_m(twist: Twist, horizon_s: float, step_m: float = 0.01) -> FloatArray:
 
 
 def blocked(points_base_m: npt.ArrayLike, twist: Twist, robot_radius_m: float,
-            horizon_s: float = 1.0, margin_m: float = 0.05) -> bool:
+            horizon_s: float = 1.0, margin_m: float = 0.05, *, holonomic: bool = False) -> bool:
     """Whether the robot's disc, going on at ``twist`` for ``horizon_s``, comes within
     ``margin_m`` of any return (shape (N, 2), base frame) at a place nearer to it than it
-    is now (so a base already that close may still back away)."""
+    is now (so a base already that close may still back away). ``holonomic``: the
+    translation is held in the world while the base turns (as ``PathFollower`` steers a
+    mecanum base), so the disc goes straight; else the twist is held in the body and the
+    disc follows its arc."""
     check_range("robot_radius_m", robot_radius_m, 0.01, 2.0, "m")
     check_range("margin_m", margin_m, 0.0, 1.0, "m")
     points = np.asarray(points_base_m, dtype=np.float64)
@@ -292,7 +295,7 @@ def blocked(points_base_m: npt.ArrayLike, twist: Twist, robot_radius_m: float,
     points = points[np.isfinite(points).all(axis=1)]
     if twist.vx_m_s == 0.0 and twist.vy_m_s == 0.0:
         return False  # turning in place: the disc stays where it is
-    centres = sweep_m(twist, horizon_s)
+    centres = sweep_m(Twist(twist.vx_m_s, twist.vy_m_s) if holonomic else twist, horizon_s)
     now_m = np.hypot(points[:, 0], points[:, 1])
     later_m = np.hypot(points[None, :, 0] - centres[:, None, 0],
                        points[None, :, 1] - centres[:, None, 1])

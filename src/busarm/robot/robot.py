@@ -33,7 +33,7 @@ from urllib.parse import parse_qs, urlsplit
 
 from busarm.arm.arm import Arm
 from busarm.arm.calibration import Calibration, load_calibration
-from busarm.arm.config import ArmConfig, load_arm_config
+from busarm.arm.config import ArmConfig, deck_mounted, load_arm_config
 from busarm.base.base import Base
 from busarm.base.config import ChassisConfig, load_chassis_config
 from busarm.bus.board_bus import BoardServoBus
@@ -193,6 +193,8 @@ class Robot:
             cfg = twin.config
         else:
             cfg = given or load_arm_config()
+            if chassis is not None:  # the arm stands on the mobile base's deck
+                cfg = deck_mounted(cfg)
             transport = open_transport(port, baudrate=baudrate)
         opened: list[Any] = [transport]
         try:

@@ -39,7 +39,7 @@ import numpy as np
 import numpy.typing as npt
 
 from busarm.arm.camera_mount import CameraMount
-from busarm.arm.config import ArmConfig, load_arm_config
+from busarm.arm.config import ArmConfig, deck_mounted, load_arm_config
 from busarm.arm.kinematics import ArmKinematics
 from busarm.base.config import ChassisConfig, load_chassis_config
 from busarm.clock import WALL_CLOCK, Clock, SimClock
@@ -148,6 +148,8 @@ class Twin:
     ) -> None:
         self.mujoco = _import_mujoco()
         self.config = config if config is not None else load_arm_config()
+        if arena is not None:  # the arm stands on the mobile base's deck
+            self.config = deck_mounted(self.config)
         if arena is not None and scene is not None:
             raise ConfigError("a twin has an arena (the mobile robot) or a table scene, not both")
         self.arena = arena

@@ -1,0 +1,56 @@
+"""The gripper's part of taking a block and setting it down, shared by the jobs that do
+(pick-and-sort on the table, the mobile robot's picks): the straight descent watched for
+contact, the squeeze and the reading that says whether it holds, the release."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from busarm.apps.grasp import GraspPlan
+from busarm.arm import Arm
+from busarm.errors import ContactError, MotionTimeoutError
+from busarm.units import place_text
+
+
+def still_holding(arm: Arm) -> bool:
+    """Whether the gripper still stands short of closed (a dropped block lets it close)."""
+    g = arm.config.gripper
+    return abs(arm.read_gripper_pulses() - g.closed_pulses) > g.holding_margin_pulses
+
+
+def descend_and_grip(arm: Arm, plan: GraspPlan, speed_mm_s: float, *,
+                     on_squeeze: Callable[[], None] = lambda: None,
+                     on_step: Callable[[str], None] = lambda _: None) -> str:
+    """From ``plan.above`` with the fingers ``plan.gap_mm`` apart: straight down to the
+    grasp, watched for contact, and close (``on_squeeze()`` just before, ``on_step("grip")``
+    once closed). "" when the gripper holds something; else why not, the fingers opened
+    again (and, closed on nothing, the tool back at ``plan.above``). ContactError if a
+    contact left the arm stopped where it touched (it could not back off)."""
+    pitch, roll = plan.pitch_deg, plan.roll_deg
+    try:  # watched: fingers landing on something stop, back off, and try again later
+        arm.move_line_guarded(*plan.grasp, pitch, roll, speed_mm_s=speed_mm_s)
+    except ContactError as exc:
+        if not exc.backed_off:
+            raise  # stopped and holding where it touched: not for a retry
+        arm.open_gripper(wait=False, gap_mm=plan.gap_mm)
+        return (f"blocked on the way down at {place_text(exc.tool_mm)} "
+                f"({exc.joint} stopped short): backed off")
+    on_squeeze()
+    grip = arm.grip()
+    on_step("grip")
+    if not grip.is_holding:
+        arm.open_gripper(wait=False, gap_mm=plan.gap_mm)
+        arm.move_line(*plan.above, pitch, roll, speed_mm_s=speed_mm_s)
+        return f"the gripper closed on nothing ({grip.position_pulses} pulses)"
+    return ""
+
+
+def lower_and_release(arm: Arm, point_mm: tuple[float, float, float], pitch_deg: float,
+                      roll_deg: float, gap_mm: float, speed_mm_s: float) -> None:
+    """Straight down to ``point_mm`` (stopping where the block rests on something on the
+    way), then open the fingers ``gap_mm`` apart."""
+    try:
+        arm.move_line(*point_mm, pitch_deg, roll_deg, speed_mm_s=speed_mm_s)
+    except MotionTimeoutError:  # it rests on something: let go there
+        arm.stop()
+    arm.open_gripper(gap_mm=gap_mm)
