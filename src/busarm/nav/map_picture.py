@@ -18,7 +18,7 @@ MIN_SIDE_PX = 600
 AXIS_M = 0.5
 Point = tuple[float, float]
 PATH_BGR = (200, 120, 0)
-PLAN_BGR = (160, 160, 160)
+PLAN_BGR = (150, 150, 150)
 
 
 def map_picture(grid: OccupancyGrid, *, path: Sequence[Point] = (),
@@ -42,9 +42,9 @@ def map_picture(grid: OccupancyGrid, *, path: Sequence[Point] = (),
 
     for (dx, dy), bgr in (((AXIS_M, 0.0), (40, 40, 230)), ((0.0, AXIS_M), (40, 170, 40))):
         cv2.arrowedLine(image, px(0.0, 0.0), px(dx, dy), bgr, 2, cv2.LINE_AA, tipLength=0.2)
-    _polyline(image, px, path, PATH_BGR, 2)
     for plan in plans:
-        _polyline(image, px, plan, PLAN_BGR, 1)
+        _polyline(image, px, plan, PLAN_BGR, 2)
+    _polyline(image, px, path, PATH_BGR, 2)
     for x, y in returns:
         cv2.circle(image, px(x, y), 2, (0, 140, 255), -1, cv2.LINE_AA)
     for name, (x, y) in (marks or {}).items():

@@ -1,0 +1,183 @@
+"""Building a map by exploring: drive to the nearest open frontier until none is left.
+
+``build_map(robot)`` reads the Lidar scan after scan (busarm.apps.nav_sensing), places
+each where it fits what is mapped so far (busarm.nav.mapping.MapBuilder: the odometry's
+drift stops at the map), and drives the base to the frontier (busarm.nav.frontiers) it
+can reach soonest, on the inflated map (busarm.nav.costmap, planner, follower), checking
+every scan that the next second of motion touches nothing (``blocked``). It stops when no
+frontier is left, or at the time limit; the map's frame is where the base started.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from busarm.apps.nav_sensing import ScanReader, SensedScan
+from busarm.base.odometry import Pose2D
+from busarm.lidar.scan import to_points
+from busarm.nav.costmap import Costmap
+from busarm.nav.follower import FollowerSettings, PathFollower, blocked
+from busarm.nav.frontiers import Frontier, find_frontiers, gaps_filled
+from busarm.nav.grid import GridSpec, OccupancyGrid, cropped
+from busarm.nav.mapping import MapBuilder, compose, inverse
+from busarm.nav.planner import NoPath, plan_path
+from busarm.robot import Robot
+from busarm.units import check_range
+
+ROBOT_RADIUS_M = 0.2
+"""The base's footprint as a disc (the JetAuto with its wheels is about 0.3 x 0.25 m)."""
+EXTENT_M = 16.0
+"""The canvas a map is built on (centred on the start), cropped to what was seen."""
+RESOLUTION_M = 0.025
+REPLAN_S = 3.0
+EXPLORE_SPEED_M_S = 0.2
+EXPLORE_YAW_RATE_RAD_S = 0.6
+"""Turning slower keeps scans sharp (de-skewing corrects the rest)."""
+ARRIVED_M = 0.25
+"""A frontier target this close to the base is reached (whatever remains of it cannot be
+seen from here): it is not chosen again."""
+EXPLORE_FREE_P = 0.45
+"""While exploring, a cell one beam has crossed is open floor (a saved map asks more)."""
+
+
+@dataclass
+class MapRun:
+    """A finished exploration: the map (cropped), where the base was, and why it stopped."""
+
+    grid: OccupancyGrid
+    poses: list[Pose2D] = field(default_factory=list)
+    """The base's corrected pose at each scan (map frame)."""
+    seconds: float = 0.0
+    driven_m: float = 0.0
+    scans: int = 0
+    corrections: int = 0
+    finished: str = ""
+    """Why it stopped: explored, or the time limit."""
+    unreachable: int = 0
+    """Frontiers given up on (no route, or blocked)."""
+
+
+class Explorer:
+    """One exploration of the place ``robot`` stands in."""
+
+    def __init__(self, robot: Robot, *, time_limit_s: float = 300.0,
+                 resolution_m: float = RESOLUTION_M, min_frontier_m: float = 0.3,
+                 on_scan: Callable[[Explorer], None] | None = None) -> None:
+        check_range("time_limit_s", time_limit_s, 1.0, 7200.0, "s")
+        self.reader = ScanReader(robot)
+        self.base = self.reader.base
+        self.clock = robot.clock
+        self.time_limit_s = time_limit_s
+        self.min_frontier_m = min_frontier_m
+        self.on_scan = on_scan
+        half = EXTENT_M / 2
+        spec = GridSpec.covering(-half, half, -half, half, resolution_m)
+        self.builder = MapBuilder(spec, self.base.config.lidar)
+        self.settings = FollowerSettings(max_speed_m_s=EXPLORE_SPEED_M_S,
+                                         max_yaw_rate_rad_s=EXPLORE_YAW_RATE_RAD_S,
+                                         goal_tolerance_m=0.05).within(self.base.config)
+        self.pose = Pose2D()
+        self.follower: PathFollower | None = None
+        self.goal: tuple[float, float] | None = None
+        self.visited: list[tuple[float, float]] = []
+        self.unreachable: list[tuple[float, float]] = []
+        """Frontier targets given up on: no route, or the way there blocked."""
+        self._planned_at_s = -math.inf
+
+    def run(self) -> MapRun:
+        """Explore until done; the wheels are stopped whatever happens."""
+        start = self.clock.now()
+        run = MapRun(self.builder.grid)
+        try:
+            finished = self._loop(start)
+        finally:
+            self.base.stop()
+        run.grid = cropped(self.builder.grid)
+        run.poses = list(self.builder.poses)
+        run.seconds = self.clock.now() - start
+        run.driven_m = sum(math.dist((a.x_m, a.y_m), (b.x_m, b.y_m))
+                           for a, b in zip(run.poses, run.poses[1:], strict=False))
+        run.scans, run.corrections = self.reader.scans, self.builder.corrections
+        run.finished, run.unreachable = finished, len(self.unreachable)
+        return run
+
+    def _loop(self, start_s: float) -> str:
+        while self.clock.now() - start_s < self.time_limit_s:
+            sensed = self.reader.read()
+            self._place(sensed)
+            if self.on_scan is not None:
+                self.on_scan(self)
+            if self._needs_plan() and not self._plan():
+                return "explored: no frontier left that the base can reach"
+            self._drive(sensed)
+        return f"the time limit ({self.time_limit_s:g} s)"
+
+    def _place(self, sensed: SensedScan) -> None:
+        at_scan = self.builder.add(sensed.bearings_rad, sensed.ranges_m,
+                                   sensed.odometry)
+        since = compose(inverse(sensed.odometry), sensed.odometry_now)
+        self.pose = compose(at_scan, since)
+
+    def _needs_plan(self) -> bool:
+        return (self.follower is None or self.follower.done
+                or self.clock.now() - self._planned_at_s > REPLAN_S)
+
+    def _plan(self) -> bool:
+        """Plan to the best frontier; False when none is left."""
+        self._planned_at_s = self.clock.now()
+        here = (self.pose.x_m, self.pose.y_m)
+        if self.goal is not None and math.dist(self.goal, here) < ARRIVED_M:
+            self.visited.append(self.goal)
+        costmap = Costmap.from_grid(gaps_filled(self.builder.grid), ROBOT_RADIUS_M,
+                                    free_below_p=EXPLORE_FREE_P)
+        for frontier in self._candidates(costmap):
+            target = costmap.nearest_free(frontier.x_m, frontier.y_m, 0.6)
+            if (target is None or self._given_up_near(target)
+                    or math.dist(target, here) < ARRIVED_M):
+                continue
+            try:
+                path = plan_path(costmap, here, target)
+            except NoPath:
+                self.unreachable.append(target)
+                continue
+            self.goal, self.follower = target, PathFollower(path, None, self.settings)
+            return True
+        self.follower = None
+        return False
+
+    def _candidates(self, costmap: Costmap) -> list[Frontier]:
+        found = find_frontiers(self.builder.grid, self.min_frontier_m)
+
+        def cost(f: Frontier) -> float:
+            # Near ones first; a long frontier is worth a little more travel.
+            return math.dist((f.x_m, f.y_m), (self.pose.x_m, self.pose.y_m)) - 0.3 * min(
+                f.length_m, 2.0)
+
+        return sorted(found, key=cost)
+
+    def _given_up_near(self, target: tuple[float, float]) -> bool:
+        return any(math.dist(target, g) < 0.3 for g in (*self.visited, *self.unreachable))
+
+    def _drive(self, sensed: SensedScan) -> None:
+        if self.follower is None:
+            self.base.stop()
+            return
+        command = self.follower.command(self.pose)
+        points = to_points(sensed.scan, self.base.config.lidar)
+        if blocked(points, command, ROBOT_RADIUS_M, holonomic=True):
+            self.base.stop()
+            if self.goal is not None:
+                self.unreachable.append(self.goal)
+            self.follower = None
+            return
+        self.base.drive(command.vx_m_s, command.vy_m_s, command.wz_rad_s)
+
+
+def build_map(robot: Robot, *, time_limit_s: float = 300.0,
+              resolution_m: float = RESOLUTION_M,
+              on_scan: Callable[[Explorer], None] | None = None) -> MapRun:
+    """Explore the place ``robot`` stands in and return its map (see ``Explorer``)."""
+    return Explorer(robot, time_limit_s=time_limit_s, resolution_m=resolution_m,
+                    on_scan=on_scan).run()

@@ -1,0 +1,292 @@
+"""Going to a pose on a saved map: localise, plan, follow, and never touch anything.
+
+``Navigator(robot, grid)`` reads the Lidar scan after scan (busarm.apps.nav_sensing), keeps
+a particle filter (busarm.nav.localize) on the map, and drives the base along a path
+planned on the inflated map with the scan's returns added (busarm.nav.costmap, planner),
+followed holonomically (busarm.nav.follower). Every scan it checks that the next second
+of the commanded motion keeps clear of every return (``blocked``): if not, the wheels
+stop; it re-plans around the obstacle, or waits for it to go (a person steps away), and
+gives up with a clear reason after ``obstacle_wait_s``. The Lidar going silent, the
+localisation getting lost or the time running out stop the base with a NavigationError.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from busarm.apps.nav_sensing import ScanReader, SensedScan
+from busarm.base.kinematics import Twist
+from busarm.base.odometry import Pose2D
+from busarm.errors import NavigationError
+from busarm.lidar.scan import to_points
+from busarm.nav.costmap import Costmap
+from busarm.nav.follower import FollowerSettings, PathFollower, blocked
+from busarm.nav.grid import OccupancyGrid
+from busarm.nav.localize import ParticleFilter, PoseEstimate
+from busarm.nav.mapping import compose, inverse
+from busarm.nav.planner import NoPath, plan_path
+from busarm.robot import Robot
+from busarm.units import check_range
+
+Point = tuple[float, float]
+FloatArray = npt.NDArray[np.float64]
+SETTLE_MAX_M = 0.1
+"""``settle`` closes at most this much by odometry alone (no Lidar check of the path)."""
+
+
+@dataclass(frozen=True)
+class NavSettings:
+    robot_radius_m: float = 0.2
+    """The base's footprint as a disc."""
+    inflation_m: float = 0.3
+    max_speed_m_s: float = 0.25
+    goal_tolerance_m: float = 0.02
+    replan_s: float = 2.0
+    obstacle_wait_s: float = 8.0
+    """How long an obstacle in the way is waited for before the trip gives up."""
+    trip_limit_s: float = 180.0
+    localize_limit_s: float = 30.0
+    """Global localisation: the longest it may drive about before giving up."""
+    wander_speed_m_s: float = 0.15
+
+    def __post_init__(self) -> None:
+        check_range("robot_radius_m", self.robot_radius_m, 0.05, 1.0, "m")
+        check_range("inflation_m", self.inflation_m, 0.0, 2.0, "m")
+        check_range("max_speed_m_s", self.max_speed_m_s, 0.02, 1.0, "m/s")
+        check_range("obstacle_wait_s", self.obstacle_wait_s, 0.0, 600.0, "s")
+        check_range("trip_limit_s", self.trip_limit_s, 1.0, 3600.0, "s")
+        check_range("localize_limit_s", self.localize_limit_s, 1.0, 600.0, "s")
+
+
+@dataclass
+class Trip:
+    """One ``go_to``: where it went, how, and whether it arrived."""
+
+    goal: Pose2D
+    ok: bool = False
+    why: str = ""
+    seconds: float = 0.0
+    path: list[Pose2D] = field(default_factory=list)
+    """The estimated pose at each scan (map frame)."""
+    plans: list[list[Point]] = field(default_factory=list)
+    obstacle_stops: int = 0
+    waited_s: float = 0.0
+
+    @property
+    def driven_m(self) -> float:
+        return sum(math.dist((a.x_m, a.y_m), (b.x_m, b.y_m))
+                   for a, b in zip(self.path, self.path[1:], strict=False))
+
+
+ScanHook = Callable[["Navigator", SensedScan], None]
+
+
+class Navigator:
+    """Localisation, planning and following on ``grid`` for ``robot``'s base and Lidar."""
+
+    def __init__(self, robot: Robot, grid: OccupancyGrid, *,
+                 settings: NavSettings | None = None, seed: int = 0,
+                 on_scan: ScanHook | None = None) -> None:
+        self.settings = settings or NavSettings()
+        self.reader = ScanReader(robot)
+        self.base = self.reader.base
+        self.clock = robot.clock
+        self.grid = grid
+        self.filter = ParticleFilter(grid, self.base.config.lidar, seed=seed)
+        self.static = Costmap.from_grid(grid, self.settings.robot_radius_m,
+                                        self.settings.inflation_m)
+        self.on_scan = on_scan
+        self.estimate: PoseEstimate | None = None
+        self.pose = Pose2D()
+        """The base's pose now (map frame): the filter's, carried on by the odometry."""
+        self.last_scan: SensedScan | None = None
+        self.trips: list[Trip] = []
+        self._filter_odometry: Pose2D | None = None
+        self._keep_out: FloatArray = np.zeros((0, 2))
+
+    # ------------------------------------------------------------------ sensing
+    def sense(self) -> SensedScan:
+        """Read the next scan and update the pose estimate with it."""
+        sensed = self.reader.read()
+        if self._filter_odometry is not None:
+            self.filter.predict(self._filter_odometry, sensed.odometry)
+        self._filter_odometry = sensed.odometry
+        self.estimate = self.filter.update(sensed.bearings_rad, sensed.ranges_m)
+        since = compose(inverse(sensed.odometry), sensed.odometry_now)
+        self.pose = compose(self.estimate.pose, since)
+        self.last_scan = sensed
+        if self.on_scan is not None:
+            self.on_scan(self, sensed)
+        return sensed
+
+    def returns_m(self, sensed: SensedScan) -> tuple[FloatArray, FloatArray]:
+        """The scan's returns in the base frame and in the map frame (now)."""
+        local = to_points(sensed.scan, self.base.config.lidar)
+        c, s = math.cos(self.pose.yaw_rad), math.sin(self.pose.yaw_rad)
+        world = np.column_stack([self.pose.x_m + c * local[:, 0] - s * local[:, 1],
+                                 self.pose.y_m + s * local[:, 0] + c * local[:, 1]])
+        return local, world
+
+    # ------------------------------------------------------------------ localising
+    def localize(self, start: Pose2D | None = None) -> PoseEstimate:
+        """Find where the base is: near ``start`` if given, else anywhere on the map
+        (driving about slowly, clear of everything, until the filter has converged)."""
+        if start is not None:
+            self.filter.start_at(start)
+        else:
+            self.filter.start_anywhere()
+        self._filter_odometry = None
+        began = self.clock.now()
+        settled = 0
+        try:
+            while True:
+                sensed = self.sense()
+                assert self.estimate is not None
+                settled = settled + 1 if self.estimate.converged else 0
+                if settled >= 3:
+                    self.base.stop()
+                    return self.estimate
+                if self.clock.now() - began > self.settings.localize_limit_s:
+                    raise NavigationError(
+                        f"could not tell where the base is on the map after "
+                        f"{self.settings.localize_limit_s:g} s of looking (is it the map of "
+                        "this place?): the base is stopped")
+                if start is None:
+                    self._wander(sensed)
+        finally:
+            self.base.stop()
+
+    def _wander(self, sensed: SensedScan) -> None:
+        """Drive toward the most open direction, turning slowly (new views for the filter)."""
+        local, _ = self.returns_m(sensed)
+        bearings = np.arctan2(local[:, 1], local[:, 0])
+        ranges = np.hypot(local[:, 0], local[:, 1])
+        if not len(ranges):
+            return
+        best = float(bearings[int(np.argmax(ranges))])
+        speed = self.settings.wander_speed_m_s
+        twist = Twist(speed * math.cos(best), speed * math.sin(best), 0.4)
+        if blocked(local, twist, self.settings.robot_radius_m, holonomic=True):
+            twist = Twist(0.0, 0.0, 0.4)
+        self.base.drive(twist.vx_m_s, twist.vy_m_s, twist.wz_rad_s)
+
+    # ------------------------------------------------------------------ going
+    def go_to(self, goal: Pose2D, *, keep_yaw: bool = True,
+              keep_out: Sequence[tuple[float, float, float]] = ()) -> Trip:
+        """Drive to ``goal`` (map frame; its heading too if ``keep_yaw``), never over the
+        ``keep_out`` discs (x, y, radius in m: where blocks are, which the Lidar does not
+        see). Returns the trip; raises NavigationError (the base stopped) if it cannot
+        get there."""
+        if self.estimate is None:
+            raise NavigationError("the base has not been localised on the map: localize() "
+                                  "first")
+        trip = Trip(goal)
+        self.trips.append(trip)
+        self._keep_out = _disc_points(keep_out)
+        began = self.clock.now()
+        try:
+            self._trip(trip, keep_yaw, began)
+        finally:
+            self.base.stop()
+            trip.seconds = self.clock.now() - began
+        return trip
+
+    def _trip(self, trip: Trip, keep_yaw: bool, began: float) -> None:
+        s = self.settings
+        goal_yaw = trip.goal.yaw_rad if keep_yaw else None
+        follower_settings = FollowerSettings(max_speed_m_s=s.max_speed_m_s,
+                                             goal_tolerance_m=s.goal_tolerance_m)
+        follower: PathFollower | None = None
+        planned_at = -math.inf
+        blocked_since: float | None = None
+        while True:
+            sensed = self.sense()
+            trip.path.append(self.pose)
+            now = self.clock.now()
+            if now - began > s.trip_limit_s:
+                raise NavigationError(self._where(trip) + f": not there after "
+                                      f"{s.trip_limit_s:g} s; the base is stopped")
+            local, world = self.returns_m(sensed)
+            if follower is None or now - planned_at > s.replan_s:
+                path = self._plan(trip, world)
+                if path is not None:
+                    follower = PathFollower(path, goal_yaw, follower_settings)
+                    planned_at = now
+            if follower is None:
+                blocked_since = self._wait(trip, blocked_since, now, "no free route")
+                continue
+            if follower.done:
+                trip.ok, trip.why = True, "arrived"
+                return
+            command = follower.command(self.pose)
+            if blocked(local, command, s.robot_radius_m, holonomic=True):
+                if blocked_since is None:
+                    trip.obstacle_stops += 1
+                blocked_since = self._wait(trip, blocked_since, now, "something in the way")
+                planned_at = -math.inf  # re-plan around it next scan
+                continue
+            if blocked_since is not None:
+                trip.waited_s += now - blocked_since
+                blocked_since = None
+            self.base.drive(command.vx_m_s, command.vy_m_s, command.wz_rad_s)
+
+    def settle(self, goal: Pose2D, tolerance_m: float = 0.01, tolerance_deg: float = 1.0,
+               scans: int = 4, tries: int = 2) -> Pose2D:
+        """Stand at ``goal`` exactly: standing still, the estimate is refined over
+        ``scans`` scans, and what is left is closed by ``move_by`` (the odometry is exact
+        over a few centimetres); returns what is left of the error (in the base frame)."""
+        left = Pose2D()
+        for _ in range(tries + 1):
+            self.base.stop()
+            for _ in range(scans):
+                self.sense()
+            left = compose(inverse(self.pose), goal)
+            if (math.hypot(left.x_m, left.y_m) <= tolerance_m
+                    and abs(left.yaw_deg) <= tolerance_deg):
+                break
+            if math.hypot(left.x_m, left.y_m) > SETTLE_MAX_M:
+                raise NavigationError(
+                    f"{self._where(Trip(goal))}: standing {math.hypot(left.x_m, left.y_m):.2f}"
+                    f" m off the goal after arriving (more than {SETTLE_MAX_M:g} m, which "
+                    "is not closed blind); the base is stopped")
+            self.base.move_by(left.x_m, left.y_m, left.yaw_deg)
+        return left
+
+    def _plan(self, trip: Trip, world: FloatArray) -> list[Point] | None:
+        extra = np.concatenate([world.reshape(-1, 2), self._keep_out])
+        costmap = self.static.with_obstacles(extra) if len(extra) else self.static
+        here = (self.pose.x_m, self.pose.y_m)
+        try:
+            path = plan_path(costmap, here, (trip.goal.x_m, trip.goal.y_m))
+        except NoPath:
+            return None
+        trip.plans.append(path)
+        return path
+
+    def _wait(self, trip: Trip, since: float | None, now: float, why: str) -> float:
+        self.base.stop()
+        since = now if since is None else since
+        if now - since > self.settings.obstacle_wait_s:
+            raise NavigationError(f"{self._where(trip)}: {why} for "
+                                  f"{self.settings.obstacle_wait_s:g} s; the base is stopped")
+        return since
+
+    def _where(self, trip: Trip) -> str:
+        g, p = trip.goal, self.pose
+        return (f"going from ({p.x_m:.2f}, {p.y_m:.2f}) m to ({g.x_m:.2f}, {g.y_m:.2f}) m, "
+                f"{g.yaw_deg:.0f} deg")
+
+
+def _disc_points(discs: Sequence[tuple[float, float, float]]) -> FloatArray:
+    """Points filling each disc's edge and centre (a costmap inflates them)."""
+    out: list[FloatArray] = [np.zeros((0, 2))]
+    for x, y, r in discs:
+        a = np.linspace(0, 2 * math.pi, 24, endpoint=False)
+        out.append(np.column_stack([x + r * np.cos(a), y + r * np.sin(a)]))
+        out.append(np.array([[x, y]]))
+    return np.concatenate(out)

@@ -1,0 +1,216 @@
+"""Navigation transport: fetch a block from one named point and deliver it to another.
+
+``run_transport(robot, grid, points, "shelf", "bin")``: localise on the saved map (near a
+given start, or anywhere), drive to the pick point (busarm.apps.navigator), stand there
+exactly (the filter's estimate refined standing still, the last centimetres closed by
+``move_by``), look for the block with the wrist camera and locate it in millimetres,
+line the base up and pick it with the grasp verified (busarm.apps.mobile_pick, with
+retries), drive to the place point, put it down and look that it is there. Every phase
+is timed and kept for the report; a phase that cannot be done stops the job with the
+wheels stopped and the arm holding, and the report says which and why: a block is
+reported delivered only when the last look saw it where it was put.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from busarm.apps.mobile_pick import (
+    BlockSeen,
+    PickResult,
+    PlaceResult,
+    Surface,
+    look_for_blocks,
+    pick_block,
+    place_block,
+)
+from busarm.apps.navigator import Navigator, NavSettings, ScanHook, Trip
+from busarm.base.odometry import Pose2D
+from busarm.errors import BusArmError, NavigationError
+from busarm.nav.grid import OccupancyGrid
+from busarm.nav.mapping import compose
+from busarm.nav.points import WORK_AHEAD_M, NamedPoint, NamedPoints
+from busarm.progress import Progress, quiet
+from busarm.robot import Robot
+
+SETTLE_TOLERANCE_M = 0.01
+SETTLE_TOLERANCE_DEG = 1.0
+SETTLE_SCANS = 4
+KEEP_OUT_M = 0.05
+"""The base never drives over a point's work spot (blocks there are below the Lidar)."""
+STOW_POSE = "home"
+"""The arm's pose while the base drives (folded over the base)."""
+
+
+@dataclass
+class Phase:
+    name: str
+    seconds: float
+    ok: bool
+    detail: str = ""
+
+
+@dataclass
+class TransportReport:
+    """One transport job: what happened in each phase, and whether the block arrived."""
+
+    pick: str
+    place: str
+    delivered: bool = False
+    why: str = ""
+    color: str | None = None
+    seconds: float = 0.0
+    phases: list[Phase] = field(default_factory=list)
+    pick_attempts: int = 0
+    placed_at_m: tuple[float, float] | None = None
+    """Where the block was put down (map frame), as the final look saw it."""
+    trips: list[Trip] = field(default_factory=list)
+
+    @property
+    def driven_m(self) -> float:
+        return sum(t.driven_m for t in self.trips)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "pick": self.pick, "place": self.place, "delivered": self.delivered,
+            "why": self.why, "color": self.color, "seconds": round(self.seconds, 2),
+            "driven_m": round(self.driven_m, 3), "pick_attempts": self.pick_attempts,
+            "placed_at_m": None if self.placed_at_m is None else
+            [round(v, 4) for v in self.placed_at_m],
+            "phases": [{"name": p.name, "seconds": round(p.seconds, 2), "ok": p.ok,
+                        "detail": p.detail} for p in self.phases],
+            "trips": [{"goal": [round(t.goal.x_m, 3), round(t.goal.y_m, 3),
+                                round(t.goal.yaw_deg, 1)], "ok": t.ok, "why": t.why,
+                       "seconds": round(t.seconds, 2), "driven_m": round(t.driven_m, 3),
+                       "obstacle_stops": t.obstacle_stops, "replans": len(t.plans)}
+                      for t in self.trips],
+        }
+
+
+class TransportJob:
+    """One transport on ``robot`` over ``grid`` between two of ``points``."""
+
+    def __init__(self, robot: Robot, grid: OccupancyGrid, points: NamedPoints, pick: str,
+                 place: str, *, color: str | None = None, retries: int = 2,
+                 settings: NavSettings | None = None, seed: int = 0,
+                 progress: Progress = quiet, on_scan: ScanHook | None = None) -> None:
+        self.robot = robot
+        self.pick_point: NamedPoint = points.get(pick)
+        self.place_point: NamedPoint = points.get(place)
+        self.color = color
+        self.retries = retries
+        self.progress = progress
+        self.nav = Navigator(robot, grid, settings=settings, seed=seed, on_scan=on_scan)
+        self.report = TransportReport(pick, place)
+        self.pictures: list[tuple[str, Any]] = []
+        """(name, BGR image): what the camera saw at the pick point."""
+
+    def run(self, start: Pose2D | None = None) -> TransportReport:
+        """The whole job; never raises for a job that did not work (the report says
+        why), only for bad input found before anything moved."""
+        clock = self.robot.clock
+        began = clock.now()
+        try:
+            self._phase("stow the arm", self._stow)
+            self._phase("localise", lambda: self._localise(start))
+            self._go("drive to " + self.pick_point.name, self.pick_point)
+            block = self._phase("look for the block", self._look)
+            self._phase("pick", lambda: self._pick(block))
+            self._phase("stow the arm", self._stow)
+            self._go("drive to " + self.place_point.name, self.place_point)
+            self._phase("place", self._place)
+        except BusArmError as exc:
+            self.report.why = str(exc)
+            self._stop()
+        finally:
+            self.report.seconds = clock.now() - began
+            self.report.trips = list(self.nav.trips)
+        return self.report
+
+    # ------------------------------------------------------------------ phases
+    def _phase(self, name: str, action: Callable[[], Any]) -> Any:
+        clock = self.robot.clock
+        began = clock.now()
+        self.progress(f"{name}...")
+        try:
+            result = action()
+        except BusArmError as exc:
+            self.report.phases.append(Phase(name, clock.now() - began, False, str(exc)))
+            raise
+        self.report.phases.append(Phase(name, clock.now() - began, True))
+        return result
+
+    def _stow(self) -> None:
+        arm = self.robot.arm
+        arm.move_joints(arm.config.pose(STOW_POSE))
+
+    def _localise(self, start: Pose2D | None) -> None:
+        estimate = self.nav.localize(start)
+        p = estimate.pose
+        self.progress(f"localised at x {p.x_m:+.2f} m, y {p.y_m:+.2f} m, "
+                      f"{p.yaw_deg:+.0f} deg")
+
+    def _go(self, name: str, point: NamedPoint) -> None:
+        def go() -> None:
+            keep_out = [(*p.work_spot_m, KEEP_OUT_M) for p in (self.pick_point,
+                                                                 self.place_point)]
+            trip = self.nav.go_to(point.pose, keep_out=keep_out)
+            self.nav.settle(point.pose, SETTLE_TOLERANCE_M, SETTLE_TOLERANCE_DEG, SETTLE_SCANS)
+            self.progress(f"arrived at {point.name} ({trip.driven_m:.2f} m in "
+                          f"{trip.seconds:.1f} s)")
+
+        self._phase(name, go)
+
+    def _look(self) -> BlockSeen:
+        surface = Surface(self.pick_point.name, self.pick_point.surface_m)
+        colors = None if self.color is None else [self.color]
+        seen = look_for_blocks(self.robot, surface, colors)
+        if not seen:
+            what = f"{self.color} block" if self.color else "block"
+            raise _PhaseFailed(f"no {what} seen at {self.pick_point.name}")
+        block = min(seen, key=lambda b: math.hypot(b.x_m - WORK_AHEAD_M, b.y_m))
+        self.pictures.append((f"seen-{block.color}", block.image))
+        return block
+
+    def _pick(self, block: BlockSeen) -> PickResult:
+        surface = Surface(self.pick_point.name, self.pick_point.surface_m)
+        result = pick_block(self.robot, surface, block, retries=self.retries)
+        self.report.pick_attempts = result.attempts
+        if not result.ok:
+            raise _PhaseFailed(f"the pick did not hold the block after {result.attempts} "
+                               f"attempt(s): {result.why}")
+        self.report.color = result.color
+        return result
+
+    def _place(self) -> PlaceResult:
+        surface = Surface(self.place_point.name, self.place_point.surface_m)
+        result = place_block(self.robot, surface, (WORK_AHEAD_M, 0.0))
+        if result.where_m is not None:
+            here = self.nav.pose
+            spot = compose(here, Pose2D(result.where_m[0], result.where_m[1], 0.0))
+            self.report.placed_at_m = (spot.x_m, spot.y_m)
+        if not result.ok:
+            raise _PhaseFailed(f"the block was let go at {self.place_point.name} but the look "
+                               f"afterwards did not see it there: {result.why}")
+        self.report.delivered = True
+        self.report.why = "delivered"
+        return result
+
+    def _stop(self) -> None:
+        base = self.robot.base
+        if base is not None:
+            base.stop()
+
+
+class _PhaseFailed(NavigationError):
+    """A phase of the job that could not be done (the report says which)."""
+
+
+def run_transport(robot: Robot, grid: OccupancyGrid, points: NamedPoints, pick: str,
+                  place: str, *, start: Pose2D | None = None, **options: Any
+                  ) -> TransportReport:
+    """One transport job (see ``TransportJob``)."""
+    return TransportJob(robot, grid, points, pick, place, **options).run(start)

@@ -1,0 +1,130 @@
+"""``transport``: fetch a block from one named point of a map and deliver it to another.
+
+On hardware it needs the map (``busarm map build`` made it) and the named points (a TOML
+file; see busarm.nav.points). Without ``--port`` it runs on a twin of its own in an arena
+(``--arena SEED``): with no map it explores the arena first, and with no points file it
+sets the job up as a person would in that room: ``pick`` in front of the block on the
+floor, ``place`` facing a clear spot (both written to the report folder, with the map).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import click
+
+from busarm.cli.common import (
+    DEFAULT_COLORS,
+    JobNotDone,
+    Settings,
+    check_writable,
+    mobile_options,
+    open_mobile_robot,
+    parse_float_list,
+    pass_settings,
+)
+from busarm.errors import ConfigError
+
+if TYPE_CHECKING:
+    from busarm.base.odometry import Pose2D
+    from busarm.nav.grid import OccupancyGrid
+    from busarm.nav.points import NamedPoints
+    from busarm.robot import Robot
+
+DEFAULT_REPORT = "transport-report"
+
+
+def _start(text: str | None) -> Pose2D | None:
+    from busarm.base.odometry import Pose2D
+
+    if text is None:
+        return None
+    values = parse_float_list(text, "--start X,Y,YAW (m, m, deg)")
+    if len(values) != 3:
+        raise ConfigError(f"--start {text!r}: expected X,Y,YAW (m, m, deg), e.g. 0.5,-1.2,90")
+    return Pose2D(values[0], values[1], math.radians(values[2]))
+
+
+def _setup(settings: Settings, robot: Robot, points_file: Path | None, map_file: Path | None,
+           report: Path) -> tuple[OccupancyGrid, NamedPoints, Pose2D | None]:
+    """The map, the points and (when known) where the base stands on the map."""
+    from busarm.apps.explore import build_map
+    from busarm.nav.map_files import load_map, save_map
+    from busarm.nav.points import load_points, save_points
+
+    points = load_points(points_file) if points_file is not None else None
+    map_file = map_file or (points.map_path if points is not None else None)
+    if map_file is not None:
+        if points is None:
+            raise ConfigError("--map without --points: the named points on that map are "
+                              "needed (a points file; see `busarm transport --help`)")
+        return load_map(map_file), points, None
+    if robot.twin is None or robot.twin.arena is None:
+        raise ConfigError("on a robot, give --map MAP.yaml (made by `busarm map build`) and "
+                          "--points FILE (where to pick and place)")
+    settings.err.print("no map given: exploring the arena first", highlight=False, markup=False)
+    run = build_map(robot, time_limit_s=300.0)
+    report.mkdir(parents=True, exist_ok=True)
+    save_map(report / "map.yaml", run.grid)
+    if points is None:
+        from busarm.twin.arena_tasks import start_pose, transport_points
+
+        # The map's origin is where the exploring began: the arena's start.
+        points = transport_points(robot.twin.arena, start_pose(robot.twin.arena))[0]
+        save_points(report / "points.toml", points, "map.yaml")
+    settings.err.print(f"mapped {run.grid.spec.width * run.grid.spec.resolution_m:.1f} x "
+                       f"{run.grid.spec.height * run.grid.spec.resolution_m:.1f} m in "
+                       f"{run.seconds:.0f} s ({report / 'map.yaml'})", highlight=False,
+                       markup=False)
+    return run.grid, points, run.poses[-1]
+
+
+@click.command()
+@click.option("--pick", default="pick", show_default=True, help="The point to fetch from.")
+@click.option("--place", default="place", show_default=True, help="The point to deliver to.")
+@click.option("--points", "points_file", type=click.Path(dir_okay=False, path_type=Path),
+              help="The named points (TOML, format busarm.points); the map it names is used.")
+@click.option("--map", "map_file", type=click.Path(dir_okay=False, path_type=Path),
+              metavar="MAP.yaml", help="The saved map (default: the points file's).")
+@click.option("--start", "start_text", metavar="X,Y,YAW",
+              help="Where the base stands on the map (m, m, deg); default: found from "
+                   "anywhere by the Lidar (global localisation).")
+@click.option("--color", type=click.Choice(DEFAULT_COLORS.split(",")), default=None,
+              help="Fetch a block of this colour (default: the one nearest the point).")
+@click.option("--report", "report_dir", default=DEFAULT_REPORT, show_default=True,
+              type=click.Path(file_okay=False, path_type=Path),
+              help="Where to write report.json and the pictures.")
+@mobile_options
+@pass_settings
+def transport(settings: Settings, pick: str, place: str, points_file: Path | None,
+              map_file: Path | None, start_text: str | None, color: str | None,
+              report_dir: Path, arena_spec: str, chassis: str | None,
+              lidar_port: str | None) -> None:
+    """Fetch a block from the named point --pick and deliver it to --place: localise on
+    the map, drive there clear of everything, find the block with the wrist camera, line
+    the base up and pick it (grasp checked), drive to --place, put it down and look that
+    it is there. Without --port: a twin of its own in --arena."""
+    from busarm.apps.transport import TransportJob
+    from busarm.apps.transport_report import write_transport_report
+
+    start = _start(start_text)
+    check_writable(report_dir / "report.json" if report_dir.is_dir() else report_dir)
+    with open_mobile_robot(settings, arena_spec, chassis, lidar_port, camera=True) as robot:
+        grid, points, known = _setup(settings, robot, points_file, map_file, report_dir)
+        points.get(pick), points.get(place)  # both named, before anything moves
+        job = TransportJob(robot, grid, points, pick, place, color=color,
+                           progress=lambda line: settings.err.print(
+                               line, highlight=False, markup=False))
+        report = job.run(start if start is not None else known)
+    path = write_transport_report(report_dir, report, grid, points, job.pictures)
+    settings.out.print(
+        f"{'delivered' if report.delivered else 'not delivered'}: {report.color or 'block'} "
+        f"from {pick} to {place} in {report.seconds:.1f} s ({report.driven_m:.1f} m driven, "
+        f"{report.pick_attempts} grasp(s)); report {path}", highlight=False, markup=False)
+    if not report.delivered:
+        raise JobNotDone(f"the block was not delivered: {report.why}")
+
+
+COMMANDS = [transport]
