@@ -25,7 +25,7 @@ UNIT = re.compile(r"\b(mm|deg|deg/s|mm/s|s|ms|V|C|Hz|bit/s|pixels|px|cm2|%|0\.\.
 COUNTS = {"--views", "--seed", "--scenes", "--workers", "--reads", "--scans", "--loops",
           "--frames", "--count", "--retries", "--blocks", "--pictures", "--placements", "--n",
           "--batch-n", "--distractors", "--camera-port", "--baud", "--http-port", "--tries",
-          "--squares"}
+          "--squares", "--laps", "--arenas"}
 """Number options that are counts, seeds or port numbers: no unit to give."""
 
 
@@ -139,7 +139,8 @@ NUMBER_METAVARS = {"N", "S", "MS", "MM", "DEG", "DEG_S", "MM_S", "PX", "V", "C",
                    "FPS", "PROBABILITY"}
 """A number option's metavar: its unit, or N for a count (never NUMBER or INTEGER)."""
 SAME_NAME_OTHER_MEANING = {"--pose": "a servo pose ID=DEG,... (`move`), or a named pose",
-                           "--save": "a pose's NAME (`arm pose`), or a DIRECTORY"}
+                           "--save": "a pose's NAME (`arm pose`), or a DIRECTORY",
+                           "--speed": "the arm's DEG_S, or the base's M_S (`line-follow`)"}
 
 
 def test_metavars_name_the_unit_and_agree_across_commands() -> None:

@@ -30,6 +30,7 @@ if TYPE_CHECKING:
     from busarm.bench.locate import LocateBenchReport
     from busarm.bench.mobile import MobileBenchReport
     from busarm.bench.pick import PickBenchReport
+    from busarm.bench.transport import TransportBenchReport
     from busarm.bench.vision import VisionBenchReport
 
 TARGET_RATIO = 0.90
@@ -503,3 +504,61 @@ def _print_mobile(settings: Settings, report: MobileBenchReport) -> None:
     out.print(f"with the camera drawn as vision's pictures (antialiased) instead: "
               f"{v.factor:.1f}x ({v.camera_fps:.1f} frames, {v.lidar_hz:.1f} scans a "
               "simulated second)")
+
+
+@bench.command("transport")
+@click.option("--arenas", type=click.IntRange(1, 1000), default=30, show_default=True,
+              help="Seeded twin arenas (arena i uses seed + i).")
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True)
+@click.option("--workers", type=click.IntRange(1, 8), default=1, show_default=True,
+              help="Arenas run side by side, each in its own process.")
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
+@pass_settings
+@no_servos
+def bench_transport(settings: Settings, arenas: int, seed: int, workers: int,
+                    as_json: bool) -> None:
+    """Navigation transport over seeded twin arenas, against the twin's truth: each arena
+    mapped by exploring, the robot carried elsewhere, then fetching the floor block from
+    the pick point to the place point from an unknown start. About a minute an arena."""
+    from busarm.bench.transport import run_transport_bench
+
+    report = run_transport_bench(arenas=arenas, seed=seed, workers=workers,
+                                 progress=lambda text: settings.err.print(text,
+                                                                          highlight=False))
+    _judged(settings, as_json, report.to_dict(), lambda shown: _print_transport(shown, report))
+
+
+def _print_transport(settings: Settings, report: TransportBenchReport) -> None:
+    from busarm.bench import transport as t
+
+    s = report.summary()
+
+    def cm(key: str) -> str:
+        value = s[key]
+        return "-" if value is None else f"{value * 100:.1f} cm"
+
+    pos, head, loc = (s["position_error_median_m"], s["heading_error_median_deg"],
+                      s["localise_max_s"])
+    m = report.machine
+    settings.out.print(
+        f"[bold]busarm bench transport[/]: {len(report.runs)} seeded arenas, unknown starts\n"
+        f"machine: {m['cpu']}, {m['cores']} cores, Python {m['python']}\n"
+        f"delivered within {t.DELIVERED_M * 100:g} cm: {report.delivered_share:.0%} "
+        f"{_verdict(report.delivered_share >= t.TARGET_DELIVERED)} >= "
+        f"{t.TARGET_DELIVERED:.0%}; reported delivered but not: {report.false_reports} "
+        f"{_verdict(report.false_reports == 0)}; collisions: {report.collisions} "
+        f"{_verdict(report.collisions == 0)}\n"
+        f"localisation along the runs: position median {cm('position_error_median_m')} "
+        f"{_verdict(pos is not None and pos <= t.TARGET_LOCALISATION_M)} <= "
+        f"{t.TARGET_LOCALISATION_M * 100:g} cm (p95 {cm('position_error_p95_m')}, max "
+        f"{cm('position_error_max_m')}), heading median {head} deg "
+        f"{_verdict(head is not None and head <= t.TARGET_HEADING_DEG)} <= "
+        f"{t.TARGET_HEADING_DEG:g} deg; from an unknown start localised in at most {loc} s "
+        f"{_verdict(loc is not None and loc <= t.TARGET_GLOBAL_S)} <= {t.TARGET_GLOBAL_S:g} s\n"
+        f"mission (twin time, localise to put down): median {s['mission_median_s']} s; the "
+        f"vendor's grasp sequence alone is about {t.VENDOR_GRASP_S:g} s\n"
+        f"placed: median {cm('placed_error_median_m')} from the place point's spot; maps: "
+        f"occupied cells {cm('map_error_median_m')} from the true surfaces (median of the "
+        f"arenas' medians; p95 {cm('map_error_p95_m')})\n"
+        f"time: {report.seconds:.0f} s on this computer, {report.workers} worker(s)",
+        highlight=False)

@@ -33,6 +33,7 @@ from busarm.cli import (
     demo,
     help_style,
     lidar_cmds,
+    line_follow_cmd,
     locate_cmd,
     map_cmds,
     motor_cmd,
@@ -43,6 +44,7 @@ from busarm.cli import (
     samples_cmd,
     servo_cmds,
     sim_cmds,
+    transport_cmd,
     twin_cmds,
     vision_cmds,
 )
@@ -221,7 +223,7 @@ def cli(
 for _module in (
     bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, twin_cmds, camera_cmds,
     vision_cmds, pick_cmd, demo, motor_cmd, dashboard_cmd, board_cmds, base_cmds,
-    lidar_cmds, map_cmds,
+    lidar_cmds, map_cmds, line_follow_cmd, transport_cmd,
 ):
     for _command in _module.COMMANDS:
         cli.add_command(_command)

@@ -51,7 +51,7 @@ def show(settings: Settings, map_file: Path, png: Path | None) -> None:
 
 
 @map_group.command()
-@click.option("--out", "out_file", default="map.yaml", show_default=True, metavar="MAP.yaml",
+@click.option("--out", "out_file", default="map.yaml", show_default=True,
               type=click.Path(dir_okay=False, path_type=Path),
               help="Where to save the map (MAP.pgm is written beside it).")
 @click.option("--time", "time_limit_s", default=300.0, show_default=True,

@@ -40,8 +40,8 @@ def mobile_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """--arena, --chassis, --lidar."""
     func = click.option(
         "--lidar", "lidar_port", default=None, envvar="BUSARM_LIDAR",
-        help="With --port: the Lidar's serial port (default: a running `twin serve "
-             "--arena`'s).")(func)
+        help="With --port: the Lidar's serial port  [default: a running `twin serve "
+             "--arena`'s]")(func)
     func = click.option(
         "--chassis", default=None,
         help="With --port: the chassis config (a shipped name, jetauto, or a TOML file).")(func)
@@ -52,23 +52,28 @@ def mobile_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 @contextmanager
 def open_mobile_robot(settings: Settings, arena_spec: str, chassis: str | None,
-                      lidar_port: str | None, *, camera: bool = False) -> Iterator[Robot]:
+                      lidar_port: str | None, *, camera: bool = False,
+                      **robot_options: Any) -> Iterator[Robot]:
     """The robot on --port (a board:// port with a chassis and a Lidar), or without
-    --port a twin of its own in ``arena_spec``'s arena."""
+    --port a twin of its own in ``arena_spec``'s arena; ``robot_options`` go to
+    ``Robot.open`` (``config``, ``calibration_store``...). An exception leaving the body
+    after a write to the arm stops it and says what its servos do (as ``open_robot``)."""
+    from busarm.cli.stopping import marking_the_stop
     from busarm.robot import Robot
 
     if not settings.port_given:
         if chassis is not None or lidar_port is not None:
             raise ConfigError("--chassis and --lidar are for a robot on --port; the twin "
                               "has its own (--arena chooses its world)")
-        with Robot.open("board://twin", arena=arena_from_spec(arena_spec),
-                        calibrate=camera) as robot:
+        robot = Robot.open("board://twin", arena=arena_from_spec(arena_spec),
+                           calibrate=camera, **robot_options)
+        with marking_the_stop(robot, robot.arm.bus, robot.config.servo_ids):
             yield robot
         return
     if not settings.port.startswith("board://"):
         raise ConfigError(f"--port {settings.port}: a mobile job drives the base through the "
                           "controller board: give a board:// port (e.g. board:///dev/rrc)")
-    options: dict[str, Any] = {}
+    options: dict[str, Any] = dict(robot_options)
     if not settings.port.startswith("board://twin") or lidar_port is not None:
         options["lidar"] = _lidar_port(lidar_port)
     if chassis is not None:

@@ -87,12 +87,12 @@ def _setup(settings: Settings, robot: Robot, points_file: Path | None, map_file:
 @click.option("--points", "points_file", type=click.Path(dir_okay=False, path_type=Path),
               help="The named points (TOML, format busarm.points); the map it names is used.")
 @click.option("--map", "map_file", type=click.Path(dir_okay=False, path_type=Path),
-              metavar="MAP.yaml", help="The saved map (default: the points file's).")
+              metavar="MAP.yaml", help="The saved map; without it, the points file's.")
 @click.option("--start", "start_text", metavar="X,Y,YAW",
-              help="Where the base stands on the map (m, m, deg); default: found from "
+              help="Where the base stands on the map (m, m, deg); without it, found from "
                    "anywhere by the Lidar (global localisation).")
 @click.option("--color", type=click.Choice(DEFAULT_COLORS.split(",")), default=None,
-              help="Fetch a block of this colour (default: the one nearest the point).")
+              help="Fetch a block of this colour; without it, the one nearest the point.")
 @click.option("--report", "report_dir", default=DEFAULT_REPORT, show_default=True,
               type=click.Path(file_okay=False, path_type=Path),
               help="Where to write report.json and the pictures.")

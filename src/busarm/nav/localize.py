@@ -57,9 +57,10 @@ CLUSTER_FLOOR = 0.01
 """A cluster joins neighbouring CLUSTER_BIN_M cells holding at least this share of the
 heaviest cell's weight."""
 CONVERGED_XY_M, CONVERGED_YAW_RAD, CONVERGED_SHARE = 0.1, math.radians(5.0), 0.9
-REFINE_WINDOW_M, REFINE_WINDOW_DEG, REFINE_POINTS = 0.05, 2.0, 30
-"""The refining scan match: around the cloud's mean, with this many of the returns (more
-cost more and gain less than a millimetre)."""
+REFINE_WINDOW_M, REFINE_WINDOW_DEG, REFINE_POINTS = 0.05, 2.0, 150
+"""The refining scan match: around the cloud's mean, with this many of the returns."""
+SHARP_SIGMA_M = 0.025
+"""The refining scan match's field: a narrow peak is where the surfaces are."""
 
 
 @dataclass(frozen=True)
@@ -103,6 +104,7 @@ class ParticleFilter:
         check_range("sigma_hit_m", sigma_hit_m, 0.01, 1.0, "m")
         self.field = LikelihoodField(grid, sigma_hit_m)
         self._broad = LikelihoodField(grid, max(sigma_hit_m, BROAD_SIGMA_M))
+        self._sharp = LikelihoodField(grid, min(sigma_hit_m, SHARP_SIGMA_M))
         self.noise = noise or MotionNoise()
         self.refine = refine
         self.mount = Pose2D(lidar.x_m, lidar.y_m, lidar.yaw_rad)
@@ -275,9 +277,9 @@ class ParticleFilter:
             return PoseEstimate(pose, cov, converged, 0.0)
         b, r = scan
         if converged and self.refine:  # the cloud is as fine as its noise: the map is finer
-            found = match_scan(self.field, b, r, compose(pose, self.mount),
+            found = match_scan(self._sharp, b, r, compose(pose, self.mount),
                                window_m=REFINE_WINDOW_M, window_deg=REFINE_WINDOW_DEG,
-                               max_points=min(self.beams, REFINE_POINTS))
+                               max_points=REFINE_POINTS)
             if found.matched_share >= MIN_MATCHED_SHARE:
                 pose = compose(found.pose, inverse(self.mount))
         local = _thinned(scan_points(b, r), self.beams)

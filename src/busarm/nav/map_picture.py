@@ -1,5 +1,5 @@
 """A map for people: the grid's picture enlarged, its origin's axes, a scale bar, and what
-happened on it (paths, named points, Lidar returns)."""
+happened on it (paths, named points, Lidar returns, where the base is)."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from busarm.base.odometry import Pose2D
 from busarm.nav.grid import OccupancyGrid
 from busarm.nav.map_files import grid_pixels
 
@@ -19,16 +20,21 @@ AXIS_M = 0.5
 Point = tuple[float, float]
 PATH_BGR = (200, 120, 0)
 PLAN_BGR = (150, 150, 150)
+POSE_BGR = (40, 160, 230)
+POSE_RADIUS_M = 0.2
+"""The base drawn as a disc this wide (the footprint the planners keep clear)."""
 
 
 def map_picture(grid: OccupancyGrid, *, path: Sequence[Point] = (),
                 plans: Sequence[Sequence[Point]] = (),
                 marks: Mapping[str, Point] | None = None,
-                returns: Sequence[Point] = ()) -> npt.NDArray[np.uint8]:
+                returns: Sequence[Point] = (),
+                pose: Pose2D | None = None) -> npt.NDArray[np.uint8]:
     """BGR: occupied black, free white, unknown grey (as the PGM), enlarged so that its
     longer side is at least MIN_SIDE_PX; the map origin's x (red) and y (green) axes
     AXIS_M long, and a 1 m scale bar. Optionally: planned paths (grey), the path driven
-    (blue), named points (labelled), and Lidar returns (orange dots); all in metres."""
+    (blue), named points (labelled), Lidar returns (orange dots) and the base at ``pose``
+    (a disc with its heading); all in metres."""
     pixels = grid_pixels(grid)
     h, w = pixels.shape
     scale = max(1, math.ceil(MIN_SIDE_PX / max(h, w)))
@@ -47,6 +53,8 @@ def map_picture(grid: OccupancyGrid, *, path: Sequence[Point] = (),
     _polyline(image, px, path, PATH_BGR, 2)
     for x, y in returns:
         cv2.circle(image, px(x, y), 2, (0, 140, 255), -1, cv2.LINE_AA)
+    if pose is not None:
+        _base(image, px, pose, round(POSE_RADIUS_M * px_per_m))
     for name, (x, y) in (marks or {}).items():
         cv2.drawMarker(image, px(x, y), (180, 0, 180), cv2.MARKER_TILTED_CROSS, 14, 2)
         cv2.putText(image, name, (px(x, y)[0] + 8, px(x, y)[1] - 8), cv2.FONT_HERSHEY_SIMPLEX,
@@ -56,6 +64,15 @@ def map_picture(grid: OccupancyGrid, *, path: Sequence[Point] = (),
     cv2.putText(image, "1 m", (12, bar_y - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (200, 80, 0), 1,
                 cv2.LINE_AA)
     return np.asarray(image, dtype=np.uint8)
+
+
+def _base(image: npt.NDArray[Any], px: Callable[[float, float], tuple[int, int]],
+          pose: Pose2D, radius_px: int) -> None:
+    centre = px(pose.x_m, pose.y_m)
+    ahead = px(pose.x_m + POSE_RADIUS_M * math.cos(pose.yaw_rad),
+               pose.y_m + POSE_RADIUS_M * math.sin(pose.yaw_rad))
+    cv2.circle(image, centre, max(radius_px, 4), POSE_BGR, 2, cv2.LINE_AA)
+    cv2.arrowedLine(image, centre, ahead, POSE_BGR, 2, cv2.LINE_AA, tipLength=0.3)
 
 
 def _polyline(image: npt.NDArray[Any], px: Callable[[float, float], tuple[int, int]],

@@ -11,6 +11,9 @@ from __future__ import annotations
 import math
 import random
 
+import numpy as np
+import numpy.typing as npt
+
 from busarm.base.odometry import Pose2D
 from busarm.errors import ConfigError
 from busarm.nav.mapping import compose, inverse
@@ -19,6 +22,7 @@ from busarm.twin.arena import ROBOT_RADIUS_M, Arena
 from busarm.twin.arena_gen import random_arena
 from busarm.twin.footprints import Footprint
 
+FloatArray = npt.NDArray[np.float64]
 STANDOFF_M = WORK_AHEAD_M
 """A pick or place stand is this far behind the block's spot (the arm reaches ahead)."""
 CLEAR_M = 0.08
@@ -101,3 +105,35 @@ def transport_points(arena: Arena, map_origin: Pose2D | None = None, seed: int =
         "place": NamedPoint("place", compose(to_map, place))}, source=f"{arena.name} points")
     return points, index, (x, y)
 
+
+
+def free_pose(arena: Arena, rng: random.Random, clear_m: float = 0.35,
+              away_from: tuple[float, float] | None = None, away_m: float = 1.0) -> Pose2D:
+    """A pose (arena frame) where the base's disc keeps ``clear_m`` from everything, at
+    least ``away_m`` from ``away_from``: where a person puts the robot down."""
+    things = _footprints(arena, None)
+    for _ in range(5000):
+        x = rng.uniform(arena.room.x_min_m, arena.room.x_max_m)
+        y = rng.uniform(arena.room.y_min_m, arena.room.y_max_m)
+        if away_from is not None and math.dist((x, y), away_from) < away_m:
+            continue
+        if _clear(arena, things, x, y, clear_m):
+            return Pose2D(x, y, rng.uniform(-math.pi, math.pi))
+    raise ConfigError(f"{arena.name}: no free place for the robot")
+
+
+def true_map_surfaces(arena: Arena, origin: Pose2D, points_m: npt.ArrayLike) -> FloatArray:
+    """For points in the map frame (the map's origin at arena pose ``origin``): the distance
+    (m) to the nearest surface the Lidar sees (walls, tables, boxes): a map's accuracy."""
+    p = np.asarray(points_m, dtype=np.float64).reshape(-1, 2)
+    c, s = math.cos(origin.yaw_rad), math.sin(origin.yaw_rad)
+    x = origin.x_m + c * p[:, 0] - s * p[:, 1]
+    y = origin.y_m + s * p[:, 0] + c * p[:, 1]
+    r = arena.room
+    out = np.minimum.reduce([np.abs(x - r.x_min_m), np.abs(x - r.x_max_m),
+                             np.abs(y - r.y_min_m), np.abs(y - r.y_max_m)])
+    for solid in (*arena.tables, *arena.boxes):
+        f = solid.footprint()
+        d = np.array([f.distance_from_mm(a * 1000, b * 1000) for a, b in zip(x, y, strict=True)])
+        out = np.minimum(out, d / 1000)
+    return np.asarray(out, dtype=np.float64)

@@ -463,7 +463,10 @@ def _local_quadratic(s: FloatArray, values: FloatArray, window_m: float
     powers = np.stack([w * u ** p for p in range(5)])  # (5, N, N)
     moments = powers.sum(axis=2)  # (5, N)
     normal = np.stack([moments[i:i + 3] for i in range(3)]).transpose(2, 0, 1)  # (N, 3, 3)
-    normal[:, 2, 2] += 1e-9  # two points only: a straight line
+    # Two points in a window: a straight line; one alone (past a gap in the tape, which
+    # the march steps over up to MAX_GAP_M, wider than a window): itself, level.
+    normal[:, 1, 1] += 1e-9
+    normal[:, 2, 2] += 1e-9
     rhs = np.einsum("pnj,jd->npd", powers[:3], values)  # (N, 3, 2)
     c = np.linalg.solve(normal, rhs)
     return c[:, 0], c[:, 1] / window_m, 2 * c[:, 2] / window_m ** 2

@@ -1,0 +1,580 @@
+"""Following the taped floor loop with the wrist camera; stopping for obstacles; clearing
+coloured blocks off the line.
+
+``LineFollowJob(robot).run()`` poses the arm to look ahead and down (``look_ahead``) and
+goes round, paced by the Lidar: each scan (about 10 a second, busarm.apps.nav_sensing),
+then a camera frame of the same moment, in which it
+
+- finds the tape on the floor (``FloorCamera.find_line``) and remembers its points in the
+  odometry's frame (``LineTracker``); the base is steered by the line under its centre
+  (``LineController``: slides onto it, turns with it), or toward the nearest point seen
+  before the line has been driven up to;
+- applies the vendor's stop rule to the scan (``obstacle_ahead``) over the corridor the
+  base will sweep (the chassis's width and a margin, along the remembered line ahead):
+  the wheels stop, and the job waits for the way to clear (each stop is reported:
+  where, what, how long), giving up after ``obstacle_wait_s`` with a NavigationError;
+- locates coloured blocks on the floor (the block locator on the floor's plane, below the
+  Lidar's) and, when one is on the base's path (within ``near_line_m`` of the tracked
+  line: the chassis's half width, the block's and a margin) and ``CLEAR_AHEAD_M`` ahead,
+  stops, turns to face it, picks it (busarm.apps.mobile_pick, the base lined up to it)
+  and puts it down beside the base on the side where it ends farther from the line,
+  looks that it is there and off the line, looks ahead again and goes on (the
+  odometry, and so the remembered line, runs on through it all).
+
+A line not seen for ``LOST_AFTER_S`` is searched for by turning in place (up to
+``SEARCH_DEG`` each way); not found, the job stops with a NavigationError.
+
+Laps: the start pose is remembered (odometry frame); a lap is done when the base comes
+back to it (within ``LAP_RADIUS_M``, facing its way, level with it or just past it)
+having driven more than ``LAP_MIN_TRAVEL_M`` since. The first lap measures the loop's
+length (the base's forward travel, odometry); later shares of a lap are the distance
+driven over that length.
+Before the first lap is done the length is not known: the share of the first lap is
+then the share of a full turn (360 deg, as a closed loop turns once) the base has turned
+(``laps=0.25``: a quarter turn round the loop).
+
+Every stop of the job, done or not, leaves the wheels stopped; ``report`` (a
+``LineFollowReport``) says what happened, also when ``run`` raised.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any, Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from busarm.apps.mobile_pick import FLOOR, BlockSeen, pick_block, put_aside
+from busarm.apps.mobile_workspace import Workspace, half_size_m, m_text
+from busarm.apps.nav_sensing import ScanReader, SensedScan
+from busarm.base.kinematics import Twist
+from busarm.base.odometry import Pose2D, wrap_rad
+from busarm.errors import NavigationError, UnreachableError
+from busarm.lidar.scan import to_points
+from busarm.nav.line_track import LineController, LineTracker, obstacle_ahead
+from busarm.nav.mapping import compose
+from busarm.progress import Progress, quiet
+from busarm.robot import Robot
+from busarm.robot.floor_view import FloorCamera, floor_camera, look_ahead
+from busarm.units import check_range
+
+FloatArray = npt.NDArray[np.float64]
+
+DEFAULT_SPEED_M_S = 0.2
+OBSTACLE_WAIT_S = 30.0
+LOST_AFTER_S = 1.0
+SEARCH_DEG = 90.0
+SEARCH_RATE_RAD_S = 0.5
+"""The search turns this fast (the camera's picture smears little)."""
+LAP_RADIUS_M = 0.1
+LAP_MIN_TRAVEL_M = 1.0
+LAP_HEADING_DEG = 45.0
+"""Back at the start facing its way within this (not crossing it on another leg)."""
+CLEAR_AHEAD_M = 0.42
+"""A block on the path is cleared once it is this close ahead of the base's centre (its
+fine alignment then moves the base less than ``mobile_pick.MAX_ALIGN_M``)."""
+PATH_MARGIN_M = 0.02
+"""Beyond the chassis's half width and a block's half side: a block nearer the line than
+that would touch the chassis as it follows the line."""
+CORRIDOR_MARGIN_M = 0.03
+"""Beyond the chassis's half width: what the Lidar stops the base for (a table along the
+line, farther to the side, does not)."""
+ASIDE_PROBE_M = (0.05, 0.22)
+"""Where a block put aside lands, about (ahead, to the side) of the base: which side is
+farther from the line is judged there."""
+MAX_CLEARS_HERE = 3
+"""Blocks cleared within ``SAME_PLACE_M`` of one place at most (then the job stops)."""
+SAME_PLACE_M = 0.3
+FACE_MIN_DEG = 3.0
+"""A block farther than this off the base's heading is turned to before it is picked."""
+TURN_CLEAR_M = 0.03
+"""Turning in place, the chassis's corners keep this far from what the Lidar sees."""
+ON_LINE_M = 0.02
+"""The base this close to the line follows it: the Lidar checks the way along the line."""
+REJOINED_M = 0.005
+"""After a clearing, the base is back on the line when this close to it."""
+NOT_THERE_M = 0.1
+"""A block a closer look did not find is not looked for again this close to where it
+seemed to be (a block on a table seen from afar on the floor's plane)."""
+
+Side = Literal["left", "right"]
+
+
+@dataclass(frozen=True)
+class ObstacleStop:
+    """The base stopped for something the Lidar saw in its way."""
+
+    at: Pose2D
+    """Where the base stood (odometry frame)."""
+    obstacle_m: tuple[float, float]
+    """The nearest return in the way, base frame."""
+    began_s: float
+    seconds: float
+    cleared: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"at": _pose_list(self.at), "obstacle_m": _xy_list(self.obstacle_m),
+                "began_s": round(self.began_s, 2), "seconds": round(self.seconds, 2),
+                "cleared": self.cleared}
+
+
+@dataclass(frozen=True)
+class BlockCleared:
+    """A block found on the base's path, and what was done with it."""
+
+    color: str
+    found_m: tuple[float, float]
+    """Where it was seen (odometry frame)."""
+    put_m: tuple[float, float] | None
+    """Where it was seen after it was put down (odometry frame; None if not seen)."""
+    outcome: Literal["cleared", "failed", "not there"]
+    """``not there``: a closer look found no block where the look ahead saw one (a block
+    on a table, seen from afar as if on the floor): the base went on."""
+    why: str = ""
+    side: str = ""
+    attempts: int = 0
+    seconds: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        return self.outcome == "cleared"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"color": self.color, "outcome": self.outcome,
+                "found_m": _xy_list(self.found_m),
+                "put_m": None if self.put_m is None else _xy_list(self.put_m),
+                "why": self.why, "side": self.side, "attempts": self.attempts,
+                "seconds": round(self.seconds, 2)}
+
+
+@dataclass
+class LineFollowReport:
+    """One line-following run (odometry frame, m; the robot's clock, s)."""
+
+    laps_wanted: float
+    laps_done: float = 0.0
+    loop_length_m: float | None = None
+    """The loop's length as the first lap measured it (None before)."""
+    travelled_m: float = 0.0
+    seconds: float = 0.0
+    finished: bool = False
+    why: str = ""
+    path: list[Pose2D] = field(default_factory=list)
+    """The odometry's pose at each scan."""
+    lateral: list[tuple[float, float]] = field(default_factory=list)
+    """(travelled m, the line's offset from the base's centre m, + left) as the tracker
+    measured it, each scan the line was known under the base (but while it slides back
+    onto the line after lining up with a block: ``LineFollowJob.rejoining``)."""
+    stops: list[ObstacleStop] = field(default_factory=list)
+    blocks: list[BlockCleared] = field(default_factory=list)
+    searches: int = 0
+
+    def lateral_mm(self, after_m: float = 0.0) -> tuple[float, float] | None:
+        """(median, max) of the tracker's |lateral| offsets (mm) after ``after_m`` driven."""
+        values = [abs(v) for s, v in self.lateral if s >= after_m]
+        if not values:
+            return None
+        return float(np.median(values)) * 1000.0, max(values) * 1000.0
+
+    def to_dict(self) -> dict[str, Any]:
+        lateral = self.lateral_mm()
+        return {
+            "format": "busarm.line_follow_report", "version": 1,
+            "finished": self.finished, "why": self.why, "laps_wanted": self.laps_wanted,
+            "laps_done": round(self.laps_done, 3),
+            "loop_length_m": None if self.loop_length_m is None else round(self.loop_length_m, 3),
+            "travelled_m": round(self.travelled_m, 3), "seconds": round(self.seconds, 2),
+            "lateral_median_mm": None if lateral is None else round(lateral[0], 2),
+            "lateral_max_mm": None if lateral is None else round(lateral[1], 2),
+            "searches": self.searches,
+            "stops": [s.to_dict() for s in self.stops],
+            "blocks": [b.to_dict() for b in self.blocks],
+            "path": [_pose_list(p) for p in self.path],
+            "lateral": [[round(s, 3), round(v, 4)] for s, v in self.lateral],
+        }
+
+
+StepHook = Callable[["LineFollowJob"], None]
+
+
+class LineFollowJob:
+    """Follow the floor loop ``laps`` times (see the module docstring)."""
+
+    def __init__(self, robot: Robot, *, laps: float = 1.0,
+                 speed_m_s: float = DEFAULT_SPEED_M_S, colors: Sequence[str] | None = None,
+                 on_step: StepHook | None = None, obstacle_wait_s: float = OBSTACLE_WAIT_S,
+                 progress: Progress = quiet) -> None:
+        self.laps = check_range("laps", laps, 0.05, 100.0, "laps")
+        check_range("obstacle_wait_s", obstacle_wait_s, 0.0, 3600.0, "s")
+        self.robot = robot
+        self.reader = ScanReader(robot)
+        self.base = self.reader.base
+        self.clock = robot.clock
+        self.controller = LineController(speed_m_s=speed_m_s)
+        self.on_step = on_step
+        self.obstacle_wait_s = obstacle_wait_s
+        self.progress = progress
+        self.tracker = LineTracker()
+        self.report = LineFollowReport(self.laps)
+        half_width = half_size_m(self.base.config)[1]
+        self.corridor_half_m = half_width + CORRIDOR_MARGIN_M
+        # Blocks are looked for when there are colours to clear (the locator checks them).
+        self.workspace = Workspace(robot, FLOOR, colors) if colors is None or colors else None
+        block_half = 0.0 if self.workspace is None else self.workspace.block_mm / 2000.0
+        self.near_line_m = half_width + block_half + PATH_MARGIN_M
+        """A block this close to the line is in the base's way."""
+        self.camera: FloorCamera | None = None
+        self.odometry = Pose2D()
+        """The odometry's pose at the last camera frame."""
+        self.sensed: SensedScan | None = None
+        self.rejoining = False
+        """True from a block's clearing (the base lined up with the block, off the line)
+        until the base is back on the line: its offsets meanwhile are not following's."""
+        self._start = Pose2D()
+        self._last: Pose2D | None = None
+        self._turned_rad = 0.0
+        self._lap_mark_m = 0.0
+        self._laps_marked = 0
+        self._seen_at_s = -math.inf
+        self._not_there: list[tuple[float, float]] = []
+        self._said_share = 0.0
+
+    # ------------------------------------------------------------------ the run
+
+    def run(self) -> LineFollowReport:
+        """Go round until ``laps`` are done; NavigationError (the wheels stopped, the
+        report kept in ``report``) if the job cannot go on."""
+        began = self.clock.now()
+        try:
+            self._prepare()
+            self.progress("the arm looks ahead: following the line")
+            while not self._done():
+                self._step()
+            self.report.finished = True
+            self.report.why = f"{_laps_text(self.laps)} done"
+        except NavigationError as exc:
+            self.report.why = str(exc)
+            raise
+        except BaseException as exc:
+            self.report.why = ("interrupted" if isinstance(exc, KeyboardInterrupt) else
+                               f"stopped by an error: {str(exc) or type(exc).__name__}")
+            raise
+        finally:
+            self.base.stop()
+            self.report.seconds = self.clock.now() - began
+        return self.report
+
+    def _prepare(self) -> None:
+        look_ahead(self.robot)
+        self.camera = floor_camera(self.robot)
+        self._start = self.base.odometry().pose
+        self._seen_at_s = self.clock.now()
+
+    def _step(self) -> None:
+        """One scan: see, check the way, steer."""
+        sensed, image = self._sense()
+        returns = to_points(sensed.scan, self.base.config.lidar)
+        if self.on_step is not None:
+            self.on_step(self)
+        blocked = self._in_the_way(returns)
+        if blocked is not None:
+            self._wait_for_way(blocked)
+            return
+        block = self._block_in_the_way(image)
+        if block is not None:
+            self._clear(block)
+            return
+        if self.clock.now() - self._seen_at_s > LOST_AFTER_S:
+            self._search()
+            return
+        self._steer()
+
+    def _sense(self) -> tuple[SensedScan, npt.NDArray[np.uint8]]:
+        """The next scan, then a camera frame, the line in it remembered."""
+        self.sensed = self.reader.read()
+        frame = self.robot.camera.read()
+        image = frame.image
+        self.odometry = self.base.pose_at(frame.timestamp_s)  # where the picture was taken
+        self._note_motion(self.odometry)
+        assert self.camera is not None
+        sighting = self.camera.find_line(image)
+        if sighting is not None:
+            self.tracker.add(sighting.points_m, self.odometry)
+            self._seen_at_s = self.clock.now()
+        return self.sensed, image
+
+    def _steer(self) -> None:
+        line = self.tracker.under(self.odometry)
+        if line is not None:
+            if self.rejoining and abs(line.lateral_m) < REJOINED_M:
+                self.rejoining = False
+            if not self.rejoining:
+                self.report.lateral.append((self.report.travelled_m, line.lateral_m))
+            twist = self.controller.command(line)
+        else:
+            nearest = self.tracker.nearest(self.odometry)
+            twist = Twist() if nearest is None else self.controller.toward(nearest)
+        self.base.drive(twist.vx_m_s, twist.vy_m_s, twist.wz_rad_s)
+
+    # ------------------------------------------------------------------ laps
+
+    def _note_motion(self, pose: Pose2D) -> None:
+        r = self.report
+        r.path.append(pose)
+        if self._last is not None:
+            # Along the line: the base's own forward travel (not the sideways slides of
+            # lining up with a block and back).
+            step = pose.relative_to(self._last)
+            r.travelled_m += step.x_m
+            self._turned_rad += step.yaw_rad
+        self._last = pose
+        back = pose.relative_to(self._start)
+        if (r.travelled_m - self._lap_mark_m > LAP_MIN_TRAVEL_M
+                and math.hypot(back.x_m, back.y_m) <= LAP_RADIUS_M and back.x_m >= 0.0
+                and abs(back.yaw_deg) <= LAP_HEADING_DEG):
+            if r.loop_length_m is None:
+                r.loop_length_m = r.travelled_m
+            self._laps_marked += 1
+            self._lap_mark_m = r.travelled_m
+            self.progress(f"lap {self._laps_marked} done ({r.travelled_m:.2f} m driven; the "
+                          f"loop is {r.loop_length_m:.2f} m)")
+        r.laps_done = self._share()
+        if r.laps_done >= self._said_share + 0.25 and r.laps_done < self.laps:
+            self._said_share = math.floor(r.laps_done * 4) / 4
+            self.progress(f"{r.laps_done:.2f} of {_laps_text(self.laps)} "
+                          f"({r.travelled_m:.2f} m driven)")
+
+    def _share(self) -> float:
+        """Laps done so far (see the module docstring)."""
+        r = self.report
+        if r.loop_length_m is None:  # the first lap: by the turn (never a whole one)
+            return min(abs(self._turned_rad) / (2 * math.pi), 0.99)
+        return self._laps_marked + (r.travelled_m - self._lap_mark_m) / r.loop_length_m
+
+    def _done(self) -> bool:
+        return self.report.laps_done >= self.laps - 1e-9
+
+    # ------------------------------------------------------------------ obstacles
+
+    def _wait_for_way(self, blocked: tuple[float, float]) -> None:
+        """Stop, and wait until the Lidar sees the way clear; NavigationError after
+        ``obstacle_wait_s``."""
+        self.base.stop()
+        at, began = self.odometry, self.clock.now()
+        self.progress(f"stopped: something {_ahead_text(blocked)} in the way")
+        while True:
+            sensed = self.reader.read()
+            if self.on_step is not None:
+                self.on_step(self)
+            waited = self.clock.now() - began
+            still = self._in_the_way(to_points(sensed.scan, self.base.config.lidar))
+            if still is None:
+                self.report.stops.append(ObstacleStop(at, blocked, began, waited, True))
+                self.progress(f"the way is clear after {waited:.1f} s: going on")
+                self._seen_at_s = self.clock.now()  # (not lost for having waited)
+                return
+            if waited > self.obstacle_wait_s:
+                self.report.stops.append(ObstacleStop(at, blocked, began, waited, False))
+                raise NavigationError(
+                    f"something {_ahead_text(still)} stayed in the base's way for "
+                    f"{self.obstacle_wait_s:g} s (at {m_text((at.x_m, at.y_m))} of the "
+                    "odometry): the base is stopped")
+
+    def _in_the_way(self, returns: FloatArray) -> tuple[float, float] | None:
+        """The vendor's stop rule (``obstacle_ahead``) over the corridor the base will
+        sweep: along the line ahead when the base is on it (a box beside the outside of
+        a bend is not in the way), else straight ahead."""
+        line = self.tracker.under(self.odometry)
+        points = self.tracker.points(self.odometry)
+        ahead = points[points[:, 0] > 0.0]
+        if line is None or abs(line.lateral_m) > ON_LINE_M or not len(ahead) \
+                or not len(returns):
+            return obstacle_ahead(returns, corridor_half_m=self.corridor_half_m)
+        gaps = np.hypot(returns[:, None, 0] - ahead[None, :, 0],
+                        returns[:, None, 1] - ahead[None, :, 1]).min(axis=1)
+        return obstacle_ahead(returns[gaps <= self.corridor_half_m],
+                              corridor_half_m=math.inf)
+
+    # ------------------------------------------------------------------ blocks
+
+    def _block_in_the_way(self, image: npt.NDArray[np.uint8]) -> BlockSeen | None:
+        """The nearest block of the colours seen in ``image`` on the base's path and
+        ``CLEAR_AHEAD_M`` ahead, or None."""
+        ws = self.workspace
+        if ws is None:
+            return None
+        assert self.camera is not None
+        line = self.tracker.points(self.odometry)
+        if not len(line):
+            return None
+        found = []
+        for sighting in ws.locator.locate(image, self.camera.joints_deg):
+            block = ws.seen(sighting, image)
+            if not 0.0 < block.x_m <= CLEAR_AHEAD_M:
+                continue
+            if _distance_m(line, (block.x_m, block.y_m)) > self.near_line_m:
+                continue
+            here = self._to_odometry((block.x_m, block.y_m))
+            if any(math.dist(here, p) < NOT_THERE_M for p in self._not_there):
+                continue
+            found.append(block)
+        return min(found, key=lambda b: b.x_m) if found else None
+
+    def _clear(self, block: BlockSeen) -> None:
+        """Pick ``block`` off the path, put it aside, look ahead again."""
+        self.base.stop()
+        began = self.clock.now()
+        found = self._to_odometry((block.x_m, block.y_m))
+        if sum(math.dist(found, b.found_m) < SAME_PLACE_M for b in self.report.blocks) \
+                >= MAX_CLEARS_HERE:
+            raise NavigationError(
+                f"a {block.color} block is on the line at {m_text((block.x_m, block.y_m))} "
+                f"again after {MAX_CLEARS_HERE} clearings here: the base is stopped")
+        self.progress(f"a {block.color} block on the line {_ahead_text((block.x_m, block.y_m))}"
+                      ": clearing it")
+        try:
+            picked = pick_block(self.robot, FLOOR, self._face(block))
+        except UnreachableError as exc:
+            raise NavigationError(
+                f"a {block.color} block lies on the line {_ahead_text((block.x_m, block.y_m))}"
+                f" and the arm cannot clear it: {exc}; the base is stopped") from exc
+        if not picked.ok:
+            self._not_picked(block, found, picked.why, picked.attempts, began)
+            return
+        side = self._aside_side()
+        placed = put_aside(self.robot, FLOOR, side)
+        self.odometry = self.base.odometry().pose
+        put = None if placed.where_m is None else self._to_odometry(placed.where_m)
+        why = placed.why
+        line = self.tracker.points(self.odometry)
+        if placed.ok and placed.where_m is not None and len(line):
+            off = _distance_m(line, placed.where_m)
+            if off <= self.near_line_m:
+                why = (f"put down {off:.2f} m from the line, within the base's path "
+                       f"({self.near_line_m:.2f} m)")
+        cleared = BlockCleared(block.color, found, put,
+                               "cleared" if placed.ok and not why else "failed", why, side,
+                               picked.attempts, self.clock.now() - began)
+        self.report.blocks.append(cleared)
+        self.progress(f"{block.color} block " + (f"cleared: put {side} of the line"
+                                                 if cleared.ok else f"not cleared: {why}"))
+        self._look_ahead_again()
+
+    def _face(self, block: BlockSeen) -> BlockSeen:
+        """Turn the base in place to face ``block`` (then the pick's alignment slides it
+        straight ahead, the way it was going, not sideways toward what stands beside the
+        line); not if the Lidar sees something within the chassis's turning circle.
+        The block as seen from the turned base."""
+        bearing = math.atan2(block.y_m, block.x_m)
+        if abs(bearing) < math.radians(FACE_MIN_DEG):
+            return block
+        returns = to_points(self.reader.read().scan, self.base.config.lidar)
+        turning_m = math.hypot(*half_size_m(self.base.config)) + TURN_CLEAR_M
+        if len(returns) and float(np.min(np.hypot(returns[:, 0], returns[:, 1]))) < turning_m:
+            return block
+        turned = self.base.move_by(0.0, 0.0, math.degrees(bearing))
+        seen = Pose2D(block.x_m, block.y_m, math.radians(block.yaw_deg)).relative_to(turned)
+        return replace(block, x_m=seen.x_m, y_m=seen.y_m,
+                       yaw_deg=(seen.yaw_deg + 45.0) % 90.0 - 45.0)
+
+    def _not_picked(self, block: BlockSeen, found: tuple[float, float], why: str,
+                    attempts: int, began: float) -> None:
+        not_there = attempts == 0 and "no longer near" in why
+        self.report.blocks.append(BlockCleared(block.color, found, None,
+                                               "not there" if not_there else "failed", why,
+                                               attempts=attempts,
+                                               seconds=self.clock.now() - began))
+        if not_there:
+            # Not on the floor where the look ahead put it (on a table seen from afar):
+            # not looked for there again.
+            self._not_there.append(found)
+            self.progress(f"the {block.color} block is not on the floor there: going on")
+            self._look_ahead_again()
+            return
+        raise NavigationError(f"a {block.color} block on the line "
+                              f"{_ahead_text((block.x_m, block.y_m))} could not be picked: "
+                              f"{why}; the base is stopped")
+
+    def _aside_side(self) -> Side:
+        """The side of the base where a block put down is farther from the line (on a
+        tie, the outside of the line's bend)."""
+        pose = self.base.odometry().pose
+        line = self.tracker.points(pose)
+        if not len(line):
+            return "right"
+        x, y = ASIDE_PROBE_M
+        left, right = _distance_m(line, (x, y)), _distance_m(line, (x, -y))
+        if abs(left - right) > 0.02:
+            return "left" if left > right else "right"
+        under = self.tracker.under(pose)
+        bend = 0.0 if under is None else under.curvature_1_m
+        return "right" if bend > 0 else "left"
+
+    def _look_ahead_again(self) -> None:
+        look_ahead(self.robot)
+        self.camera = floor_camera(self.robot)
+        self.odometry = self.base.odometry().pose
+        self.rejoining = True
+        self._seen_at_s = self.clock.now()
+
+    # ------------------------------------------------------------------ lost
+
+    def _search(self) -> None:
+        """Turn in place up to ``SEARCH_DEG`` each way until the line is seen;
+        NavigationError if it is not."""
+        self.base.stop()
+        self.report.searches += 1
+        lost_s = self.clock.now() - self._seen_at_s
+        start = self.odometry
+        self.progress(f"the line is lost (not seen for {lost_s:.1f} s): looking for it")
+        limit = math.radians(SEARCH_DEG)
+        for direction in (1.0, -1.0):
+            while True:
+                seen_before = self._seen_at_s
+                self._sense()
+                if self._seen_at_s > seen_before:
+                    self.base.stop()
+                    self.progress("the line is found again: going on")
+                    return
+                turned = wrap_rad(self.odometry.yaw_rad - start.yaw_rad)
+                if direction * turned >= limit:
+                    break
+                self.base.drive(0.0, 0.0, direction * SEARCH_RATE_RAD_S)
+        self.base.stop()
+        raise NavigationError(
+            f"the line is lost: not seen for {lost_s:.1f} s, nor turning {SEARCH_DEG:g} deg "
+            f"each way at {m_text((start.x_m, start.y_m))} of the odometry; the base is "
+            "stopped")
+
+    # ------------------------------------------------------------------ frames
+
+    def _to_odometry(self, xy_base_m: tuple[float, float]) -> tuple[float, float]:
+        p = compose(self.odometry, Pose2D(xy_base_m[0], xy_base_m[1], 0.0))
+        return p.x_m, p.y_m
+
+
+def _distance_m(points: FloatArray, xy: tuple[float, float]) -> float:
+    """From ``xy`` to the nearest of ``points`` (the line's, a centimetre apart)."""
+    return float(np.min(np.hypot(points[:, 0] - xy[0], points[:, 1] - xy[1])))
+
+
+def _ahead_text(xy: tuple[float, float]) -> str:
+    return f"{xy[0]:.2f} m ahead, {abs(xy[1]):.2f} m {'left' if xy[1] >= 0 else 'right'}"
+
+
+def _laps_text(laps: float) -> str:
+    return f"{laps:g} lap" + ("" if laps == 1 else "s")
+
+
+def _pose_list(pose: Pose2D) -> list[float]:
+    return [round(pose.x_m, 4), round(pose.y_m, 4), round(pose.yaw_deg, 2)]
+
+
+def _xy_list(xy: tuple[float, float]) -> list[float]:
+    return [round(xy[0], 4), round(xy[1], 4)]
+
+
+__all__ = ["BlockCleared", "LineFollowJob", "LineFollowReport", "ObstacleStop"]

@@ -1,0 +1,233 @@
+"""``busarm bench transport``: navigation transport over seeded twin arenas, against the
+twin's truth.
+
+Each arena (``busarm.twin.arena_tasks.transport_arena``: tables, boxes, the taped loop and
+one block on the floor) is first explored and mapped by the robot itself from where it
+starts (``busarm map build``'s code). Then a person carries it elsewhere (the chassis is
+put down at a random clear pose: nothing tells the code), and the transport job runs
+with an unknown start: global localisation, the drive to the pick point, the pick, the
+drive to the place point, the place. Scored with the twin's truth, which only this
+module reads: the block within ``DELIVERED_M`` of where the place point says (on the
+floor, let go), a run that reports delivered when it is not, every contact of the
+chassis with anything (a wall, a table, a box, a block), the localisation error at every
+scan along the runs, the time to localise from the unknown start, and the map's
+accuracy (its occupied cells' distance from the true surfaces).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import math
+import multiprocessing
+import random
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from busarm.base.odometry import Pose2D, wrap_rad
+from busarm.bench.common import Progress, machine_info, quiet
+from busarm.nav.mapping import compose, inverse
+from busarm.robot import Robot
+from busarm.twin.arena_tasks import (
+    free_pose,
+    start_pose,
+    transport_arena,
+    transport_points,
+    true_map_surfaces,
+)
+from busarm.units import check_int_range
+
+DELIVERED_M = 0.03
+TARGET_DELIVERED = 0.95
+TARGET_LOCALISATION_M = 0.03
+TARGET_HEADING_DEG = 2.0
+TARGET_GLOBAL_S = 10.0
+VENDOR_GRASP_S = 5.0
+"""The vendor's fixed grasp sequence alone (field notes, section 5)."""
+MAP_TIME_S = 300.0
+MAX_WORKERS = 8
+
+
+@dataclass
+class ArenaRun:
+    seed: int
+    delivered: bool = False
+    reported_delivered: bool = False
+    why: str = ""
+    placed_error_m: float = math.nan
+    mission_s: float = math.nan
+    """From the unknown start to the block put down (twin seconds)."""
+    localise_s: float = math.nan
+    map_s: float = math.nan
+    map_error_median_m: float = math.nan
+    map_error_p95_m: float = math.nan
+    contacts: list[str] = field(default_factory=list)
+    position_errors_m: list[float] = field(default_factory=list, repr=False)
+    heading_errors_deg: list[float] = field(default_factory=list, repr=False)
+    pick_attempts: int = 0
+    wall_s: float = 0.0
+
+
+def _teleport(robot: Robot, pose: Pose2D) -> None:
+    """A person carries the robot to ``pose`` (arena frame) and puts it down."""
+    twin = robot.twin
+    assert twin is not None and twin.mobile is not None
+    mj, model, data = twin.mujoco, twin.model, twin.data
+    with twin.lock:
+        for name, value in (("chassis_x", pose.x_m), ("chassis_y", pose.y_m),
+                            ("chassis_yaw", pose.yaw_rad)):
+            joint = model.joint(name)
+            data.qpos[int(joint.qposadr[0])] = value
+            data.qvel[int(joint.dofadr[0])] = 0.0
+        mj.mj_forward(model, data)
+
+
+def run_arena(seed: int, intrinsics: Path, hand_eye: Path) -> ArenaRun:
+    """Map, carry, transport: one seeded arena on a twin of its own (this process)."""
+    from busarm.apps.explore import build_map
+    from busarm.apps.transport import TransportJob
+
+    wall = time.monotonic()
+    out = ArenaRun(seed)
+    arena = transport_arena(seed)
+    origin = start_pose(arena)
+    points, index, _ = transport_points(arena, origin, seed)
+    want = compose(origin, Pose2D(*points.get("place").work_spot_m, 0.0))
+    with Robot.open("board://twin", arena=arena, intrinsics=intrinsics,
+                    hand_eye=hand_eye) as robot:
+        twin = robot.twin
+        assert twin is not None and twin.mobile is not None
+        run = build_map(robot, time_limit_s=MAP_TIME_S)
+        out.map_s = run.seconds
+        p = run.grid.probability
+        rows, cols = np.nonzero(p >= 0.65)
+        errors = true_map_surfaces(arena, origin, run.grid.spec.centres(rows, cols))
+        out.map_error_median_m = float(np.median(errors))
+        out.map_error_p95_m = float(np.percentile(errors, 95))
+        mobile = twin.mobile
+        here = mobile.pose(twin.data)
+        _teleport(robot, free_pose(arena, random.Random(seed), away_from=(here.x_m, here.y_m)))
+        to_map = inverse(origin)
+
+        def on_scan(nav: Any, sensed: Any) -> None:
+            if nav.estimate is None or not nav.estimate.converged:
+                return
+            truth = compose(to_map, mobile.pose(twin.data))
+            out.position_errors_m.append(math.dist((truth.x_m, truth.y_m),
+                                                   (nav.pose.x_m, nav.pose.y_m)))
+            out.heading_errors_deg.append(
+                abs(math.degrees(wrap_rad(truth.yaw_rad - nav.pose.yaw_rad))))
+
+        job = TransportJob(robot, run.grid, points, "pick", "place", seed=seed,
+                           on_scan=on_scan)
+        report = job.run(None)
+        twin.sync()
+        with twin.lock:
+            x, y, z = (float(v) for v in twin.data.xpos[twin.model.body(f"block{index}").id])
+        on_floor = z < 0.02 and twin.finger_gap_mm() > 20.0
+        out.placed_error_m = math.dist((x, y), (want.x_m, want.y_m))
+        out.delivered = on_floor and out.placed_error_m <= DELIVERED_M
+        out.reported_delivered = report.delivered
+        out.why = report.why
+        out.mission_s = report.seconds
+        out.localise_s = next((ph.seconds for ph in report.phases if ph.name == "localise"),
+                              math.nan)
+        out.pick_attempts = report.pick_attempts
+        out.contacts = [name for _, name in twin.mobile.contacts]
+    out.wall_s = time.monotonic() - wall
+    return out
+
+
+@dataclass
+class TransportBenchReport:
+    machine: dict[str, str]
+    runs: list[ArenaRun] = field(default_factory=list)
+    seconds: float = 0.0
+    workers: int = 1
+
+    @property
+    def delivered_share(self) -> float:
+        return sum(r.delivered for r in self.runs) / len(self.runs) if self.runs else 0.0
+
+    @property
+    def false_reports(self) -> int:
+        return sum(r.reported_delivered and not r.delivered for r in self.runs)
+
+    @property
+    def collisions(self) -> int:
+        return sum(len(r.contacts) for r in self.runs)
+
+    def _all(self, name: str) -> list[float]:
+        return [v for r in self.runs for v in getattr(r, name)]
+
+    def summary(self) -> dict[str, float | None]:
+        pos, head = self._all("position_errors_m"), self._all("heading_errors_deg")
+        done = [r.mission_s for r in self.runs if r.reported_delivered]
+        loc = [r.localise_s for r in self.runs if math.isfinite(r.localise_s)]
+
+        def q(values: list[float], at: float) -> float | None:
+            return round(float(np.percentile(values, at)), 4) if values else None
+
+        return {"delivered_share": self.delivered_share, "false_reports": self.false_reports,
+                "collisions": self.collisions,
+                "position_error_median_m": q(pos, 50), "position_error_p95_m": q(pos, 95),
+                "position_error_max_m": q(pos, 100),
+                "heading_error_median_deg": q(head, 50), "heading_error_p95_deg": q(head, 95),
+                "mission_median_s": q(done, 50), "localise_median_s": q(loc, 50),
+                "localise_max_s": q(loc, 100),
+                "placed_error_median_m": q([r.placed_error_m for r in self.runs
+                                            if r.delivered], 50),
+                "map_error_median_m": q([r.map_error_median_m for r in self.runs], 50),
+                "map_error_p95_m": q([r.map_error_p95_m for r in self.runs], 50)}
+
+    def to_dict(self) -> dict[str, Any]:
+        runs = []
+        for r in self.runs:
+            d = asdict(r)
+            d.pop("position_errors_m")
+            d.pop("heading_errors_deg")
+            runs.append(d)
+        return {"machine": self.machine, "seconds": self.seconds, "workers": self.workers,
+                "summary": self.summary(), "runs": runs}
+
+
+def _arena_line(done: int, total: int, r: ArenaRun) -> str:
+    state = "delivered" if r.delivered else f"NOT delivered ({r.why})"
+    claim = "" if r.reported_delivered == r.delivered else " [report says otherwise]"
+    touch = f", touched {', '.join(r.contacts)}" if r.contacts else ""
+    return (f"arena {done}/{total} (seed {r.seed}): {state}{claim}, {r.placed_error_m * 100:.1f}"
+            f" cm off, mission {r.mission_s:.0f} s (localised in {r.localise_s:.1f} s), map "
+            f"{r.map_s:.0f} s{touch}; {r.wall_s:.0f} s here")
+
+
+def run_transport_bench(*, arenas: int = 30, seed: int = 0, workers: int = 1,
+                        progress: Progress = quiet) -> TransportBenchReport:
+    """Transport over ``arenas`` seeded arenas (seeds ``seed``..), ``workers`` processes."""
+    check_int_range("arenas", arenas, 1, 1000)
+    check_int_range("workers", workers, 1, MAX_WORKERS)
+    start = time.monotonic()
+    report = TransportBenchReport(machine_info(), workers=workers)
+    with tempfile.TemporaryDirectory() as tmp:
+        with Robot.open("twin://?blocks=0", calibration_dir=Path(tmp),
+                        progress=progress) as robot:
+            robot.require_camera_calibration()
+        intrinsics, hand_eye = Path(tmp) / "camera.json", Path(tmp) / "hand_eye.json"
+        seeds = [seed + i for i in range(arenas)]
+        if workers == 1:
+            for s in seeds:
+                report.runs.append(run_arena(s, intrinsics, hand_eye))
+                progress(_arena_line(len(report.runs), arenas, report.runs[-1]))
+        else:
+            context = multiprocessing.get_context("spawn")
+            with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
+                futures = [pool.submit(run_arena, s, intrinsics, hand_eye) for s in seeds]
+                for future in concurrent.futures.as_completed(futures):
+                    report.runs.append(future.result())
+                    progress(_arena_line(len(report.runs), arenas, report.runs[-1]))
+            report.runs.sort(key=lambda r: r.seed)
+    report.seconds = time.monotonic() - start
+    return report
