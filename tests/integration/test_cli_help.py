@@ -20,8 +20,8 @@ from busarm.cli.main import cli
 from busarm.sim import transport
 
 README = Path(__file__).resolve().parents[2] / "README.md"
-UNIT = re.compile(r"\b(mm|deg|deg/s|mm/s|s|ms|V|C|Hz|bit/s|pixels|px|cm2|%|0\.\.1|probability)\b"
-                  r"|\bfactor\b|seconds|frames/s")
+UNIT = re.compile(r"\b(mm|deg|deg/s|mm/s|m|m/s|s|ms|V|C|Hz|bit/s|pixels|px|cm2|%|0\.\.1"
+                  r"|probability)\b|\bfactor\b|seconds|frames/s")
 COUNTS = {"--views", "--seed", "--scenes", "--workers", "--reads", "--scans", "--loops",
           "--frames", "--count", "--retries", "--blocks", "--pictures", "--placements", "--n",
           "--batch-n", "--distractors", "--camera-port", "--baud", "--http-port", "--tries",
@@ -136,7 +136,7 @@ def test_a_range_is_said_once() -> None:
 
 
 NUMBER_METAVARS = {"N", "S", "MS", "MM", "DEG", "DEG_S", "MM_S", "PX", "V", "C", "HZ", "FACTOR",
-                   "FPS", "PROBABILITY"}
+                   "FPS", "PROBABILITY", "M", "M_S"}
 """A number option's metavar: its unit, or N for a count (never NUMBER or INTEGER)."""
 SAME_NAME_OTHER_MEANING = {"--pose": "a servo pose ID=DEG,... (`move`), or a named pose",
                            "--save": "a pose's NAME (`arm pose`), or a DIRECTORY",

@@ -133,9 +133,10 @@ class Navigator:
         return local, world
 
     # ------------------------------------------------------------------ localising
-    def localize(self, start: Pose2D | None = None) -> PoseEstimate:
+    def localize(self, start: Pose2D | None = None, *, wander: bool = True) -> PoseEstimate:
         """Find where the base is: near ``start`` if given, else anywhere on the map
-        (driving about slowly, clear of everything, until the filter has converged)."""
+        (driving about slowly, clear of everything, until the filter has converged;
+        standing still if not ``wander``)."""
         if start is not None:
             self.filter.start_at(start)
         else:
@@ -156,7 +157,7 @@ class Navigator:
                         f"could not tell where the base is on the map after "
                         f"{self.settings.localize_limit_s:g} s of looking (is it the map of "
                         "this place?): the base is stopped")
-                if start is None:
+                if start is None and wander:
                     self._wander(sensed)
         finally:
             self.base.stop()
@@ -261,8 +262,13 @@ class Navigator:
         extra = np.concatenate([world.reshape(-1, 2), self._keep_out])
         costmap = self.static.with_obstacles(extra) if len(extra) else self.static
         here = (self.pose.x_m, self.pose.y_m)
+        goal = (trip.goal.x_m, trip.goal.y_m)
+        if not costmap.cell_free(*goal):
+            # A goal by a wall, a table or a keep-out spot may be a shade inside what the
+            # map calls free: go to the nearest free point; ``settle`` closes the rest.
+            goal = costmap.nearest_free(*goal, SETTLE_MAX_M) or goal
         try:
-            path = plan_path(costmap, here, (trip.goal.x_m, trip.goal.y_m))
+            path = plan_path(costmap, here, goal)
         except NoPath:
             return None
         trip.plans.append(path)

@@ -42,6 +42,7 @@ SETTLE_SCANS = 4
 KEEP_OUT_M = 0.05
 """The base never drives over a point's work spot (blocks there are below the Lidar)."""
 STOW_POSE = "home"
+TEACH_LIMIT_S = 5.0
 """The arm's pose while the base drives (folded over the base)."""
 
 
@@ -207,6 +208,19 @@ class TransportJob:
 
 class _PhaseFailed(NavigationError):
     """A phase of the job that could not be done (the report says which)."""
+
+
+def teach_point(robot: Robot, grid: OccupancyGrid, name: str, *, surface_m: float = 0.0,
+                near: Pose2D | None = None, seed: int = 0) -> NamedPoint:
+    """The named point where the base stands now (as a person teaches one: drive or carry
+    the robot there, facing the blocks' spot): localised on ``grid`` (near ``near`` if
+    given, else anywhere; the base does not move) and refined standing still."""
+    nav = Navigator(robot, grid, seed=seed,
+                    settings=NavSettings(localize_limit_s=TEACH_LIMIT_S))
+    nav.localize(near, wander=False)
+    for _ in range(SETTLE_SCANS):
+        nav.sense()
+    return NamedPoint(name, nav.pose, surface_m)
 
 
 def run_transport(robot: Robot, grid: OccupancyGrid, points: NamedPoints, pick: str,

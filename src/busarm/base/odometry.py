@@ -22,6 +22,9 @@ STILL_TICKS = 3
 """... or below this many encoder counts, if more (a count may dither at rest)."""
 BIAS_GAIN = 0.05
 """How much of the gyro's reading while still goes into its bias at each update."""
+MAX_BIAS_RAD_S = 0.02
+"""A rate larger than this with the wheels still is no bias: the robot is being turned
+(picked up and carried, pushed round); it is counted as a turn, not learnt."""
 
 
 @dataclass(frozen=True)
@@ -105,7 +108,8 @@ class Odometry:
         if gyro is not None and gyro.time_s > 0:
             if at_rest is not False and max(abs(d) for d in travel) < self._still_m:
                 rate = gyro.turned_rad / gyro.time_s
-                self.gyro_bias_rad_s += BIAS_GAIN * (rate - self.gyro_bias_rad_s)
+                if abs(rate) <= MAX_BIAS_RAD_S:
+                    self.gyro_bias_rad_s += BIAS_GAIN * (rate - self.gyro_bias_rad_s)
             dyaw = gyro.turned_rad - self.gyro_bias_rad_s * gyro.time_s
         self.pose = self.pose.moved_by(moved.vx_m_s, moved.vy_m_s, dyaw)
         # Smoothed over about TWIST_SMOOTHING_S: one update's travel is a few encoder

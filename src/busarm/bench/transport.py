@@ -3,15 +3,17 @@ twin's truth.
 
 Each arena (``busarm.twin.arena_tasks.transport_arena``: tables, boxes, the taped loop and
 one block on the floor) is first explored and mapped by the robot itself from where it
-starts (``busarm map build``'s code). Then a person carries it elsewhere (the chassis is
-put down at a random clear pose: nothing tells the code), and the transport job runs
-with an unknown start: global localisation, the drive to the pick point, the pick, the
-drive to the place point, the place. Scored with the twin's truth, which only this
-module reads: the block within ``DELIVERED_M`` of where the place point says (on the
-floor, let go), a run that reports delivered when it is not, every contact of the
-chassis with anything (a wall, a table, a box, a block), the localisation error at every
-scan along the runs, the time to localise from the unknown start, and the map's
-accuracy (its occupied cells' distance from the true surfaces).
+starts (``busarm map build``'s code). The two points are taught as a person teaches them:
+the robot is put where it should stand (facing the block; facing a clear spot), told
+roughly where it is, and its own estimate is saved (``teach_point``). Then a person
+carries it elsewhere (the chassis is put down at a random clear pose: nothing tells the
+code), and the transport job runs with an unknown start: global localisation, the drive
+to the pick point, the pick, the drive to the place point, the place. Scored with the
+twin's truth, which only this module reads: the block within ``DELIVERED_M`` of the spot
+ahead of the place stand (on the floor, let go), a run that reports delivered when it is
+not, every contact of the chassis with anything (a wall, a table, a box, a block), the
+localisation error at every scan along the runs, the time to localise from the unknown
+start, and the map's accuracy (its occupied cells' distance from the true surfaces).
 """
 
 from __future__ import annotations
@@ -30,7 +32,9 @@ import numpy as np
 
 from busarm.base.odometry import Pose2D, wrap_rad
 from busarm.bench.common import Progress, machine_info, quiet
+from busarm.nav.grid import OccupancyGrid
 from busarm.nav.mapping import compose, inverse
+from busarm.nav.points import WORK_AHEAD_M, NamedPoints
 from busarm.robot import Robot
 from busarm.twin.arena_tasks import (
     free_pose,
@@ -49,6 +53,10 @@ TARGET_GLOBAL_S = 10.0
 VENDOR_GRASP_S = 5.0
 """The vendor's fixed grasp sequence alone (field notes, section 5)."""
 MAP_TIME_S = 300.0
+PUT_DOWN_S = 1.0
+"""After being put down the robot stands this long before anything is asked of it."""
+TEACH_GUESS = Pose2D(0.05, -0.04, math.radians(3.0))
+"""How far off the rough guess is that a person gives when teaching a point."""
 MAX_WORKERS = 8
 
 
@@ -84,6 +92,22 @@ def _teleport(robot: Robot, pose: Pose2D) -> None:
             data.qpos[int(joint.qposadr[0])] = value
             data.qvel[int(joint.dofadr[0])] = 0.0
         mj.mj_forward(model, data)
+    robot.clock.sleep(PUT_DOWN_S)
+
+
+def _taught(robot: Robot, grid: OccupancyGrid, stands: NamedPoints, origin: Pose2D
+            ) -> NamedPoints:
+    """The points as a person teaches them: the robot put at each stand (arena frame),
+    told roughly where it is (TEACH_GUESS off), its own estimate saved (``teach_point``)."""
+    from busarm.apps.transport import teach_point
+
+    taught = {}
+    to_map = inverse(origin)
+    for name, stand in stands.points.items():
+        _teleport(robot, stand.pose)
+        guess = compose(compose(to_map, stand.pose), TEACH_GUESS)
+        taught[name] = teach_point(robot, grid, name, surface_m=stand.surface_m, near=guess)
+    return NamedPoints("taught", taught)
 
 
 def run_arena(seed: int, intrinsics: Path, hand_eye: Path) -> ArenaRun:
@@ -95,12 +119,13 @@ def run_arena(seed: int, intrinsics: Path, hand_eye: Path) -> ArenaRun:
     out = ArenaRun(seed)
     arena = transport_arena(seed)
     origin = start_pose(arena)
-    points, index, _ = transport_points(arena, origin, seed)
-    want = compose(origin, Pose2D(*points.get("place").work_spot_m, 0.0))
+    stands, index, _ = transport_points(arena, Pose2D(), seed)  # in the arena's frame
+    want = compose(stands.get("place").pose, Pose2D(WORK_AHEAD_M, 0.0, 0.0))
     with Robot.open("board://twin", arena=arena, intrinsics=intrinsics,
                     hand_eye=hand_eye) as robot:
         twin = robot.twin
         assert twin is not None and twin.mobile is not None
+        mobile = twin.mobile
         run = build_map(robot, time_limit_s=MAP_TIME_S)
         out.map_s = run.seconds
         p = run.grid.probability
@@ -108,7 +133,7 @@ def run_arena(seed: int, intrinsics: Path, hand_eye: Path) -> ArenaRun:
         errors = true_map_surfaces(arena, origin, run.grid.spec.centres(rows, cols))
         out.map_error_median_m = float(np.median(errors))
         out.map_error_p95_m = float(np.percentile(errors, 95))
-        mobile = twin.mobile
+        points = _taught(robot, run.grid, stands, origin)
         here = mobile.pose(twin.data)
         _teleport(robot, free_pose(arena, random.Random(seed), away_from=(here.x_m, here.y_m)))
         to_map = inverse(origin)

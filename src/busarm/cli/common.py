@@ -83,6 +83,7 @@ from busarm.units import (
 )
 
 if TYPE_CHECKING:
+    from busarm.base.odometry import Pose2D
     from busarm.robot import Robot
     from busarm.robot.calibration_store import CalibrationStore
     from busarm.sim.pty import PtyServer
@@ -312,6 +313,16 @@ def parse_float_list(text: str, what: str) -> list[float]:
     """Finite numbers separated by commas or spaces (``0,60,0`` or ``"0 60 0"``: lists are
     written either way everywhere); ConfigError naming ``what`` and the bad one."""
     return [_number(t, what) for t in re.split(r"[,\s]+", text.strip())]
+
+
+def parse_pose(text: str, option: str) -> Pose2D:
+    """``X,Y,YAW`` (m, m, deg) -> a Pose2D; ConfigError naming ``option`` otherwise."""
+    from busarm.base.odometry import Pose2D
+
+    values = parse_float_list(text, f"{option} X,Y,YAW (m, m, deg)")
+    if len(values) != 3:
+        raise ConfigError(f"{option} {text!r}: expected X,Y,YAW (m, m, deg), e.g. 0.5,-1.2,90")
+    return Pose2D(values[0], values[1], math.radians(values[2]))
 
 
 def angle_list(kind: RangeType) -> Callable[[click.Context, click.Parameter, tuple[str, ...]],

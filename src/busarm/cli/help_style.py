@@ -19,7 +19,7 @@ _ORDER = ("env var", "default", "", "required")  # "": a range
 
 UNIT_METAVARS = {"s": "S", "ms": "MS", "mm": "MM", "deg": "DEG", "deg/s": "DEG_S",
                  "mm/s": "MM_S", "px": "PX", "V": "V", "C": "C", "x": "FACTOR",
-                 "frames/s": "FPS", "probability": "PROBABILITY"}
+                 "frames/s": "FPS", "probability": "PROBABILITY", "m": "M", "m/s": "M_S"}
 """The metavar of a number option in each unit."""
 _UNITS_IN_TEXT = ("mm/s", "deg/s", "frames/s", "probability", "ms", "mm", "deg", "px", "s")
 """Looked for in a number option's help, in this order (``mm/s`` before ``mm``)."""

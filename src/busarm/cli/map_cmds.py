@@ -13,6 +13,7 @@ from busarm.cli.common import (
     check_writable,
     mobile_options,
     open_mobile_robot,
+    parse_pose,
     pass_settings,
 )
 
@@ -89,6 +90,52 @@ def build(settings: Settings, out_file: Path, time_limit_s: float, png: Path | N
         path = [(p.x_m, p.y_m) for p in run.poses]
         save_image(png, map_picture(run.grid, path=path))
         settings.out.print(f"drawn to {png}")
+
+
+@map_group.command("point")
+@click.argument("name")
+@click.option("--map", "map_file", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              metavar="MAP.yaml", help="The map the point is on.")
+@click.option("--points", "points_file", required=True,
+              type=click.Path(dir_okay=False, path_type=Path),
+              help="The points file to add it to (made if missing; it names the map).")
+@click.option("--near", "near_text", metavar="X,Y,YAW",
+              help="Roughly where the base stands (m, m, deg); without it, found from "
+                   "anywhere on the map (the base does not move either way).")
+@click.option("--surface", "surface_m", default=0.0, show_default=True,
+              type=RangeType("--surface", 0.0, 0.5, "m"),
+              help="The height the blocks stand on there, in m (0: the floor).")
+@mobile_options
+@pass_settings
+def point(settings: Settings, name: str, map_file: Path, points_file: Path,
+          near_text: str | None, surface_m: float, arena_spec: str, chassis: str | None,
+          lidar_port: str | None) -> None:
+    """Save where the base stands now as the named point NAME (put the robot there, facing
+    the blocks' spot, about 0.3 m ahead): localised on the map with the Lidar."""
+    from busarm.apps.transport import teach_point
+    from busarm.nav.map_files import load_map
+    from busarm.nav.points import NamedPoints, check_point_name, load_points, save_points
+
+    check_point_name(name)
+    grid = load_map(map_file)
+    near = parse_pose(near_text, "--near") if near_text is not None else None
+    known = load_points(points_file) if points_file.exists() else NamedPoints(
+        points_file.stem)
+    with open_mobile_robot(settings, arena_spec, chassis, lidar_port) as robot:
+        taught = teach_point(robot, grid, name, surface_m=surface_m, near=near)
+    points = NamedPoints(known.name, {**known.points, name: taught}, source=str(points_file))
+    save_points(points_file, points, _relative(map_file, points_file))
+    p = taught.pose
+    settings.out.print(f"{name}: x {p.x_m:+.3f} m, y {p.y_m:+.3f} m, {p.yaw_deg:+.1f} deg on "
+                       f"{map_file}; saved in {points_file}", highlight=False, markup=False)
+
+
+def _relative(map_file: Path, points_file: Path) -> str:
+    """The map's path as the points file names it (relative to its folder when it can)."""
+    try:
+        return str(map_file.resolve().relative_to(points_file.resolve().parent))
+    except ValueError:
+        return str(map_file.resolve())
 
 
 COMMANDS = [map_group]

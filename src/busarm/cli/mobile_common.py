@@ -58,7 +58,7 @@ def open_mobile_robot(settings: Settings, arena_spec: str, chassis: str | None,
     --port a twin of its own in ``arena_spec``'s arena; ``robot_options`` go to
     ``Robot.open`` (``config``, ``calibration_store``...). An exception leaving the body
     after a write to the arm stops it and says what its servos do (as ``open_robot``)."""
-    from busarm.cli.stopping import marking_the_stop
+    from busarm.cli.common import marking_the_stop  # common re-exports this module
     from busarm.robot import Robot
 
     if not settings.port_given:

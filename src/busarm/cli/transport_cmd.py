@@ -9,7 +9,6 @@ floor, ``place`` facing a clear spot (both written to the report folder, with th
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -22,7 +21,7 @@ from busarm.cli.common import (
     check_writable,
     mobile_options,
     open_mobile_robot,
-    parse_float_list,
+    parse_pose,
     pass_settings,
 )
 from busarm.errors import ConfigError
@@ -34,17 +33,6 @@ if TYPE_CHECKING:
     from busarm.robot import Robot
 
 DEFAULT_REPORT = "transport-report"
-
-
-def _start(text: str | None) -> Pose2D | None:
-    from busarm.base.odometry import Pose2D
-
-    if text is None:
-        return None
-    values = parse_float_list(text, "--start X,Y,YAW (m, m, deg)")
-    if len(values) != 3:
-        raise ConfigError(f"--start {text!r}: expected X,Y,YAW (m, m, deg), e.g. 0.5,-1.2,90")
-    return Pose2D(values[0], values[1], math.radians(values[2]))
 
 
 def _setup(settings: Settings, robot: Robot, points_file: Path | None, map_file: Path | None,
@@ -109,7 +97,7 @@ def transport(settings: Settings, pick: str, place: str, points_file: Path | Non
     from busarm.apps.transport import TransportJob
     from busarm.apps.transport_report import write_transport_report
 
-    start = _start(start_text)
+    start = parse_pose(start_text, "--start") if start_text is not None else None
     check_writable(report_dir / "report.json" if report_dir.is_dir() else report_dir)
     with open_mobile_robot(settings, arena_spec, chassis, lidar_port, camera=True) as robot:
         grid, points, known = _setup(settings, robot, points_file, map_file, report_dir)

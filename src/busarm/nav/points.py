@@ -37,6 +37,7 @@ FORMAT_VERSION = 1
 COORD_LIMIT_M = 1000.0
 SURFACE_M = (0.0, 0.5)
 _NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,31}")
+NAME_RULE = "1..32 letters, digits, '-' or '_', starting with a letter"
 POINT_KEYS = {"x_m", "y_m", "yaw_deg", "surface_m"}
 WORK_AHEAD_M = 0.3
 """Where the blocks are at a point: about this far ahead of the base's centre."""
@@ -73,6 +74,13 @@ class NamedPoints:
         return self.points[name]
 
 
+def check_point_name(name: str) -> str:
+    """``name`` if it can name a point; else a ConfigError saying what can."""
+    if not _NAME.fullmatch(name):
+        raise ConfigError(f"point name {name!r}: {NAME_RULE}")
+    return name
+
+
 class _Reader(TomlReader):
     def __init__(self, source: str) -> None:
         super().__init__("points file", source)
@@ -94,8 +102,7 @@ class _Reader(TomlReader):
     def point(self, key: str, value: object) -> NamedPoint:
         where = f"points.{key}"
         if not _NAME.fullmatch(key):
-            raise self.fail(where, "a point's name is 1..32 letters, digits, '-' or '_', "
-                                   "starting with a letter")
+            raise self.fail(where, f"a point's name is {NAME_RULE}")
         if not isinstance(value, dict):
             raise self.fail(where, "must be a table")
         self.unknown(value, where, POINT_KEYS)
