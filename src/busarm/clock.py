@@ -119,6 +119,9 @@ class SimClock:
                 self._now = min(end, self._now + self.step_s)
                 for callback in list(self._callbacks):
                     callback()
+            # A wait within the rounding tolerance still ends at its end: a caller
+            # waiting for a deadline (now >= deadline) would otherwise spin forever.
+            self._now = max(self._now, end)
             if self.pace is not None:
                 ahead = (self._now - self._sim_start) / self.pace - (
                     time.monotonic() - self._wall_start)

@@ -25,7 +25,7 @@ UNIT = re.compile(r"\b(mm|deg|deg/s|mm/s|m|m/s|s|ms|V|C|Hz|bit/s|pixels|px|cm2|%
 COUNTS = {"--views", "--seed", "--scenes", "--workers", "--reads", "--scans", "--loops",
           "--frames", "--count", "--retries", "--blocks", "--pictures", "--placements", "--n",
           "--batch-n", "--distractors", "--camera-port", "--baud", "--http-port", "--tries",
-          "--squares", "--laps", "--arenas"}
+          "--squares", "--laps", "--arenas", "--layouts"}
 """Number options that are counts, seeds or port numbers: no unit to give."""
 
 

@@ -25,7 +25,13 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 from busarm.bus.transport import Transport
-from busarm.errors import BusTimeoutError, ChecksumError, ConfigError, ProtocolError
+from busarm.errors import (
+    BusTimeoutError,
+    ChecksumError,
+    ConfigError,
+    HaltedError,
+    ProtocolError,
+)
 from busarm.protocol import SERVO_TURNAROUND_S, SPECS
 from busarm.protocol.board import (
     FRAME_OVERHEAD,
@@ -98,6 +104,9 @@ class BoardLink:
         self.readings = BoardReadings()
         self.wheel_targets_rev_s: dict[int, float] = {}
         """What each wheel motor was last told on this link (rev/s), by motor number."""
+        self.wheels_halted: str | None = None
+        """Why the wheels are latched stopped (the bus's ``halt``), or None: while set, a
+        speed other than 0 raises HaltedError (a stop still goes out)."""
         self._parser = BoardFrameParser(max_data_len=REPORT_MAX_DATA)
         self._lock = threading.RLock()
         self._depth = 0  # how deep the link is in use (its lock is re-entrant)
@@ -126,8 +135,13 @@ class BoardLink:
                                   f"{range_text(-limit, limit, 'rev/s')}")
             check_range(f"motor {motor} speed", rev_s, -limit, limit, "rev/s")
         if speeds_rev_s:
-            self.write(MotorSpeeds(tuple(sorted(speeds_rev_s.items()))))
-            self.wheel_targets_rev_s.update(speeds_rev_s)
+            request = MotorSpeeds(tuple(sorted(speeds_rev_s.items())))
+            with self._held():  # checked and sent under the lock: a halt is before or after
+                if self.wheels_halted is not None and any(speeds_rev_s.values()):
+                    raise HaltedError(f"wheel speeds refused: the robot is halted "
+                                      f"({self.wheels_halted}); re-arm it first")
+                self.write(request)
+                self.wheel_targets_rev_s.update(speeds_rev_s)
 
     def stop_motors(self) -> None:
         """Every wheel motor to 0 rev/s."""

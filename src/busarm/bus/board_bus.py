@@ -13,7 +13,9 @@ take ``--port board://...`` unchanged. Differences, by the board's design:
   sent: motor mode, the servos' LEDs and alarm masks, MOVE_TIME_READ/WAIT reads.
 - A scan asks each ID for itself through the board; two servos sharing an ID cannot be
   told from one (the board hands back a value, not the line's bytes).
-- The emergency stop stops the servos (MOVE_STOP to every ID, twice) and every wheel motor.
+- The emergency stop stops the servos (MOVE_STOP to every ID, twice) and every wheel motor;
+  the halt latches the wheels as well as the servos (a base driven from another thread
+  is refused until the re-arm).
 """
 
 from __future__ import annotations
@@ -136,6 +138,16 @@ class BoardServoBus(ServoBus):
 
     def close(self) -> None:
         self.link.close()
+
+    def halt(self, why: str = "e-stop") -> None:
+        """As ``ServoBus.halt``, and the wheels too: a speed other than 0 is refused
+        (HaltedError) until ``rearm()``, whichever thread drives the base."""
+        self.link.wheels_halted = why  # first: a drive racing the stop is refused or precedes it
+        super().halt(why)
+
+    def rearm(self) -> None:
+        super().rearm()
+        self.link.wheels_halted = None
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:

@@ -27,6 +27,7 @@ from busarm.units import listing
 if TYPE_CHECKING:
     from busarm.bench.dashboard import DashboardBenchReport
     from busarm.bench.ik import IkBenchReport
+    from busarm.bench.line import LineBenchReport
     from busarm.bench.locate import LocateBenchReport
     from busarm.bench.mobile import MobileBenchReport
     from busarm.bench.pick import PickBenchReport
@@ -562,3 +563,45 @@ def _print_transport(settings: Settings, report: TransportBenchReport) -> None:
         f"arenas' medians; p95 {cm('map_error_p95_m')})\n"
         f"time: {report.seconds:.0f} s on this computer, {report.workers} worker(s)",
         highlight=False)
+
+
+@bench.command("line")
+@click.option("--layouts", type=click.IntRange(1, 1000), default=20, show_default=True,
+              help="Seeded line layouts (layout i uses seed + i): 0-3 blocks, 0-2 obstacles.")
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True)
+@click.option("--workers", type=click.IntRange(1, 8), default=1, show_default=True,
+              help="Layouts run side by side, each in its own process.")
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
+@pass_settings
+@no_servos
+def bench_line(settings: Settings, layouts: int, seed: int, workers: int,
+               as_json: bool) -> None:
+    """Line following over seeded twin layouts, against the twin's truth: one lap each,
+    blocks on the tape to clear, a box stepping onto it to stop for. About a minute a
+    layout."""
+    from busarm.bench.line import run_line_bench
+
+    report = run_line_bench(layouts=layouts, seed=seed, workers=workers,
+                            progress=lambda text: settings.err.print(text, highlight=False))
+    _judged(settings, as_json, report.to_dict(), lambda shown: _print_line(shown, report))
+
+
+def _print_line(settings: Settings, report: LineBenchReport) -> None:
+    from busarm.bench import line as b
+
+    s = report.summary()
+    med, top = s["lateral_median_m"], s["lateral_max_m"]
+    settings.out.print(
+        f"[bold]busarm bench line[/]: {s['layouts']} seeded layouts, {s['finished']} laps done "
+        f"{_verdict(s['finished'] == s['layouts'])}\n"
+        f"off the tape (chassis centre): median {med * 1000:.1f} mm "
+        f"{_verdict(med <= b.TARGET_LATERAL_MEDIAN_M)} <= {b.TARGET_LATERAL_MEDIAN_M * 1000:g} mm,"
+        f" max {top * 1000:.1f} mm {_verdict(top <= b.TARGET_LATERAL_MAX_M)} <= "
+        f"{b.TARGET_LATERAL_MAX_M * 1000:g} mm\n"
+        f"blocks cleared off the tape: {s['blocks_cleared']}/{s['blocks']} "
+        f"{_verdict(s['blocks_cleared'] == s['blocks'])}; obstacles stopped for: "
+        f"{s['obstacles_stopped_for']}/{s['obstacles']} "
+        f"{_verdict(s['obstacles_stopped_for'] == s['obstacles'])}; collisions: "
+        f"{s['collisions']} {_verdict(s['collisions'] == 0)}\n"
+        f"a lap: median {s['lap_median_s']} s of twin time; {report.seconds:.0f} s on this "
+        f"computer, {report.workers} worker(s)", highlight=False)

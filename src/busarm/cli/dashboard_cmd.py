@@ -27,25 +27,42 @@ from busarm.errors import ConfigError
 
 if TYPE_CHECKING:
     from busarm.dashboard.access import Access
+    from busarm.dashboard.mobile import MobileSetup
 
 DEFAULT_PORT = "twin://?realtime=1"
 
 
 def realtime_twin(port: str) -> str:
-    """A twin URL that follows the wall clock (a twin in this process otherwise runs as
-    fast as it computes, which no person can watch or stop in time)."""
+    """A twin URL (``twin``, ``twin://?...``, or a twin behind a simulated board,
+    ``board://twin?...``) that follows the wall clock (a twin in this process otherwise
+    runs as fast as it computes, which no person can watch or stop in time)."""
+    from busarm.bus.transport import board_target
+    from busarm.sim.board import split_board_keys
     from busarm.twin.transport import is_twin_url, twin_query
 
-    if not is_twin_url(port):
+    behind = board_target(port)
+    twin = behind if behind is not None else port
+    if not is_twin_url(twin):
         return port
-    query = twin_query(port)
+    query = twin_query(split_board_keys(twin)[0])  # the twin's keys (not a board's)
     if "pace" in query:
         raise ConfigError(f"--port {port}: the dashboard runs the twin in real time; "
                           "leave out pace=")
     if query.get("realtime") == "1":
         return port
-    base = "twin://?" if port == "twin" else port + ("&" if "?" in port else "?")
-    return base + "realtime=1"
+    if port == "twin":
+        return "twin://?realtime=1"
+    return port + ("&" if "?" in port else "?") + "realtime=1"
+
+
+def twin_store_port(port: str) -> str:
+    """The port whose robot folder keeps the calibration and poses: a twin behind a
+    simulated board is the twin (the same arm and camera as ``twin``'s)."""
+    from busarm.bus.transport import board_target
+    from busarm.twin.transport import is_twin_url
+
+    behind = board_target(port)
+    return "twin" if behind is not None and is_twin_url(behind) else port
 
 
 @click.command()
@@ -62,33 +79,54 @@ def realtime_twin(port: str) -> str:
                    "else a new one, printed]")
 @click.option("--reports", "reports_dir", type=click.Path(file_okay=False, path_type=Path),
               default=Path("dashboard-reports"), show_default=True,
-              help="Folder for pick-and-sort reports.")
+              help="Folder for the jobs' reports (pick-sort, transport, line-follow).")
 @click.option("--fps", type=click.FloatRange(1, 30), default=20, show_default=True,
               help="Camera frames per second (frames/s) at most, per camera.")
 @click.option("--config", default="jetauto_pro", show_default=True,
               help="Arm description: a shipped name or a TOML file.")
+@click.option("--chassis", default=None,
+              help="With --port board://DEVICE: the mobile base's chassis config (a shipped "
+                   "name, jetauto, or a TOML file)  [default: no base; a board://twin in an "
+                   "arena has its own]")
+@click.option("--lidar", "lidar_port", default=None,
+              help="With --port board://DEVICE: the Lidar's serial port  [default: none; a "
+                   "board://twin in an arena has its own]")
+@click.option("--points", "points_file", default=None,
+              type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="The named points for transport (TOML, busarm.points)  [default: none; "
+                   "on a twin in an arena the first transport maps it and sets them]")
+@click.option("--map", "map_file", default=None, metavar="MAP.yaml",
+              type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="The saved map for transport  [default: the points file's]")
 @pass_settings
 def dashboard(settings: Settings, scene_file: Path | None, seed: int | None,
               blocks: int | None, colors: str | None, camera_src: str | None, bind: str,
               http_port: int, token: str | None, reports_dir: Path, fps: float,
-              config: str) -> None:
+              config: str, chassis: str | None, lidar_port: str | None,
+              points_file: Path | None, map_file: Path | None) -> None:
     """Serve a web page that shows the robot live and drives it: joints, tool pose,
     servos, gripper, cameras, jogging with a deadman, named poses, action groups,
-    pick-and-sort, and an e-stop (button or Escape) that holds every servo.
+    pick-and-sort, and an e-stop (button or Escape) that holds every servo (and the
+    wheels). On a mobile robot also transport and line following, with its map.
 
     Without --port it runs the twin in real time (its camera calibration kept for the
-    robot, made first if there is none). Prints the page's address; Ctrl+C stops the
+    robot, made first if there is none); --port 'board://twin?family=arena&seed=N' is
+    the mobile robot's twin in an arena. Prints the page's address; Ctrl+C stops the
     robot (holding) and the server.
     """
     from busarm.dashboard.access import Access
+    from busarm.dashboard.mobile import MobileSetup
     from busarm.dashboard.server import bind_socket
 
+    parts = {k: v for k, v in (("chassis", chassis), ("lidar", lidar_port)) if v is not None}
+    mobile = (MobileSetup(points_file, map_file), parts)
+    mobile[0].load()  # a bad points or map file is refused before the robot is opened
     access = Access.for_bind(bind, token)
     sock = bind_socket(bind, http_port)  # a taken port is refused before the twin starts
     restore = interrupt_on_signals()  # SIGTERM while starting: stopped as by Ctrl+C
     try:
         _run(settings, sock, access, (scene_file, seed, blocks, colors), camera_src,
-             reports_dir, fps, config)
+             reports_dir, fps, config, mobile)
     finally:
         restore()
         sock.close()
@@ -98,11 +136,13 @@ def dashboard(settings: Settings, scene_file: Path | None, seed: int | None,
 
 def _run(settings: Settings, sock: socket.socket, access: Access,
          table: tuple[Path | None, int | None, int | None, str | None],
-         camera_src: str | None, reports_dir: Path, fps: float, config: str) -> None:
+         camera_src: str | None, reports_dir: Path, fps: float, config: str,
+         mobile: tuple[MobileSetup, dict[str, str]]) -> None:
     from busarm.arm.config import load_arm_config
     from busarm.dashboard.feeds import robot_feeds
     from busarm.dashboard.server import serve
     from busarm.dashboard.service import RobotService
+    from busarm.robot.calibration_store import CalibrationStore
 
     scene_file, seed, blocks, colors = table
     table_given = scene_file is not None or seed is not None or blocks is not None or (
@@ -116,8 +156,15 @@ def _run(settings: Settings, sock: socket.socket, access: Access,
     scene = (make_scene(scene_file, seed, blocks, colors) if on_twin and (
         table_given or not settings.port_given) else None)
     if settings.port_given:
+        if table_given and twin_store_port(settings.port) != settings.port:
+            raise ConfigError(f"--port {settings.port}: a twin behind the board stands in "
+                              "an arena (family=arena&seed=N), not at a table: leave out "
+                              "--scene/--seed/--blocks/--colors")
         settings.port = realtime_twin(settings.port)
-    store = calibration_store(settings, default=default if default == "sim" else "twin")
+    # A twin behind a simulated board keeps its calibration and poses as `twin` does.
+    store = (CalibrationStore.for_port("twin") if settings.port_given
+             and twin_store_port(settings.port) == "twin" else
+             calibration_store(settings, default=default if default == "sim" else "twin"))
 
     def say(text: str) -> None:
         if " view " not in text:
@@ -125,10 +172,11 @@ def _run(settings: Settings, sock: socket.socket, access: Access,
 
     with settings.open_robot(default=default, camera=camera_src,
                              config=load_arm_config(config), scene=scene,
-                             calibration_store=store, progress=say) as robot:
+                             calibration_store=store, progress=say, **mobile[1]) as robot:
         # Its saved poses and recorded groups are the robot's, where the commands find them
         # (the folder its calibration is kept in: a served arm's kind, `twin`, a device).
-        service = RobotService(robot, folder=store.folder, reports=reports_dir).start()
+        service = RobotService(robot, folder=store.folder, reports=reports_dir,
+                               mobile=mobile[0]).start()
         feeds = robot_feeds(robot, fps)
 
         def announce(link: str) -> None:

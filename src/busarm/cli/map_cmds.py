@@ -111,7 +111,7 @@ def point(settings: Settings, name: str, map_file: Path, points_file: Path,
           near_text: str | None, surface_m: float, arena_spec: str, chassis: str | None,
           lidar_port: str | None) -> None:
     """Save where the base stands now as the named point NAME (put the robot there, facing
-    the blocks' spot, about 0.3 m ahead): localised on the map with the Lidar."""
+    the blocks' spot, about 0.2 m ahead): localised on the map with the Lidar."""
     from busarm.apps.transport import teach_point
     from busarm.nav.map_files import load_map
     from busarm.nav.points import NamedPoints, check_point_name, load_points, save_points

@@ -62,9 +62,9 @@ def pick_sort(robot: Robot, request: PickSort, folder: Path,
     return f"sorted {t['sorted']}, failed {t['failed']}, skipped {t['skipped']}"
 
 
-def report_folder(reports: Path) -> Path:
-    """A new folder for a run's report in ``reports`` (named by the time it started)."""
-    stamp = time.strftime("pick-sort-%Y%m%d-%H%M%S")
+def report_folder(reports: Path, kind: str = "pick-sort") -> Path:
+    """A new folder for a run's report in ``reports`` (``KIND-`` and the time it started)."""
+    stamp = time.strftime(f"{kind}-%Y%m%d-%H%M%S")
     folder, n = reports / stamp, 1
     while folder.exists():
         n += 1

@@ -24,15 +24,20 @@ play          ``group``: an action group (a shipped sample or a recorded one) by
 record        ``action``: start, frame (the present pose, ``duration_ms`` after the last),
               save (``name``), or cancel
 pick_sort     ``colors`` (list), ``order`` (nearest, colors)
+transport     ``pick``, ``place`` (named points; default pick, place), ``color``
+              (optional): fetch a block from one point and deliver it to the other (a
+              twin in an arena with no points file explores to map it first)
+line_follow   ``laps`` (0.05..100), ``speed_m_s`` (0.01..0.5), ``colors`` (list, maybe
+              empty: block colours cleared off the line)
 stop          stop the job and any motion, holding (not latched)
 estop         halt: MOVE_STOP to every servo, cancel the job, latched until ``rearm``
 rearm         allow motion again after an e-stop
 ============= =============================================================== ==========
 
 Server -> page: ``welcome`` (the robot's description and this page's role), ``state``
-(live values, about 20 times a second), ``log`` (what happened), ``error`` (a request
-refused, and why), ``role`` (this page drives or watches), ``job`` (a job's progress
-and end).
+(live values, about 20 times a second; ``map``: the number of the newest map picture,
+``GET /map.png``), ``log`` (what happened), ``error`` (a request refused, and why),
+``role`` (this page drives or watches), ``job`` (a job's progress and end).
 """
 
 from __future__ import annotations
@@ -50,6 +55,9 @@ JOG_AXES = ("x", "y", "z", "pitch")
 GRIPPER_ACTIONS = ("open", "close")
 RECORD_ACTIONS = ("start", "frame", "save", "cancel")
 PICK_ORDERS = ("nearest", "colors")
+LAPS_RANGE = (0.05, 100.0)
+LINE_SPEED_RANGE_M_S = (0.01, 0.5)
+DEFAULT_CLEAR_COLORS = ("red", "green", "blue")
 MIN_JOG_SPEED = 0.05
 NAME_CHARS = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-."
 
@@ -107,6 +115,24 @@ class Record(Request):
 class PickSort(Request):
     colors: tuple[str, ...] = ("red", "green", "blue")
     order: str = "nearest"
+
+
+@dataclass(frozen=True)
+class NavTransport(Request):
+    """``transport``: a block fetched from point ``pick`` and delivered to ``place``."""
+
+    pick: str = "pick"
+    place: str = "place"
+    color: str | None = None
+
+
+@dataclass(frozen=True)
+class LineFollow(Request):
+    """``line_follow``: round the floor loop ``laps`` times, clearing ``colors`` blocks."""
+
+    laps: float = 1.0
+    speed_m_s: float = 0.2
+    colors: tuple[str, ...] = DEFAULT_CLEAR_COLORS
 
 
 _BARE = ("heartbeat", "release", "jog_stop", "stop", "estop", "rearm")
@@ -243,11 +269,34 @@ def _pick_sort(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request
                                          PICK_ORDERS))
 
 
+def _transport(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request:
+    f = _take(fields, kind, ("pick", "place", "color"))
+    pick = _name(kind, f.get("pick", "pick"), "pick")
+    place = _name(kind, f.get("place", "place"), "place")
+    if pick == place:
+        raise RequestError(f"transport: pick and place are both {pick!r}; give two "
+                           "different points")
+    color = f.get("color")
+    return NavTransport(kind, pick, place, None if color is None else _name(kind, color,
+                                                                             "color"))
+
+
+def _line_follow(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request:
+    f = _take(fields, kind, ("laps", "speed_m_s", "colors"))
+    laps = _number(kind, "laps", f.get("laps", 1.0), *LAPS_RANGE)
+    speed = _number(kind, "speed_m_s", f.get("speed_m_s", 0.2), *LINE_SPEED_RANGE_M_S)
+    colors = f.get("colors", list(DEFAULT_CLEAR_COLORS))
+    if not isinstance(colors, list) or len(colors) > 8:
+        raise RequestError(f"line_follow: colors = {_show(colors)}; expected a list of 0..8 "
+                           "colour names (empty: clear no block)")
+    return LineFollow(kind, laps, speed, tuple(_name(kind, c, "colors") for c in colors))
+
+
 _PARSERS = {
     **{kind: _bare for kind in _BARE},
     "drive": _drive, "jog": _jog, "move_pose": _named, "save_pose": _named,
     "gripper": _gripper, "torque": _torque, "play": _named, "record": _record,
-    "pick_sort": _pick_sort,
+    "pick_sort": _pick_sort, "transport": _transport, "line_follow": _line_follow,
 }
 
 

@@ -9,6 +9,8 @@ with uvicorn until Ctrl+C, then stops the robot (holding) and closes it.
 - ``GET /camera/NAME.mjpg``: a camera as an MJPEG stream (``wrist``; ``overview`` on a
   twin).
 - ``GET /api/state``, ``GET /api/robot``: the newest state and the robot, as JSON.
+- ``GET /map.png``: a mobile robot's map with what its job did on it
+  (busarm.dashboard.map_view); the number of the newest one is each state's ``map``.
 - ``GET /reports/NAME/FILE``: a pick-and-sort report's files.
 
 Every request passes ``Access`` first (busarm.dashboard.access).
@@ -111,6 +113,15 @@ def make_app(service: RobotService, access: Access, feeds: dict[str, Feed]) -> F
                                           f"{', '.join(feeds) or 'none'}"}, status_code=404)
         return StreamingResponse(_mjpeg(feed, delivered, delivered.stream(name)),
                                  media_type="multipart/x-mixed-replace; boundary=frame")
+
+    @app.get("/map.png")
+    async def map_png() -> Response:
+        if not service.mobile.available:
+            return JSONResponse({"error": "no map: this robot has no base and Lidar"},
+                                status_code=404)
+        sequence, png = await asyncio.to_thread(service.mobile.view.png)
+        return Response(png, media_type="image/png",
+                        headers={"Cache-Control": "no-store", "X-Map-Sequence": str(sequence)})
 
     @app.get("/reports/{name}/{file:path}")
     async def report(name: str, file: str) -> Response:

@@ -3,7 +3,9 @@
 The control thread runs every ``period_s`` (25 Hz): it reads the robot's live values
 (busarm.dashboard.state), takes the jog one step on (busarm.dashboard.jog) and hands the
 state to every page. A job (a move to a named pose, the gripper, an action group,
-pick-and-sort) runs in its own thread; a jog and a job never run together.
+pick-and-sort, and on a mobile robot transport and line following: busarm.dashboard.mobile)
+runs in its own thread; a jog and a job never run together. A stop or an e-stop on a
+mobile robot stops the wheels too (the halt latches them: ``BoardServoBus.halt``).
 
 Stopping, by its strength:
 
@@ -36,11 +38,14 @@ from busarm.arm.actions import ActionFrame, ActionGroup, write_d6a
 from busarm.arm.named_poses import find_pose, list_poses, save_pose
 from busarm.dashboard import jobs
 from busarm.dashboard.jog import JogPlan
+from busarm.dashboard.mobile import MobileJobs, MobileSetup
 from busarm.dashboard.protocol import (
     Drive,
     Gripper,
     Jog,
+    LineFollow,
     Named,
+    NavTransport,
     PickSort,
     Record,
     Request,
@@ -80,15 +85,17 @@ class RobotService:
     """The dashboard's robot: ``handle`` a page's requests, ``subscribe`` to what it says.
 
     ``folder``: the robot's folder (saved poses; action groups recorded here are kept in
-    its ``actions/``); ``reports``: where pick-and-sort reports go.
+    its ``actions/``); ``reports``: where the jobs' reports go; ``mobile``: the named
+    points and map for transport (busarm.dashboard.mobile).
     """
 
     def __init__(self, robot: Robot, *, folder: Path | None = None,
                  reports: Path = Path("dashboard-reports"),
-                 period_s: float = CONTROL_PERIOD_S) -> None:
+                 period_s: float = CONTROL_PERIOD_S, mobile: MobileSetup | None = None) -> None:
         self.robot, self.arm = robot, robot.arm
         self.folder = folder if folder is not None else robot_folder(robot.port)
         self.reports = reports
+        self.mobile = MobileJobs(robot, mobile, reports)
         self.period_s = period_s
         self.reader = StateReader(robot.arm)
         self.names = tuple(j.name for j in robot.config.joints)
@@ -164,6 +171,7 @@ class RobotService:
             "poses": [p.name for p in list_poses(self.folder, cfg)],
             "groups": self.group_names(), "cameras": sorted(self.robot.cameras),
             "colors": ["red", "green", "blue", "yellow"],
+            "mobile": self.mobile.describe(),
         }
 
     def group_names(self) -> list[str]:
@@ -423,7 +431,18 @@ class RobotService:
                     if (folder / "report.json").exists():
                         self.publish("report", name=folder.name)
             return pick, "pick-sort"
+        if isinstance(request, NavTransport | LineFollow):
+            return self._mobile_job(request)
         raise RequestError(f"{request.type}: not a job")
+
+    def _mobile_job(self, request: NavTransport | LineFollow
+                    ) -> tuple[Callable[[_Job], str], str]:
+        self.mobile.check(request)
+        if isinstance(request, NavTransport):
+            return (lambda job: self.mobile.transport(request, job.cancel, self._progress(job)),
+                    "transport")
+        return (lambda job: self.mobile.line_follow(request, job.cancel, self._progress(job)),
+                "line follow")
 
     def _progress(self, job: _Job) -> Callable[[str], None]:
         def say(text: str) -> None:
@@ -495,6 +514,7 @@ class RobotService:
                 "jog": None if jog is None else {"joint": jog.joint, "axis": jog.axis,
                                                  "direction": jog.direction},
                 "recording": None if self._recording is None else len(self._recording),
+                "map": self.mobile.view.sequence if self.mobile.available else None,
             })
         self.last_state = state
         self.publish("state", **state)

@@ -47,11 +47,12 @@ def save_map(yaml_path: str | Path, grid: OccupancyGrid) -> Path:
     with atomic_path(pgm_path, "map picture") as tmp:
         tmp.write_bytes(f"P5\n# busarm map\n{w} {h}\n255\n".encode("ascii") + pixels.tobytes())
     s = grid.spec
+    # Plain floats: a numpy scalar's repr (a cropped grid's origin) is np.float64(...).
     write_text_atomic(yaml_path, (
         f"image: {pgm_path.name}\n"
         f"mode: trinary\n"
-        f"resolution: {s.resolution_m!r}\n"
-        f"origin: [{s.origin_x_m!r}, {s.origin_y_m!r}, 0.0]\n"
+        f"resolution: {float(s.resolution_m)!r}\n"
+        f"origin: [{float(s.origin_x_m)!r}, {float(s.origin_y_m)!r}, 0.0]\n"
         f"negate: 0\n"
         f"occupied_thresh: {OCCUPIED_THRESH}\n"
         f"free_thresh: {FREE_THRESH}\n"), "map file")

@@ -39,8 +39,9 @@ SURFACE_M = (0.0, 0.5)
 _NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,31}")
 NAME_RULE = "1..32 letters, digits, '-' or '_', starting with a letter"
 POINT_KEYS = {"x_m", "y_m", "yaw_deg", "surface_m"}
-WORK_AHEAD_M = 0.3
-"""Where the blocks are at a point: about this far ahead of the base's centre."""
+WORK_AHEAD_M = 0.2
+"""Where the blocks are at a point: about this far ahead of the base's centre (just past
+the chassis's front, 0.15 m: within the arm's straight-down reach of the floor)."""
 
 
 @dataclass(frozen=True)

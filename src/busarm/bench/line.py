@@ -1,0 +1,238 @@
+"""``busarm bench line``: line following over seeded twin layouts, against the twin's truth.
+
+Each layout is a seeded arena (``random_arena``: a wobbly taped loop no tighter than
+0.35 m, tables and boxes off the tape) with 0-3 blocks on or beside the tape and 0-2
+other obstacles: one of the arena's boxes is moved onto the tape ahead of the robot (a
+person stepping in) when it has driven a while, and taken away once the robot has
+stood still for it ``OBSTACLE_STAY_S``. One lap each (``busarm line-follow``'s code).
+Scored with the twin's truth, which only this module reads: the chassis centre's distance
+from the tape's centreline at every step (not while the base lines up with a block or
+slides back onto the line, which is the job, not following), every block's distance from
+the tape at the end (cleared: more than ``CLEARED_M``), every contact of the chassis, and
+whether the robot stopped short of each obstacle.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import math
+import multiprocessing
+import random
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from busarm.bench.common import Progress, machine_info, quiet
+from busarm.errors import BusArmError
+from busarm.robot import Robot
+from busarm.twin.arena_gen import distance_to_line_m, random_arena
+from busarm.units import check_int_range
+
+TARGET_LATERAL_MEDIAN_M = 0.01
+TARGET_LATERAL_MAX_M = 0.03
+CLEARED_M = 0.12
+"""A block farther than this from the tape's centreline is off the line (the chassis's
+half width is 0.13 m: a block that far out is beside the robot's path, not in it)."""
+OBSTACLE_AFTER_M = (1.5, 4.5)
+"""An obstacle steps in once the robot has driven this far (each its own distance)."""
+OBSTACLE_AHEAD_M = 0.55
+OBSTACLE_STAY_S = 3.0
+MAX_WORKERS = 8
+
+
+@dataclass
+class LayoutRun:
+    seed: int
+    blocks: int = 0
+    obstacles: int = 0
+    finished: bool = False
+    why: str = ""
+    lateral_median_m: float = math.nan
+    lateral_max_m: float = math.nan
+    blocks_cleared: int = 0
+    obstacles_stopped_for: int = 0
+    contacts: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+    wall_s: float = 0.0
+
+
+class _Obstacles:
+    """Boxes that step onto the tape ahead of the robot and away again (truth side)."""
+
+    def __init__(self, robot: Robot, count: int, rng: random.Random) -> None:
+        self.robot = robot
+        twin = robot.twin
+        assert twin is not None and twin.arena is not None
+        self.twin = twin
+        self.line = twin.arena.lines[0]
+        self.pending = sorted(rng.uniform(*OBSTACLE_AFTER_M) + 3.0 * k for k in range(count))
+        self.boxes = list(range(min(count, len(twin.arena.boxes))))
+        self.active: tuple[int, tuple[float, float, float], float | None] | None = None
+        self.stopped_for = 0
+        self.driven_m = 0.0
+        self._last: tuple[float, float] | None = None
+
+    def step(self, speed_m_s: float) -> None:
+        mobile = self.twin.mobile
+        assert mobile is not None
+        pose = mobile.pose(self.twin.data)
+        if self._last is not None:
+            self.driven_m += math.dist(self._last, (pose.x_m, pose.y_m))
+        self._last = (pose.x_m, pose.y_m)
+        now = self.robot.clock.now()
+        if self.active is None and self.pending and self.boxes and \
+                self.driven_m >= self.pending[0]:
+            self.pending.pop(0)
+            box = self.boxes.pop(0)
+            home = self._box_pose(box)
+            self._move_box(box, self._ahead(pose))
+            self.active = (box, home, None)
+        elif self.active is not None:
+            box, home, still_since = self.active
+            if abs(speed_m_s) < 0.005 and still_since is None:
+                self.active = (box, home, now)
+            elif still_since is not None and now - still_since >= OBSTACLE_STAY_S:
+                self._move_box(box, home)
+                self.stopped_for += 1
+                self.active = None
+
+    def _ahead(self, pose: Any) -> tuple[float, float, float]:
+        """The tape's point OBSTACLE_AHEAD_M ahead of the robot along its heading."""
+        pts = np.array(self.line.points_m)
+        ahead = np.array([pose.x_m + OBSTACLE_AHEAD_M * math.cos(pose.yaw_rad),
+                          pose.y_m + OBSTACLE_AHEAD_M * math.sin(pose.yaw_rad)])
+        k = int(np.argmin(np.hypot(*(pts - ahead).T)))
+        return float(pts[k, 0]), float(pts[k, 1]), 0.0
+
+    def _box_pose(self, box: int) -> tuple[float, float, float]:
+        body = self.twin.model.body(f"box{box}")
+        x, y, z = (float(v) for v in self.twin.data.mocap_pos[int(body.mocapid[0])])
+        return x, y, z
+
+    def _move_box(self, box: int, xyz: tuple[float, float, float]) -> None:
+        twin = self.twin
+        with twin.lock:
+            body = twin.model.body(f"box{box}")
+            pos = twin.data.mocap_pos[int(body.mocapid[0])]
+            pos[0], pos[1] = xyz[0], xyz[1]
+            twin.mujoco.mj_forward(twin.model, twin.data)
+
+
+def run_layout(seed: int, intrinsics: Path, hand_eye: Path) -> LayoutRun:
+    """One seeded layout, one lap, on a twin of its own (this process)."""
+    from busarm.apps.line_follow import LineFollowJob
+
+    wall = time.monotonic()
+    rng = random.Random(seed)
+    out = LayoutRun(seed, blocks=rng.randint(0, 3), obstacles=rng.randint(0, 2))
+    arena = random_arena(seed, floor_blocks=out.blocks)
+    out.obstacles = min(out.obstacles, len(arena.boxes))
+    with Robot.open("board://twin", arena=arena, intrinsics=intrinsics,
+                    hand_eye=hand_eye) as robot:
+        twin = robot.twin
+        assert twin is not None and twin.mobile is not None
+        mobile, line = twin.mobile, arena.lines[0]
+        offsets: list[float] = []
+        obstacles = _Obstacles(robot, out.obstacles, rng)
+
+        def on_step(job: LineFollowJob) -> None:
+            pose = mobile.pose(twin.data)
+            speed = math.hypot(*mobile.speed(twin.data)[:2])
+            obstacles.step(speed)
+            if not job.rejoining:
+                offsets.append(distance_to_line_m(line, pose.x_m, pose.y_m))
+
+        job = LineFollowJob(robot, laps=1.0, on_step=on_step)
+        try:
+            report = job.run()
+        except BusArmError as exc:
+            report = job.report
+            out.why = str(exc)
+        out.finished = report.finished
+        out.why = out.why or report.why
+        out.seconds = report.seconds
+        twin.sync()
+        with twin.lock:
+            ends = [(float(twin.data.xpos[twin.model.body(f"block{i}").id][0]),
+                     float(twin.data.xpos[twin.model.body(f"block{i}").id][1]))
+                    for i in range(len(arena.blocks)) if arena.blocks[i].on is None]
+        out.blocks = len(ends)
+        out.blocks_cleared = sum(distance_to_line_m(line, x, y) > CLEARED_M for x, y in ends)
+        out.obstacles_stopped_for = obstacles.stopped_for
+        out.contacts = [name for _, name in mobile.contacts]
+        if offsets:
+            out.lateral_median_m = float(np.median(offsets))
+            out.lateral_max_m = float(np.max(offsets))
+    out.wall_s = time.monotonic() - wall
+    return out
+
+
+@dataclass
+class LineBenchReport:
+    machine: dict[str, str]
+    runs: list[LayoutRun] = field(default_factory=list)
+    seconds: float = 0.0
+    workers: int = 1
+
+    def summary(self) -> dict[str, Any]:
+        medians = [r.lateral_median_m for r in self.runs if math.isfinite(r.lateral_median_m)]
+        maxes = [r.lateral_max_m for r in self.runs if math.isfinite(r.lateral_max_m)]
+        return {
+            "layouts": len(self.runs), "finished": sum(r.finished for r in self.runs),
+            "lateral_median_m": round(float(np.median(medians)), 4) if medians else None,
+            "lateral_worst_median_m": round(max(medians), 4) if medians else None,
+            "lateral_max_m": round(max(maxes), 4) if maxes else None,
+            "blocks": sum(r.blocks for r in self.runs),
+            "blocks_cleared": sum(r.blocks_cleared for r in self.runs),
+            "obstacles": sum(r.obstacles for r in self.runs),
+            "obstacles_stopped_for": sum(r.obstacles_stopped_for for r in self.runs),
+            "collisions": sum(len(r.contacts) for r in self.runs),
+            "lap_median_s": round(float(np.median([r.seconds for r in self.runs])), 1)
+            if self.runs else None}
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"machine": self.machine, "seconds": self.seconds, "workers": self.workers,
+                "summary": self.summary(), "runs": [asdict(r) for r in self.runs]}
+
+
+def _layout_line(done: int, total: int, r: LayoutRun) -> str:
+    touch = f", touched {', '.join(r.contacts)}" if r.contacts else ""
+    state = "lap done" if r.finished else f"STOPPED ({r.why})"
+    return (f"layout {done}/{total} (seed {r.seed}): {state}; off the tape median "
+            f"{r.lateral_median_m * 1000:.1f} mm, max {r.lateral_max_m * 1000:.1f} mm; blocks "
+            f"cleared {r.blocks_cleared}/{r.blocks}; obstacles stopped for "
+            f"{r.obstacles_stopped_for}/{r.obstacles}{touch}; {r.seconds:.0f} s twin, "
+            f"{r.wall_s:.0f} s here")
+
+
+def run_line_bench(*, layouts: int = 20, seed: int = 0, workers: int = 1,
+                   progress: Progress = quiet) -> LineBenchReport:
+    """Line following over ``layouts`` seeded layouts (seeds ``seed``..)."""
+    check_int_range("layouts", layouts, 1, 1000)
+    check_int_range("workers", workers, 1, MAX_WORKERS)
+    start = time.monotonic()
+    report = LineBenchReport(machine_info(), workers=workers)
+    with tempfile.TemporaryDirectory() as tmp:
+        with Robot.open("twin://?blocks=0", calibration_dir=Path(tmp),
+                        progress=progress) as robot:
+            robot.require_camera_calibration()
+        intrinsics, hand_eye = Path(tmp) / "camera.json", Path(tmp) / "hand_eye.json"
+        seeds = [seed + i for i in range(layouts)]
+        if workers == 1:
+            for s in seeds:
+                report.runs.append(run_layout(s, intrinsics, hand_eye))
+                progress(_layout_line(len(report.runs), layouts, report.runs[-1]))
+        else:
+            context = multiprocessing.get_context("spawn")
+            with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
+                futures = [pool.submit(run_layout, s, intrinsics, hand_eye) for s in seeds]
+                for future in concurrent.futures.as_completed(futures):
+                    report.runs.append(future.result())
+                    progress(_layout_line(len(report.runs), layouts, report.runs[-1]))
+            report.runs.sort(key=lambda r: r.seed)
+    report.seconds = time.monotonic() - start
+    return report
