@@ -59,6 +59,7 @@ SERVER_OPTIONS = {"dashboard": " --http-port 0"}
 PTY = "/dev/pts/N"
 CAMERA = "twin://127.0.0.1:PORT"
 SMALLER = {
+    f"{BUSARM} line-follow --arena 3": f"{BUSARM} line-follow --arena 3 --laps 0.2",
     f"{BUSARM} bench": f"{BUSARM} bench --reads 300 --loops 20 --scans 1",
     f"{BUSARM} bench pick --scenes 50 --workers 2":
         f"{BUSARM} bench pick --scenes 1 --workers 2 --seed 11",

@@ -271,14 +271,19 @@ class Navigator:
         costmap = self.static.with_obstacles(extra) if len(extra) else self.static
         here = (self.pose.x_m, self.pose.y_m)
         goal = (trip.goal.x_m, trip.goal.y_m)
+        near = goal
         if not costmap.cell_free(*goal):
-            # A goal by a wall, a table or a keep-out spot may be a shade inside what the
-            # map calls free: go to the nearest free point; ``settle`` closes the rest.
-            goal = costmap.nearest_free(*goal, SETTLE_MAX_M) or goal
+            # A goal by a wall, a table or a keep-out spot (a point's own spot is at the
+            # disc's edge) may be a shade inside what the map calls free: plan to the
+            # nearest free point, then straight on to the goal, the guard watching. Ending
+            # at that point instead could leave more than ``settle`` closes blind.
+            near = costmap.nearest_free(*goal, SETTLE_MAX_M) or goal
         try:
-            path = plan_path(costmap, here, goal)
+            path = plan_path(costmap, here, near)
         except NoPath:
             return None
+        if near != goal:
+            path.append(goal)
         trip.plans.append(path)
         return path
 

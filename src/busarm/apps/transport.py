@@ -39,6 +39,8 @@ from busarm.robot import Robot
 SETTLE_TOLERANCE_M = 0.01
 SETTLE_TOLERANCE_DEG = 1.0
 SETTLE_SCANS = 4
+APPROACH_M = 0.25
+"""A point is approached straight, from this far behind it."""
 KEEP_OUT_M = 0.05
 """The base never drives over a point's work spot (blocks there are below the Lidar)."""
 STOW_POSE = "home"
@@ -156,12 +158,21 @@ class TransportJob:
 
     def _go(self, name: str, point: NamedPoint) -> None:
         def go() -> None:
-            keep_out = [(*p.work_spot_m, KEEP_OUT_M) for p in (self.pick_point,
-                                                                 self.place_point)]
-            trip = self.nav.go_to(point.pose, keep_out=keep_out)
+            spots = {p.name: (*p.work_spot_m, KEEP_OUT_M) for p in (self.pick_point,
+                                                                  self.place_point)}
+            others = [spot for n, spot in spots.items() if n != point.name]
+            # Over the spot's keep-out to a pose behind the point, then straight in: the
+            # base ends with its disc over the spot's margin (its front stops short of it).
+            behind = compose(point.pose, Pose2D(-APPROACH_M, 0.0, 0.0))
+            driven = 0.0
+            try:
+                driven += self.nav.go_to(behind, keep_out=list(spots.values())).driven_m
+            except NavigationError as exc:
+                self.progress(f"no way to {APPROACH_M:g} m behind {point.name} ({exc}): "
+                              "going straight to it")
+            trip = self.nav.go_to(point.pose, keep_out=others)
             self.nav.settle(point.pose, SETTLE_TOLERANCE_M, SETTLE_TOLERANCE_DEG, SETTLE_SCANS)
-            self.progress(f"arrived at {point.name} ({trip.driven_m:.2f} m in "
-                          f"{trip.seconds:.1f} s)")
+            self.progress(f"arrived at {point.name} ({driven + trip.driven_m:.2f} m)")
 
         self._phase(name, go)
 
