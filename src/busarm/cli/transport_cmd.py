@@ -33,6 +33,8 @@ if TYPE_CHECKING:
     from busarm.robot import Robot
 
 DEFAULT_REPORT = "transport-report"
+ON_A_ROBOT = ("on a robot, give --map MAP.yaml (made by `busarm map build`) and --points FILE "
+              "(where to pick and place)")
 
 
 def _setup(settings: Settings, robot: Robot, points_file: Path | None, map_file: Path | None,
@@ -50,8 +52,7 @@ def _setup(settings: Settings, robot: Robot, points_file: Path | None, map_file:
                               "needed (a points file; see `busarm transport --help`)")
         return load_map(map_file), points, None
     if robot.twin is None or robot.twin.arena is None:
-        raise ConfigError("on a robot, give --map MAP.yaml (made by `busarm map build`) and "
-                          "--points FILE (where to pick and place)")
+        raise ConfigError(ON_A_ROBOT)
     settings.err.print("no map given: exploring the arena first", highlight=False, markup=False)
     run = build_map(robot, time_limit_s=300.0)
     report.mkdir(parents=True, exist_ok=True)
@@ -98,6 +99,9 @@ def transport(settings: Settings, pick: str, place: str, points_file: Path | Non
     from busarm.apps.transport_report import write_transport_report
 
     start = parse_pose(start_text, "--start") if start_text is not None else None
+    if (points_file is None and settings.port_given
+            and not settings.port.startswith("board://twin")):
+        raise ConfigError(ON_A_ROBOT)  # before anything is opened: only a twin has an arena
     check_writable(report_dir / "report.json" if report_dir.is_dir() else report_dir)
     with open_mobile_robot(settings, arena_spec, chassis, lidar_port, camera=True) as robot:
         grid, points, known = _setup(settings, robot, points_file, map_file, report_dir)
