@@ -402,7 +402,7 @@ class LineFollowJob:
 
     def _block_in_the_way(self, image: npt.NDArray[np.uint8]) -> BlockSeen | None:
         """The nearest block of the colours seen in ``image`` on the base's path and
-        ``CLEAR_AHEAD_M`` ahead, or None."""
+        ahead within ``CLEAR_AHEAD_M``, or None."""
         ws = self.workspace
         if ws is None:
             return None
@@ -413,7 +413,9 @@ class LineFollowJob:
         found = []
         for sighting in ws.locator.locate(image, self.camera.joints_deg):
             block = ws.seen(sighting, image)
-            if not 0.0 < block.x_m <= CLEAR_AHEAD_M:
+            # Near enough to line up with (a block far off to the side of a bend is
+            # cleared once the line has brought the base near it).
+            if block.x_m <= 0.0 or math.hypot(block.x_m, block.y_m) > CLEAR_AHEAD_M:
                 continue
             if _distance_m(line, (block.x_m, block.y_m)) > self.near_line_m:
                 continue
