@@ -188,15 +188,7 @@ def contacts(robot: Robot) -> list[str]:
 
 def teleport(robot: Robot, pose: Pose2D) -> None:
     """A person lifts the robot and puts it down at ``pose`` (arena frame)."""
-    twin = twin_of(robot)
-    mj, model, data = twin.mujoco, twin.model, twin.data
-    with twin.lock:
-        for name, value in (("chassis_x", pose.x_m), ("chassis_y", pose.y_m),
-                            ("chassis_yaw", pose.yaw_rad)):
-            joint = model.joint(name)
-            data.qpos[int(joint.qposadr[0])] = value
-            data.qvel[int(joint.dofadr[0])] = 0.0
-        mj.mj_forward(model, data)
+    twin_of(robot).put_base(pose.x_m, pose.y_m, pose.yaw_rad)
 
 
 def move_box(robot: Robot, x_m: float, y_m: float) -> None:

@@ -3,14 +3,20 @@ callback, and the summary of the twin calibration the vision benchmarks start wi
 
 from __future__ import annotations
 
+import concurrent.futures
+import multiprocessing
 import os
 import platform
-from collections.abc import Sequence
+import tempfile
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import TYPE_CHECKING, TypeVar
 
 from busarm.errors import ConfigError
 from busarm.progress import Progress, quiet
+
+R = TypeVar("R")
 
 if TYPE_CHECKING:
     from busarm.robot.twin_calibration import TwinCalibration
@@ -95,3 +101,32 @@ class CalibrationSummary:
                                  i.cy),
                    HandEyeFit(run.hand_eye_rms_px, run.hand_eye_views, run.hand_eye_error_mm,
                               run.hand_eye_error_deg))
+
+
+def run_seeded(task: Callable[[int, Path, Path], R], seeds: Sequence[int], workers: int,
+               progress: Progress, describe: Callable[[int, int, R], str]) -> list[R]:
+    """``task(seed, intrinsics, hand_eye)`` for every seed, in seed order, on ``workers``
+    processes (1: this one), the twin's camera calibrated once first by our own flows;
+    ``describe(done, total, result)`` is said as each one ends."""
+    with tempfile.TemporaryDirectory() as tmp:
+        from busarm.robot import Robot
+
+        with Robot.open("twin://?blocks=0", calibration_dir=Path(tmp),
+                        progress=progress) as robot:
+            robot.require_camera_calibration()
+        intrinsics, hand_eye = Path(tmp) / "camera.json", Path(tmp) / "hand_eye.json"
+        if workers == 1:
+            out = []
+            for seed in seeds:
+                out.append(task(seed, intrinsics, hand_eye))
+                progress(describe(len(out), len(seeds), out[-1]))
+            return out
+        # Spawned, not forked: each worker starts its own OpenGL context for the cameras.
+        context = multiprocessing.get_context("spawn")
+        done: dict[int, R] = {}
+        with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
+            futures = {pool.submit(task, seed, intrinsics, hand_eye): seed for seed in seeds}
+            for future in concurrent.futures.as_completed(futures):
+                done[futures[future]] = future.result()
+                progress(describe(len(done), len(seeds), done[futures[future]]))
+        return [done[seed] for seed in seeds]

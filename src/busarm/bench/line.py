@@ -14,11 +14,8 @@ whether the robot stopped short of each obstacle.
 
 from __future__ import annotations
 
-import concurrent.futures
 import math
-import multiprocessing
 import random
-import tempfile
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -26,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from busarm.bench.common import Progress, machine_info, quiet
+from busarm.bench.common import Progress, machine_info, quiet, run_seeded
 from busarm.errors import BusArmError
 from busarm.robot import Robot
 from busarm.twin.arena_gen import distance_to_line_m, random_arena
@@ -216,23 +213,7 @@ def run_line_bench(*, layouts: int = 20, seed: int = 0, workers: int = 1,
     check_int_range("workers", workers, 1, MAX_WORKERS)
     start = time.monotonic()
     report = LineBenchReport(machine_info(), workers=workers)
-    with tempfile.TemporaryDirectory() as tmp:
-        with Robot.open("twin://?blocks=0", calibration_dir=Path(tmp),
-                        progress=progress) as robot:
-            robot.require_camera_calibration()
-        intrinsics, hand_eye = Path(tmp) / "camera.json", Path(tmp) / "hand_eye.json"
-        seeds = [seed + i for i in range(layouts)]
-        if workers == 1:
-            for s in seeds:
-                report.runs.append(run_layout(s, intrinsics, hand_eye))
-                progress(_layout_line(len(report.runs), layouts, report.runs[-1]))
-        else:
-            context = multiprocessing.get_context("spawn")
-            with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
-                futures = [pool.submit(run_layout, s, intrinsics, hand_eye) for s in seeds]
-                for future in concurrent.futures.as_completed(futures):
-                    report.runs.append(future.result())
-                    progress(_layout_line(len(report.runs), layouts, report.runs[-1]))
-            report.runs.sort(key=lambda r: r.seed)
+    report.runs = run_seeded(run_layout, [seed + i for i in range(layouts)], workers, progress,
+                             _layout_line)
     report.seconds = time.monotonic() - start
     return report

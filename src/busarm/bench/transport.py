@@ -18,11 +18,8 @@ start, and the map's accuracy (its occupied cells' distance from the true surfac
 
 from __future__ import annotations
 
-import concurrent.futures
 import math
-import multiprocessing
 import random
-import tempfile
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -31,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from busarm.base.odometry import Pose2D, wrap_rad
-from busarm.bench.common import Progress, machine_info, quiet
+from busarm.bench.common import Progress, machine_info, quiet, run_seeded
 from busarm.nav.grid import OccupancyGrid
 from busarm.nav.mapping import compose, inverse
 from busarm.nav.points import WORK_AHEAD_M, NamedPoints
@@ -82,16 +79,8 @@ class ArenaRun:
 
 def _teleport(robot: Robot, pose: Pose2D) -> None:
     """A person carries the robot to ``pose`` (arena frame) and puts it down."""
-    twin = robot.twin
-    assert twin is not None and twin.mobile is not None
-    mj, model, data = twin.mujoco, twin.model, twin.data
-    with twin.lock:
-        for name, value in (("chassis_x", pose.x_m), ("chassis_y", pose.y_m),
-                            ("chassis_yaw", pose.yaw_rad)):
-            joint = model.joint(name)
-            data.qpos[int(joint.qposadr[0])] = value
-            data.qvel[int(joint.dofadr[0])] = 0.0
-        mj.mj_forward(model, data)
+    assert robot.twin is not None
+    robot.twin.put_base(pose.x_m, pose.y_m, pose.yaw_rad)
     robot.clock.sleep(PUT_DOWN_S)
 
 
@@ -236,23 +225,7 @@ def run_transport_bench(*, arenas: int = 30, seed: int = 0, workers: int = 1,
     check_int_range("workers", workers, 1, MAX_WORKERS)
     start = time.monotonic()
     report = TransportBenchReport(machine_info(), workers=workers)
-    with tempfile.TemporaryDirectory() as tmp:
-        with Robot.open("twin://?blocks=0", calibration_dir=Path(tmp),
-                        progress=progress) as robot:
-            robot.require_camera_calibration()
-        intrinsics, hand_eye = Path(tmp) / "camera.json", Path(tmp) / "hand_eye.json"
-        seeds = [seed + i for i in range(arenas)]
-        if workers == 1:
-            for s in seeds:
-                report.runs.append(run_arena(s, intrinsics, hand_eye))
-                progress(_arena_line(len(report.runs), arenas, report.runs[-1]))
-        else:
-            context = multiprocessing.get_context("spawn")
-            with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
-                futures = [pool.submit(run_arena, s, intrinsics, hand_eye) for s in seeds]
-                for future in concurrent.futures.as_completed(futures):
-                    report.runs.append(future.result())
-                    progress(_arena_line(len(report.runs), arenas, report.runs[-1]))
-            report.runs.sort(key=lambda r: r.seed)
+    report.runs = run_seeded(run_arena, [seed + i for i in range(arenas)], workers, progress,
+                             _arena_line)
     report.seconds = time.monotonic() - start
     return report

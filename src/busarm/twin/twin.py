@@ -462,6 +462,19 @@ class Twin:
                 out.append((float(p[0]), float(p[1]), float(p[2])))
         return out
 
+    def put_base(self, x_m: float, y_m: float, yaw_rad: float) -> None:
+        """A person lifts the mobile robot and puts it down here (arena frame), at rest:
+        its odometry is not told (its gyro feels the turn, as a real one would)."""
+        if self.mobile is None:
+            raise TwinError("this twin has no mobile base (open it with an arena)")
+        mj, model, data = self.mujoco, self.model, self.data
+        with self.lock:
+            for name, value in (("chassis_x", x_m), ("chassis_y", y_m), ("chassis_yaw", yaw_rad)):
+                joint = model.joint(name)
+                data.qpos[int(joint.qposadr[0])] = value
+                data.qvel[int(joint.dofadr[0])] = 0.0
+            mj.mj_forward(model, data)
+
     def place_block(self, index: int, x_mm: float, y_mm: float, yaw_deg: float = 0.0,
                     z_mm: float | None = None) -> None:
         """Put block ``index`` at (x, y), standing on the table unless ``z_mm`` is given
