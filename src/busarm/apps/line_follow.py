@@ -73,7 +73,7 @@ LAP_RADIUS_M = 0.1
 LAP_MIN_TRAVEL_M = 1.0
 LAP_HEADING_DEG = 45.0
 """Back at the start facing its way within this (not crossing it on another leg)."""
-CLEAR_AHEAD_M = 0.42
+CLEAR_AHEAD_M = 0.32
 """A block on the path is cleared once it is this close ahead of the base's centre (its
 fine alignment then moves the base less than ``mobile_pick.MAX_ALIGN_M``)."""
 PATH_MARGIN_M = 0.02

@@ -34,7 +34,10 @@ LINE_STEP_M = 0.02
 LOOP_MARGIN_M = 0.65
 """From the tape to the walls: room for the robot to follow the loop."""
 TAPE_CLEAR_M = 0.12
-"""A box keeps this far from the tape (and a floor block at most this far from it)."""
+"""A floor block lies at most this far from the tape."""
+SOLID_TAPE_CLEAR_M = 0.2
+"""A box or a table keeps this far from the tape's edge: the chassis (0.26 m wide, its
+wheels included) passes it following the tape, with a few centimetres to spare."""
 TRIES = 400
 TABLE_HEIGHT_M = (0.21, 0.26)
 """Tables stand above the Lidar's plane (0.18 m on the JetAuto), as furniture does: a
@@ -160,7 +163,7 @@ def _place_tables(place: _Placer, count: int) -> list[Solid]:
                 solid = Solid(round(x, 3), round(y, 3), round(deep, 3), round(long, 3),
                               round(rng.uniform(*TABLE_HEIGHT_M), 3))
             fp = solid.footprint()
-            if place.free(fp, 0.0) and _clear_of_line(place, fp, TAPE_CLEAR_M):
+            if place.free(fp, 0.0) and _clear_of_line(place, fp, SOLID_TAPE_CLEAR_M):
                 place.taken.append(fp)
                 out.append(solid)
                 break
@@ -185,7 +188,7 @@ def _place_box(place: _Placer) -> Solid:
                       round(rng.uniform(0.15, 0.3), 3), round(rng.uniform(0.2, 0.4), 3),
                       round(rng.uniform(-45, 45), 1))
         fp = solid.footprint()
-        if place.free(fp, 0.05) and _clear_of_line(place, fp, TAPE_CLEAR_M):
+        if place.free(fp, 0.05) and _clear_of_line(place, fp, SOLID_TAPE_CLEAR_M):
             place.taken.append(fp)
             return solid
     raise ConfigError(f"no room for another box in {place.room}")
