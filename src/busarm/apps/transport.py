@@ -121,8 +121,9 @@ class TransportJob:
             self._phase("localise", lambda: self._localise(start))
             self._go("drive to " + self.pick_point.name, self.pick_point)
             block = self._phase("look for the block", self._look)
+            # Carried as the pick left it, lifted over the deck: folding the arm with a
+            # block in the fingers knocked it out against the chassis.
             self._phase("pick", lambda: self._pick(block))
-            self._phase("stow the arm", self._stow)
             self._go("drive to " + self.place_point.name, self.place_point)
             self._phase("place", self._place)
         except BusArmError as exc:
