@@ -263,11 +263,12 @@ def true_min_radius_m(radii: tuple[float, float], bends: int, wobble: float,
 def test_the_loop_check_never_passes_a_turn_tighter_than_it_is(
         a_m: float, b_m: float, bends: int, wobble: float, phase: float) -> None:
     # Loops as the generator draws them. The points are rounded to 0.1 mm, 2 cm apart:
-    # their three-point circumradius underestimates the smooth curve's (by up to ~40 %),
-    # never overestimates it, so a loop the generator accepts is at least that gentle.
+    # their three-point circumradius mostly underestimates the smooth curve's (by up to
+    # ~40 %) and overestimates it by at most a couple of percent (the points need not fall
+    # where the bend is sharpest), so a loop the generator accepts is about that gentle.
     points = loop_points((0.5, 0.0), (a_m, b_m), bends, wobble, phase)
     assert min_curve_radius_m(points) <= true_min_radius_m((a_m, b_m), bends, wobble,
-                                                            phase) * 1.005
+                                                            phase) * 1.02
     steps = [math.dist(p, q) for p, q in zip(points, points[1:] + points[:1], strict=True)]
     # About LINE_STEP_M apart on average (even angles: closer at the long axis's ends).
     assert sum(steps) / len(steps) == pytest.approx(LINE_STEP_M, rel=0.2)

@@ -219,6 +219,10 @@ def test_offsets_and_headings_within_view(lateral_m: float, heading_deg: float) 
     for x in (0.0, 0.35):  # under the base itself: extrapolated along the line
         y, _ = truth_at_x(truth, x)
         assert sighting.lateral_m(x) == pytest.approx(y, abs=0.005)
+    # The heading where the tape is seen (0.185 m ahead and on); extrapolated 0.185 m back
+    # to the base's centre it can be off by a degree or so (the line follower reads the
+    # line under the base from remembered sightings instead: busarm.nav.line_track).
+    for x in (0.2, 0.35):
         assert math.degrees(sighting.heading_rad(x)) == pytest.approx(heading_deg, abs=1.0)
 
 

@@ -510,7 +510,8 @@ def _print_mobile(settings: Settings, report: MobileBenchReport) -> None:
 @bench.command("transport")
 @click.option("--arenas", type=click.IntRange(1, 1000), default=30, show_default=True,
               help="Seeded twin arenas (arena i uses seed + i).")
-@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True)
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
+              help="Seed of the first arena.")
 @click.option("--workers", type=click.IntRange(1, 8), default=1, show_default=True,
               help="Arenas run side by side, each in its own process.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
@@ -568,7 +569,8 @@ def _print_transport(settings: Settings, report: TransportBenchReport) -> None:
 @bench.command("line")
 @click.option("--layouts", type=click.IntRange(1, 1000), default=20, show_default=True,
               help="Seeded line layouts (layout i uses seed + i): 0-3 blocks, 0-2 obstacles.")
-@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True)
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
+              help="Seed of the first layout.")
 @click.option("--workers", type=click.IntRange(1, 8), default=1, show_default=True,
               help="Layouts run side by side, each in its own process.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
