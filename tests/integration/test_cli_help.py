@@ -25,8 +25,8 @@ UNIT = re.compile(r"\b(mm|deg|deg/s|mm/s|m|m/s|s|ms|V|C|Hz|bit/s|pixels|px|cm2|%
 COUNTS = {"--views", "--seed", "--scenes", "--workers", "--reads", "--scans", "--loops",
           "--frames", "--count", "--retries", "--blocks", "--pictures", "--placements", "--n",
           "--batch-n", "--distractors", "--camera-port", "--baud", "--http-port", "--tries",
-          "--squares", "--laps", "--arenas", "--layouts"}
-"""Number options that are counts, seeds or port numbers: no unit to give."""
+          "--squares", "--laps", "--arenas", "--layouts", "--domain"}
+"""Number options that are counts, seeds, port numbers or ROS domain ids: no unit."""
 
 
 def _options() -> Iterator[tuple[str, click.Option]]:

@@ -21,7 +21,7 @@ from typing import Any
 import pytest
 from websockets.sync.client import ClientConnection, connect
 
-from busarm.cli.dashboard_cmd import realtime_twin
+from busarm.cli.common import realtime_twin
 from busarm.dashboard.access import Access
 from busarm.dashboard.server import ServerThread
 from busarm.dashboard.service import RobotService

@@ -16,54 +16,15 @@ import click
 
 from busarm.cli.common import (
     Settings,
-    calibration_store,
-    find_session,
     interrupt_on_signals,
-    make_scene,
+    open_live_robot,
     pass_settings,
     scene_options,
 )
-from busarm.errors import ConfigError
 
 if TYPE_CHECKING:
     from busarm.dashboard.access import Access
     from busarm.dashboard.mobile import MobileSetup
-
-DEFAULT_PORT = "twin://?realtime=1"
-
-
-def realtime_twin(port: str) -> str:
-    """A twin URL (``twin``, ``twin://?...``, or a twin behind a simulated board,
-    ``board://twin?...``) that follows the wall clock (a twin in this process otherwise
-    runs as fast as it computes, which no person can watch or stop in time)."""
-    from busarm.bus.transport import board_target
-    from busarm.sim.board import split_board_keys
-    from busarm.twin.transport import is_twin_url, twin_query
-
-    behind = board_target(port)
-    twin = behind if behind is not None else port
-    if not is_twin_url(twin):
-        return port
-    query = twin_query(split_board_keys(twin)[0])  # the twin's keys (not a board's)
-    if "pace" in query:
-        raise ConfigError(f"--port {port}: the dashboard runs the twin in real time; "
-                          "leave out pace=")
-    if query.get("realtime") == "1":
-        return port
-    if port == "twin":
-        return "twin://?realtime=1"
-    return port + ("&" if "?" in port else "?") + "realtime=1"
-
-
-def twin_store_port(port: str) -> str:
-    """The port whose robot folder keeps the calibration and poses: a twin behind a
-    simulated board is the twin (the same arm and camera as ``twin``'s)."""
-    from busarm.bus.transport import board_target
-    from busarm.twin.transport import is_twin_url
-
-    behind = board_target(port)
-    return "twin" if behind is not None and is_twin_url(behind) else port
-
 
 @click.command()
 @scene_options
@@ -142,37 +103,13 @@ def _run(settings: Settings, sock: socket.socket, access: Access,
     from busarm.dashboard.feeds import robot_feeds
     from busarm.dashboard.server import serve
     from busarm.dashboard.service import RobotService
-    from busarm.robot.calibration_store import CalibrationStore
-
-    scene_file, seed, blocks, colors = table
-    table_given = scene_file is not None or seed is not None or blocks is not None or (
-        colors is not None)
-    # Without --port: the arm of a running `sim serve`/`twin serve` (watch what other
-    # commands do to it), unless a table was asked for; else a twin of its own.
-    default = "sim" if not settings.port_given and not table_given and (
-        find_session() is not None) else DEFAULT_PORT
-    on_twin = default == DEFAULT_PORT if not settings.port_given else (
-        settings.port.startswith("twin"))
-    scene = (make_scene(scene_file, seed, blocks, colors) if on_twin and (
-        table_given or not settings.port_given) else None)
-    if settings.port_given:
-        if table_given and twin_store_port(settings.port) != settings.port:
-            raise ConfigError(f"--port {settings.port}: a twin behind the board stands in "
-                              "an arena (family=arena&seed=N), not at a table: leave out "
-                              "--scene/--seed/--blocks/--colors")
-        settings.port = realtime_twin(settings.port)
-    # A twin behind a simulated board keeps its calibration and poses as `twin` does.
-    store = (CalibrationStore.for_port("twin") if settings.port_given
-             and twin_store_port(settings.port) == "twin" else
-             calibration_store(settings, default=default if default == "sim" else "twin"))
 
     def say(text: str) -> None:
         if " view " not in text:
             settings.err.print(text, highlight=False, soft_wrap=True)
 
-    with settings.open_robot(default=default, camera=camera_src,
-                             config=load_arm_config(config), scene=scene,
-                             calibration_store=store, progress=say, **mobile[1]) as robot:
+    with open_live_robot(settings, table, camera=camera_src, config=load_arm_config(config),
+                         progress=say, **mobile[1]) as (robot, store):
         # Its saved poses and recorded groups are the robot's, where the commands find them
         # (the folder its calibration is kept in: a served arm's kind, `twin`, a device).
         service = RobotService(robot, folder=store.folder, reports=reports_dir,

@@ -41,6 +41,7 @@ from busarm.cli import (
     pick_cmd,
     poses_cmd,
     proto_cmds,
+    ros_cmds,
     samples_cmd,
     servo_cmds,
     sim_cmds,
@@ -223,7 +224,7 @@ def cli(
 for _module in (
     bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, twin_cmds, camera_cmds,
     vision_cmds, pick_cmd, demo, motor_cmd, dashboard_cmd, board_cmds, base_cmds,
-    lidar_cmds, map_cmds, line_follow_cmd, transport_cmd,
+    lidar_cmds, map_cmds, line_follow_cmd, transport_cmd, ros_cmds,
 ):
     for _command in _module.COMMANDS:
         cli.add_command(_command)

@@ -1,7 +1,7 @@
 """The robot behind the dashboard: one control thread, one job at a time, one driver.
 
 The control thread runs every ``period_s`` (25 Hz): it reads the robot's live values
-(busarm.dashboard.state), takes the jog one step on (busarm.dashboard.jog) and hands the
+(busarm.robot.state), takes the jog one step on (busarm.dashboard.jog) and hands the
 state to every page. A job (a move to a named pose, the gripper, an action group,
 pick-and-sort, and on a mobile robot transport and line following: busarm.dashboard.mobile)
 runs in its own thread; a jog and a job never run together. A stop or an e-stop on a
@@ -53,10 +53,10 @@ from busarm.dashboard.protocol import (
     Torque,
     message,
 )
-from busarm.dashboard.state import StateReader
 from busarm.errors import BusArmError, HaltedError
 from busarm.fileio import robot_folder
 from busarm.robot import Robot
+from busarm.robot.state import StateReader
 
 log = logging.getLogger(__name__)
 

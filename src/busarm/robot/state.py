@@ -1,4 +1,4 @@
-"""What the dashboard shows of the robot, read off the bus as it runs.
+"""The robot's live values, read off the bus as it runs (the dashboard's, the ROS bridge's).
 
 Each control period reads the fast values (every servo's position); the slow ones take
 turns, one value a period: a servo's temperature, voltage or torque (six servos: each

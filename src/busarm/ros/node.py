@@ -1,0 +1,211 @@
+"""A ROS 2 node on a Zenoh session, as rmw_zenoh makes one (no ROS installed).
+
+``RosNode`` declares its liveliness token (so ``ros2 node list`` sees it), and makes
+publishers and subscriptions that declare theirs (``ros2 topic list``), publish CDR with
+rmw_zenoh's attachment on rmw_zenoh's key expressions, and take in only what is what it
+says: an incoming sample whose type or type hash is not the subscription's, whose
+attachment is malformed, or whose CDR does not parse is dropped and counted, with the
+reason logged, and never reaches the callback.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from busarm.errors import BusArmError, ProtocolError
+from busarm.protocol.rmw_zenoh import (
+    RELIABLE,
+    TYPE_HASH_NOT_SUPPORTED,
+    Attachment,
+    Entity,
+    Qos,
+    Reliability,
+    gid_of,
+    parse_topic_key,
+    topic_key,
+    topic_key_any_type,
+)
+from busarm.ros.messages import decode, encode, ros_type
+
+if TYPE_CHECKING:
+    import zenoh
+
+log = logging.getLogger(__name__)
+
+DEFAULT_NODE = "busarm"
+
+
+@dataclass(frozen=True)
+class Received:
+    """Where an accepted message came from."""
+
+    topic: str
+    sequence_number: int
+    source_timestamp_ns: int
+    gid: bytes
+    received_ns: int
+
+
+@dataclass
+class Drops:
+    """Samples a subscription refused, by reason (the last one kept in words)."""
+
+    count: int = 0
+    by_reason: dict[str, int] = field(default_factory=dict)
+    last: str = ""
+
+    def add(self, reason: str, detail: str) -> None:
+        self.count += 1
+        self.by_reason[reason] = self.by_reason.get(reason, 0) + 1
+        self.last = detail
+
+
+class RosPublisher:
+    """One topic's publisher; ``publish(message)`` (a rosbags message of its type)."""
+
+    def __init__(self, node: RosNode, topic: str, type_name: str, qos: Qos) -> None:
+        import zenoh
+
+        self.topic = topic
+        self.type = ros_type(type_name)
+        self.key = topic_key(node.domain_id, topic, type_name, self.type.type_hash)
+        self.entity = node.entity("MP", topic, type_name, qos)
+        self.gid = gid_of(self.entity.token())
+        self._sequence = itertools.count(1)
+        self._lock = threading.Lock()
+        # Never block the robot's loops on a slow subscriber: drop instead (rmw_zenoh
+        # blocks only for reliable keep-all); express: no batching, the least latency.
+        self._publisher = node.session.declare_publisher(
+            self.key, congestion_control=zenoh.CongestionControl.DROP, express=True,
+            reliability=(zenoh.Reliability.BEST_EFFORT
+                         if qos.reliability == Reliability.BEST_EFFORT
+                         else zenoh.Reliability.RELIABLE))
+        self._token = node.session.liveliness().declare_token(self.entity.token())
+
+    def publish(self, message: Any) -> int:
+        """Publish; returns the message's sequence number."""
+        return self.publish_cdr(encode(message, self.type.name))
+
+    def publish_cdr(self, payload: bytes) -> int:
+        with self._lock:
+            seq = next(self._sequence)
+            attachment = Attachment(seq, time.time_ns(), self.gid).encode()
+            self._publisher.put(payload, attachment=attachment)
+        return seq
+
+    def close(self) -> None:
+        self._token.undeclare()
+        self._publisher.undeclare()
+
+
+class RosSubscription:
+    """One topic's subscription: ``on_message(message, received)`` for each good sample,
+    called on Zenoh's thread (keep it short: hand long work to a thread of your own)."""
+
+    def __init__(self, node: RosNode, topic: str, type_name: str,
+                 on_message: Callable[[Any, Received], None], qos: Qos) -> None:
+        self.topic = topic
+        self.type = ros_type(type_name)
+        self.entity = node.entity("MS", topic, type_name, qos)
+        self.drops = Drops()
+        self.accepted = 0
+        self._on_message = on_message
+        # Every type and hash on the topic: a wrong one is heard, refused and counted.
+        self._subscriber = node.session.declare_subscriber(
+            topic_key_any_type(node.domain_id, topic), self._on_sample)
+        self._token = node.session.liveliness().declare_token(self.entity.token())
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        try:
+            message, received = self._take(sample)
+        except ProtocolError:
+            return  # counted and logged where it was found
+        except Exception as exc:  # never let a bad sample kill Zenoh's callback thread
+            self._drop("error", f"{self.topic}: {type(exc).__name__}: {exc}")
+            return
+        self.accepted += 1
+        try:
+            self._on_message(message, received)
+        except BusArmError as exc:
+            self._drop("refused", f"{self.topic}: {exc}")
+        except Exception:
+            log.exception("%s: the handler failed", self.topic)
+
+    def _take(self, sample: zenoh.Sample) -> tuple[Any, Received]:
+        key = str(sample.key_expr)
+        try:
+            got = parse_topic_key(key)
+        except ProtocolError as exc:
+            self._drop("key", f"{self.topic}: {exc}")
+            raise
+        if got.ros_type != self.type.name or got.type_hash not in (self.type.type_hash,
+                                                                    TYPE_HASH_NOT_SUPPORTED):
+            why = (f"{self.topic}: a {got.ros_type} ({got.type_hash[:20]}...) where "
+                   f"{self.type.name} ({self.type.type_hash[:20]}...) is expected")
+            self._drop("type", why)
+            raise ProtocolError(why)
+        raw = sample.attachment
+        try:
+            attachment = Attachment.decode(raw.to_bytes() if raw is not None else b"")
+            message = decode(sample.payload.to_bytes(), self.type.name)
+        except ProtocolError as exc:
+            self._drop("attachment" if "attachment" in str(exc) or "GID" in str(exc)
+                       else "payload", f"{self.topic}: {exc}")
+            raise
+        return message, Received(self.topic, attachment.sequence_number,
+                                 attachment.source_timestamp_ns, attachment.gid,
+                                 time.time_ns())
+
+    def _drop(self, reason: str, detail: str) -> None:
+        self.drops.add(reason, detail)
+        log.warning("dropped: %s", detail)
+
+    def close(self) -> None:
+        self._token.undeclare()
+        self._subscriber.undeclare()
+
+
+class RosNode:
+    """A node named ``name`` in ``namespace`` on domain ``domain_id``, on ``session``
+    (which it does not own: close the session after the node)."""
+
+    def __init__(self, session: zenoh.Session, name: str = DEFAULT_NODE, *,
+                 namespace: str = "/", domain_id: int = 0) -> None:
+        self.session = session
+        self.name = name
+        self.namespace = namespace
+        self.domain_id = domain_id
+        self.zid = str(session.zid())
+        self._ids = itertools.count(1)
+        self._node_entity = Entity(domain_id, self.zid, 0, 0, "NN", name, namespace)
+        self._token = session.liveliness().declare_token(self._node_entity.token())
+        self._endpoints: list[RosPublisher | RosSubscription] = []
+
+    def entity(self, kind: str, topic: str, type_name: str, qos: Qos) -> Entity:
+        return Entity(self.domain_id, self.zid, 0, next(self._ids), kind, self.name,
+                      self.namespace, topic=topic, ros_type=type_name,
+                      type_hash=ros_type(type_name).type_hash, qos=qos)
+
+    def publisher(self, topic: str, type_name: str, qos: Qos = RELIABLE) -> RosPublisher:
+        pub = RosPublisher(self, topic, type_name, qos)
+        self._endpoints.append(pub)
+        return pub
+
+    def subscribe(self, topic: str, type_name: str,
+                  on_message: Callable[[Any, Received], None],
+                  qos: Qos = RELIABLE) -> RosSubscription:
+        sub = RosSubscription(self, topic, type_name, on_message, qos)
+        self._endpoints.append(sub)
+        return sub
+
+    def close(self) -> None:
+        for endpoint in reversed(self._endpoints):
+            endpoint.close()
+        self._endpoints.clear()
+        self._token.undeclare()

@@ -1,0 +1,130 @@
+"""`busarm ros ...` refuses what it must before anything opens, and the mobile robot's
+bridge: /cmd_vel drives the base until the twists stop, /odom and /scan come out."""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from test_ros_bridge import Inbox, free_port
+
+from busarm.bus.zenoh_session import open_session
+from busarm.ros import messages as m
+from busarm.ros.node import RosNode
+
+BUSARM = str(Path(sys.executable).with_name("busarm"))
+
+
+def run(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([BUSARM, *args], capture_output=True, text=True, timeout=timeout)
+
+
+def test_listening_off_this_computer_needs_a_token() -> None:
+    out = run("ros", "bridge", "--listen", "tcp/0.0.0.0:7447")
+    assert out.returncode != 0 and "Traceback" not in out.stderr
+    assert "needs a token: --token SECRET or BUSARM_TOKEN" in out.stderr
+
+
+def test_a_taken_port_says_what_holds_it() -> None:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        out = run("ros", "bridge", "--listen", f"tcp/127.0.0.1:{port}")
+    assert out.returncode != 0 and "Traceback" not in out.stderr
+    assert f"cannot listen on tcp/127.0.0.1:{port}: that port is taken" in out.stderr
+
+
+@pytest.mark.parametrize(("args", "says"), [
+    (["--listen", "udp/127.0.0.1"], "give tcp/HOST:PORT"),
+    (["--listen", "tcp/127.0.0.1:70000"], "allowed: 1..65535"),
+    (["--domain", "233"], "0<=x<=232"),
+    (["--rate", "500"], "500"),
+])
+def test_bad_options_are_refused_naming_the_value(args: list[str], says: str) -> None:
+    out = run("ros", "bridge", *args)
+    assert out.returncode != 0 and "Traceback" not in out.stderr
+    assert says in out.stderr
+
+
+def test_echo_of_a_topic_nobody_publishes_says_so() -> None:
+    port = free_port()
+    # A lone listener to connect to: nobody publishes anything there.
+    lone = open_session(listen=[f"tcp/127.0.0.1:{port}"])
+    try:
+        out = run("ros", "echo", "/joint_states", "--connect", f"tcp/127.0.0.1:{port}")
+    finally:
+        lone.close()
+    assert out.returncode != 0 and "nobody publishes /joint_states on domain 0" in out.stderr
+
+
+def test_a_token_keeps_out_a_peer_without_it(tmp_path: Path) -> None:
+    port = free_port()
+    guarded = open_session(listen=[f"tcp/127.0.0.1:{port}"], token="s3cret")
+    node = RosNode(guarded, "guarded")
+    node.publisher("/chatter", m.STRING)
+    try:
+        stranger = run("ros", "topics", "--connect", f"tcp/127.0.0.1:{port}")
+        friend = subprocess.run([BUSARM, "ros", "topics", "--connect",
+                                 f"tcp/127.0.0.1:{port}"], capture_output=True, text=True,
+                                timeout=60, env={**os.environ, "BUSARM_TOKEN": "s3cret"})
+    finally:
+        node.close()
+        guarded.close()
+    assert "/chatter" not in stranger.stdout and "no ROS 2 topics" in stranger.stdout
+    assert "/chatter [std_msgs/msg/String] publishers 1" in friend.stdout
+
+
+@pytest.fixture(scope="module")
+def mobile_bridge(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    root = tmp_path_factory.mktemp("ros-mobile")
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    env = {**os.environ, "XDG_CONFIG_HOME": str(root / "config"),
+           "BUSARM_RUNTIME_DIR": str(root / "run")}
+    proc = subprocess.Popen([BUSARM, "--port", "board://twin?family=arena&seed=3", "ros",
+                             "bridge", "--listen", endpoint, "--no-camera"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    assert proc.stdout is not None
+    line = proc.stdout.readline()
+    assert "ROS 2 bridge" in line, proc.stderr.read()
+    yield endpoint
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=20)
+    assert proc.returncode == 0 and "Traceback" not in err, err
+
+
+def test_cmd_vel_drives_the_base_until_the_twists_stop(mobile_bridge: str) -> None:
+    session = open_session(connect=[mobile_bridge])
+    peer = RosNode(session, "teleop")
+    try:
+        odom = Inbox(peer, "/odom", m.ODOMETRY)
+        scan = Inbox(peer, "/scan", m.LASER_SCAN)
+        twist = peer.publisher("/cmd_vel", m.TWIST)
+        time.sleep(0.3)
+        beams = scan.latest()[0]
+        assert len(beams.ranges) == 360 and (beams.ranges < 10).sum() > 30  # walls seen
+        x0 = odom.next()[0].pose.pose.position.x
+        vec = m.message_class("geometry_msgs/msg/Vector3")
+        forward = m.message_class(m.TWIST)(linear=vec(x=0.1, y=0.0, z=0.0),
+                                           angular=vec(x=0.0, y=0.0, z=0.0))
+        for _ in range(15):  # 1.5 s at 10 Hz, as a teleop node sends
+            twist.publish(forward)
+            time.sleep(0.1)
+        odom.until(lambda msg: msg.pose.pose.position.x - x0 > 0.05)
+        time.sleep(1.5)  # no twist for longer than the watchdog's 0.5 s: stopped
+        a = odom.latest()[0]
+        time.sleep(0.5)
+        b = odom.latest()[0]
+        assert math.isclose(a.pose.pose.position.x, b.pose.pose.position.x, abs_tol=0.003)
+        assert abs(b.twist.twist.linear.x) < 0.01
+    finally:
+        peer.close()
+        session.close()
