@@ -5,6 +5,8 @@ samples dropped and said on /rosout, the robot stopped when the sender's link dr
 
 from __future__ import annotations
 
+import itertools
+import json
 import math
 import os
 import queue
@@ -12,7 +14,6 @@ import signal
 import socket
 import subprocess
 import sys
-import textwrap
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -256,35 +257,14 @@ def test_estop_latches_until_rearm(peer: RosNode) -> None:
     states.until(lambda msg: abs(joints_deg(msg)["base_yaw"] - start) < 1.0)
 
 
-SENDER = """
-import sys, time
-import numpy as np
-from busarm.bus.zenoh_session import open_session
-from busarm.ros import messages as m
-from busarm.ros.node import RosNode
-session = open_session(connect=[sys.argv[1]])
-node = RosNode(session, "sender")
-pub = node.publisher("/joint_trajectory", m.JOINT_TRAJECTORY)
-time.sleep(0.5)
-P = m.message_class("trajectory_msgs/msg/JointTrajectoryPoint")
-D = m.message_class("builtin_interfaces/msg/Duration")
-e = np.zeros(0)
-pub.publish(m.message_class(m.JOINT_TRAJECTORY)(header=m.header(0.0, ""),
-    joint_names=["base_yaw"], points=[P(positions=np.radians([float(sys.argv[2])]),
-    velocities=e, accelerations=e, effort=e, time_from_start=D(sec=4, nanosec=0))]))
-print("sent", flush=True)
-time.sleep(60)
-"""
-
-
 def test_the_arm_stops_and_holds_when_the_senders_link_drops(
-        peer: RosNode, bridge: str, tmp_path: Path) -> None:
+        peer: RosNode, bridge: str) -> None:
     states = Inbox(peer, "/joint_states", m.JOINT_STATE)
     start = joints_deg(states.next()[0])["base_yaw"]
     target = start + 60.0 if start < 0 else start - 60.0
-    script = tmp_path / "sender.py"
-    script.write_text(textwrap.dedent(SENDER))
-    sender = subprocess.Popen([sys.executable, str(script), bridge, str(target)],
+    # A ROS 2 node of its own, sending the arm 60 deg in 4 s, then killed 1 s in.
+    sender = subprocess.Popen([sys.executable, "-m", "busarm.bench.ros_sender", bridge,
+                               "base_yaw", str(target), "4"],
                               stdout=subprocess.PIPE, text=True)
     assert sender.stdout is not None and sender.stdout.readline().strip() == "sent"
     states.until(lambda msg: abs(joints_deg(msg)["base_yaw"] - start) > 10.0)
@@ -300,3 +280,112 @@ def test_the_arm_stops_and_holds_when_the_senders_link_drops(
     time.sleep(0.3)
     send.publish(trajectory([(2.0, {"base_yaw": start})]))
     states.until(lambda msg: abs(joints_deg(msg)["base_yaw"] - start) < 1.0)
+
+
+# ------------------------------------------------------------------ busarm on two computers
+
+
+def truth(peer: RosNode) -> dict[str, Any]:
+    """The served twin's ground truth (for tests and benchmarks only)."""
+    for reply in peer.session.get("busarm/busarm/truth", timeout=3.0):
+        assert reply.ok is not None
+        return json.loads(reply.ok.payload.to_bytes())  # type: ignore[no-any-return]
+    raise AssertionError("no truth")
+
+
+def remote(bridge: str) -> str:
+    return "zenoh://" + bridge.removeprefix("tcp/")
+
+
+def test_a_command_on_another_process_moves_the_served_twin(peer: RosNode,
+                                                            bridge: str) -> None:
+    start = truth(peer)["joints_deg"]
+    out = subprocess.run([BUSARM, "--port", remote(bridge), "arm", "move-joints", "30",
+                          f"{start[1]:.2f}", f"{start[2]:.2f}", f"{start[3]:.2f}", "0",
+                          "--time", "1"], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert abs(truth(peer)["joints_deg"][0] - 30.0) < 1.0
+    pose = subprocess.run([BUSARM, "--port", remote(bridge), "arm", "pose", "--json"],
+                          capture_output=True, text=True, timeout=60)
+    assert abs(json.loads(pose.stdout)["joints_deg"]["base_yaw"] - 30.0) < 1.0
+    back = subprocess.run([BUSARM, "--port", remote(bridge), "arm", "move-joints",
+                           *(f"{v:.2f}" for v in start), "--time", "1"],
+                          capture_output=True, text=True, timeout=60)
+    assert back.returncode == 0, back.stderr
+
+
+def test_the_robots_side_refuses_a_position_past_a_limit_and_writes_while_halted(
+        peer: RosNode, bridge: str) -> None:
+    from busarm.bus.zenoh_link import ZenohTransport
+    from busarm.errors import TransportError
+    from busarm.protocol import Command
+    from busarm.protocol.frames import encode_request
+
+    link = ZenohTransport(peer.session, "busarm", remote(bridge), owns_session=False)
+    try:
+        before = truth(peer)["joints_deg"][0]
+        # The shoulder's servo (2) may go 125..875 pulses: its joint's -180..0 deg.
+        with pytest.raises(TransportError, match=r"servo 2 position 1000 refused: allowed "
+                                                 r"125\.\.875 pulses"):
+            link.write(encode_request(2, Command.MOVE_TIME_WRITE, 1000, 500))
+        with pytest.raises(TransportError, match="not whole LX request frames"):
+            link.write(b"\x55\x55\x01\x07\x01\xff")
+        estop = peer.publisher("/estop", m.EMPTY)
+        rearm = peer.publisher("/rearm", m.EMPTY)
+        time.sleep(0.3)
+        estop.publish(m.message_class(m.EMPTY)())
+        time.sleep(0.3)
+        with pytest.raises(TransportError, match="halted"):
+            link.write(encode_request(1, Command.MOVE_TIME_WRITE, 560, 500))
+        link.write(encode_request(254, Command.MOVE_STOP))  # a stop always goes through
+        rearm.publish(m.message_class(m.EMPTY)())
+        time.sleep(0.6)
+        assert abs(truth(peer)["joints_deg"][0] - before) < 0.5  # nothing moved
+    finally:
+        link.close()
+
+
+def test_a_remote_client_whose_process_dies_leaves_the_arm_holding(peer: RosNode,
+                                                                   bridge: str) -> None:
+    start = truth(peer)["joints_deg"]
+    mover = subprocess.Popen([BUSARM, "--port", remote(bridge), "arm", "move-joints", "-60",
+                              *(f"{v:.2f}" for v in start[1:]), "--time", "4"],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    end = time.monotonic() + 20
+    while abs(truth(peer)["joints_deg"][0] - start[0]) < 5.0 and time.monotonic() < end:
+        time.sleep(0.05)
+    mover.kill()  # mid-move: its one command would take the servo on to -60 deg
+    mover.wait()
+    time.sleep(0.8)
+    stopped = truth(peer)["joints_deg"][0]
+    time.sleep(1.0)
+    assert abs(truth(peer)["joints_deg"][0] - stopped) < 0.3
+    assert abs(stopped - start[0]) < 40.0
+    back = subprocess.run([BUSARM, "--port", remote(bridge), "arm", "move-joints",
+                           *(f"{v:.2f}" for v in start), "--time", "2"],
+                          capture_output=True, text=True, timeout=60)
+    assert back.returncode == 0, back.stderr
+
+
+def test_a_recording_is_an_mcap_file_ros_2_tools_read(bridge: str, tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    out = subprocess.run([BUSARM, "ros", "record", str(tmp_path / "run.mcap"), "--connect",
+                          bridge, "--topic", "/joint_states", "--topic", "/tf", "--time",
+                          "1.5"], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert not list(tmp_path.glob(".*partial"))  # written whole, then renamed
+    seen: dict[str, list[Any]] = {}
+    with open(tmp_path / "run.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        for schema, channel, message, decoded in reader.iter_decoded_messages():
+            seen.setdefault(channel.topic, []).append((schema, channel, message, decoded))
+    assert set(seen) == {"/joint_states", "/tf"}
+    states = seen["/joint_states"]
+    schema, channel, _, first = states[0]
+    assert len(states) > 20 and list(first.name) == [*NAMES, "gripper"]
+    assert schema.name == m.JOINT_STATE and schema.encoding == "ros2msg"
+    assert channel.message_encoding == "cdr"
+    assert all(a[2].log_time <= b[2].log_time for a, b in itertools.pairwise(states))
+    assert f"/joint_states: {len(states)} messages" in out.stdout

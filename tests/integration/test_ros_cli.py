@@ -128,3 +128,40 @@ def test_cmd_vel_drives_the_base_until_the_twists_stop(mobile_bridge: str) -> No
     finally:
         peer.close()
         session.close()
+
+
+def test_pick_sort_on_another_process_sorts_the_served_table(
+        tmp_path: Path, twin_calibration: tuple[Path, Path]) -> None:
+    """`busarm --port zenoh://... pick-sort`: the servo bus, the camera, its calibration and
+    the bins are the bridge's; the block ends in its bin, as the twin's truth says."""
+    import json
+
+    from conftest import keep_twin_calibration
+
+    keep_twin_calibration(tmp_path / "config", twin_calibration)
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    env = {**os.environ, "XDG_CONFIG_HOME": str(tmp_path / "config")}
+    bridge = subprocess.Popen([BUSARM, "ros", "bridge", "--listen", endpoint, "--seed", "3",
+                               "--blocks", "1"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True, env=env)
+    try:
+        assert bridge.stdout is not None and "ROS 2 bridge" in bridge.stdout.readline()
+        out = subprocess.run([BUSARM, "--port", "zenoh://" + endpoint[4:], "pick-sort",
+                              "--report", str(tmp_path / "report")], capture_output=True,
+                             text=True, timeout=300)
+        assert out.returncode == 0, out.stderr
+        assert "sorted 1, failed 0" in out.stdout
+        session = open_session(connect=[endpoint])
+        try:
+            replies = list(session.get("busarm/busarm/truth", timeout=3.0))
+            info = list(session.get("busarm/busarm/info", timeout=3.0))
+        finally:
+            session.close()
+        truth = json.loads(replies[0].ok.payload.to_bytes())
+        bins = json.loads(info[0].ok.payload.to_bytes())["bins"]
+        block = truth["blocks"][0]
+        assert math.dist((block["x_mm"], block["y_mm"]), bins[block["color"]]) < 45.0
+    finally:
+        bridge.send_signal(signal.SIGINT)
+        _, err = bridge.communicate(timeout=20)
+    assert bridge.returncode == 0 and "Traceback" not in err, err

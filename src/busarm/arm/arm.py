@@ -226,6 +226,11 @@ class Arm:
 
     # ------------------------------------------------------------------ conversions
 
+    @property
+    def pulse_limits(self) -> dict[int, tuple[int, int]]:
+        """Each servo's allowed positions (pulses): its joint's limits, the gripper's range."""
+        return dict(self._pulse_limits)
+
     def pulses_exact(self, joint: JointConfig, angle_deg: float) -> float:
         """The (fractional) servo position for a joint angle, with the calibration."""
         servo_deg = joint.servo_deg_from_angle_deg(angle_deg) + self._sw[joint.servo_id]

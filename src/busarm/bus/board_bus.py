@@ -191,7 +191,7 @@ class BoardServoBus(ServoBus):
 
     def _send_moves(self, pulses: Mapping[int, int], time_ms: int, *, use_start: bool) -> None:
         # One frame moves them all: the board sends each servo its move at once.
-        self._check_not_halted(Command.MOVE_TIME_WRITE, ())
+        self.check_not_halted(Command.MOVE_TIME_WRITE, ())
         request = ServoMove(time_ms, tuple(pulses.items())).encode()
         self._targets.update(pulses)
         self._mark_written(pulses)

@@ -264,7 +264,14 @@ class ServoBus:
         """Why the bus is halted (what ``halt`` was given), or None."""
         return self._halted
 
-    def _check_not_halted(self, command: Command, args: tuple[int, ...]) -> None:
+    @property
+    def lock(self) -> threading.RLock:
+        """Held for each transaction: whoever else moves bytes on this bus's transport (a
+        remote client's requests, busarm.bus.zenoh_link) holds it too."""
+        return self._lock
+
+    def check_not_halted(self, command: Command, args: tuple[int, ...]) -> None:
+        """HaltedError if the bus is halted and ``command`` is not a stop."""
         if self._halted is None or command is Command.MOVE_STOP or (
                 command is Command.OR_MOTOR_MODE_WRITE and args[-1:] == (0,)):
             return
@@ -306,7 +313,7 @@ class ServoBus:
             raise ConfigError(
                 "refusing to broadcast ID_WRITE: it would renumber every servo on the bus"
             )
-        self._check_not_halted(command, args)
+        self.check_not_halted(command, args)
         request = self._encode_write(servo_id, command, args)
         self._mark_written((servo_id,))
         self._send(request)

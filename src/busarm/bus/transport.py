@@ -40,6 +40,7 @@ BOARD_PREFIX = "board://"
 TRANSPORT_SCHEMES: dict[str, str] = {
     "sim": "busarm.sim.transport:open_sim_transport",
     "twin": "busarm.twin.transport:open_twin_transport",
+    "zenoh": "busarm.bus.zenoh_link:open_zenoh_transport",
 }
 BOARD_SCHEMES: dict[str, str] = {
     "sim": "busarm.sim.board:open_sim_board_transport",

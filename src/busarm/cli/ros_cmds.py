@@ -71,6 +71,9 @@ def ros() -> None:
 @click.option("--camera", "camera_src", default=None,
               help="The wrist camera: a device, file or stream URL  [default: the twin's; "
                    "on hardware none]")
+@click.option("--name", "robot_name", default="busarm", show_default=True,
+              help="The robot's name for other busarm processes: they open it as "
+                   "--port zenoh://HOST?robot=NAME (the default name needs no ?robot=).")
 @click.option("--no-camera", is_flag=True,
               help="Publish no camera (nor blocks): a twin renders nothing, and makes no "
                    "camera calibration.")
@@ -82,7 +85,7 @@ def ros() -> None:
 def bridge(settings: Settings, scene_file: Path | None, seed: int | None, blocks: int | None,
            colors: str | None, listen: tuple[str, ...], connect: tuple[str, ...],
            token: str | None, domain_id: int, state_hz: float, fps: float,
-           camera_src: str | None, no_camera: bool, config: str,
+           camera_src: str | None, robot_name: str, no_camera: bool, config: str,
            duration_s: float | None) -> None:
     """Publish the robot to ROS 2 and take commands from it: /joint_states, /tf,
     /robot_description, /diagnostics, the wrist camera (image_raw, compressed,
@@ -108,12 +111,16 @@ def bridge(settings: Settings, scene_file: Path | None, seed: int | None, blocks
                              calibrate=not no_camera) as (robot, _):
             node = RosNode(session, domain_id=domain_id)
             running = RosBridge(robot, node, BridgeSettings(
-                state_hz=state_hz, camera_fps=fps, camera=not no_camera)).start()
+                state_hz=state_hz, camera_fps=fps, camera=not no_camera),
+                serve_as=robot_name).start()
             where = "the twin (real time)" if robot.is_twin else robot.port
             click.echo(f"ROS 2 bridge of the {robot.config.name} on {where}: node /busarm, "
                        f"domain {domain_id}, "
                        + ", ".join([*(f"listening on {e}" for e in listen),
                                     *(f"connected to {e}" for e in connect)])
+                       + ("; other busarm processes: --port zenoh://HOST"
+                          + ("" if robot_name == "busarm" else f"?robot={robot_name}")
+                          if running.server is not None else "")
                        + "; Ctrl+C stops the robot")
             sys.stdout.flush()
             try:
@@ -183,6 +190,42 @@ def echo(topic: str, connect: tuple[str, ...], token: str | None, domain_id: int
             sys.stdout.flush()
     finally:
         session.close()
+
+
+@ros.command()
+@click.argument("out", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--connect", multiple=True, metavar="ENDPOINT",
+              help=f"Zenoh endpoint to connect to  [default: {DEFAULT_ENDPOINT}]")
+@_session_options
+@click.option("--topic", "topics", multiple=True,
+              help="A topic to record (repeatable)  [default: every published topic]")
+@click.option("--time", "duration_s", type=RangeType("time", 0.1, 1e6, "s"), metavar="S",
+              default=None, help="Stop after this many s  [default: until Ctrl+C]")
+def record(out: Path, connect: tuple[str, ...], token: str | None, domain_id: int,
+           topics: tuple[str, ...], duration_s: float | None) -> None:
+    """Record the session's ROS 2 topics into OUT (an MCAP file, as rosbag2 writes one:
+    `ros2 bag play` and Foxglove replay it) until Ctrl+C or --time."""
+    from busarm.ros.recorder import McapRecorder
+
+    session = _open((), connect or (DEFAULT_ENDPOINT,), token)
+    restore = interrupt_on_signals()
+    try:
+        recorder = McapRecorder(session, out, domain_id=domain_id, topics=list(topics))
+        until = "until Ctrl+C" if duration_s is None else f"for {duration_s:g} s"
+        click.echo(f"recording {len(recorder.topics)} topics into {out} {until}", err=True)
+        try:
+            deadline = time.monotonic() + (duration_s or float("inf"))
+            while time.monotonic() < deadline:
+                time.sleep(min(0.2, max(0.0, deadline - time.monotonic())))
+        except KeyboardInterrupt:
+            pass
+        path = recorder.close()
+    finally:
+        restore()
+        session.close()
+    for topic, count in sorted(recorder.counts.items()):
+        click.echo(f"{topic}: {count} messages")
+    click.echo(f"recorded {sum(recorder.counts.values())} messages into {path}", err=True)
 
 
 COMMANDS = [ros]

@@ -19,6 +19,10 @@ The mobile robot: ``robot.base`` (busarm.base.Base: the mecanum wheels on the co
 board, so only on a ``board://`` port) and ``robot.lidar`` (a ``LidarSource``), each None
 when the robot has none. A twin with an arena (``board://twin?family=arena&seed=N``) has
 both; on hardware the base comes with a chassis config and the Lidar with its port.
+
+``zenoh://HOST`` is a robot served on another computer (``busarm ros bridge`` there):
+its servo bus, wrist camera, camera calibration and bins come over the link
+(busarm.robot.remote); the arm only, for now (not a base or a Lidar).
 """
 
 from __future__ import annotations
@@ -69,6 +73,7 @@ from busarm.vision.camera import CameraSource, open_camera
 from busarm.vision.color import ColorDetector, ColorThresholds, default_thresholds
 
 Bins = dict[str, tuple[float, float]]
+ZENOH_PREFIX = "zenoh://"
 
 
 @dataclass(frozen=True)
@@ -163,6 +168,14 @@ class Robot:
         ``board://twin?family=arena...``. ``lidar``: the Lidar's port; a twin with an arena
         has its own.
         """
+        if port.startswith(ZENOH_PREFIX):
+            if scene is not None or arena is not None or chassis is not None or lidar:
+                raise ConfigError(f"{port}: a robot served on Zenoh has what it has where it "
+                                  "is served (its scene, arena and parts are chosen there)")
+            return cls._open_remote(port, camera=camera, config=config,
+                                    arm_calibration=arm_calibration, intrinsics=intrinsics,
+                                    hand_eye=hand_eye, bins=bins, needs=needs,
+                                    baudrate=baudrate, **bus_options)
         behind = board_target(port)  # the twin behind a simulated controller board
         twin_port = behind if behind is not None and is_twin_url(behind) else port
         on_twin = is_twin_url(twin_port)
@@ -221,6 +234,48 @@ class Robot:
             return robot
         except BaseException:
             for thing in reversed(opened):  # nothing was sent to the arm: just close
+                thing.close()
+            raise
+
+    @classmethod
+    def _open_remote(cls, port: str, *, camera: str | None,
+                     config: ArmConfig | str | Path | None,
+                     arm_calibration: Calibration | str | Path | None,
+                     intrinsics: Path | None, hand_eye: Path | None, bins: Bins | None,
+                     needs: Collection[str], baudrate: int, **bus_options: Any) -> Robot:
+        """The robot served on another computer (busarm.robot.remote): its config, camera,
+        calibration and bins are the served robot's unless given here."""
+        from busarm.robot.remote import fetch_info, remote_parts
+
+        transport = open_transport(port, baudrate=baudrate)
+        opened: list[Any] = [transport]
+        try:
+            parts = remote_parts(transport, fetch_info(transport),  # type: ignore[arg-type]
+                                 camera=camera is None)
+            if parts.camera is not None:
+                opened.append(parts.camera)
+            source = parts.camera if camera is None else open_camera(camera)
+            if camera is not None:
+                opened.append(source)
+            calibration = (parts.calibration if intrinsics is None else _camera_calibration(
+                None, intrinsics, hand_eye, False, None, quiet))
+            given = config if isinstance(config, ArmConfig | None) else load_arm_config(config)
+            cal = (arm_calibration if isinstance(arm_calibration, Calibration | None)
+                   else load_calibration(arm_calibration))
+            _check_needs(needs, port, True, camera, None, None, None, None, True)  # known
+            missing = [what for what, have in (("camera", source is not None),
+                                               ("camera_calibration", calibration is not None),
+                                               ("bins", bool(bins or parts.bins)))
+                       if what in needs and not have]
+            if missing:
+                raise ConfigError(f"the robot on {port} has no {listing(missing)}: give them "
+                                  "here, or serve them with it")
+            arm = Arm(servo_bus_on(transport, **bus_options), given or parts.config, cal)
+            robot = cls(arm, camera=source, calibration=calibration, bins=bins or parts.bins)
+            robot.port = port
+            return robot
+        except BaseException:
+            for thing in reversed(opened):
                 thing.close()
             raise
 

@@ -70,9 +70,13 @@ class Reading:
 class StateReader:
     """Reads the robot's live values; ``read()`` each period, ``as_dict`` for the page."""
 
-    def __init__(self, arm: Arm) -> None:
+    def __init__(self, arm: Arm, *, slow_every: int = 1) -> None:
         self.arm = arm
         self.servos = {sid: ServoReadings(sid) for sid in arm.config.servo_ids}
+        self.slow_every = slow_every
+        """Read a slow value every this many periods (a fast reader need not read them
+        every time: they change over seconds)."""
+        self._period = 0
         self._turn = 0
         self.last: Reading | None = None
         self._last_gap: float | None = None
@@ -88,16 +92,19 @@ class StateReader:
             s.error = f"limits not read: {exc}"
 
     def read(self) -> Reading:
-        """The fast values now, and one slow value (BusArmError if a read fails)."""
+        """The fast values now, and every ``slow_every``-th time one slow value
+        (BusArmError if a read fails)."""
         arm, bus = self.arm, self.arm.bus
         pulses = {j.servo_id: bus.read_position_pulses(j.servo_id) for j in arm.config.joints}
         gid = arm.config.gripper.servo_id
         grip = bus.read_position_pulses(gid)
         target = self.last.gripper_target_pulses if self.last is not None else None
-        if target is None or self._turn % TARGET_EVERY == 0:
+        if target is None or self._period % TARGET_EVERY == 0:
             target = bus.last_target_pulses(gid)  # the last one it was told
         self.last = Reading(arm.joints_from_pulses(pulses), grip, target)
-        self._read_slow()
+        self._period += 1
+        if self._period % self.slow_every == 0:
+            self._read_slow()
         return self.last
 
     def _read_slow(self) -> None:

@@ -17,8 +17,8 @@ topic                       type                              when
 compressed
 /wrist_camera/camera_info   sensor_msgs/CameraInfo            with each frame, when the
                                                               camera is calibrated
-/blocks                     visualization_msgs/MarkerArray    every ``BLOCKS_EVERY``-th
-                                                              frame, when calibrated
+/blocks                     visualization_msgs/MarkerArray    ``BLOCKS_HZ`` (3), when the
+                                                              camera is calibrated
 /odom                       nav_msgs/Odometry                 with each joint state, on a
                                                               mobile robot
 /scan                       sensor_msgs/LaserScan             each revolution, with a Lidar
@@ -41,6 +41,7 @@ from busarm.arm.urdf import urdf_from_config
 from busarm.errors import BusArmError, ConfigError, HaltedError
 from busarm.protocol.rmw_zenoh import LATCHED, SENSOR_DATA, gid_of
 from busarm.robot import Robot
+from busarm.robot.remote import RobotServer
 from busarm.robot.state import StateReader
 from busarm.ros import messages as m
 from busarm.ros.commands import CLOSED_GAP_M, CmdVel, TrajectoryRunner, plan_trajectory
@@ -64,7 +65,7 @@ log = logging.getLogger(__name__)
 DESCRIBE_EVERY_S = 2.0
 """/robot_description again this often, for late subscribers (Zenoh has no latching of
 its own without a publication cache; a repeat every two seconds is cheap)."""
-BLOCKS_EVERY = 5
+BLOCKS_HZ = 3.0
 GRIPPER_JOINT = "gripper"
 
 
@@ -81,19 +82,23 @@ class RosBridge:
     """Publishes ``robot`` on ``node`` and takes commands for it; ``start()``, ``close()``."""
 
     def __init__(self, robot: Robot, node: RosNode,
-                 settings: BridgeSettings | None = None) -> None:
+                 settings: BridgeSettings | None = None, *, serve_as: str | None = None
+                 ) -> None:
         self.robot = robot
         self.node = node
         self.settings = settings or BridgeSettings()
         self.camera = robot.has_camera and self.settings.camera
         self.joint_names = [j.name for j in robot.config.joints]
-        self.state = StateReader(robot.arm)
+        # A slow value (a temperature, a voltage...) every 5th period: each servo's
+        # about every 2 s at 50 Hz, while the joints get the bus's time.
+        self.state = StateReader(robot.arm, slow_every=5)
         self.runner = TrajectoryRunner(robot.arm)
         self.cmd_vel = CmdVel(robot.base) if robot.base is not None else None
         self.errors: list[str] = []
         self._closed = threading.Event()
         self._threads: list[threading.Thread] = []
         self._latest_deg: tuple[float, ...] | None = None
+        self._latest_frame: tuple[Any, tuple[float, ...] | None, float] | None = None
         pub = node.publisher
         self.pub_joints = pub("/joint_states", m.JOINT_STATE)
         self.pub_tf = pub("/tf", m.TF_MESSAGE)
@@ -109,6 +114,10 @@ class RosBridge:
         if self.camera and robot.camera_calibration is not None:
             self.pub_info = pub("/wrist_camera/camera_info", m.CAMERA_INFO, SENSOR_DATA)
             self.pub_blocks = pub("/blocks", m.MARKER_ARRAY)
+        self.server = (RobotServer(node.session, robot, serve_as) if serve_as is not None
+                       and robot.arm.bus.transport.framing == "lx" else None)
+        """The robot served to other busarm processes (``--port zenoh://HOST``); not one
+        on a controller board (its frames are not tunnelled yet)."""
         self._rosout = RosoutHandler(node)
         logging.getLogger("busarm.ros").addHandler(self._rosout)
         self._subscribe()
@@ -121,6 +130,8 @@ class RosBridge:
         loops: list[tuple[str, Callable[[], None]]] = [("ros-state", self._state_loop)]
         if self.camera:
             loops.append(("ros-camera", self._camera_loop))
+        if self.camera and self.robot.camera_calibration is not None:
+            loops.append(("ros-blocks", self._blocks_loop))
         if self.robot.lidar is not None:
             loops.append(("ros-scan", self._scan_loop))
         for name, loop in loops:
@@ -139,6 +150,8 @@ class RosBridge:
         for thread in self._threads:
             thread.join(timeout=2.0)
         logging.getLogger("busarm.ros").removeHandler(self._rosout)
+        if self.server is not None:
+            self.server.close()
         self.node.close()
 
     def _guard(self, loop: Callable[[], None]) -> Callable[[], None]:
@@ -212,13 +225,14 @@ class RosBridge:
         import cv2
 
         camera, cal = self.robot.camera, self.robot.camera_calibration
-        locator = self.robot.locator() if cal is not None else None
         tick = self._every(1.0 / self.settings.camera_fps)
-        count = 0
         while tick():
             frame = camera.read()
             joints = self._latest_deg
             t = time.time()
+            self._latest_frame = (frame.image, joints, t)
+            if self.server is not None and self.server.camera_wanted:
+                self.server.publish_frame(frame, t)
             self.pub_image.publish(m.image_bgr(t, CAMERA_FRAME, frame.image))
             ok, jpeg = cv2.imencode(".jpg", frame.image,
                                     [cv2.IMWRITE_JPEG_QUALITY, self.settings.jpeg_quality])
@@ -229,11 +243,22 @@ class RosBridge:
                 self.pub_info.publish(m.camera_info(t, CAMERA_FRAME, i.width_px, i.height_px,
                                                     i.camera_matrix, list(i.distortion),
                                                     i.model))
-            if locator is not None and joints is not None and count % BLOCKS_EVERY == 0:
-                self.pub_blocks.publish(block_markers(t, locator.locate(frame.image, joints)))
-            count += 1
         if self.robot.twin is not None:
             self.robot.twin.release_renderers()  # this thread's, made for its pictures
+
+    def _blocks_loop(self) -> None:
+        """The blocks in the latest frame, BLOCKS_HZ times a second (in a thread of its
+        own: locating them must not slow the camera down)."""
+        locator = self.robot.locator()
+        tick = self._every(1.0 / BLOCKS_HZ)
+        seen: float | None = None
+        while tick():
+            latest = self._latest_frame
+            if latest is None or latest[1] is None or latest[2] == seen:
+                continue
+            image, joints, seen = latest
+            assert joints is not None
+            self.pub_blocks.publish(block_markers(seen, locator.locate(image, joints)))
 
     def _scan_loop(self) -> None:
         lidar = self.robot.lidar

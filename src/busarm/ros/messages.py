@@ -20,6 +20,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from busarm.errors import ConfigError, ProtocolError
 from busarm.protocol.rmw_zenoh import check_ros_type
+from busarm.rotations import quaternion_wxyz
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 
@@ -180,13 +181,9 @@ def tf_message(transforms: Sequence[Any]) -> Any:
 
 
 def quaternion_xyzw(rotation: npt.ArrayLike) -> tuple[float, float, float, float]:
-    """A rotation matrix as a unit quaternion (x, y, z, w), w >= 0."""
-    from scipy.spatial.transform import Rotation
-
-    x, y, z, w = Rotation.from_matrix(np.asarray(rotation, dtype=np.float64)).as_quat()
-    if w < 0:
-        x, y, z, w = -x, -y, -z, -w
-    return float(x), float(y), float(z), float(w)
+    """A rotation matrix as a unit quaternion in ROS's order (x, y, z, w), w >= 0."""
+    w, x, y, z = quaternion_wxyz(rotation)
+    return x, y, z, w
 
 
 def yaw_quaternion(yaw_rad: float) -> Any:

@@ -87,6 +87,7 @@ class RosPublisher:
                          if qos.reliability == Reliability.BEST_EFFORT
                          else zenoh.Reliability.RELIABLE))
         self._token = node.session.liveliness().declare_token(self.entity.token())
+        self._closed = False
 
     def publish(self, message: Any) -> int:
         """Publish; returns the message's sequence number."""
@@ -100,6 +101,10 @@ class RosPublisher:
         return seq
 
     def close(self) -> None:
+        """Undeclare it (again: nothing)."""
+        if self._closed:
+            return
+        self._closed = True
         self._token.undeclare()
         self._publisher.undeclare()
 
@@ -109,8 +114,12 @@ class RosSubscription:
     called on Zenoh's thread (keep it short: hand long work to a thread of your own)."""
 
     def __init__(self, node: RosNode, topic: str, type_name: str,
-                 on_message: Callable[[Any, Received], None], qos: Qos) -> None:
+                 on_message: Callable[[Any, Received], None], qos: Qos,
+                 *, decoded: bool = True) -> None:
         self.topic = topic
+        self.decoded = decoded
+        """False: ``on_message`` gets the CDR bytes, checked for type, hash and
+        attachment but not parsed (a recorder's way: it keeps them as they came)."""
         self.type = ros_type(type_name)
         self.entity = node.entity("MS", topic, type_name, qos)
         self.drops = Drops()
@@ -120,6 +129,7 @@ class RosSubscription:
         self._subscriber = node.session.declare_subscriber(
             topic_key_any_type(node.domain_id, topic), self._on_sample)
         self._token = node.session.liveliness().declare_token(self.entity.token())
+        self._closed = False
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         try:
@@ -153,7 +163,8 @@ class RosSubscription:
         raw = sample.attachment
         try:
             attachment = Attachment.decode(raw.to_bytes() if raw is not None else b"")
-            message = decode(sample.payload.to_bytes(), self.type.name)
+            payload = bytes(sample.payload.to_bytes())
+            message = decode(payload, self.type.name) if self.decoded else payload
         except ProtocolError as exc:
             self._drop("attachment" if "attachment" in str(exc) or "GID" in str(exc)
                        else "payload", f"{self.topic}: {exc}")
@@ -167,6 +178,10 @@ class RosSubscription:
         log.warning("dropped: %s", detail)
 
     def close(self) -> None:
+        """Undeclare it (again: nothing)."""
+        if self._closed:
+            return
+        self._closed = True
         self._token.undeclare()
         self._subscriber.undeclare()
 
@@ -199,8 +214,8 @@ class RosNode:
 
     def subscribe(self, topic: str, type_name: str,
                   on_message: Callable[[Any, Received], None],
-                  qos: Qos = RELIABLE) -> RosSubscription:
-        sub = RosSubscription(self, topic, type_name, on_message, qos)
+                  qos: Qos = RELIABLE, *, decoded: bool = True) -> RosSubscription:
+        sub = RosSubscription(self, topic, type_name, on_message, qos, decoded=decoded)
         self._endpoints.append(sub)
         return sub
 

@@ -40,6 +40,7 @@ import numpy.typing as npt
 
 from busarm.arm.camera_mount import CameraMount
 from busarm.arm.config import ArmConfig
+from busarm.rotations import quaternion_wxyz
 from busarm.twin.scene import COLORS, DISTRACTOR_COLORS, Distractor, Lighting, Scene
 
 FloatArray = npt.NDArray[np.float64]
@@ -83,16 +84,7 @@ def _fmt(values: npt.ArrayLike) -> str:
 
 def quat_from_matrix(r: FloatArray) -> FloatArray:
     """MuJoCo's (w, x, y, z) quaternion of a rotation matrix."""
-    w = math.sqrt(max(0.0, 1.0 + r[0, 0] + r[1, 1] + r[2, 2])) / 2
-    x = math.sqrt(max(0.0, 1.0 + r[0, 0] - r[1, 1] - r[2, 2])) / 2
-    y = math.sqrt(max(0.0, 1.0 - r[0, 0] + r[1, 1] - r[2, 2])) / 2
-    z = math.sqrt(max(0.0, 1.0 - r[0, 0] - r[1, 1] + r[2, 2])) / 2
-    x = math.copysign(x, r[2, 1] - r[1, 2])
-    y = math.copysign(y, r[0, 2] - r[2, 0])
-    z = math.copysign(z, r[1, 0] - r[0, 1])
-    q = np.array([w, x, y, z])
-    out: FloatArray = q / np.linalg.norm(q)
-    return out
+    return np.array(quaternion_wxyz(r))
 
 
 def _link_geom(radius_m: float, end_m: tuple[float, float, float]) -> str:
