@@ -68,6 +68,8 @@ class RosBenchReport:
     """The most any true joint angle went past its limit during the whole run (0: never)."""
     stop_after_kill_ms: list[float] = field(default_factory=list)
     stop_after_freeze_ms: list[float] = field(default_factory=list)
+    client_stop_after_freeze_ms: list[float] = field(default_factory=list)
+    """A remote busarm (``--port zenoh://``) whose link froze mid-move."""
     travel_at_drop_deg: list[float] = field(default_factory=list)
     """How far the joint had gone when each link dropped (of 60 deg in 4 s)."""
     faults: dict[str, Any] = field(default_factory=dict)
@@ -77,6 +79,61 @@ class RosBenchReport:
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+    @property
+    def faults_handled(self) -> bool:
+        """Every bad sample dropped and said, none moving anything; the flood's last
+        trajectory carried out."""
+        f = self.faults
+        return bool(f) and (f["malformed_said"] == f["malformed_sent"]
+                            and f["wrong_hash_said"] == f["wrong_hash_sent"]
+                            and f["moved_by_bad_deg"] < 0.5
+                            and f["last_of_flood_error_deg"] <= 1.0)
+
+    @property
+    def pick_same(self) -> bool:
+        """Over zenoh:// as in one process: every block sorted, and truly in its bin."""
+        r, local = self.pick_remote, self.pick_local
+        return bool(r) and (r.get("sorted") == local.get("sorted") == local.get("blocks")
+                            and r.get("in_bins_truth") == r.get("sorted"))
+
+    def text(self, ok: Callable[[bool], str]) -> str:
+        """The report for a person, each target judged by ``ok`` (ok or FAIL)."""
+        lat, f = self.joint_states_latency_ms, self.faults
+        p50, p99, worst = (lat.get(k, math.nan) for k in ("p50", "p99", "max"))
+        kill = max(self.stop_after_kill_ms, default=math.nan)
+        frozen = max(self.stop_after_freeze_ms, default=math.nan)
+        client = max(self.client_stop_after_freeze_ms, default=math.nan)
+        travel = min(self.travel_at_drop_deg, default=0.0)
+        decoded = self.mcap.get("decoded", {})
+        return "\n".join([
+            f"two busarm processes on loopback ({self.machine['cpu']}, "
+            f"{self.machine['cores']} cores): the bridge on the twin in real time",
+            f"/joint_states {self.joint_states_hz:.1f} Hz ({ok(self.joint_states_hz >= 50)} "
+            f">= 50); latency from the servos' reading p50 {p50:.1f} ms, p99 {p99:.1f} ms "
+            f"({ok(p99 <= 10)} <= 10), max {worst:.1f} ms; /tf {self.tf_hz:.1f} Hz",
+            f"camera {self.camera_fps:.1f} frames/s ({ok(self.camera_fps >= 15)} >= 15)",
+            f"a trajectory sent here, the twin there: {self.trajectory_error_deg:.2f} deg "
+            f"from its goal ({ok(self.trajectory_error_deg <= 1.0)} <= 1); no joint past "
+            f"its limit by more than {self.beyond_limits_deg:.3f} deg in the whole run "
+            f"({ok(self.beyond_limits_deg <= 0.24)} <= one pulse, 0.24)",
+            f"a link dropped mid-move ({travel:.0f}+ deg of 60 done), the joint still within: "
+            f"a ROS sender killed {kill:.0f} ms, its cable 'pulled' (a frozen proxy) "
+            f"{frozen:.0f} ms; a busarm on zenoh://, its cable pulled {client:.0f} ms "
+            f"({ok(max(kill, frozen, client) <= 300)} <= 300)",
+            f"faults: {f.get('malformed_said')}/{f.get('malformed_sent')} malformed and "
+            f"{f.get('wrong_hash_said')}/{f.get('wrong_hash_sent')} wrong-hash samples "
+            f"dropped and said on /rosout, moving {f.get('moved_by_bad_deg')} deg; a flood "
+            f"of {f.get('flood')} trajectories ({f.get('flood_sent_per_s')}/s): the last in "
+            f"charge ({f.get('last_of_flood_error_deg')} deg off), /joint_states after it "
+            f"{f.get('joint_states_hz_after')} Hz ({ok(self.faults_handled)})",
+            f"pick-sort over zenoh://: {self.pick_remote.get('summary', '?')}; "
+            f"{self.pick_remote.get('in_bins_truth')} truly in their bins; in one process: "
+            f"{self.pick_local.get('summary', '?')} ({ok(self.pick_same)} the same)",
+            f"MCAP of the remote run: {sum(decoded.values())} messages on {len(decoded)} "
+            f"topics, each decoded by mcap-ros2-support "
+            f"({ok(decoded.get('/joint_states', 0) > 0)}): {self.mcap.get('file', '?')}",
+        ])
 
 
 def free_port() -> int:
@@ -256,6 +313,32 @@ def dropped_sender(endpoint: str, truth: Truth, *, freeze: bool) -> tuple[float,
     return stop_time_ms(samples, dropped_at), travelled
 
 
+def dropped_client(endpoint: str, truth: Truth) -> tuple[float, float]:
+    """``busarm --port zenoh://...`` moving base_yaw 60 deg in 4 s (one timed move: the
+    servo would go on alone), its link frozen 1 s in: how long the joint kept moving
+    (ms), and how far it had gone (deg)."""
+    joints = truth.now()["joints_deg"]
+    target = joints[0] + 60.0 if joints[0] < 0 else joints[0] - 60.0
+    proxy = FrozenLink(int(endpoint.rsplit(":", 1)[1]))
+    mover = subprocess.Popen([BUSARM, "--port", f"zenoh://127.0.0.1:{proxy.port}", "arm",
+                              "move-joints", f"{target:.2f}",
+                              *(f"{q:.2f}" for q in joints[1:]), "--time", "4"],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        end = time.monotonic() + 20.0
+        while abs(truth.joint() - joints[0]) < 10.0 and time.monotonic() < end:
+            time.sleep(0.01)
+        travelled = abs(truth.joint() - joints[0])
+        dropped_at = time.monotonic()
+        proxy.freeze()
+        samples = truth.samples(1.5)
+    finally:
+        mover.kill()
+        mover.wait()
+        proxy.close()
+    return stop_time_ms(samples, dropped_at), travelled
+
+
 def move(node: RosNode, truth: Truth, target_deg: float, seconds: float) -> float:
     """Send base_yaw to ``target_deg`` and wait for it; the error left (deg)."""
     pub = node.publisher("/joint_trajectory", m.JOINT_TRAJECTORY)
@@ -371,6 +454,10 @@ def run_ros_bench(*, seconds: float = 10.0, drops: int = 3, flood: int = 1000, s
                     kept.append(round(stop_ms, 1))
                     report.travel_at_drop_deg.append(round(travelled, 1))
                     move(node, truth, start, 2.0)
+                stop_ms, travelled = dropped_client(endpoint, truth)
+                report.client_stop_after_freeze_ms.append(round(stop_ms, 1))
+                report.travel_at_drop_deg.append(round(travelled, 1))
+                move(node, truth, start, 2.0)
                 progress(f"drops {k + 1}/{drops}")
             progress("faults...")
             report.faults = faults(node, truth, flood)

@@ -64,7 +64,7 @@ def ros() -> None:
               help="Zenoh endpoint to connect to (repeatable), e.g. a zenohd router's "
                    "tcp/HOST:7447  [default: none]")
 @_session_options
-@click.option("--rate", "state_hz", type=RangeType("rate", 1.0, 200.0, "Hz"), default=50.0,
+@click.option("--rate", "state_hz", type=RangeType("rate", 1.0, 200.0, "Hz"), default=60.0,
               show_default=True, metavar="HZ", help="/joint_states and /tf a second, in Hz.")
 @click.option("--fps", type=RangeType("fps", 1.0, 30.0, "frames/s"), default=15.0,
               show_default=True, metavar="FPS", help="Camera frames a second at most, in frames/s.")

@@ -82,8 +82,9 @@ def bus_guard(arm: Arm) -> Check:
     return check
 
 
-def robot_info(robot: Robot) -> dict[str, Any]:
-    """What a remote client needs to be this robot (JSON values)."""
+def robot_info(robot: Robot, camera: bool) -> dict[str, Any]:
+    """What a remote client needs to be this robot (JSON values); ``camera``: whether
+    its frames are served."""
     config = robot.config
     shipped = config.source.endswith(" (shipped)")
     if not shipped and not Path(config.source).is_file():
@@ -93,7 +94,7 @@ def robot_info(robot: Robot) -> dict[str, Any]:
         "config": ({"shipped": config.source.removesuffix(" (shipped)")} if shipped
                    else {"toml": Path(config.source).read_text(), "source": config.source}),
         "bins": {color: list(xy) for color, xy in robot.bins.items()},
-        "camera": robot.has_camera, "twin": robot.is_twin,
+        "camera": camera and robot.has_camera, "twin": robot.is_twin,
         "calibration": None,
     }
     cal = robot.camera_calibration
@@ -118,14 +119,16 @@ def twin_truth(robot: Robot) -> dict[str, Any]:
 
 
 class RobotServer:
-    """Serves ``robot`` as ``name`` on ``session`` (see the module docstring)."""
+    """Serves ``robot`` as ``name`` on ``session`` (see the module docstring); ``camera``:
+    its frames are served (``publish_frame``)."""
 
-    def __init__(self, session: zenoh.Session, robot: Robot, name: str) -> None:
+    def __init__(self, session: zenoh.Session, robot: Robot, name: str, *,
+                 camera: bool = True) -> None:
         bus = robot.arm.bus
         self.robot = robot
         self.name = name
         self.lost: list[str] = []
-        self._info = json.dumps(robot_info(robot)).encode()
+        self._info = json.dumps(robot_info(robot, camera)).encode()
         self._bus = BusServer(session, name, bus.transport, bus.lock, bus_guard(robot.arm),
                               self._client_lost)
         self._queryables = [session.declare_queryable(robot_key(name, "info"), self._on_info)]

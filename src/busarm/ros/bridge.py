@@ -5,7 +5,7 @@ Published (``ros2 topic list`` shows them; stamps are the wall clock's, as ROS h
 =========================== ================================= ============================
 topic                       type                              when
 =========================== ================================= ============================
-/joint_states               sensor_msgs/JointState            ``state_hz`` (50): the five
+/joint_states               sensor_msgs/JointState            ``state_hz`` (60): the five
                                                               URDF joints (rad) and
                                                               ``gripper`` (its gap, m)
 /tf                         tf2_msgs/TFMessage                with each joint state
@@ -71,7 +71,7 @@ GRIPPER_JOINT = "gripper"
 
 @dataclass(frozen=True)
 class BridgeSettings:
-    state_hz: float = 50.0
+    state_hz: float = 60.0
     camera_fps: float = 15.0
     jpeg_quality: int = 80
     camera: bool = True
@@ -114,8 +114,9 @@ class RosBridge:
         if self.camera and robot.camera_calibration is not None:
             self.pub_info = pub("/wrist_camera/camera_info", m.CAMERA_INFO, SENSOR_DATA)
             self.pub_blocks = pub("/blocks", m.MARKER_ARRAY)
-        self.server = (RobotServer(node.session, robot, serve_as) if serve_as is not None
-                       and robot.arm.bus.transport.framing == "lx" else None)
+        self.server = (RobotServer(node.session, robot, serve_as, camera=self.camera)
+                       if serve_as is not None and robot.arm.bus.transport.framing == "lx"
+                       else None)
         """The robot served to other busarm processes (``--port zenoh://HOST``); not one
         on a controller board (its frames are not tunnelled yet)."""
         self._rosout = RosoutHandler(node)
