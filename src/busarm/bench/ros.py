@@ -355,7 +355,7 @@ def faults(node: RosNode, truth: Truth, flood: int) -> dict[str, Any]:
     log = node.subscribe("/rosout", m.ROSOUT_LOG, lambda msg, rec: rosout.put(msg.msg))
     session, good = node.session, m.ros_type(m.JOINT_TRAJECTORY).type_hash
     attachment = Attachment(1, time.time_ns(), b"\x07" * 16).encode()
-    time.sleep(0.3)
+    time.sleep(1.0)  # the bridge learns of this /rosout subscriber before it is needed
     start = truth.joint()
     for k in range(10):
         session.put(topic_key(0, "/joint_trajectory", m.JOINT_TRAJECTORY, good),
@@ -433,6 +433,7 @@ def run_ros_bench(*, seconds: float = 10.0, drops: int = 3, flood: int = 1000, s
     report = RosBenchReport(seconds=seconds)
     limits = [(j.min_deg, j.max_deg) for j in load_arm_config().joints]
     folder = out_dir or Path(tempfile.mkdtemp(prefix="busarm-bench-ros-"))
+    folder.mkdir(parents=True, exist_ok=True)
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     with running_bridge(endpoint, seed, blocks, progress):
         session = open_session(connect=[endpoint])

@@ -56,6 +56,7 @@ from busarm.ros.frames import (
 from busarm.ros.node import Received, RosNode
 from busarm.ros.rosout import RosoutHandler
 from busarm.ros.sensors import block_markers, diagnostics, laser_scan, odometry
+from busarm.twin.camera import TwinCamera
 
 if TYPE_CHECKING:
     import zenoh
@@ -145,7 +146,7 @@ class RosBridge:
         """Stop publishing and taking commands; the arm holds, the wheels stop."""
         self._closed.set()
         self._watch_senders.undeclare()
-        self.runner.cancel("the bridge closed")
+        self.runner.close()
         if self.cmd_vel is not None:
             self.cmd_vel.stop()
         for thread in self._threads:
@@ -174,7 +175,7 @@ class RosBridge:
         def tick() -> bool:
             next_at[0] += period_s
             delay = next_at[0] - time.monotonic()
-            if delay < -period_s:  # fell behind: start again from now, not in a burst
+            if delay < -3 * period_s:  # far behind: start again from now, not in a burst
                 next_at[0] = time.monotonic()
             return not self._closed.wait(max(0.0, delay))
         return tick
@@ -226,18 +227,27 @@ class RosBridge:
         import cv2
 
         camera, cal = self.robot.camera, self.robot.camera_calibration
+        # A twin's camera for people to watch (RViz, Foxglove) is rendered as the
+        # dashboard's is, without shadows or antialiasing: 15 ms a frame, not 40, and
+        # the renderer holds the GIL (every other loop here waits on it). A busarm on
+        # zenoh:// gets the pictures the twin's vision works on, while it listens.
+        twin = self.robot.twin
+        watched = TwinCamera(twin, view="arm", live=True) if twin is not None else camera
         tick = self._every(1.0 / self.settings.camera_fps)
         while tick():
-            frame = camera.read()
+            served = self.server is not None and self.server.camera_wanted
+            frame = camera.read() if served else watched.read()
             joints = self._latest_deg
             t = time.time()
             self._latest_frame = (frame.image, joints, t)
-            if self.server is not None and self.server.camera_wanted:
+            if served and self.server is not None:
                 self.server.publish_frame(frame, t)
-            self.pub_image.publish(m.image_bgr(t, CAMERA_FRAME, frame.image))
-            ok, jpeg = cv2.imencode(".jpg", frame.image,
-                                    [cv2.IMWRITE_JPEG_QUALITY, self.settings.jpeg_quality])
-            if ok:
+            if self.pub_image.matched:  # a raw frame is 0.9 MB of CDR, a JPEG 1 ms to make
+                self.pub_image.publish(m.image_bgr(t, CAMERA_FRAME, frame.image))
+            ok, jpeg = (cv2.imencode(".jpg", frame.image,
+                                     [cv2.IMWRITE_JPEG_QUALITY, self.settings.jpeg_quality])
+                        if self.pub_jpeg.matched else (False, None))
+            if ok and jpeg is not None:
                 self.pub_jpeg.publish(m.compressed_jpeg(t, CAMERA_FRAME, jpeg.tobytes()))
             if cal is not None:
                 i = cal.intrinsics

@@ -76,70 +76,99 @@ def plan_trajectory(arm: Arm, trajectory: Trajectory, current_deg: Sequence[floa
 
 
 class TrajectoryRunner:
-    """Streams one plan at a time to the arm, in a thread of its own."""
+    """Streams one plan at a time to the arm, from a worker thread of its own: a new plan
+    replaces the one running (or waiting) at once, however many come (a flood costs no
+    thread each); a cancel is final for the plan it stops: no point of it is sent after
+    the stop (a lock spans each check and send)."""
 
     def __init__(self, arm: Arm) -> None:
         self.arm = arm
-        self._lock = threading.Lock()
-        self._cancel = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._cond = threading.Condition()
+        self._send = threading.Lock()
+        self._pending: Plan | None = None
+        self._generation = 0
+        self._closed = False
         self.running: Plan | None = None
         self.last_outcome = ""
+        self._thread = threading.Thread(target=self._work, name="ros-trajectory",
+                                        daemon=True)
+        self._thread.start()
 
     def start(self, plan: Plan) -> None:
-        """Run ``plan``, replacing (and stopping) the one running."""
-        with self._lock:
-            self._stop_running(hold=False)
-            self._cancel = threading.Event()
-            self.running = plan
-            self._thread = threading.Thread(target=self._run, args=(plan, self._cancel),
-                                            name="ros-trajectory", daemon=True)
-            self._thread.start()
+        """Run ``plan`` next, replacing the one running (it is not stopped first: the new
+        one was planned from where the arm is, and goes on from there)."""
+        with self._cond:
+            self._pending = plan
+            self._generation += 1
+            self._cond.notify_all()
 
     def cancel(self, why: str, *, hold: bool = True) -> bool:
-        """Stop the running plan (the arm holds where it is); False if none was running."""
-        with self._lock:
-            was = self.running is not None
+        """Stop the running plan (the arm holds where it is: MOVE_STOP); False if none
+        was running or waiting."""
+        with self._send, self._cond:
+            was = self.running is not None or self._pending is not None
+            self._pending = None
+            self._generation += 1
+            self._cond.notify_all()
             if was:
                 self.last_outcome = f"stopped: {why}"
                 log.warning("trajectory stopped: %s", why)
-            self._stop_running(hold=hold and was)
-            return was
+                if hold:
+                    self.arm.stop()
+        return was
 
     def cancel_from(self, sender: bytes, why: str) -> bool:
         """Stop the running plan if ``sender`` sent it."""
-        plan = self.running
+        plan = self._pending or self.running
         return plan is not None and plan.sender == sender and self.cancel(why)
 
-    def _stop_running(self, *, hold: bool) -> None:
-        self._cancel.set()
-        if hold:
-            self.arm.stop()  # MOVE_STOP first: the arm holds now, whatever the thread does
-        thread = self._thread
-        if thread is not None and thread is not threading.current_thread():
-            thread.join(timeout=1.0)
-        self._thread, self.running = None, None
+    def close(self) -> None:
+        """Stop the running plan (holding) and the worker."""
+        self.cancel("the bridge closed")
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+        self._thread.join(timeout=2.0)
 
-    def _run(self, plan: Plan, cancel: threading.Event) -> None:
-        t0 = time.monotonic()
-        before = 0.0
-        try:
-            for t, row in zip(plan.times_s, plan.joints_deg, strict=True):
-                send_at = t0 + before
-                if cancel.wait(max(0.0, send_at - time.monotonic())):
+    def _work(self) -> None:
+        while True:
+            with self._cond:
+                self._cond.wait_for(lambda: self._pending is not None or self._closed)
+                if self._closed:
+                    return
+                plan, self._pending = self._pending, None
+                generation, self.running = self._generation, plan
+            assert plan is not None
+            try:
+                self._run(plan, generation)
+            except BusArmError as exc:
+                self.last_outcome = f"failed: {exc}"
+                log.error("trajectory failed: %s", exc)
+                self.arm.stop()
+            finally:
+                with self._cond:
+                    if self.running is plan:
+                        self.running = None
+
+    def _superseded(self, generation: int, until: float) -> bool:
+        """Wait until ``until`` (monotonic s); True at once if the plan was replaced or
+        cancelled meanwhile."""
+        with self._cond:
+            return self._cond.wait_for(lambda: self._generation != generation,
+                                       timeout=max(0.0, until - time.monotonic()))
+
+    def _run(self, plan: Plan, generation: int) -> None:
+        t0, before = time.monotonic(), 0.0
+        for t, row in zip(plan.times_s, plan.joints_deg, strict=True):
+            if self._superseded(generation, t0 + before):
+                return
+            with self._send:
+                if self._generation != generation:
                     return
                 self.arm.command_joints(row, t - before)
-                before = t
-            cancel.wait(max(0.0, t0 + plan.times_s[-1] - time.monotonic()))
-            if not cancel.is_set():
-                self.last_outcome = f"done: {len(plan.times_s)} points in {before:.2f} s"
-        except BusArmError as exc:
-            self.last_outcome = f"failed: {exc}"
-            log.error("trajectory failed: %s", exc)
-            self.arm.stop()
-        finally:
-            if self.running is plan:  # (not under the lock: cancel() holds it, joining us)
-                self.running = None
+            before = t
+        if not self._superseded(generation, t0 + plan.times_s[-1]):
+            self.last_outcome = f"done: {len(plan.times_s)} points in {before:.2f} s"
 
 
 class CmdVel:

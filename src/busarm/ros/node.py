@@ -89,6 +89,11 @@ class RosPublisher:
         self._token = node.session.liveliness().declare_token(self.entity.token())
         self._closed = False
 
+    @property
+    def matched(self) -> bool:
+        """Whether anyone subscribes (else a costly message need not be made at all)."""
+        return bool(self._publisher.matching_status)
+
     def publish(self, message: Any) -> int:
         """Publish; returns the message's sequence number."""
         return self.publish_cdr(encode(message, self.type.name))

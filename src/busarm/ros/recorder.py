@@ -31,6 +31,9 @@ class McapRecorder:
 
     def __init__(self, session: zenoh.Session, path: Path, *, domain_id: int = 0,
                  topics: list[str] | None = None) -> None:
+        if not Path(path).parent.is_dir():
+            raise ConfigError(f"cannot record into {path}: its folder {Path(path).parent} "
+                              "does not exist")
         graph = read_graph(session, domain_id)
         wanted = [check_topic(t) for t in topics] if topics else [
             t.name for t in graph.topics if t.publishers]
