@@ -25,7 +25,8 @@ UNIT = re.compile(r"\b(mm|deg|deg/s|mm/s|m|m/s|s|ms|V|C|Hz|bit/s|pixels|px|cm2|%
 COUNTS = {"--views", "--seed", "--scenes", "--workers", "--reads", "--scans", "--loops",
           "--frames", "--count", "--retries", "--blocks", "--pictures", "--placements", "--n",
           "--batch-n", "--distractors", "--camera-port", "--baud", "--http-port", "--tries",
-          "--squares", "--laps", "--arenas", "--layouts", "--domain"}
+          "--squares", "--laps", "--arenas", "--layouts", "--domain",
+          "--drops"}
 """Number options that are counts, seeds, port numbers or ROS domain ids: no unit."""
 
 

@@ -2,8 +2,11 @@
 folder of its own): on a twin of their own in a seeded arena, a whole job each; and the
 input they refuse before anything is opened or driven, in one line each.
 
-A whole run calibrates the twin's camera, explores the arena and does the job: about a
-minute, so there are two.
+A whole run explores the arena and does the job: about a minute, so there are two, started
+at once (``whole_runs``: each in its own folder and config folder; on two cores the pair
+takes about as long as the transport alone). The transport finds the twin's camera
+calibration kept, as after a reader's first job (making and keeping it is
+test_cli_calibrations').
 """
 
 from __future__ import annotations
@@ -13,6 +16,8 @@ import os
 import signal
 import subprocess
 import sys
+from collections.abc import Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
 import cv2
@@ -20,19 +25,45 @@ import pytest
 
 from busarm.nav.map_files import load_map
 from busarm.nav.points import load_points
+from conftest import keep_twin_calibration
 
 SEED = 1
 TWIN_PORT = f"board://twin?family=arena&seed={SEED}"
 
 
-def busarm(*args: str, cwd: Path, timeout_s: float = 240.0
-           ) -> subprocess.CompletedProcess[str]:
+def busarm(*args: str, cwd: Path, timeout_s: float = 240.0,
+           env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "busarm", *args], capture_output=True,
-                          text=True, cwd=cwd, timeout=timeout_s)
+                          text=True, cwd=cwd, timeout=timeout_s, env=env)
 
 
-def test_transport_on_a_seeded_arena_delivers_and_writes_its_report(tmp_path: Path) -> None:
-    done = busarm("transport", "--arena", str(SEED), cwd=tmp_path)
+WHOLE_RUNS = {
+    "transport": ["transport", "--arena", str(SEED)],
+    "map-build": ["map", "build", "--arena", str(SEED), "--out", "x.yaml", "--time", "120"],
+}
+Done = tuple[Path, subprocess.CompletedProcess[str]]
+
+
+@pytest.fixture(scope="module")
+def whole_runs(tmp_path_factory: pytest.TempPathFactory, twin_calibration: tuple[Path, Path]
+               ) -> Iterator[dict[str, Future[Done]]]:
+    """The whole runs, started at once; each test waits for its own (its folder and what
+    the command did). Each has a config folder of its own (not a test's: this fixture
+    outlives them), the transport's with the twin's calibration kept in it."""
+    def run(name: str) -> Done:
+        folder, config = tmp_path_factory.mktemp(name), tmp_path_factory.mktemp("config")
+        if name == "transport":
+            keep_twin_calibration(config, twin_calibration)
+        return folder, busarm(*WHOLE_RUNS[name], cwd=folder,
+                              env=dict(os.environ, XDG_CONFIG_HOME=str(config)))
+
+    with ThreadPoolExecutor(len(WHOLE_RUNS)) as pool:
+        yield {name: pool.submit(run, name) for name in WHOLE_RUNS}
+
+
+def test_transport_on_a_seeded_arena_delivers_and_writes_its_report(
+        whole_runs: dict[str, Future[Done]]) -> None:
+    tmp_path, done = whole_runs["transport"].result()
     assert done.returncode == 0, done.stderr
     assert "Traceback" not in done.stderr
     said = done.stdout.strip().splitlines()
@@ -56,9 +87,9 @@ def test_transport_on_a_seeded_arena_delivers_and_writes_its_report(tmp_path: Pa
     assert grid.spec.width > 50 and grid.spec.height > 50
 
 
-def test_map_build_writes_a_map_that_loads_and_says_what_it_did(tmp_path: Path) -> None:
-    done = busarm("map", "build", "--arena", str(SEED), "--out", "x.yaml", "--time", "120",
-                  cwd=tmp_path)
+def test_map_build_writes_a_map_that_loads_and_says_what_it_did(
+        whole_runs: dict[str, Future[Done]]) -> None:
+    tmp_path, done = whole_runs["map-build"].result()
     assert done.returncode == 0, done.stderr
     said = done.stdout.strip().splitlines()
     assert len(said) == 1, done.stdout

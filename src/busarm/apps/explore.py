@@ -58,6 +58,13 @@ class MapRun:
     unreachable: int = 0
     """Frontiers given up on (no route, or blocked)."""
 
+    def summary(self, saved_to: object) -> str:
+        """One line for a person: the map's size and the time it took, and where it is."""
+        spec = self.grid.spec
+        return (f"mapped {spec.width * spec.resolution_m:.1f} x "
+                f"{spec.height * spec.resolution_m:.1f} m in {self.seconds:.0f} s "
+                f"({saved_to})")
+
 
 class Explorer:
     """One exploration of the place ``robot`` stands in."""

@@ -54,7 +54,7 @@ from busarm.base.kinematics import Twist
 from busarm.base.odometry import Pose2D, wrap_rad
 from busarm.errors import NavigationError, UnreachableError
 from busarm.lidar.scan import to_points
-from busarm.nav.line_track import LineController, LineTracker, obstacle_ahead
+from busarm.nav.line_track import LineController, LineTracker, in_stop_range, obstacle_ahead
 from busarm.nav.mapping import compose
 from busarm.progress import Progress, quiet
 from busarm.robot import Robot
@@ -393,6 +393,7 @@ class LineFollowJob:
         if line is None or abs(line.lateral_m) > ON_LINE_M or not len(ahead) \
                 or not len(returns):
             return obstacle_ahead(returns, corridor_half_m=self.corridor_half_m)
+        returns = returns[in_stop_range(returns)]  # the only ones the rule may stop for
         gaps = np.hypot(returns[:, None, 0] - ahead[None, :, 0],
                         returns[:, None, 1] - ahead[None, :, 1]).min(axis=1)
         return obstacle_ahead(returns[gaps <= self.corridor_half_m],

@@ -18,7 +18,7 @@ import numpy.typing as npt
 
 from busarm.base.base import Base
 from busarm.base.config import Mount
-from busarm.base.odometry import Pose2D, wrap_rad
+from busarm.base.odometry import Pose2D
 from busarm.errors import BusTimeoutError, ConfigError, NavigationError
 from busarm.lidar.scan import LaserScan, LidarSource
 from busarm.nav.mapping import compose, inverse
@@ -34,12 +34,6 @@ PAUSE_S = 0.3
 CAUGHT_UP_S = 0.02
 """A read that had to wait at least this long for its revolution is a fresh one."""
 MAX_SKIPPED = 100
-
-
-def midway(a: Pose2D, b: Pose2D) -> Pose2D:
-    """The pose half way from ``a`` to ``b`` (heading on the circle)."""
-    return Pose2D((a.x_m + b.x_m) / 2, (a.y_m + b.y_m) / 2,
-                  wrap_rad(a.yaw_rad + wrap_rad(b.yaw_rad - a.yaw_rad) / 2))
 
 
 @dataclass(frozen=True)
@@ -64,7 +58,7 @@ def deskewed(scan: LaserScan, start: Pose2D, end: Pose2D, mount: Mount
     ranges = np.asarray(scan.ranges_m, dtype=np.float64)
     # The A1 turns clockwise: its bearings fall with time from the revolution's start.
     fraction = np.mod(-angles, 2 * math.pi) / (2 * math.pi)
-    mid = midway(start, end)
+    mid = start.interpolated(end, 0.5)
     sensor = Pose2D(mount.x_m, mount.y_m, mount.yaw_rad)
     rel = compose(inverse(compose(mid, sensor)), compose(start, sensor))
     moved = compose(inverse(compose(start, sensor)), compose(end, sensor))
@@ -108,7 +102,8 @@ class ScanReader:
         now = self.base.odometry().pose
         start, end = self._span(scan)
         bearings, ranges = deskewed(scan, start, end, self.base.config.lidar)
-        sensed = SensedScan(scan, midway(start, end), now, self.clock.now(), bearings, ranges)
+        sensed = SensedScan(scan, start.interpolated(end, 0.5), now, self.clock.now(),
+                            bearings, ranges)
         self._last = now
         self._read_at_s = self.clock.now()
         self.scans += 1

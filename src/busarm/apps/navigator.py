@@ -28,7 +28,7 @@ from busarm.nav.costmap import Costmap
 from busarm.nav.follower import FollowerSettings, PathFollower, blocked
 from busarm.nav.grid import OccupancyGrid
 from busarm.nav.localize import ParticleFilter, PoseEstimate
-from busarm.nav.mapping import compose, inverse
+from busarm.nav.mapping import compose, inverse, transform_points
 from busarm.nav.planner import NoPath, plan_path
 from busarm.robot import Robot
 from busarm.units import check_range
@@ -133,10 +133,7 @@ class Navigator:
     def returns_m(self, sensed: SensedScan) -> tuple[FloatArray, FloatArray]:
         """The scan's returns in the base frame and in the map frame (now)."""
         local = to_points(sensed.scan, self.base.config.lidar)
-        c, s = math.cos(self.pose.yaw_rad), math.sin(self.pose.yaw_rad)
-        world = np.column_stack([self.pose.x_m + c * local[:, 0] - s * local[:, 1],
-                                 self.pose.y_m + s * local[:, 0] + c * local[:, 1]])
-        return local, world
+        return local, transform_points(self.pose, local)
 
     # ------------------------------------------------------------------ localising
     def localize(self, start: Pose2D | None = None, *, wander: bool = True) -> PoseEstimate:

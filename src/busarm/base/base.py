@@ -240,8 +240,7 @@ class Base:
         k = bisect.bisect_right(times, at_s)
         (t0, a), (t1, b) = history[k - 1], history[k]
         f = (at_s - t0) / (t1 - t0) if t1 > t0 else 1.0
-        return Pose2D(a.x_m + f * (b.x_m - a.x_m), a.y_m + f * (b.y_m - a.y_m),
-                      wrap_rad(a.yaw_rad + f * wrap_rad(b.yaw_rad - a.yaw_rad)))
+        return a.interpolated(b, f)
 
     def reset_odometry(self, pose: Pose2D | None = None) -> None:
         """Count the pose from ``pose`` (default the origin) from now on."""

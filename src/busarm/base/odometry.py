@@ -61,6 +61,14 @@ class Pose2D:
         c, s = math.cos(origin.yaw_rad), math.sin(origin.yaw_rad)
         return Pose2D(dx * c + dy * s, -dx * s + dy * c, wrap_rad(self.yaw_rad - origin.yaw_rad))
 
+    def interpolated(self, other: Pose2D, fraction: float) -> Pose2D:
+        """The pose ``fraction`` of the way from this one to ``other`` (0: this, 1:
+        ``other``): the position on the straight line, the yaw turned the short way round."""
+        f = fraction
+        return Pose2D(self.x_m + f * (other.x_m - self.x_m),
+                      self.y_m + f * (other.y_m - self.y_m),
+                      wrap_rad(self.yaw_rad + f * wrap_rad(other.yaw_rad - self.yaw_rad)))
+
 
 def wrap_rad(angle_rad: float) -> float:
     """``angle_rad`` in -pi..pi."""

@@ -1,5 +1,6 @@
 """What the benchmarks share: the machine they ran on, latency percentiles, the progress
-callback, and the summary of the twin calibration the vision benchmarks start with."""
+callback, the summary of the twin calibration the vision benchmarks start with, and the
+report and runner of the benchmarks over seeded twin worlds (transport, line)."""
 
 from __future__ import annotations
 
@@ -8,13 +9,15 @@ import multiprocessing
 import os
 import platform
 import tempfile
+import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, TypeVar
+from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 from busarm.errors import ConfigError
 from busarm.progress import Progress, quiet
+from busarm.units import check_int_range
 
 R = TypeVar("R")
 
@@ -22,8 +25,19 @@ if TYPE_CHECKING:
     from busarm.robot.twin_calibration import TwinCalibration
     from busarm.vision.calibration import CameraIntrinsics
 
-__all__ = ["CalibrationSummary", "Progress", "latency_percentiles_ms", "machine_info", "quiet",
-           "short_machine_info"]
+__all__ = [
+    "CalibrationSummary",
+    "Progress",
+    "SeededBenchReport",
+    "Verdict",
+    "latency_percentiles_ms",
+    "machine_info",
+    "machine_line",
+    "quiet",
+    "run_seeded_bench",
+    "short_machine_info",
+]
+
 
 def machine_info() -> dict[str, str]:
     """What ran the benchmark, for docs/benchmarks.md: cpu, cores, python, os."""
@@ -42,6 +56,13 @@ def machine_info() -> dict[str, str]:
         "python": platform.python_version(),
         "os": f"{platform.system()} {platform.release()}",
     }
+
+
+def machine_line(machine: dict[str, str], *, with_os: bool = True) -> str:
+    """``machine_info`` as a report's line: cpu, cores, Python (and the os)."""
+    m = machine
+    return (f"machine: {m['cpu']}, {m['cores']} cores, Python {m['python']}"
+            + (f", {m['os']}" if with_os else ""))
 
 
 def short_machine_info() -> dict[str, str]:
@@ -130,3 +151,56 @@ def run_seeded(task: Callable[[int, Path, Path], R], seeds: Sequence[int], worke
                 done[futures[future]] = future.result()
                 progress(describe(len(done), len(seeds), done[futures[future]]))
         return [done[seed] for seed in seeds]
+
+
+Verdict = Callable[[bool], str]
+"""How a report's text shows a target met (True) or missed: the command line's ok or
+FAIL (which it counts)."""
+
+
+@dataclass
+class SeededBenchReport(Generic[R]):
+    """A benchmark over seeded twin worlds, one run each (``run_seeded_bench``): the
+    machine, the runs in seed order, the seconds it all took here and the workers."""
+
+    machine: dict[str, str]
+    runs: list[R] = field(default_factory=list)
+    seconds: float = 0.0
+    workers: int = 1
+
+    def summary(self) -> dict[str, Any]:
+        """The figures over all the runs."""
+        raise NotImplementedError
+
+    def text(self, verdict: Verdict) -> str:
+        """The report for a person (after the benchmark's name), each target judged."""
+        raise NotImplementedError
+
+    @property
+    def time_text(self) -> str:
+        return f"{self.seconds:.0f} s on this computer, {self.workers} worker(s)"
+
+    def run_dict(self, run: R) -> dict[str, Any]:
+        """One run as the JSON report gives it."""
+        return asdict(run)  # type: ignore[call-overload, no-any-return]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"machine": self.machine, "seconds": self.seconds, "workers": self.workers,
+                "summary": self.summary(), "runs": [self.run_dict(r) for r in self.runs]}
+
+
+B = TypeVar("B", bound=SeededBenchReport[Any])
+
+
+def run_seeded_bench(report: B, task: Callable[[int, Path, Path], Any],
+                     describe: Callable[[int, int, Any], str], *, what: str, count: int,
+                     seed: int, max_workers: int, progress: Progress = quiet) -> B:
+    """``report`` filled with ``task`` run on ``count`` seeds from ``seed`` (``what``: the
+    count's name, checked 1..1000), on ``report.workers`` processes (``run_seeded``)."""
+    check_int_range(what, count, 1, 1000)
+    check_int_range("workers", report.workers, 1, max_workers)
+    start = time.monotonic()
+    report.runs = run_seeded(task, [seed + i for i in range(count)], report.workers, progress,
+                             describe)
+    report.seconds = time.monotonic() - start
+    return report

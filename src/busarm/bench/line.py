@@ -17,17 +17,23 @@ from __future__ import annotations
 import math
 import random
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from busarm.bench.common import Progress, machine_info, quiet, run_seeded
+from busarm.bench.common import (
+    Progress,
+    SeededBenchReport,
+    Verdict,
+    machine_info,
+    quiet,
+    run_seeded_bench,
+)
 from busarm.errors import BusArmError
 from busarm.robot import Robot
 from busarm.twin.arena_gen import distance_to_line_m, random_arena
-from busarm.units import check_int_range
 
 TARGET_LATERAL_MEDIAN_M = 0.01
 TARGET_LATERAL_MAX_M = 0.03
@@ -169,12 +175,7 @@ def run_layout(seed: int, intrinsics: Path, hand_eye: Path) -> LayoutRun:
 
 
 @dataclass
-class LineBenchReport:
-    machine: dict[str, str]
-    runs: list[LayoutRun] = field(default_factory=list)
-    seconds: float = 0.0
-    workers: int = 1
-
+class LineBenchReport(SeededBenchReport[LayoutRun]):
     def summary(self) -> dict[str, Any]:
         medians = [r.lateral_median_m for r in self.runs if math.isfinite(r.lateral_median_m)]
         maxes = [r.lateral_max_m for r in self.runs if math.isfinite(r.lateral_max_m)]
@@ -191,9 +192,22 @@ class LineBenchReport:
             "lap_median_s": round(float(np.median([r.seconds for r in self.runs])), 1)
             if self.runs else None}
 
-    def to_dict(self) -> dict[str, Any]:
-        return {"machine": self.machine, "seconds": self.seconds, "workers": self.workers,
-                "summary": self.summary(), "runs": [asdict(r) for r in self.runs]}
+    def text(self, verdict: Verdict) -> str:
+        s = self.summary()
+        med, top = s["lateral_median_m"], s["lateral_max_m"]
+        return (
+            f"{s['layouts']} seeded layouts, {s['finished']} laps done "
+            f"{verdict(s['finished'] == s['layouts'])}\n"
+            f"off the tape (chassis centre): median {med * 1000:.1f} mm "
+            f"{verdict(med <= TARGET_LATERAL_MEDIAN_M)} <= "
+            f"{TARGET_LATERAL_MEDIAN_M * 1000:g} mm, max {top * 1000:.1f} mm "
+            f"{verdict(top <= TARGET_LATERAL_MAX_M)} <= {TARGET_LATERAL_MAX_M * 1000:g} mm\n"
+            f"blocks cleared off the tape: {s['blocks_cleared']}/{s['blocks']} "
+            f"{verdict(s['blocks_cleared'] == s['blocks'])}; obstacles stopped for: "
+            f"{s['obstacles_stopped_for']}/{s['obstacles']} "
+            f"{verdict(s['obstacles_stopped_for'] == s['obstacles'])}; collisions: "
+            f"{s['collisions']} {verdict(s['collisions'] == 0)}\n"
+            f"a lap: median {s['lap_median_s']} s of twin time; {self.time_text}")
 
 
 def _layout_line(done: int, total: int, r: LayoutRun) -> str:
@@ -209,11 +223,6 @@ def _layout_line(done: int, total: int, r: LayoutRun) -> str:
 def run_line_bench(*, layouts: int = 20, seed: int = 0, workers: int = 1,
                    progress: Progress = quiet) -> LineBenchReport:
     """Line following over ``layouts`` seeded layouts (seeds ``seed``..)."""
-    check_int_range("layouts", layouts, 1, 1000)
-    check_int_range("workers", workers, 1, MAX_WORKERS)
-    start = time.monotonic()
-    report = LineBenchReport(machine_info(), workers=workers)
-    report.runs = run_seeded(run_layout, [seed + i for i in range(layouts)], workers, progress,
-                             _layout_line)
-    report.seconds = time.monotonic() - start
-    return report
+    return run_seeded_bench(LineBenchReport(machine_info(), workers=workers), run_layout,
+                            _layout_line, what="layouts", count=layouts, seed=seed,
+                            max_workers=MAX_WORKERS, progress=progress)

@@ -28,7 +28,15 @@ from typing import Any
 import numpy as np
 
 from busarm.base.odometry import Pose2D, wrap_rad
-from busarm.bench.common import Progress, machine_info, quiet, run_seeded
+from busarm.bench.common import (
+    Progress,
+    SeededBenchReport,
+    Verdict,
+    machine_info,
+    machine_line,
+    quiet,
+    run_seeded_bench,
+)
 from busarm.nav.grid import OccupancyGrid
 from busarm.nav.mapping import compose, inverse
 from busarm.nav.points import WORK_AHEAD_M, NamedPoints
@@ -40,7 +48,6 @@ from busarm.twin.arena_tasks import (
     transport_points,
     true_map_surfaces,
 )
-from busarm.units import check_int_range
 
 DELIVERED_M = 0.03
 TARGET_DELIVERED = 0.95
@@ -157,12 +164,7 @@ def run_arena(seed: int, intrinsics: Path, hand_eye: Path) -> ArenaRun:
 
 
 @dataclass
-class TransportBenchReport:
-    machine: dict[str, str]
-    runs: list[ArenaRun] = field(default_factory=list)
-    seconds: float = 0.0
-    workers: int = 1
-
+class TransportBenchReport(SeededBenchReport[ArenaRun]):
     @property
     def delivered_share(self) -> float:
         return sum(r.delivered for r in self.runs) / len(self.runs) if self.runs else 0.0
@@ -198,15 +200,42 @@ class TransportBenchReport:
                 "map_error_median_m": q([r.map_error_median_m for r in self.runs], 50),
                 "map_error_p95_m": q([r.map_error_p95_m for r in self.runs], 50)}
 
-    def to_dict(self) -> dict[str, Any]:
-        runs = []
-        for r in self.runs:
-            d = asdict(r)
-            d.pop("position_errors_m")
-            d.pop("heading_errors_deg")
-            runs.append(d)
-        return {"machine": self.machine, "seconds": self.seconds, "workers": self.workers,
-                "summary": self.summary(), "runs": runs}
+    def text(self, verdict: Verdict) -> str:
+        s = self.summary()
+
+        def cm(key: str) -> str:
+            value = s[key]
+            return "-" if value is None else f"{value * 100:.1f} cm"
+
+        pos, head, loc = (s["position_error_median_m"], s["heading_error_median_deg"],
+                          s["localise_max_s"])
+        return (
+            f"{len(self.runs)} seeded arenas, unknown starts\n"
+            f"{machine_line(self.machine, with_os=False)}\n"
+            f"delivered within {DELIVERED_M * 100:g} cm: {self.delivered_share:.0%} "
+            f"{verdict(self.delivered_share >= TARGET_DELIVERED)} >= "
+            f"{TARGET_DELIVERED:.0%}; reported delivered but not: {self.false_reports} "
+            f"{verdict(self.false_reports == 0)}; collisions: {self.collisions} "
+            f"{verdict(self.collisions == 0)}\n"
+            f"localisation along the runs: position median {cm('position_error_median_m')} "
+            f"{verdict(pos is not None and pos <= TARGET_LOCALISATION_M)} <= "
+            f"{TARGET_LOCALISATION_M * 100:g} cm (p95 {cm('position_error_p95_m')}, max "
+            f"{cm('position_error_max_m')}), heading median {head} deg "
+            f"{verdict(head is not None and head <= TARGET_HEADING_DEG)} <= "
+            f"{TARGET_HEADING_DEG:g} deg; from an unknown start localised in at most {loc} s "
+            f"{verdict(loc is not None and loc <= TARGET_GLOBAL_S)} <= {TARGET_GLOBAL_S:g} s\n"
+            f"mission (twin time, localise to put down): median {s['mission_median_s']} s; "
+            f"the vendor's grasp sequence alone is about {VENDOR_GRASP_S:g} s\n"
+            f"placed: median {cm('placed_error_median_m')} from the place point's spot; maps: "
+            f"occupied cells {cm('map_error_median_m')} from the true surfaces (median of the "
+            f"arenas' medians; p95 {cm('map_error_p95_m')})\n"
+            f"time: {self.time_text}")
+
+    def run_dict(self, run: ArenaRun) -> dict[str, Any]:
+        d = asdict(run)
+        d.pop("position_errors_m")
+        d.pop("heading_errors_deg")
+        return d
 
 
 def _arena_line(done: int, total: int, r: ArenaRun) -> str:
@@ -221,11 +250,6 @@ def _arena_line(done: int, total: int, r: ArenaRun) -> str:
 def run_transport_bench(*, arenas: int = 30, seed: int = 0, workers: int = 1,
                         progress: Progress = quiet) -> TransportBenchReport:
     """Transport over ``arenas`` seeded arenas (seeds ``seed``..), ``workers`` processes."""
-    check_int_range("arenas", arenas, 1, 1000)
-    check_int_range("workers", workers, 1, MAX_WORKERS)
-    start = time.monotonic()
-    report = TransportBenchReport(machine_info(), workers=workers)
-    report.runs = run_seeded(run_arena, [seed + i for i in range(arenas)], workers, progress,
-                             _arena_line)
-    report.seconds = time.monotonic() - start
-    return report
+    return run_seeded_bench(TransportBenchReport(machine_info(), workers=workers), run_arena,
+                            _arena_line, what="arenas", count=arenas, seed=seed,
+                            max_workers=MAX_WORKERS, progress=progress)

@@ -14,6 +14,7 @@ from rich.console import Console
 from rich.table import Table
 
 from busarm.bench.bus import BusBenchReport, run_bench, sim_pty_server
+from busarm.bench.common import machine_line
 from busarm.cli.common import (
     IdListType,
     JobNotDone,
@@ -96,7 +97,7 @@ def _print(settings: Settings, report: BusBenchReport) -> None:
     settings.out.print(
         f"[bold]busarm bench[/] on {report.port}: {line}, turnaround "
         f"{report.turnaround_ms} ms, echo {'on' if report.echo else 'off'}\n"
-        f"machine: {m['cpu']}, {m['cores']} cores, Python {m['python']}, {m['os']}"
+        f"{machine_line(m)}"
     )
     table = Table()
     for col in ("measurement", "rate", "wire limit", "of limit", "p50 ms", "p99 ms",
@@ -150,6 +151,34 @@ def bench_ik(
 
     report = run_ik_bench(n=n, batch_n=batch_n, seed=seed, peers=peers)
     _judged(settings, as_json, report.to_dict(), lambda shown: _print_ik(shown, report))
+
+
+def _said(settings: Settings) -> Callable[[str], None]:
+    """A benchmark's progress, said on stderr."""
+    return lambda text: settings.err.print(text, highlight=False)
+
+
+def _seeded_world_options(name: str, default: int, help_text: str
+                          ) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """A benchmark over seeded twin worlds: ``--NAME`` (how many, 1..1000), --seed (the
+    first one's), --workers, --json; the settings passed, no servos."""
+    world = name.removesuffix("s")
+
+    def options(func: Callable[..., Any]) -> Callable[..., Any]:
+        func = pass_settings(no_servos(func))
+        for option in (  # the last applied is the first listed
+                click.option("--json", "as_json", is_flag=True,
+                             help="Print the report as JSON."),
+                click.option("--workers", type=click.IntRange(1, 8), default=1,
+                             show_default=True, help=f"{world.capitalize()}s run side by "
+                             "side, each in its own process."),
+                click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0,
+                             show_default=True, help=f"Seed of the first {world}."),
+                click.option(f"--{name}", type=click.IntRange(1, 1000), default=default,
+                             show_default=True, help=help_text)):
+            func = option(func)
+        return func
+    return options
 
 
 _MISSED = "busarm.bench.missed"
@@ -206,8 +235,7 @@ def _print_ik(settings: Settings, report: IkBenchReport) -> None:
     m, a, o = report.machine, report.accuracy, report.outside
     out = settings.out
     out.print(
-        f"[bold]busarm bench ik[/]: {report.arm}\n"
-        f"machine: {m['cpu']}, {m['cores']} cores, Python {m['python']}, {m['os']}"
+        f"[bold]busarm bench ik[/]: {report.arm}\n{machine_line(m)}"
     )
     out.print(
         f"accuracy: {a.n} random joint vectors in the limits (seed {a.seed}), target = FK "
@@ -262,9 +290,8 @@ def bench_locate(settings: Settings, placements: int, seed: int, keep: Path | No
     """
     from busarm.bench.locate import run_locate_bench
 
-    report = run_locate_bench(
-        placements=placements, seed=seed, work_dir=keep,
-        progress=lambda text: settings.err.print(text, highlight=False))
+    report = run_locate_bench(placements=placements, seed=seed, work_dir=keep,
+                              progress=_said(settings))
     _judged(settings, as_json, report.to_dict(), lambda shown: _print_locate(shown, report))
 
 
@@ -392,7 +419,7 @@ def bench_pick(settings: Settings, scenes: int, seed: int, workers: int, family:
 
     report = run_pick_bench(scenes=scenes, seed=seed, workers=workers, realtime=realtime,
                             family=family,
-                            progress=lambda text: settings.err.print(text, highlight=False))
+                            progress=_said(settings))
     _judged(settings, as_json, report.to_dict(), lambda shown: _print_pick(shown, report))
 
 
@@ -455,7 +482,7 @@ def bench_mobile(settings: Settings, squares: int, scans: int, seconds: float, s
 
     report = run_mobile_bench(squares=squares, scans=scans, seconds=seconds, seed=seed,
                               picture=png,
-                              progress=lambda text: settings.err.print(text, highlight=False))
+                              progress=_said(settings))
     _judged(settings, as_json, report.to_dict(), lambda shown: _print_mobile(shown, report))
 
 
@@ -469,10 +496,9 @@ def _print_mobile(settings: Settings, report: MobileBenchReport) -> None:
         TARGET_REALTIME,
     )
 
-    m = report.machine
     out = settings.out
     out.print(f"[bold]busarm bench mobile[/] (twin, slip and sensor noise on)\n"
-              f"machine: {m['cpu']}, {m['cores']} cores, Python {m['python']}, {m['os']}")
+              f"{machine_line(report.machine)}")
     table = Table(title=f"odometry: {SIDE_M:g} m squares by move_by (encoders + IMU)")
     for col in ("seed", "driven", "position error", "share", "heading error",
                 "worst corner"):
@@ -508,15 +534,7 @@ def _print_mobile(settings: Settings, report: MobileBenchReport) -> None:
 
 
 @bench.command("transport")
-@click.option("--arenas", type=click.IntRange(1, 1000), default=30, show_default=True,
-              help="Seeded twin arenas (arena i uses seed + i).")
-@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
-              help="Seed of the first arena.")
-@click.option("--workers", type=click.IntRange(1, 8), default=1, show_default=True,
-              help="Arenas run side by side, each in its own process.")
-@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
-@pass_settings
-@no_servos
+@_seeded_world_options("arenas", 30, "Seeded twin arenas (arena i uses seed + i).")
 def bench_transport(settings: Settings, arenas: int, seed: int, workers: int,
                     as_json: bool) -> None:
     """Navigation transport over seeded twin arenas, against the twin's truth: each arena
@@ -525,57 +543,14 @@ def bench_transport(settings: Settings, arenas: int, seed: int, workers: int,
     from busarm.bench.transport import run_transport_bench
 
     report = run_transport_bench(arenas=arenas, seed=seed, workers=workers,
-                                 progress=lambda text: settings.err.print(text,
-                                                                          highlight=False))
-    _judged(settings, as_json, report.to_dict(), lambda shown: _print_transport(shown, report))
-
-
-def _print_transport(settings: Settings, report: TransportBenchReport) -> None:
-    from busarm.bench import transport as t
-
-    s = report.summary()
-
-    def cm(key: str) -> str:
-        value = s[key]
-        return "-" if value is None else f"{value * 100:.1f} cm"
-
-    pos, head, loc = (s["position_error_median_m"], s["heading_error_median_deg"],
-                      s["localise_max_s"])
-    m = report.machine
-    settings.out.print(
-        f"[bold]busarm bench transport[/]: {len(report.runs)} seeded arenas, unknown starts\n"
-        f"machine: {m['cpu']}, {m['cores']} cores, Python {m['python']}\n"
-        f"delivered within {t.DELIVERED_M * 100:g} cm: {report.delivered_share:.0%} "
-        f"{_verdict(report.delivered_share >= t.TARGET_DELIVERED)} >= "
-        f"{t.TARGET_DELIVERED:.0%}; reported delivered but not: {report.false_reports} "
-        f"{_verdict(report.false_reports == 0)}; collisions: {report.collisions} "
-        f"{_verdict(report.collisions == 0)}\n"
-        f"localisation along the runs: position median {cm('position_error_median_m')} "
-        f"{_verdict(pos is not None and pos <= t.TARGET_LOCALISATION_M)} <= "
-        f"{t.TARGET_LOCALISATION_M * 100:g} cm (p95 {cm('position_error_p95_m')}, max "
-        f"{cm('position_error_max_m')}), heading median {head} deg "
-        f"{_verdict(head is not None and head <= t.TARGET_HEADING_DEG)} <= "
-        f"{t.TARGET_HEADING_DEG:g} deg; from an unknown start localised in at most {loc} s "
-        f"{_verdict(loc is not None and loc <= t.TARGET_GLOBAL_S)} <= {t.TARGET_GLOBAL_S:g} s\n"
-        f"mission (twin time, localise to put down): median {s['mission_median_s']} s; the "
-        f"vendor's grasp sequence alone is about {t.VENDOR_GRASP_S:g} s\n"
-        f"placed: median {cm('placed_error_median_m')} from the place point's spot; maps: "
-        f"occupied cells {cm('map_error_median_m')} from the true surfaces (median of the "
-        f"arenas' medians; p95 {cm('map_error_p95_m')})\n"
-        f"time: {report.seconds:.0f} s on this computer, {report.workers} worker(s)",
-        highlight=False)
+                                 progress=_said(settings))
+    _judged(settings, as_json, report.to_dict(),
+            lambda shown: _print_seeded(shown, "transport", report))
 
 
 @bench.command("line")
-@click.option("--layouts", type=click.IntRange(1, 1000), default=20, show_default=True,
-              help="Seeded line layouts (layout i uses seed + i): 0-3 blocks, 0-2 obstacles.")
-@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0, show_default=True,
-              help="Seed of the first layout.")
-@click.option("--workers", type=click.IntRange(1, 8), default=1, show_default=True,
-              help="Layouts run side by side, each in its own process.")
-@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
-@pass_settings
-@no_servos
+@_seeded_world_options("layouts", 20, "Seeded line layouts (layout i uses seed + i): 0-3 "
+                       "blocks, 0-2 obstacles.")
 def bench_line(settings: Settings, layouts: int, seed: int, workers: int,
                as_json: bool) -> None:
     """Line following over seeded twin layouts, against the twin's truth: one lap each,
@@ -584,26 +559,41 @@ def bench_line(settings: Settings, layouts: int, seed: int, workers: int,
     from busarm.bench.line import run_line_bench
 
     report = run_line_bench(layouts=layouts, seed=seed, workers=workers,
-                            progress=lambda text: settings.err.print(text, highlight=False))
-    _judged(settings, as_json, report.to_dict(), lambda shown: _print_line(shown, report))
+                            progress=_said(settings))
+    _judged(settings, as_json, report.to_dict(), lambda shown: _print_seeded(shown, "line", report))
 
 
-def _print_line(settings: Settings, report: LineBenchReport) -> None:
-    from busarm.bench import line as b
+@bench.command("ros")
+@click.option("--seconds", type=RangeType("seconds", 1.0, 600.0, "s"), default=10.0,
+              show_default=True, metavar="S", help="How long to measure the streams, in s.")
+@click.option("--drops", type=click.IntRange(1, 100), default=3, show_default=True,
+              help="Links dropped mid-move, of each kind.")
+@click.option("--blocks", type=click.IntRange(1, 8), default=5, show_default=True,
+              help="Blocks on the seeded table the remote pick-sort sorts.")
+@click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=3, show_default=True,
+              help="Seed of the table.")
+@click.option("--report", "out_dir", type=click.Path(file_okay=False, path_type=Path),
+              default=None, help="Folder for the MCAP file and the pick-sort reports "
+                                 "[default: a temporary one]")
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
+@pass_settings
+@no_servos
+def bench_ros(settings: Settings, seconds: float, drops: int, blocks: int, seed: int,
+              out_dir: Path | None, as_json: bool) -> None:
+    """The ROS 2 bridge between two busarm processes on loopback, against the twin's truth:
+    /joint_states rate and latency, camera frames/s, a trajectory, links dropped
+    mid-move, bad samples and a flood, pick-sort over zenoh:// recorded into MCAP. About
+    four minutes."""
+    from busarm.bench.ros import run_ros_bench
 
-    s = report.summary()
-    med, top = s["lateral_median_m"], s["lateral_max_m"]
-    settings.out.print(
-        f"[bold]busarm bench line[/]: {s['layouts']} seeded layouts, {s['finished']} laps done "
-        f"{_verdict(s['finished'] == s['layouts'])}\n"
-        f"off the tape (chassis centre): median {med * 1000:.1f} mm "
-        f"{_verdict(med <= b.TARGET_LATERAL_MEDIAN_M)} <= {b.TARGET_LATERAL_MEDIAN_M * 1000:g} mm,"
-        f" max {top * 1000:.1f} mm {_verdict(top <= b.TARGET_LATERAL_MAX_M)} <= "
-        f"{b.TARGET_LATERAL_MAX_M * 1000:g} mm\n"
-        f"blocks cleared off the tape: {s['blocks_cleared']}/{s['blocks']} "
-        f"{_verdict(s['blocks_cleared'] == s['blocks'])}; obstacles stopped for: "
-        f"{s['obstacles_stopped_for']}/{s['obstacles']} "
-        f"{_verdict(s['obstacles_stopped_for'] == s['obstacles'])}; collisions: "
-        f"{s['collisions']} {_verdict(s['collisions'] == 0)}\n"
-        f"a lap: median {s['lap_median_s']} s of twin time; {report.seconds:.0f} s on this "
-        f"computer, {report.workers} worker(s)", highlight=False)
+    report = run_ros_bench(seconds=seconds, drops=drops, blocks=blocks, seed=seed,
+                           out_dir=out_dir, progress=_said(settings))
+    _judged(settings, as_json, report.as_dict(), lambda shown: shown.out.print(
+        "[bold]busarm bench ros[/]: " + report.text(_verdict), highlight=False))
+
+
+def _print_seeded(settings: Settings, name: str,
+                  report: TransportBenchReport | LineBenchReport) -> None:
+    """A benchmark over seeded twin worlds: its report's text, the targets judged."""
+    settings.out.print(f"[bold]busarm bench {name}[/]: {report.text(_verdict)}",
+                       highlight=False)

@@ -51,22 +51,21 @@ def _setup(settings: Settings, robot: Robot, points_file: Path | None, map_file:
             raise ConfigError("--map without --points: the named points on that map are "
                               "needed (a points file; see `busarm transport --help`)")
         return load_map(map_file), points, None
-    if robot.twin is None or robot.twin.arena is None:
+    if robot.twin is None or robot.twin.arena is None or robot.base is None:
         raise ConfigError(ON_A_ROBOT)
+    from busarm.twin.arena_tasks import twin_transport_points
+
+    # The points in the frame of the map about to be built (taken before exploring).
+    arena_points = twin_transport_points(robot.twin, robot.base) if points is None else None
     settings.err.print("no map given: exploring the arena first", highlight=False, markup=False)
     run = build_map(robot, time_limit_s=300.0)
     report.mkdir(parents=True, exist_ok=True)
     save_map(report / "map.yaml", run.grid)
-    if points is None:
-        from busarm.twin.arena_tasks import start_pose, transport_points
-
-        # The map's origin is where the exploring began: the arena's start.
-        points = transport_points(robot.twin.arena, start_pose(robot.twin.arena))[0]
+    if arena_points is not None:
+        points = arena_points
         save_points(report / "points.toml", points, "map.yaml")
-    settings.err.print(f"mapped {run.grid.spec.width * run.grid.spec.resolution_m:.1f} x "
-                       f"{run.grid.spec.height * run.grid.spec.resolution_m:.1f} m in "
-                       f"{run.seconds:.0f} s ({report / 'map.yaml'})", highlight=False,
-                       markup=False)
+    assert points is not None
+    settings.err.print(run.summary(report / "map.yaml"), highlight=False, markup=False)
     return run.grid, points, run.poses[-1]
 
 

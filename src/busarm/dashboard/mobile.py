@@ -32,7 +32,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
 import numpy.typing as npt
 
 from busarm.base.base import Base
@@ -44,7 +43,7 @@ from busarm.errors import BusArmError, ConfigError, HaltedError, NavigationError
 from busarm.fileio import write_text_atomic
 from busarm.lidar.scan import to_points
 from busarm.nav.grid import GridSpec, OccupancyGrid, cropped
-from busarm.nav.mapping import compose, inverse
+from busarm.nav.mapping import compose, inverse, transform_points
 from busarm.nav.points import NamedPoints
 from busarm.progress import Progress
 from busarm.robot import Robot
@@ -107,9 +106,7 @@ def _stop_if(cancel: threading.Event) -> None:
 
 def _points_seen(local: npt.ArrayLike, pose: Pose2D) -> tuple[Point, ...]:
     """Points (N x 2) of the base's frame at ``pose``, in the frame ``pose`` is in."""
-    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
-    return tuple((pose.x_m + c * float(x) - s * float(y), pose.y_m + s * float(x) + c * float(y))
-                 for x, y in np.asarray(local, dtype=np.float64).reshape(-1, 2))
+    return tuple((float(x), float(y)) for x, y in transform_points(pose, local))
 
 
 def _driven_m(path: Sequence[Point]) -> float:
@@ -230,25 +227,20 @@ class MobileJobs:
         from busarm.apps.explore import build_map
         from busarm.nav.map_files import save_map
         from busarm.nav.points import save_points
-        from busarm.twin.arena_tasks import transport_points
+        from busarm.twin.arena_tasks import twin_transport_points
 
         twin = self.robot.twin
-        assert twin is not None and twin.arena is not None and twin.mobile is not None
-        # The set-up, as a person measuring the room for the points file: where the
-        # map's frame (the odometry's, in which the exploring starts) is in the arena.
-        with twin.lock:
-            here = twin.mobile.pose(twin.data)
-        origin = compose(here, inverse(self._base().odometry().pose))
+        assert twin is not None
+        # The set-up, as a person measuring the room for the points file (in the frame
+        # of the map about to be built: taken before exploring).
+        points = twin_transport_points(twin, self._base())
         progress("no map yet: exploring the arena to map it")
         run = build_map(self.robot, time_limit_s=EXPLORE_LIMIT_S,
                         on_scan=self._explore_hook(cancel, progress))
-        points = transport_points(twin.arena, origin)[0]
         folder = _report_folder(self.reports, "map")
         save_map(folder / "map.yaml", run.grid)
         save_points(folder / "points.toml", points, "map.yaml")
-        progress(f"mapped {run.grid.spec.width * run.grid.spec.resolution_m:.1f} x "
-                 f"{run.grid.spec.height * run.grid.spec.resolution_m:.1f} m in "
-                 f"{run.seconds:.0f} s ({folder / 'map.yaml'})")
+        progress(run.summary(folder / "map.yaml"))
         self._grid, self._points = run.grid, points
         return run.grid, points, run.poses[-1] if run.poses else None
 

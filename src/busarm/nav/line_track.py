@@ -31,6 +31,7 @@ import numpy.typing as npt
 
 from busarm.base.kinematics import Twist
 from busarm.base.odometry import Pose2D
+from busarm.nav.mapping import transform_points
 from busarm.units import check_range
 
 FloatArray = npt.NDArray[np.float64]
@@ -58,13 +59,6 @@ class LineUnderBase:
     """How many line points the fit used."""
 
 
-def _to_frame(points: FloatArray, pose: Pose2D) -> FloatArray:
-    """Points given in ``pose``'s frame, in the frame ``pose`` is given in."""
-    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
-    return np.column_stack([pose.x_m + c * points[:, 0] - s * points[:, 1],
-                            pose.y_m + s * points[:, 0] + c * points[:, 1]])
-
-
 def _from_frame(points: FloatArray, pose: Pose2D) -> FloatArray:
     """Points in the outer frame, seen from ``pose``."""
     c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
@@ -77,25 +71,39 @@ class LineTracker:
 
     def __init__(self) -> None:
         self._seen: deque[FloatArray] = deque(maxlen=200)
+        self._last: tuple[Pose2D, FloatArray] | None = None
+        """``points``' answer for the odometry it was last asked at (a step asks several
+        times at one pose; ``add`` and ``forget`` drop it)."""
 
     def add(self, points_base_m: npt.ArrayLike, odometry: Pose2D) -> None:
         """Remember a sighting's line points (base frame, taken at ``odometry``)."""
         p = np.asarray(points_base_m, dtype=np.float64).reshape(-1, 2)
         if len(p):
-            self._seen.append(_to_frame(p, odometry))
+            self._seen.append(transform_points(odometry, p))
+            self._last = None
 
     def forget(self) -> None:
         self._seen.clear()
+        self._last = None
 
     def points(self, odometry: Pose2D) -> FloatArray:
         """The remembered line points within MEMORY_M, in the base's frame now (older ones
-        are forgotten)."""
-        here = np.array([odometry.x_m, odometry.y_m])
-        kept = (p[np.hypot(*(p - here).T) <= MEMORY_M] for p in self._seen)
-        self._seen = deque((p for p in kept if len(p)), maxlen=self._seen.maxlen)
-        if not self._seen:
-            return np.zeros((0, 2))
-        return _from_frame(np.concatenate(list(self._seen)), odometry)
+        are forgotten); read-only."""
+        if self._last is not None and self._last[0] == odometry:
+            return self._last[1]
+        out: FloatArray = np.zeros((0, 2))
+        if self._seen:
+            here = np.array([odometry.x_m, odometry.y_m])
+            every = np.concatenate(list(self._seen))
+            near = np.hypot(*(every - here).T) <= MEMORY_M
+            ends = np.cumsum([len(p) for p in self._seen])[:-1]
+            kept = (p[k] for p, k in zip(self._seen, np.split(near, ends), strict=True))
+            self._seen = deque((p for p in kept if len(p)), maxlen=self._seen.maxlen)
+            if self._seen:
+                out = _from_frame(np.concatenate(list(self._seen)), odometry)
+        out.flags.writeable = False
+        self._last = (odometry, out)
+        return out
 
     def under(self, odometry: Pose2D) -> LineUnderBase | None:
         """The line at the base's centre now, or None when it has not been seen there
@@ -188,6 +196,14 @@ class LineController:
         return Twist(speed * x / distance, speed * y / distance, 0.0)
 
 
+def in_stop_range(points_base_m: FloatArray, *, range_m: float = 0.4,
+                  front_m: float = 0.15) -> npt.NDArray[np.bool_]:
+    """Which returns (base frame, (N, 2)) are near enough to stop for (``obstacle_ahead``'s
+    reach: ``range_m`` past the base's front, ``front_m`` ahead of its centre)."""
+    p = points_base_m
+    return np.asarray(np.hypot(p[:, 0], p[:, 1]) <= range_m + front_m)
+
+
 def obstacle_ahead(points_base_m: npt.ArrayLike, *, range_m: float = 0.4,
                    half_angle_deg: float = 45.0, corridor_half_m: float = 0.2,
                    front_m: float = 0.15) -> tuple[float, float] | None:
@@ -199,7 +215,7 @@ def obstacle_ahead(points_base_m: npt.ArrayLike, *, range_m: float = 0.4,
         return None
     ahead = p[:, 0] > 0
     angle_ok = np.abs(np.degrees(np.arctan2(p[:, 1], p[:, 0]))) <= half_angle_deg
-    close = np.hypot(p[:, 0], p[:, 1]) <= range_m + front_m
+    close = in_stop_range(p, range_m=range_m, front_m=front_m)
     inside = np.abs(p[:, 1]) <= corridor_half_m
     hits = p[ahead & angle_ok & close & inside]
     if not len(hits):

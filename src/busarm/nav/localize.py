@@ -334,7 +334,7 @@ def _check_poses(what: str, *poses: Pose2D) -> None:
 def _mean_log_likelihood(field: LikelihoodField, points: FloatArray) -> FloatArray:
     """Per particle, the mean log-likelihood of its returns (points (N, B, 2), map frame)."""
     # One point per group: the field's mean over the last axis is each return's own.
-    like, _ = field.score(points[:, :, None, :])
+    like = field.likelihood_xy(points[:, :, None, 0], points[:, :, None, 1])
     out: FloatArray = np.log(Z_HIT * like + Z_RAND).mean(axis=1)
     return out
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
 import numpy.typing as npt
 
 from busarm.base.config import Mount
@@ -42,6 +43,16 @@ def compose(a: Pose2D, b: Pose2D) -> Pose2D:
 def inverse(a: Pose2D) -> Pose2D:
     c, s = math.cos(a.yaw_rad), math.sin(a.yaw_rad)
     return Pose2D(-(c * a.x_m + s * a.y_m), s * a.x_m - c * a.y_m, wrap_rad(-a.yaw_rad))
+
+
+def transform_points(pose: Pose2D, points_xy: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    """Points (x, y rows, m) given in ``pose``'s frame, in the frame ``pose`` is given in
+    (rotated by its yaw, then moved to its x, y): e.g. a scan's points in the base frame
+    to the map frame, at the base's pose on the map. An (n, 2) array."""
+    p = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
+    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+    return np.column_stack([pose.x_m + c * p[:, 0] - s * p[:, 1],
+                            pose.y_m + s * p[:, 0] + c * p[:, 1]])
 
 
 @dataclass

@@ -51,26 +51,72 @@ class LikelihoodField:
         if not occupied.any():
             self.distance_m[:] = np.inf
         self.likelihood = np.exp(-np.square(self.distance_m) / (2 * sigma_m ** 2))
+        # Row-major flat copies: the scoring reads four cells a point by one index each.
+        self._likelihood_flat = np.ascontiguousarray(self.likelihood).ravel()
+        self._near_flat = np.ascontiguousarray(self.distance_m <= NEAR_M).ravel()
 
     def score(self, points_m: FloatArray) -> tuple[FloatArray, FloatArray]:
         """For points of shape (..., N, 2): the mean likelihood (interpolated between
         cell centres, so that a shift smaller than a cell still counts) and the share
         within NEAR_M of a surface, over the last axis (outside the grid: 0)."""
-        s = self.spec
-        p = points_m.reshape(-1, 2)
-        fx = (p[:, 0] - s.origin_x_m) / s.resolution_m - 0.5
-        fy = (p[:, 1] - s.origin_y_m) / s.resolution_m - 0.5
-        c0, r0 = np.floor(fx).astype(np.int64), np.floor(fy).astype(np.int64)
-        tx, ty = fx - c0, fy - r0
-        inside = (r0 >= 0) & (r0 < s.height - 1) & (c0 >= 0) & (c0 < s.width - 1)
-        r0, c0 = np.where(inside, r0, 0), np.where(inside, c0, 0)
-        lk = self.likelihood
-        like = ((1 - ty) * ((1 - tx) * lk[r0, c0] + tx * lk[r0, c0 + 1])
-                + ty * ((1 - tx) * lk[r0 + 1, c0] + tx * lk[r0 + 1, c0 + 1]))
-        like = np.where(inside, like, 0.0)
-        near = inside & (self.distance_m[r0, c0] <= NEAR_M)
-        shape = points_m.shape[:-1]
+        return self.score_xy(points_m[..., 0], points_m[..., 1])
+
+    def score_xy(self, x_m: FloatArray, y_m: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``score`` of the points whose x and y are given apart, each of shape (..., N)."""
+        like, inside, cell = self._interpolated(x_m, y_m)
+        near = inside & self._near_flat.take(cell)
+        shape = np.broadcast_shapes(np.shape(x_m), np.shape(y_m))
         return like.reshape(shape).mean(axis=-1), near.reshape(shape).mean(axis=-1)
+
+    def likelihood_xy(self, x_m: FloatArray, y_m: FloatArray) -> FloatArray:
+        """``score_xy``'s mean likelihood alone (the share near a surface not counted)."""
+        like, _, _ = self._interpolated(x_m, y_m)
+        shape = np.broadcast_shapes(np.shape(x_m), np.shape(y_m))
+        return np.asarray(like.reshape(shape).mean(axis=-1))
+
+    def _interpolated(self, x_m: FloatArray, y_m: FloatArray
+                      ) -> tuple[FloatArray, npt.NDArray[np.bool_], npt.NDArray[np.intp]]:
+        """Each point's likelihood (flat), whether it is inside the grid, and its cell.
+        (In place where it can: the searches score some hundred thousand points a scan.)"""
+        s = self.spec
+        fx = np.subtract(x_m, s.origin_x_m).ravel()
+        fx /= s.resolution_m
+        fx -= 0.5
+        fy = np.subtract(y_m, s.origin_y_m).ravel()
+        fy /= s.resolution_m
+        fy -= 0.5
+        c0, r0 = np.floor(fx), np.floor(fy)
+        tx, ty = fx, fy
+        tx -= c0
+        ty -= r0
+        inside = r0 >= 0
+        inside &= r0 < s.height - 1
+        inside &= c0 >= 0
+        inside &= c0 < s.width - 1
+        outside = ~inside
+        # The cell below-left of each point (row-major; 0 outside, where it scores 0).
+        w = s.width
+        r0 *= w
+        r0 += c0
+        r0[outside] = 0.0
+        cell = r0.astype(np.intp)
+        lk = self._likelihood_flat
+        # Bilinear: (1-ty) ((1-tx) a + tx b) + ty ((1-tx) c + tx d).
+        low, low_right = lk.take(cell), lk.take(cell + 1)
+        high, high_right = lk.take(cell + w), lk.take(cell + (w + 1))
+        ux = 1 - tx
+        low *= ux
+        low_right *= tx
+        low += low_right
+        high *= ux
+        high_right *= tx
+        high += high_right
+        np.subtract(1, ty, out=ux)
+        low *= ux
+        high *= ty
+        low += high
+        low[outside] = 0.0
+        return low, inside, cell
 
 
 def scan_points(bearings_rad: npt.ArrayLike, ranges_m: npt.ArrayLike) -> FloatArray:
@@ -87,16 +133,18 @@ def _search(field: LikelihoodField, local: FloatArray, guess: Pose2D, half_m: fl
     turns = np.arange(-half_rad, half_rad + step_rad / 2, step_rad)
     yaw = guess.yaw_rad + turns
     c, s = np.cos(yaw), np.sin(yaw)
-    # Points turned by each candidate yaw: (T, N, 2), then shifted by every (dx, dy).
-    turned = np.stack([c[:, None] * local[:, 0] - s[:, None] * local[:, 1],
-                       s[:, None] * local[:, 0] + c[:, None] * local[:, 1]], axis=-1)
+    # Points turned by each candidate yaw: (T, N) x and y, then shifted by every (dx, dy).
+    turned_x = c[:, None] * local[:, 0] - s[:, None] * local[:, 1]
+    turned_y = s[:, None] * local[:, 0] + c[:, None] * local[:, 1]
     dx, dy = np.meshgrid(shifts, shifts, indexing="ij")
     offsets = np.stack([guess.x_m + dx.ravel(), guess.y_m + dy.ravel()], axis=1)  # (S, 2)
-    candidates = turned[:, None, :, :] + offsets[None, :, None, :]  # (T, S, N, 2)
-    score, near = field.score(candidates)
+    score = field.likelihood_xy(  # candidates (T, S, N)
+        turned_x[:, None, :] + offsets[None, :, None, 0],
+        turned_y[:, None, :] + offsets[None, :, None, 1])
     t, k = np.unravel_index(int(np.argmax(score)), score.shape)
     pose = Pose2D(float(offsets[k, 0]), float(offsets[k, 1]), wrap_rad(float(yaw[t])))
-    return pose, float(score[t, k]), float(near[t, k])
+    _, near = field.score_xy(turned_x[t] + offsets[k, 0], turned_y[t] + offsets[k, 1])
+    return pose, float(score[t, k]), float(near)
 
 
 def match_scan(field: LikelihoodField, bearings_rad: npt.ArrayLike, ranges_m: npt.ArrayLike,

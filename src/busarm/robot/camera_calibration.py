@@ -103,13 +103,20 @@ def sees_points(points_base: FloatArray, cam2base: FloatArray, intrinsics: Camer
     return visible_fraction(points_base, cam2base, intrinsics, margin_px) == 1.0
 
 
+def _tool_in_link4(kin: ArmKinematics) -> FloatArray:
+    """The tool point in link 4's frame (homogeneous): fixed, so any pose gives it."""
+    frames = kin.frames([0.0, -90.0, 0.0, -90.0, 0.0])
+    return np.asarray(np.linalg.inv(frames[CAMERA_LINK]) @ frames[-1][:, 3])
+
+
 def joints_looking_at(
     kin: ArmKinematics, target_mm: Sequence[float], tilt_deg: float, distance_mm: float,
-    mount: CameraMount = NOMINAL_MOUNT,
+    mount: CameraMount = NOMINAL_MOUNT, *, tool_in_4: FloatArray | None = None,
 ) -> tuple[float, ...]:
     """Joints that put the (nominal) camera ``distance_mm`` from ``target_mm``, looking at it
     with its axis tilted ``tilt_deg`` from vertical in the plane through the base axis
-    (positive: the camera nearer the base, looking outward). Raises UnreachableError."""
+    (positive: the camera nearer the base, looking outward). Raises UnreachableError.
+    ``tool_in_4``: ``_tool_in_link4(kin)``, when the caller has it already."""
     tx, ty, tz = (float(v) for v in target_mm)
     bearing = math.atan2(ty, tx)
     e = np.array([math.cos(bearing), math.sin(bearing), 0.0])
@@ -122,14 +129,14 @@ def joints_looking_at(
     # The tool point from the camera, through the link-4 geometry (tool axis = +y4,
     # "above" = +x4): tool = cam + (tool_y4 - cam_y4) * axis + (0 - cam_x4) * above.
     c = mount.cam2link[:3, 3]
-    tool_y4 = kin.frames([0.0, -90.0, 0.0, -90.0, 0.0])  # any pose: link-4 offsets are fixed
-    tool_in_4 = np.linalg.inv(tool_y4[CAMERA_LINK]) @ tool_y4[-1][:, 3]
+    if tool_in_4 is None:
+        tool_in_4 = _tool_in_link4(kin)
     tool = cam + (tool_in_4[1] - c[1]) * axis + (tool_in_4[0] - c[0]) * above
     sols = kin.ik(float(tool[0]), float(tool[1]), float(tool[2]), math.degrees(pitch), 0.0)
     facing = [q for q in sols if abs((q[0] - math.degrees(bearing) + 180) % 360 - 180) < 1.0]
     if not facing:
-        raise UnreachableError(f"no joints look at {target_mm} from {distance_mm:g} mm at "
-                               f"{tilt_deg:g} deg", "reach")
+        raise UnreachableError(f"no joints look at ({tx:.1f}, {ty:.1f}, {tz:.1f}) mm from "
+                               f"{distance_mm:g} mm at {tilt_deg:g} deg", "reach")
     return facing[0]
 
 
@@ -154,6 +161,7 @@ def calibration_views(
     centre = grid.mean(axis=0)
     w, h = spec.extent_mm
     rng = np.random.default_rng(seed)
+    tool_in_4 = _tool_in_link4(kin)
     candidates: list[tuple[tuple[float, ...], FloatArray]] = []
     for _ in range(200 * count):
         # Aim anywhere on the board (even off it a little): the board wanders in the image.
@@ -162,7 +170,7 @@ def calibration_views(
         tilt = rng.uniform(*tilt_range_deg)
         distance = rng.uniform(*distance_range_mm)
         try:
-            q = joints_looking_at(kin, target, tilt, distance, mount)
+            q = joints_looking_at(kin, target, tilt, distance, mount, tool_in_4=tool_in_4)
         except UnreachableError:
             continue
         cam2base = link2base(kin, q) @ mount.cam2link

@@ -10,17 +10,22 @@ from __future__ import annotations
 
 import math
 import random
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from busarm.base.odometry import Pose2D
 from busarm.errors import ConfigError
-from busarm.nav.mapping import compose, inverse
+from busarm.nav.mapping import compose, inverse, transform_points
 from busarm.nav.points import WORK_AHEAD_M, NamedPoint, NamedPoints
 from busarm.twin.arena import ROBOT_RADIUS_M, Arena
 from busarm.twin.arena_gen import random_arena
 from busarm.twin.footprints import Footprint
+
+if TYPE_CHECKING:
+    from busarm.base.base import Base
+    from busarm.twin.twin import Twin
 
 FloatArray = npt.NDArray[np.float64]
 STANDOFF_M = WORK_AHEAD_M
@@ -106,6 +111,25 @@ def transport_points(arena: Arena, map_origin: Pose2D | None = None, seed: int =
     return points, index, (x, y)
 
 
+def twin_map_origin(twin: Twin, base: Base) -> Pose2D:
+    """Where (arena frame) the origin of a map ``base`` builds from now on is: a map's
+    frame is the odometry's (busarm.nav.mapping.MapBuilder), so its origin is the base's
+    true pose less its odometry pose. (The arena's start only while the odometry has
+    counted nothing: not after a job has driven, nor quite after the twin has settled.)"""
+    assert twin.mobile is not None, "a twin with a mobile base"
+    with twin.lock:
+        here = twin.mobile.pose(twin.data)
+    return compose(here, inverse(base.odometry().pose))
+
+
+def twin_transport_points(twin: Twin, base: Base) -> NamedPoints:
+    """The transport points a person would write for the twin's arena
+    (``transport_points``), in the frame of a map ``base`` builds from now on: take them
+    before exploring."""
+    if twin.arena is None:
+        raise ConfigError("the twin stands in no arena: transport's points come from one")
+    return transport_points(twin.arena, twin_map_origin(twin, base))[0]
+
 
 def free_pose(arena: Arena, rng: random.Random, clear_m: float = 0.35,
               away_from: tuple[float, float] | None = None, away_m: float = 1.0) -> Pose2D:
@@ -125,10 +149,7 @@ def free_pose(arena: Arena, rng: random.Random, clear_m: float = 0.35,
 def true_map_surfaces(arena: Arena, origin: Pose2D, points_m: npt.ArrayLike) -> FloatArray:
     """For points in the map frame (the map's origin at arena pose ``origin``): the distance
     (m) to the nearest surface the Lidar sees (walls, tables, boxes): a map's accuracy."""
-    p = np.asarray(points_m, dtype=np.float64).reshape(-1, 2)
-    c, s = math.cos(origin.yaw_rad), math.sin(origin.yaw_rad)
-    x = origin.x_m + c * p[:, 0] - s * p[:, 1]
-    y = origin.y_m + s * p[:, 0] + c * p[:, 1]
+    x, y = transform_points(origin, points_m).T
     r = arena.room
     out = np.minimum.reduce([np.abs(x - r.x_min_m), np.abs(x - r.x_max_m),
                              np.abs(y - r.y_min_m), np.abs(y - r.y_max_m)])

@@ -315,8 +315,9 @@ class _Tracker:
         idx = np.flatnonzero(v >= self.level)  # NaN compares False
         if not idx.size:
             return _Cut()
-        starts = idx[np.r_[True, np.diff(idx) > 1]]
-        ends = idx[np.r_[np.diff(idx) > 1, True]]
+        jumps = np.diff(idx) > 1
+        starts = idx[np.concatenate(([True], jumps))]
+        ends = idx[np.concatenate((jumps, [True]))]
         away = np.where((starts <= mid) & (ends >= mid), 0,
                         np.minimum(np.abs(starts - mid), np.abs(ends - mid)))
         k = int(np.argmin(away))
