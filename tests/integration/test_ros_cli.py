@@ -3,6 +3,7 @@ bridge: /cmd_vel drives the base until the twists stop, /odom and /scan come out
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import signal
@@ -19,6 +20,7 @@ from test_ros_bridge import Inbox, free_port
 from busarm.bus.zenoh_session import open_session
 from busarm.ros import messages as m
 from busarm.ros.node import RosNode
+from conftest import keep_twin_calibration
 
 BUSARM = str(Path(sys.executable).with_name("busarm"))
 
@@ -85,12 +87,22 @@ def test_a_token_keeps_out_a_peer_without_it(tmp_path: Path) -> None:
 
 @pytest.fixture(scope="module")
 def mobile_bridge(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """The mobile robot's twin in an arena, with a saved map (a 2 x 1 m room) to publish."""
+    import numpy as np
+
+    from busarm.nav.grid import GridSpec, OccupancyGrid
+    from busarm.nav.map_files import save_map
+
     root = tmp_path_factory.mktemp("ros-mobile")
+    log_odds = np.full((20, 40), -3.0)
+    log_odds[[0, -1], :] = log_odds[:, [0, -1]] = 3.0  # walls round free floor
+    save_map(root / "room.yaml", OccupancyGrid(GridSpec(-1.0, -0.5, 0.05, 40, 20), log_odds))
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     env = {**os.environ, "XDG_CONFIG_HOME": str(root / "config"),
            "BUSARM_RUNTIME_DIR": str(root / "run")}
     proc = subprocess.Popen([BUSARM, "--port", "board://twin?family=arena&seed=3", "ros",
-                             "bridge", "--listen", endpoint, "--no-camera"],
+                             "bridge", "--listen", endpoint, "--no-camera", "--map",
+                             str(root / "room.yaml")],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     assert proc.stdout is not None
     line = proc.stdout.readline()
@@ -107,6 +119,9 @@ def test_cmd_vel_drives_the_base_until_the_twists_stop(mobile_bridge: str) -> No
     try:
         odom = Inbox(peer, "/odom", m.ODOMETRY)
         scan = Inbox(peer, "/scan", m.LASER_SCAN)
+        room = Inbox(peer, "/map", m.OCCUPANCY_GRID).next(timeout_s=5.0)[0]
+        assert (room.info.width, room.info.height) == (40, 20) and room.data[0] == 100
+        assert room.data[41] == 0  # inside the walls: free
         twist = peer.publisher("/cmd_vel", m.TWIST)
         time.sleep(0.3)
         beams = scan.latest()[0]
@@ -134,10 +149,6 @@ def test_pick_sort_on_another_process_sorts_the_served_table(
         tmp_path: Path, twin_calibration: tuple[Path, Path]) -> None:
     """`busarm --port zenoh://... pick-sort`: the servo bus, the camera, its calibration and
     the bins are the bridge's; the block ends in its bin, as the twin's truth says."""
-    import json
-
-    from conftest import keep_twin_calibration
-
     keep_twin_calibration(tmp_path / "config", twin_calibration)
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     env = {**os.environ, "XDG_CONFIG_HOME": str(tmp_path / "config")}

@@ -158,3 +158,19 @@ def test_a_twist_must_be_finite() -> None:
     twist.angular.z = math.inf
     with pytest.raises(ConfigError, match="finite"):
         m.parse_twist(twist)
+
+
+def test_a_map_is_published_as_map_server_does() -> None:
+    from busarm.nav.grid import GridSpec, OccupancyGrid
+    from busarm.ros.sensors import occupancy_grid
+
+    spec = GridSpec(origin_x_m=-1.0, origin_y_m=0.5, resolution_m=0.05, width=4, height=3)
+    log_odds = np.zeros((3, 4))
+    log_odds[0, 0] = 5.0  # the cell at the origin: occupied
+    log_odds[2, 3] = -5.0  # the far corner (highest x and y): free
+    msg = roundtrip(occupancy_grid(1.0, OccupancyGrid(spec, log_odds)), m.OCCUPANCY_GRID)
+    assert (msg.info.width, msg.info.height) == (4, 3)
+    assert msg.info.resolution == pytest.approx(0.05)
+    assert (msg.info.origin.position.x, msg.info.origin.position.y) == (-1.0, 0.5)
+    assert msg.header.frame_id == "map"
+    assert msg.data[0] == 100 and msg.data[11] == 0 and list(msg.data[1:11]) == [-1] * 10

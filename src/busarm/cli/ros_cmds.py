@@ -74,6 +74,9 @@ def ros() -> None:
 @click.option("--name", "robot_name", default="busarm", show_default=True,
               help="The robot's name for other busarm processes: they open it as "
                    "--port zenoh://HOST?robot=NAME (the default name needs no ?robot=).")
+@click.option("--map", "map_file", default=None, metavar="MAP.yaml",
+              type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="A saved map (busarm map build) to publish on /map  [default: none]")
 @click.option("--no-camera", is_flag=True,
               help="Publish no camera (nor blocks): a twin renders nothing, and makes no "
                    "camera calibration.")
@@ -85,11 +88,13 @@ def ros() -> None:
 def bridge(settings: Settings, scene_file: Path | None, seed: int | None, blocks: int | None,
            colors: str | None, listen: tuple[str, ...], connect: tuple[str, ...],
            token: str | None, domain_id: int, state_hz: float, fps: float,
-           camera_src: str | None, robot_name: str, no_camera: bool, config: str,
+           camera_src: str | None, robot_name: str, map_file: Path | None,
+           no_camera: bool, config: str,
            duration_s: float | None) -> None:
     """Publish the robot to ROS 2 and take commands from it: /joint_states, /tf,
     /robot_description, /diagnostics, the wrist camera (image_raw, compressed,
-    camera_info), /blocks, and on a mobile robot /odom and /scan; /joint_trajectory,
+    camera_info), /blocks, on a mobile robot /odom and /scan, and /map with --map;
+    /joint_trajectory,
     /gripper/command, /cmd_vel, /estop and /rearm in. Every command is checked against
     the robot's limits before anything moves; a bad one is logged and dropped.
 
@@ -97,11 +102,13 @@ def bridge(settings: Settings, scene_file: Path | None, seed: int | None, blocks
     Ctrl+C (or --time) stops the robot (the arm holds, the wheels stop).
     """
     from busarm.arm.config import load_arm_config
+    from busarm.nav.map_files import load_map
     from busarm.ros.bridge import BridgeSettings, RosBridge
     from busarm.ros.node import RosNode
 
     if no_camera and camera_src is not None:
         raise ConfigError("--camera and --no-camera: give one")
+    grid = load_map(map_file) if map_file is not None else None  # refused before opening
     listen = listen or (() if connect else (DEFAULT_ENDPOINT,))
     session = _open(listen, connect, token)  # a taken port is refused before the twin starts
     restore = interrupt_on_signals()
@@ -111,7 +118,7 @@ def bridge(settings: Settings, scene_file: Path | None, seed: int | None, blocks
                              calibrate=not no_camera) as (robot, _):
             node = RosNode(session, domain_id=domain_id)
             running = RosBridge(robot, node, BridgeSettings(
-                state_hz=state_hz, camera_fps=fps, camera=not no_camera),
+                state_hz=state_hz, camera_fps=fps, camera=not no_camera, map_grid=grid),
                 serve_as=robot_name).start()
             where = "the twin (real time)" if robot.is_twin else robot.port
             click.echo(f"ROS 2 bridge of the {robot.config.name} on {where}: node /busarm, "

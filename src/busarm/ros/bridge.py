@@ -22,6 +22,7 @@ compressed
 /odom                       nav_msgs/Odometry                 with each joint state, on a
                                                               mobile robot
 /scan                       sensor_msgs/LaserScan             each revolution, with a Lidar
+/map                        nav_msgs/OccupancyGrid (latched)  a saved map, when given
 =========================== ================================= ============================
 
 Taken in (busarm.ros.commands says how each is checked and stopped): /joint_trajectory,
@@ -39,6 +40,7 @@ from typing import TYPE_CHECKING, Any
 
 from busarm.arm.urdf import urdf_from_config
 from busarm.errors import BusArmError, ConfigError, HaltedError
+from busarm.nav.grid import OccupancyGrid
 from busarm.protocol.rmw_zenoh import LATCHED, SENSOR_DATA, gid_of
 from busarm.robot import Robot
 from busarm.robot.remote import RobotServer
@@ -55,7 +57,13 @@ from busarm.ros.frames import (
 )
 from busarm.ros.node import Received, RosNode
 from busarm.ros.rosout import RosoutHandler
-from busarm.ros.sensors import block_markers, diagnostics, laser_scan, odometry
+from busarm.ros.sensors import (
+    block_markers,
+    diagnostics,
+    laser_scan,
+    occupancy_grid,
+    odometry,
+)
 from busarm.twin.camera import TwinCamera
 
 if TYPE_CHECKING:
@@ -77,6 +85,8 @@ class BridgeSettings:
     jpeg_quality: int = 80
     camera: bool = True
     """Publish the wrist camera (and the blocks it sees), if the robot has one."""
+    map_grid: OccupancyGrid | None = None
+    """A saved map to publish on /map (latched, as map_server does)."""
 
 
 class RosBridge:
@@ -108,6 +118,8 @@ class RosBridge:
         self.pub_odom = pub("/odom", m.ODOMETRY) if robot.base is not None else None
         self.pub_scan = (pub("/scan", m.LASER_SCAN, SENSOR_DATA)
                          if robot.lidar is not None else None)
+        self.pub_map = (pub("/map", m.OCCUPANCY_GRID, LATCHED)
+                        if self.settings.map_grid is not None else None)
         if self.camera:
             self.pub_image = pub("/wrist_camera/image_raw", m.IMAGE, SENSOR_DATA)
             self.pub_jpeg = pub("/wrist_camera/image_raw/compressed", m.COMPRESSED_IMAGE,
@@ -182,8 +194,15 @@ class RosBridge:
 
     # ------------------------------------------------------------------ publishing
 
-    def _state_loop(self) -> None:
+    def _describe(self) -> None:
+        """The latched topics: /robot_description, and /map when there is one."""
         self.pub_description.publish(m.string(urdf_from_config(self.robot.config)))
+        grid = self.settings.map_grid
+        if self.pub_map is not None and grid is not None:
+            self.pub_map.publish(occupancy_grid(time.time(), grid))
+
+    def _state_loop(self) -> None:
+        self._describe()
         described_at = time.monotonic()
         diagnosed_at = 0.0
         tick = self._every(1.0 / self.settings.state_hz)
@@ -195,7 +214,7 @@ class RosBridge:
                     time.time(), self.state, self.joint_names, self.robot.arm.bus.halted))
                 diagnosed_at = now
             if now - described_at >= DESCRIBE_EVERY_S:
-                self.pub_description.publish(m.string(urdf_from_config(self.robot.config)))
+                self._describe()
                 described_at = now
             if self.cmd_vel is not None:
                 self.cmd_vel.tick()

@@ -10,15 +10,19 @@ import numpy as np
 
 from busarm.base.base import BaseOdometry
 from busarm.lidar.scan import LaserScan
+from busarm.nav.grid import OccupancyGrid
+from busarm.nav.map_files import FREE_THRESH, OCCUPIED_THRESH
 from busarm.robot.locate import Sighting
 from busarm.robot.state import StateReader
 from busarm.ros.messages import (
     DIAGNOSTIC_ARRAY,
     LASER_SCAN,
     MARKER_ARRAY,
+    OCCUPANCY_GRID,
     ODOMETRY,
     header,
     message_class,
+    stamp,
     yaw_quaternion,
 )
 
@@ -133,3 +137,22 @@ def odometry(t_s: float, odom: BaseOdometry, frame_id: str, child_frame_id: str)
                                                        covariance=np.zeros(36)),
         twist=message_class(geo + "TwistWithCovariance")(twist=twist,
                                                          covariance=np.zeros(36)))
+
+
+def occupancy_grid(t_s: float, grid: OccupancyGrid, frame_id: str = "map") -> Any:
+    """A saved map as map_server publishes it (trinary: 100 occupied, 0 free, -1
+    unknown, by the map file's thresholds; the first row is the one at the origin)."""
+    p = grid.probability
+    data = np.full(p.shape, -1, dtype=np.int8)
+    data[p >= OCCUPIED_THRESH] = 100
+    data[p <= FREE_THRESH] = 0
+    s, geo = grid.spec, "geometry_msgs/msg/"
+    origin = message_class(geo + "Pose")(
+        position=message_class(geo + "Point")(x=float(s.origin_x_m), y=float(s.origin_y_m),
+                                              z=0.0),
+        orientation=yaw_quaternion(0.0))
+    info = message_class("nav_msgs/msg/MapMetaData")(
+        map_load_time=stamp(t_s), resolution=float(s.resolution_m), width=s.width,
+        height=s.height, origin=origin)
+    return message_class(OCCUPANCY_GRID)(header=header(t_s, frame_id), info=info,
+                                         data=data.reshape(-1))
