@@ -11,7 +11,6 @@ import math
 import os
 import queue
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -24,6 +23,7 @@ import pytest
 
 from busarm.arm.config import load_arm_config
 from busarm.arm.urdf import urdf_from_config
+from busarm.bench.ros import free_port
 from busarm.bus.zenoh_session import open_session
 from busarm.protocol.rmw_zenoh import Attachment, gid_of, topic_key
 from busarm.ros import messages as m
@@ -34,12 +34,6 @@ from conftest import keep_twin_calibration
 BUSARM = str(Path(sys.executable).with_name("busarm"))
 CONFIG = load_arm_config("jetauto_pro")
 NAMES = [j.name for j in CONFIG.joints]
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 @pytest.fixture(scope="module")

@@ -15,8 +15,9 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from test_ros_bridge import Inbox, free_port
+from test_ros_bridge import Inbox
 
+from busarm.bench.ros import free_port
 from busarm.bus.zenoh_session import open_session
 from busarm.ros import messages as m
 from busarm.ros.node import RosNode

@@ -41,7 +41,7 @@ from busarm.bus.zenoh_session import open_session
 from busarm.errors import BusArmError
 from busarm.progress import Progress, quiet
 from busarm.protocol.rmw_zenoh import Attachment, topic_key
-from busarm.robot.remote import robot_key
+from busarm.robot.remote import ask
 from busarm.ros import messages as m
 from busarm.ros.node import Received, RosNode
 from busarm.ros.recorder import McapRecorder
@@ -174,13 +174,10 @@ class Truth:
         self.beyond_deg = 0.0
 
     def now(self) -> dict[str, Any]:
-        for reply in self.session.get(robot_key("busarm", "truth"), timeout=2.0):
-            if reply.ok is not None:
-                truth: dict[str, Any] = json.loads(reply.ok.payload.to_bytes())
-                for (lo, hi), q in zip(self.limits, truth["joints_deg"], strict=False):
-                    self.beyond_deg = max(self.beyond_deg, lo - q, q - hi)
-                return truth
-        raise BusArmError("the bridge's twin did not tell its truth")
+        truth = ask(self.session, "busarm", "truth", timeout_s=2.0)
+        for (lo, hi), q in zip(self.limits, truth["joints_deg"], strict=False):
+            self.beyond_deg = max(self.beyond_deg, lo - q, q - hi)
+        return truth
 
     def joint(self) -> float:
         return float(self.now()["joints_deg"][0])
@@ -464,7 +461,7 @@ def run_ros_bench(*, seconds: float = 10.0, drops: int = 3, flood: int = 1000, s
             report.faults = faults(node, truth, flood)
             progress("pick-sort over zenoh:// while recording an MCAP file...")
             recorder = McapRecorder(session, folder / "pick-sort.mcap")
-            bins = {c: xy for c, xy in _info(session)["bins"].items()}
+            bins = ask(session, "busarm", "info")["bins"]
             report.pick_remote = pick_sort(["--port", f"zenoh://{endpoint[4:]}"], seed,
                                            blocks, folder / "remote")
             report.pick_remote["in_bins_truth"] = in_bins(truth.now(), bins)
@@ -477,14 +474,6 @@ def run_ros_bench(*, seconds: float = 10.0, drops: int = 3, flood: int = 1000, s
     progress("the same table in one process...")
     report.pick_local = pick_sort([], seed, blocks, folder / "local")
     return report
-
-
-def _info(session: zenoh.Session) -> dict[str, Any]:
-    for reply in session.get(robot_key("busarm", "info"), timeout=5.0):
-        if reply.ok is not None:
-            data: dict[str, Any] = json.loads(reply.ok.payload.to_bytes())
-            return data
-    raise BusArmError("the bridge did not say what its robot is")
 
 
 if __name__ == "__main__":  # pragma: no cover - for a quick look without the CLI

@@ -231,14 +231,21 @@ class RemoteParts:
     twin: bool
 
 
-def fetch_info(transport: ZenohTransport) -> dict[str, Any]:
-    for reply in transport.session.get(robot_key(transport.robot, "info"),
-                                       timeout=INFO_TIMEOUT_S):
+def ask(session: zenoh.Session, robot: str, what: str,
+        timeout_s: float = INFO_TIMEOUT_S) -> dict[str, Any]:
+    """A served robot's JSON answer on ``busarm/<robot>/<what>`` (``info``, ``truth``);
+    ConfigError when none comes within ``timeout_s``."""
+    for reply in session.get(robot_key(robot, what), timeout=timeout_s):
         if reply.ok is not None:
             data: dict[str, Any] = json.loads(reply.ok.payload.to_bytes())
             return data
-    raise ConfigError(f"{transport.name}: robot {transport.robot!r} did not say what it is "
-                      f"within {INFO_TIMEOUT_S:g} s")
+    raise ConfigError(f"robot {robot!r} gave no {what} within {timeout_s:g} s (is "
+                      "`busarm ros bridge` serving it?)")
+
+
+def fetch_info(transport: ZenohTransport) -> dict[str, Any]:
+    """What the robot behind ``transport`` is (its ``info``)."""
+    return ask(transport.session, transport.robot, "info")
 
 
 def remote_parts(transport: ZenohTransport, info: dict[str, Any],

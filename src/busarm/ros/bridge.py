@@ -32,6 +32,7 @@ Taken in (busarm.ros.commands says how each is checked and stopped): /joint_traj
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -228,7 +229,7 @@ class RosBridge:
         t = time.time()
         self._latest_deg = reading.joints_deg
         gap_m = self.robot.config.gripper.gap_mm_at(reading.gripper_pulses) / 1000.0
-        positions = [*(v * 3.141592653589793 / 180.0 for v in reading.joints_deg), gap_m]
+        positions = [*(math.radians(v) for v in reading.joints_deg), gap_m]
         self.pub_joints.publish(m.joint_state(t, [*self.joint_names, GRIPPER_JOINT],
                                               positions))
         cal = self.robot.camera_calibration
