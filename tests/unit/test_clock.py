@@ -35,7 +35,9 @@ def test_sim_time_is_the_sum_of_the_waits_in_steps_no_longer_than_step(
         clock.sleep(s)
     assert clock.now() == pytest.approx(5.0 + sum(sleeps), abs=1e-9)
     gaps = [b - a for a, b in zip([5.0, *seen], seen, strict=False)]
-    assert all(0 < g <= step + 1e-12 for g in gaps), gaps
+    # A wait within the clock's 1e-12 s rounding makes no step of its own: it joins the
+    # next one (hence up to 1e-12 over the step, plus the sum's last bit).
+    assert all(0 < g <= step + 2e-12 for g in gaps), gaps
     # Each wait ends exactly where it should: the callbacks saw its end time.
     ends = [5.0 + sum(sleeps[: k + 1]) for k, s in enumerate(sleeps) if s > 1e-12]
     for end in ends:
