@@ -579,7 +579,7 @@ def test_plan_line_from_upright_fails_fast(rig: Rig) -> None:
     """BUG: a line starting at the upright singularity (base yaw undefined) makes
     plan_line's stretch loop multiply the duration past its own 600 s maximum (16k+
     waypoints, minutes of CPU) instead of raising LimitError ("needs a joint to jump")."""
-    import busarm.arm.arm as arm_module
+    import busarm.arm.line_plan as arm_module
 
     original = arm_module.sample_times
 

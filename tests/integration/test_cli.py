@@ -28,7 +28,8 @@ from busarm.cli import bus_cmds
 from busarm.cli.main import cli
 from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.pty import PtyServer
-from busarm.sim.servo import ServoParams, SimServo
+from busarm.sim.servo import SimServo
+from busarm.sim.servo_params import ServoParams
 from conftest import sigint_and_wait, wait_for
 
 SIM = "sim://?timing=0"

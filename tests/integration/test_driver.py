@@ -38,7 +38,8 @@ from busarm.protocol.board import BoardFrameParser, ServoRead, ServoSub
 from busarm.protocol.board import decode_request as decode_board_request
 from busarm.sim.bus import ARM_SERVO_IDS
 from busarm.sim.pty import PtyServer
-from busarm.sim.servo import FULL_TURN_PULSES, ServoParams, SimServo
+from busarm.sim.servo import SimServo
+from busarm.sim.servo_params import FULL_TURN_PULSES, ServoParams
 from conftest import (
     BOARD_WAY,
     LX_WAYS,

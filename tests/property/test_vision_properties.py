@@ -12,13 +12,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from busarm.bench.synthetic import Block, render_blocks
-from busarm.vision.color import (
-    ColorDetector,
+from busarm.vision.color import ColorDetector, normalize_yaw_deg
+from busarm.vision.color_thresholds import (
     ColorRange,
     ColorThresholds,
     default_thresholds,
     load_thresholds,
-    normalize_yaw_deg,
     save_thresholds,
     thresholds_from_toml,
     thresholds_from_vendor_yaml,

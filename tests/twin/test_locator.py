@@ -18,7 +18,8 @@ from busarm.twin.model import AS_BUILT_MOUNT_ERROR
 from busarm.twin.scene import random_scene
 from busarm.twin.twin import Twin
 from busarm.vision.calibration import CameraIntrinsics, HandEyeResult
-from busarm.vision.color import ColorDetector, ColorRange, ColorThresholds, default_thresholds
+from busarm.vision.color import ColorDetector
+from busarm.vision.color_thresholds import ColorRange, ColorThresholds, default_thresholds
 
 
 def _truth_calibration(**changes: object) -> tuple[CameraIntrinsics, HandEyeResult]:

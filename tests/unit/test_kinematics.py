@@ -17,8 +17,9 @@ import numpy as np
 import numpy.typing as npt
 import pytest
 
+from busarm.arm.chain import Pose, wrap_deg
 from busarm.arm.config import Geometry, load_arm_config
-from busarm.arm.kinematics import ArmKinematics, Pose, wrap_deg
+from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import ConfigError, KinematicsError, UnreachableError
 
 ARMPI = "tests/data/armpi_style.toml"

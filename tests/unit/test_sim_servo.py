@@ -34,13 +34,8 @@ from busarm.protocol import (
     VinLimitReply,
     VinReply,
 )
-from busarm.sim.servo import (
-    FULL_TURN_PULSES,
-    PARAMS_20KG,
-    STORED_FIELDS,
-    ServoParams,
-    SimServo,
-)
+from busarm.sim.servo import STORED_FIELDS, SimServo
+from busarm.sim.servo_params import FULL_TURN_PULSES, PARAMS_20KG, ServoParams
 
 C = Command
 MAX_SPEED = ServoParams().max_speed_pulses_per_s  # 1250 pulses/s for the 35 kg servo

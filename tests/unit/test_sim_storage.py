@@ -25,7 +25,8 @@ from busarm.protocol import (
     Request,
     ServoMode,
 )
-from busarm.sim.servo import ServoParams, SimServo
+from busarm.sim.servo import SimServo
+from busarm.sim.servo_params import ServoParams
 from busarm.sim.storage import (
     FORMAT_NAME,
     FORMAT_VERSION,

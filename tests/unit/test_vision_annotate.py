@@ -12,7 +12,8 @@ import pytest
 from busarm.bench.synthetic import Block, render_blocks
 from busarm.errors import ConfigError
 from busarm.vision.annotate import annotate, save_image
-from busarm.vision.color import ColorDetector, default_thresholds
+from busarm.vision.color import ColorDetector
+from busarm.vision.color_thresholds import default_thresholds
 from busarm.vision.tags import detect_tags, tag_image
 
 

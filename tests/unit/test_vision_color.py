@@ -25,18 +25,20 @@ from busarm.bench.vision import bench_detection, match_detections
 from busarm.errors import ConfigError
 from busarm.vision.color import (
     ColorDetector,
+    Detection,
+    normalize_yaw_deg,
+    vendor_style_detect,
+)
+from busarm.vision.color_thresholds import (
     ColorRange,
     ColorThresholds,
-    Detection,
     default_thresholds,
     load_thresholds,
-    normalize_yaw_deg,
     parse_color_names,
     save_thresholds,
     thresholds_from_toml,
     thresholds_from_vendor_yaml,
     thresholds_to_toml,
-    vendor_style_detect,
 )
 
 VENDOR_YAML = Path(__file__).resolve().parents[1] / "data" / "vendor" / "lab_config.yaml"

@@ -16,7 +16,8 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from busarm.arm.kinematics import ArmKinematics, Joints
+from busarm.arm.chain import Joints
+from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import UnreachableError
 
 FloatArray = npt.NDArray[np.float64]

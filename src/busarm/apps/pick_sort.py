@@ -42,12 +42,12 @@ from busarm.apps.footprint import Footprint
 from busarm.apps.grasp import GraspPlan, GraspPlanner, NoClearGrasp
 from busarm.apps.gripping import descend_and_grip, lower_and_release, still_holding
 from busarm.apps.pick_outcomes import BlockOutcome, RunReport
+from busarm.apps.pick_records import BlockRecords, mark_moved
 from busarm.apps.pick_settings import ORDERS, PickSortSettings
 from busarm.apps.push import Push, PushPlanner
 from busarm.apps.restage import Restaged, staging_spot
 from busarm.apps.table_view import (
     OVER_THINGS_MM,
-    SAME_BLOCK_MM,
     TableView,
     off_mm,
     same_block,
@@ -63,12 +63,13 @@ from busarm.robot import Robot
 from busarm.robot.locate import Sighting
 from busarm.units import place_text
 
-FloatArray = npt.NDArray[np.float64]
-
 MAX_CYCLES = 150
 """Surveys a run makes at most (a cycle picks a block, or pushes one, or looks closer)."""
 HOLD_SLACK_MM = 4.0
 """A gripper this little wider than a block, squeezing one, holds it (pads give a little)."""
+
+_Candidate = tuple[tuple[int, float], Sighting, BlockOutcome]
+"""A block that may be picked: its rank (colour order, distance), as seen, its record."""
 
 
 class PickSorter:
@@ -110,14 +111,7 @@ class PickSorter:
         self.places = BinPlaces(self.bins, self.planner)
         self.view = TableView(arm, self.camera, locator, self.bins, self.survey_poses,
                               self.settings, lambda step: self.on_step(step))
-        self._nudges: dict[int, int] = {}  # pushes per block record
-        # Records seen boxed in when looked at closer, and how (until the table changes).
-        self._boxed: dict[int, Sighting] = {}
-        # Records of blocks pushed out of a group: (record, from, towards), until seen.
-        self._pushed: dict[int, tuple[BlockOutcome, tuple[float, float],
-                                      tuple[float, float]]] = {}
-        # Where the survey saw a block that was found elsewhere when looked at closer.
-        self._aliases: dict[int, list[tuple[float, float]]] = {}
+        self.records = BlockRecords()
         # The colour of the block in the fingers, from a good grip to its release.
         self._holding: str | None = None
         self.report = RunReport()
@@ -228,25 +222,11 @@ class PickSorter:
         """One grasp-carry-release cycle; (holding was seen, why not, where it was put, the
         grasp plan)."""
         arm, s = self.arm, self.settings
-        z0 = self.locator.table_z_mm
         plan = self._plan(target)
         pitch, roll = plan.pitch_deg, plan.roll_deg
-        # Open no wider than the neighbours allow (the plan chose it).
-        gap = plan.gap_mm
-        arm.open_gripper(wait=False, gap_mm=gap)
-        tool = arm.read_pose()
-        if self.view.thing_on_the_way((tool.x_mm, tool.y_mm), plan.above[:2]):
-            # Over the thing that is not a block first, then down to the approach.
-            over = (*plan.above[:2], z0 + OVER_THINGS_MM + self.locator.block_size_mm)
-            with contextlib.suppress(UnreachableError):
-                arm.move_to(*over, pitch, roll, speed_deg_s=s.joint_speed_deg_s)
-        try:
-            arm.move_to(*plan.above, pitch, roll, speed_deg_s=s.joint_speed_deg_s)
-        except MotionTimeoutError as exc:  # the arm met something on its way: an event
-            self._retreat()
-            return False, f"blocked on the way to it ({exc}): backed off", None, plan
-        arm.open_gripper(gap_mm=gap)
-        self.on_step("above")
+        blocked = self._go_above(plan)
+        if blocked:
+            return False, blocked, None, plan
 
         def squeezing() -> None:  # from the squeeze on: the reading says if it holds
             self._holding = target.color
@@ -263,28 +243,60 @@ class PickSorter:
             # a first layer forgives that, a second does not. Put down to be taken again.
             stage = self._staging_spot(target)
             if stage is not None:
-                self._set_down(plan, stage, gap)
+                self._set_down(plan, stage, plan.gap_mm)
                 raise Restaged(stage)
+        placed = self._put_in_bin(target.color, plan)
+        if placed is None:
+            return False, "the block slipped out during the carry", None, plan
+        return True, "", placed, plan
+
+    def _go_above(self, plan: GraspPlan) -> str:
+        """To ``plan.above`` (over a thing that is not a block on the way), the fingers
+        opened as wide as the plan allows; "" when there, else why not (backed off)."""
+        arm, s = self.arm, self.settings
+        pitch, roll = plan.pitch_deg, plan.roll_deg
+        # Open no wider than the neighbours allow (the plan chose it).
+        arm.open_gripper(wait=False, gap_mm=plan.gap_mm)
+        tool = arm.read_pose()
+        if self.view.thing_on_the_way((tool.x_mm, tool.y_mm), plan.above[:2]):
+            # Over the thing that is not a block first, then down to the approach.
+            over = (*plan.above[:2],
+                    self.locator.table_z_mm + OVER_THINGS_MM + self.locator.block_size_mm)
+            with contextlib.suppress(UnreachableError):
+                arm.move_to(*over, pitch, roll, speed_deg_s=s.joint_speed_deg_s)
+        try:
+            arm.move_to(*plan.above, pitch, roll, speed_deg_s=s.joint_speed_deg_s)
+        except MotionTimeoutError as exc:  # the arm met something on its way: an event
+            self._retreat()
+            return f"blocked on the way to it ({exc}): backed off"
+        arm.open_gripper(gap_mm=plan.gap_mm)
+        self.on_step("above")
+        return ""
+
+    def _put_in_bin(self, color: str, plan: GraspPlan) -> tuple[float, float] | None:
+        """Carry the block held at ``plan``'s lift to its bin and let it go there; where it
+        was put, or None if it slipped out on the way (the fingers opened again)."""
+        arm, s = self.arm, self.settings
+        z0, gap = self.locator.table_z_mm, plan.gap_mm
         # A second layer: carried higher over the first, set down just above it (a drop
         # from the first layer's height would bounce it off).
-        size, layer = self.locator.block_size_mm, self.places.next_layer(target.color)
+        size, layer = self.locator.block_size_mm, self.places.next_layer(color)
         carry_z = z0 + s.carry_mm + layer * size
         release_z = z0 + (s.release_mm if layer == 0 else size + STACK_DROP_MM + size / 2)
-        bx, by, _, square = self.places.next_spot(target.color, self.view.obstacles, gap,
-                                                  release_z)
+        bx, by, _, square = self.places.next_spot(color, self.view.obstacles, gap, release_z)
         carry_z = self._carry(plan, (bx, by), carry_z, square)
         self.on_step("carry")
         if not still_holding(arm):
             self._holding = None
             arm.open_gripper(wait=False, gap_mm=gap)
-            self.places.take_back(target.color)
-            return False, "the block slipped out during the carry", None, plan
+            self.places.take_back(color)
+            return None
         # (Resting on something in the bin on the way down, it is let go there.)
         lower_and_release(arm, (bx, by, release_z), -90.0, square, gap, s.line_speed_mm_s)
         self._holding = None  # only once open: stopped while opening, it still holds it
         self.on_step("release")
         arm.move_line(bx, by, carry_z, -90.0, square, speed_mm_s=s.line_speed_mm_s)
-        return True, "", (bx, by), plan
+        return bx, by
 
     def _staging_spot(self, held: Sighting) -> tuple[float, float] | None:
         """Where to set ``held`` down to take it again straight down (``staging_spot``)."""
@@ -396,60 +408,10 @@ class PickSorter:
         """Survey (facing these points too), then pick and place the next block; False if
         there is none to pick."""
         seen = self.survey(facing)
-        for outcome in report.blocks:
-            # Missed, and no longer where it was: someone moved it. It is looked for
-            # afresh (a new record if it is seen elsewhere).
-            if outcome.outcome == "pending" and outcome.attempts and not any(
-                    same_block(outcome.color, *outcome.found_mm, s) for s in seen):
-                outcome.outcome = "moved"
-                outcome.reason = "not where it was after a missed grasp: it was moved"
-        candidates: list[tuple[tuple[int, float], Sighting, BlockOutcome]] = []
-        boxed_in: list[tuple[BlockOutcome, str, Sighting]] = []
-        # A blob split into touching blocks is in a bin if any of them is (blocks side by
-        # side in a bin can look like one blob).
-        binned = {id(v.detection) for v in seen
-                  if v.detection is not None and self.view.in_a_bin(v)}
-        for sighting in seen:
-            if self.view.in_a_bin(sighting) or id(sighting.detection) in binned:
-                continue  # sorted already
-            outcome = self._outcome_for(sighting, report)
-            if outcome.outcome != "pending":
-                continue
-            reason = self._why_not(sighting)
-            if reason:
-                outcome.outcome, outcome.reason = "skipped", reason
-                self.progress(f"skip {sighting.color} at {_mm(outcome.found_mm)}: {reason}")
-                continue
-            if id(outcome) in self._boxed:  # seen closer since, and boxed in there
-                boxed_in.append((outcome, "no grasp clears its neighbours, seen closer",
-                                 self._boxed[id(outcome)]))
-                continue
-            if sighting.whole:
-                try:
-                    self._plan(sighting)
-                except NoClearGrasp as exc:  # perhaps once a neighbour has gone
-                    boxed_in.append((outcome, str(exc), sighting))
-                    continue
-            distance = math.hypot(sighting.location.x_mm, sighting.location.y_mm)
-            rank = list(self.bins).index(sighting.color) if self.settings.order == "colors" else 0
-            candidates.append(((rank, distance), sighting, outcome))
+        mark_moved(report, seen)
+        candidates, boxed_in = self._choices(report, seen)
         if not candidates:
-            # Every block left is boxed in by its neighbours: push one out of the group,
-            # then look again; one pushed too often is skipped.
-            for outcome, _, sighting in boxed_in:
-                if self._nudges.get(id(outcome), 0) < self.settings.max_nudges:
-                    self._nudges[id(outcome)] = self._nudges.get(id(outcome), 0) + 1
-                    # Its neighbours as seen facing it (the survey may see a group as one).
-                    fresh = self.look_closer(sighting, always=True)
-                    push = self.nudge(fresh) if fresh is not None else None
-                    if push is not None:  # the record follows it (_outcome_for)
-                        self._pushed[id(outcome)] = (outcome, outcome.found_mm, push.end)
-                        self._boxed.pop(id(outcome), None)
-                        return True
-            for outcome, why, _ in boxed_in:
-                outcome.outcome, outcome.reason = "skipped", why
-                self.progress(f"skip {outcome.color} at {_mm(outcome.found_mm)}: {why}")
-            return False
+            return self._free_one(boxed_in)
         _, target, outcome = min(candidates, key=lambda c: c[0])
         self.check_servos()
         t0 = self.clock.now()
@@ -462,50 +424,108 @@ class PickSorter:
             self.progress(f"skip {target.color} at {_mm(outcome.found_mm)}: {reason}")
             return True
         outcome.attempts += 1
-        restaged: tuple[float, float] | None = None
-        if closer is None:
-            held, why, placed = False, "not seen whole when looked at closer", None
-        else:
-            # Where it is, as seen closer: it is looked for there from now on (and where
-            # the survey saw it, while it waits).
-            here = (closer.location.x_mm, closer.location.y_mm)
-            if math.dist(here, outcome.found_mm) > SAME_BLOCK_MM:
-                self._aliases.setdefault(id(outcome), []).append(outcome.found_mm)
-            outcome.found_mm = here
-            self.on_pick(closer)
-            try:
-                held, why, placed, plan = self.pick_and_place(closer)
-                outcome.grasp_pitch_deg = plan.pitch_deg
-            except Restaged as exc:  # set down to be taken straight down: no attempt
-                held, why, placed = False, str(exc), None
-                outcome.attempts -= 1
-                restaged = exc.spot_mm
-            except NoClearGrasp as exc:  # seen closer, the neighbours are in the way:
-                held, why, placed = False, str(exc), None  # no attempt; boxed in
-                outcome.attempts -= 1
-                self._boxed[id(outcome)] = closer
-            except MotionTimeoutError as exc:  # a move met something: back off, go on
-                self._retreat()
-                if self._holding is not None:  # let it go: it is looked for afresh
-                    self.arm.open_gripper()
-                    self._holding = None
-                held, why, placed = False, f"a move met something ({exc}): backed off", None
+        held, why, placed, restaged = self._attempt(outcome, closer)
         outcome.seconds += self.clock.now() - t0
+        self._tell(target.color, outcome, held, why, placed, restaged)
+        return True
+
+    def _choices(self, report: RunReport, seen: Sequence[Sighting]
+                 ) -> tuple[list[_Candidate], list[tuple[BlockOutcome, str, Sighting]]]:
+        """The blocks that may be picked (ranked), and those boxed in by their neighbours
+        (why, and as seen); blocks not to be picked are skipped, with the reason."""
+        candidates: list[_Candidate] = []
+        boxed_in: list[tuple[BlockOutcome, str, Sighting]] = []
+        # A blob split into touching blocks is in a bin if any of them is (blocks side by
+        # side in a bin can look like one blob).
+        binned = {id(v.detection) for v in seen
+                  if v.detection is not None and self.view.in_a_bin(v)}
+        for sighting in seen:
+            if self.view.in_a_bin(sighting) or id(sighting.detection) in binned:
+                continue  # sorted already
+            outcome = self.records.record_for(sighting, report)
+            if outcome.outcome != "pending":
+                continue
+            reason = self._why_not(sighting)
+            if reason:
+                outcome.outcome, outcome.reason = "skipped", reason
+                self.progress(f"skip {sighting.color} at {_mm(outcome.found_mm)}: {reason}")
+                continue
+            if id(outcome) in self.records.boxed:  # seen closer since, and boxed in there
+                boxed_in.append((outcome, "no grasp clears its neighbours, seen closer",
+                                 self.records.boxed[id(outcome)]))
+                continue
+            if sighting.whole:
+                try:
+                    self._plan(sighting)
+                except NoClearGrasp as exc:  # perhaps once a neighbour has gone
+                    boxed_in.append((outcome, str(exc), sighting))
+                    continue
+            distance = math.hypot(sighting.location.x_mm, sighting.location.y_mm)
+            rank = list(self.bins).index(sighting.color) if self.settings.order == "colors" else 0
+            candidates.append(((rank, distance), sighting, outcome))
+        return candidates, boxed_in
+
+    def _free_one(self, boxed_in: list[tuple[BlockOutcome, str, Sighting]]) -> bool:
+        """Every block left is boxed in by its neighbours: push one out of the group (True:
+        look again); one pushed too often is skipped. False when none could be pushed."""
+        for outcome, _, sighting in boxed_in:
+            if self.records.may_push(outcome, self.settings.max_nudges):
+                # Its neighbours as seen facing it (the survey may see a group as one).
+                fresh = self.look_closer(sighting, always=True)
+                push = self.nudge(fresh) if fresh is not None else None
+                if push is not None:  # the record follows it (BlockRecords.record_for)
+                    self.records.pushed(outcome, push.end)
+                    return True
+        for outcome, why, _ in boxed_in:
+            outcome.outcome, outcome.reason = "skipped", why
+            self.progress(f"skip {outcome.color} at {_mm(outcome.found_mm)}: {why}")
+        return False
+
+    def _attempt(self, outcome: BlockOutcome, closer: Sighting | None
+                 ) -> tuple[bool, str, tuple[float, float] | None, tuple[float, float] | None]:
+        """Pick the block seen ``closer`` and put it in its bin: (holding was seen, why
+        not, where it was put, where it was set down to be taken again). A grasp that was
+        not tried (set down, boxed in) does not count as an attempt."""
+        if closer is None:
+            return False, "not seen whole when looked at closer", None, None
+        self.records.seen_closer(outcome, (closer.location.x_mm, closer.location.y_mm))
+        self.on_pick(closer)
+        try:
+            held, why, placed, plan = self.pick_and_place(closer)
+            outcome.grasp_pitch_deg = plan.pitch_deg
+        except Restaged as exc:  # set down to be taken straight down: no attempt
+            outcome.attempts -= 1
+            return False, str(exc), None, exc.spot_mm
+        except NoClearGrasp as exc:  # seen closer, the neighbours are in the way:
+            outcome.attempts -= 1  # no attempt; boxed in
+            self.records.boxed[id(outcome)] = closer
+            return False, str(exc), None, None
+        except MotionTimeoutError as exc:  # a move met something: back off, go on
+            self._retreat()
+            if self._holding is not None:  # let it go: it is looked for afresh
+                self.arm.open_gripper()
+                self._holding = None
+            return False, f"a move met something ({exc}): backed off", None, None
+        return held, why, placed, None
+
+    def _tell(self, color: str, outcome: BlockOutcome, held: bool, why: str,
+              placed: tuple[float, float] | None,
+              restaged: tuple[float, float] | None) -> None:
+        """Record and say how an attempt at ``outcome``'s block went."""
         if restaged is not None:  # its record goes with it (after saying where from)
-            self.progress(f"{target.color} from {_mm(outcome.found_mm)}: {why}")
+            self.progress(f"{color} from {_mm(outcome.found_mm)}: {why}")
             outcome.found_mm = restaged
-            self._boxed.clear()  # where it was is free now
+            self.records.boxed.clear()  # where it was is free now
         elif held:
-            self._boxed.clear()  # a neighbour gone may have freed them
+            self.records.boxed.clear()  # a neighbour gone may have freed them
             outcome.outcome, outcome.placed_mm = "sorted", placed
-            self.progress(f"{target.color} from {_mm(outcome.found_mm)} into its bin "
+            self.progress(f"{color} from {_mm(outcome.found_mm)} into its bin "
                           f"({outcome.seconds:.1f} s)")
         elif outcome.attempts >= self.settings.max_attempts:
             outcome.outcome, outcome.reason = "failed", why
-            self.progress(f"{target.color} at {_mm(outcome.found_mm)}: gave up: {why}")
+            self.progress(f"{color} at {_mm(outcome.found_mm)}: gave up: {why}")
         else:
-            self.progress(f"{target.color} at {_mm(outcome.found_mm)}: {why}; looking again")
-        return True
+            self.progress(f"{color} at {_mm(outcome.found_mm)}: {why}; looking again")
 
     def _stop_and_read_gripper(self) -> str:
         """Stop the arm (a Ctrl+C between moves has stopped nothing yet); what the gripper
@@ -528,39 +548,6 @@ class PickSorter:
         if self._holding:
             return f"holding a {self._holding} block ({said})"
         return f"nearly closed, on no block it took ({said})"
-
-    def _outcome_for(self, sighting: Sighting, report: RunReport) -> BlockOutcome:
-        """The record of this block: one already made where it was seen, or a new one."""
-        # Of the records made about here, one still waiting first (a block set down
-        # where one was picked before is that one), then the nearest.
-        near = sorted((outcome for outcome in report.blocks
-                       if same_block(outcome.color, *outcome.found_mm, sighting)),
-                      key=lambda o: (o.outcome != "pending", off_mm(sighting, *o.found_mm)))
-        if near:
-            outcome = near[0]
-            if outcome.outcome == "sorted":
-                # Sorted, yet seen where it was: it did not go (a slip). Try again.
-                outcome.outcome, outcome.placed_mm = "pending", None
-            self._pushed.pop(id(outcome), None)
-            return outcome
-        for outcome in report.blocks:  # seen where the survey saw it, not as seen closer
-            if outcome.outcome == "pending" and any(
-                    same_block(outcome.color, x, y, sighting)
-                    for x, y in self._aliases.get(id(outcome), ())):
-                return outcome
-        here = np.array([sighting.location.x_mm, sighting.location.y_mm])
-        for key, (outcome, start, end) in list(self._pushed.items()):
-            # A pushed block ends somewhere along its push: the record goes there too.
-            a, b = np.asarray(start), np.asarray(end)
-            t = float(np.clip(np.dot(here - a, b - a) / max(np.dot(b - a, b - a), 1e-9), 0, 1))
-            if outcome.color == sighting.color and float(
-                    np.linalg.norm(here - (a + t * (b - a)))) < 2 * SAME_BLOCK_MM:
-                del self._pushed[key]
-                outcome.found_mm = (float(here[0]), float(here[1]))
-                return outcome
-        outcome = BlockOutcome(sighting.color, (sighting.location.x_mm, sighting.location.y_mm))
-        report.blocks.append(outcome)
-        return outcome
 
     def _why_not(self, sighting: Sighting) -> str:
         """Why this block is not to be picked ("" if it is)."""

@@ -17,9 +17,10 @@ if TYPE_CHECKING:  # the same names, eagerly, for mypy and the layer contract
     from busarm.arm.actions import ActionFrame, ActionGroup, read_d6a, write_d6a
     from busarm.arm.arm import Arm, GripResult, MotionRecord
     from busarm.arm.calibration import Calibration, load_calibration, save_calibration
+    from busarm.arm.chain import Pose
     from busarm.arm.config import ArmConfig, load_arm_config
     from busarm.arm.gripper import GripperState, gripper_state
-    from busarm.arm.kinematics import ArmKinematics, Pose
+    from busarm.arm.kinematics import ArmKinematics
 
 __all__ = [
     "ActionFrame",
@@ -56,7 +57,7 @@ _SOURCES: dict[str, str] = {
     "GripperState": "gripper",
     "gripper_state": "gripper",
     "ArmKinematics": "kinematics",
-    "Pose": "kinematics",
+    "Pose": "chain",
 }
 """Each exported name and the submodule that defines it."""
 

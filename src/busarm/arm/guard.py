@@ -34,7 +34,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from busarm.arm.kinematics import Joints, Pose
+from busarm.arm.chain import Joints, Pose
 from busarm.errors import ConfigError, ContactError, MotionTimeoutError
 from busarm.units import CENTER_PULSES, DEG_PER_PULSE, check_int_range, check_range
 

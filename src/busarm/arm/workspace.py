@@ -21,14 +21,19 @@ import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
+from busarm.arm.chain import check_number
 from busarm.arm.config import ArmConfig
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import ConfigError
 from busarm.fileio import write_bytes_atomic
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -71,8 +76,8 @@ def workspace_grid(
     Cell centres lie on multiples of ``cell_mm`` over +-``kin.max_reach_mm`` (the base
     axis is a centre). The wrist roll is free (kept at 0 where the limits allow).
     """
-    z = _finite("grasp_z_mm", grasp_z_mm)
-    pitch = _finite("pitch_deg", pitch_deg)
+    z = check_number("grasp_z_mm", grasp_z_mm)
+    pitch = check_number("pitch_deg", pitch_deg)
     cell = _cell(cell_mm)
     n = math.ceil(kin.max_reach_mm / cell)
     _check_size(cell, (2 * n + 1) ** 2)
@@ -164,7 +169,7 @@ def render_workspace_png(
     """
     if not isinstance(config, ArmConfig):
         raise ConfigError(f"config must be an ArmConfig, got {type(config).__name__}")
-    height = _finite("grasp_height_mm", grasp_height_mm)
+    height = check_number("grasp_height_mm", grasp_height_mm)
     if height < 0:
         raise ConfigError(
             f"grasp_height_mm = {height:g} is below the table; give the height of the tool "
@@ -284,79 +289,100 @@ def _draw(
 ) -> bytes:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
-    from matplotlib.patches import Circle
 
-    xs, ys, mask = top
-    rs, zs, env = side
-    cell = summary.cell_mm
     fig = Figure(figsize=(13.0, 6.2), dpi=100, layout="constrained")
     FigureCanvasAgg(fig)
     ax_top, ax_side = fig.subplots(1, 2, width_ratios=(1.0, 1.25))
+    _draw_top(ax_top, kin, summary, top)
+    _draw_side(ax_side, config, kin, summary, top, side)
+    fig.suptitle(f"{config.name}: workspace (cells of {summary.cell_mm:g} mm)", fontsize=13)
+    buf = io.BytesIO()
+    fig.savefig(buf, format=fmt)
+    return buf.getvalue()
 
-    def extent(a: FloatArray, b: FloatArray) -> tuple[float, float, float, float]:
-        return (float(a[0]) - cell / 2, float(a[-1]) + cell / 2,
-                float(b[0]) - cell / 2, float(b[-1]) + cell / 2)
 
-    # (a) top view; NaN cells are drawn transparent
-    ax_top.imshow(np.where(mask, 1.0, np.nan), extent=extent(xs, ys),
-                  origin="lower", cmap="Greens", vmin=0.0, vmax=1.6, interpolation="nearest")
+def _extent(a: FloatArray, b: FloatArray, cell: float) -> tuple[float, float, float, float]:
+    """The image extent of a grid of cell centres ``a`` by ``b``."""
+    return (float(a[0]) - cell / 2, float(a[-1]) + cell / 2,
+            float(b[0]) - cell / 2, float(b[-1]) + cell / 2)
+
+
+def _draw_top(
+    ax: Axes, kin: ArmKinematics, summary: WorkspaceSummary,
+    top: tuple[FloatArray, FloatArray, BoolArray],
+) -> None:
+    """(a) The top view: the top-down grasp area and its radii round the base axis."""
+    from matplotlib.patches import Circle
+
+    xs, ys, mask = top
+    # NaN cells are drawn transparent
+    ax.imshow(np.where(mask, 1.0, np.nan), extent=_extent(xs, ys, summary.cell_mm),
+              origin="lower", cmap="Greens", vmin=0.0, vmax=1.6, interpolation="nearest")
     if summary.min_radius_mm is not None and summary.max_radius_mm is not None:
         for radius in (summary.min_radius_mm, summary.max_radius_mm):
-            ax_top.add_patch(Circle((0.0, 0.0), radius, fill=False, ls="--", lw=0.8,
-                                    color="tab:green"))
+            ax.add_patch(Circle((0.0, 0.0), radius, fill=False, ls="--", lw=0.8,
+                                color="tab:green"))
         reach = (f"r = {summary.min_radius_mm:.0f}–{summary.max_radius_mm:.0f} mm from the "
                  f"base axis, {summary.top_down_area_cm2:.0f} cm²")
     else:
         reach = "nowhere reachable"
-    ax_top.plot([0.0], [0.0], marker="+", ms=14, mew=2, color="black")
-    ax_top.annotate("base", (0.0, 0.0), xytext=(6, 6), textcoords="offset points")
-    ax_top.set_title(
+    ax.plot([0.0], [0.0], marker="+", ms=14, mew=2, color="black")
+    ax.annotate("base", (0.0, 0.0), xytext=(6, 6), textcoords="offset points")
+    ax.set_title(
         f"Top-down grasp (pitch −90°) at z = {summary.grasp_z_mm:g} mm\n{reach}", fontsize=11
     )
     span = (summary.max_radius_mm or kin.max_reach_mm) + 40.0
-    ax_top.set_xlim(-span, span)
-    ax_top.set_ylim(-span, span)
-    ax_top.set_xlabel("x (mm), forward at base yaw 0")
-    ax_top.set_ylabel("y (mm)")
-    ax_top.set_aspect("equal")
-    ax_top.grid(True, lw=0.3, alpha=0.5)
+    ax.set_xlim(-span, span)
+    ax.set_ylim(-span, span)
+    ax.set_xlabel("x (mm), forward at base yaw 0")
+    ax.set_ylabel("y (mm)")
+    ax.set_aspect("equal")
+    ax.grid(True, lw=0.3, alpha=0.5)
 
-    # (b) side view
-    ax_side.imshow(np.where(env, 1.0, np.nan), extent=extent(rs, zs),
-                   origin="lower", cmap="Blues", vmin=0.0, vmax=1.8, interpolation="nearest")
+
+def _draw_side(
+    ax: Axes, config: ArmConfig, kin: ArmKinematics, summary: WorkspaceSummary,
+    top: tuple[FloatArray, FloatArray, BoolArray], side: tuple[FloatArray, FloatArray, BoolArray],
+) -> None:
+    """(b) The side view: the reach envelope, the table, the grasp line and the home pose."""
+    xs, ys, mask = top
+    rs, zs, env = side
+    ax.imshow(np.where(env, 1.0, np.nan), extent=_extent(rs, zs, summary.cell_mm),
+              origin="lower", cmap="Blues", vmin=0.0, vmax=1.8, interpolation="nearest")
     if kin.table_z_mm is not None:
-        ax_side.axhline(kin.table_z_mm, color="saddlebrown", lw=2, label="table")
+        ax.axhline(kin.table_z_mm, color="saddlebrown", lw=2, label="table")
     row = mask[int(np.argmin(np.abs(ys)))]  # y = 0 row of the top view
     seg = np.where(row, summary.grasp_z_mm, np.nan)
-    ax_side.plot(xs, seg, color="tab:green", lw=4, solid_capstyle="butt",
-                 label=f"top-down grasp at z = {summary.grasp_z_mm:g} mm")
+    ax.plot(xs, seg, color="tab:green", lw=4, solid_capstyle="butt",
+            label=f"top-down grasp at z = {summary.grasp_z_mm:g} mm")
     home = config.poses_deg.get("home")
     if home is not None:
-        frames = kin.frames(home)
-        bearing = math.radians(home[0])
-        pts = [np.zeros(3)] + [f[:3, 3] for f in frames]
-        r_pts = [p[0] * math.cos(bearing) + p[1] * math.sin(bearing) for p in pts]
-        z_pts = [p[2] for p in pts]
-        ax_side.plot(r_pts, z_pts, "-o", color="black", lw=2.5, ms=4,
-                     label=f"home pose {tuple(round(v) for v in home)}°")
-        ax_side.plot(r_pts[-1:], z_pts[-1:], marker="*", ms=12, color="crimson", ls="none",
-                     label="tool point")
-    ax_side.set_title(
+        _draw_home(ax, kin, home)
+    ax.set_title(
         f"Reach envelope in the plane y = 0, any pitch ({summary.envelope_area_cm2:.0f} cm²)\n"
         "exact: the feasible-pitch set is not empty (closed-form arcs, no pitch scan)",
         fontsize=11,
     )
-    ax_side.set_xlabel("x (mm); negative = behind the base (reached over the back)")
-    ax_side.set_ylabel("z (mm)")
-    ax_side.set_aspect("equal")
-    ax_side.grid(True, lw=0.3, alpha=0.5)
+    ax.set_xlabel("x (mm); negative = behind the base (reached over the back)")
+    ax.set_ylabel("z (mm)")
+    ax.set_aspect("equal")
+    ax.grid(True, lw=0.3, alpha=0.5)
     if kin.table_z_mm is not None:  # show the table line below the grid
-        ax_side.set_ylim(bottom=min(float(zs[0]), kin.table_z_mm) - 30.0)
-    ax_side.legend(loc="upper left", fontsize=8, framealpha=0.9)
-    fig.suptitle(f"{config.name}: workspace (cells of {cell:g} mm)", fontsize=13)
-    buf = io.BytesIO()
-    fig.savefig(buf, format=fmt)
-    return buf.getvalue()
+        ax.set_ylim(bottom=min(float(zs[0]), kin.table_z_mm) - 30.0)
+    ax.legend(loc="upper left", fontsize=8, framealpha=0.9)
+
+
+def _draw_home(ax: Axes, kin: ArmKinematics, home: tuple[float, ...]) -> None:
+    """The arm's links at the home pose, seen in the plane of its base yaw."""
+    frames = kin.frames(home)
+    bearing = math.radians(home[0])
+    pts = [np.zeros(3)] + [f[:3, 3] for f in frames]
+    r_pts = [p[0] * math.cos(bearing) + p[1] * math.sin(bearing) for p in pts]
+    z_pts = [p[2] for p in pts]
+    ax.plot(r_pts, z_pts, "-o", color="black", lw=2.5, ms=4,
+            label=f"home pose {tuple(round(v) for v in home)}°")
+    ax.plot(r_pts[-1:], z_pts[-1:], marker="*", ms=12, color="crimson", ls="none",
+            label="tool point")
 
 
 # ---------------------------------------------------------------------- checks
@@ -374,18 +400,8 @@ def picture_format(path: Path | str) -> str:
     return PICTURE_FORMATS[suffix]
 
 
-
-def _finite(name: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-        raise ConfigError(f"{name} must be a number, got {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise ConfigError(f"{name} = {value!r} must be finite")
-    return v
-
-
 def _cell(cell_mm: object) -> float:
-    cell = _finite("cell_mm", cell_mm)
+    cell = check_number("cell_mm", cell_mm)
     if cell <= 0:
         raise ConfigError(f"cell_mm = {cell:g} must be > 0 (grid cell size in mm)")
     return cell

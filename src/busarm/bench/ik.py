@@ -31,8 +31,9 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 import numpy.typing as npt
 
+from busarm.arm.chain import FloatArray
 from busarm.arm.config import ArmConfig, load_arm_config
-from busarm.arm.kinematics import ArmKinematics, FloatArray
+from busarm.arm.kinematics import ArmKinematics
 from busarm.bench.common import machine_info
 from busarm.errors import UnreachableError
 

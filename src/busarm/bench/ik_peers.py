@@ -27,8 +27,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from busarm.arm.chain import FloatArray
 from busarm.arm.config import ArmConfig, load_arm_config
-from busarm.arm.kinematics import ArmKinematics, FloatArray
+from busarm.arm.kinematics import ArmKinematics
 from busarm.bench.ik import (
     PEER_Q0_DEG,
     POS_TOL_MM,

@@ -22,7 +22,8 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from busarm.arm.kinematics import ArmKinematics, FloatArray
+from busarm.arm.chain import FloatArray
+from busarm.arm.kinematics import ArmKinematics
 from busarm.bench.common import (
     CalibrationSummary,
     Progress,

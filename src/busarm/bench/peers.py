@@ -69,7 +69,8 @@ from busarm.bench.peers_report import (
 )
 from busarm.sim.bus import ARM_SERVO_IDS, GRIPPER_ID, SimBus, WireTiming
 from busarm.sim.pty import PtyServer
-from busarm.sim.servo import ServoParams, SimServo
+from busarm.sim.servo import SimServo
+from busarm.sim.servo_params import ServoParams
 from busarm.units import CENTER_PULSES
 
 PEER_TIMEOUT_S = 0.05

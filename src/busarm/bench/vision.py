@@ -26,11 +26,10 @@ from busarm.vision.camera import UInt8Image, check_bgr_image
 from busarm.vision.color import (
     DEFAULT_MIN_AREA_PX,
     ColorDetector,
-    ColorThresholds,
     Detection,
-    default_thresholds,
     vendor_style_detect,
 )
+from busarm.vision.color_thresholds import ColorThresholds, default_thresholds
 
 TARGET_SPEEDUP = 2.0
 TARGET_LOCATE_FPS = 500.0

@@ -26,7 +26,8 @@ from types import TracebackType
 from typing import Any
 
 from busarm.bus.board import BoardLink
-from busarm.bus.driver import EchoMode, ScanResult, ServoBus
+from busarm.bus.driver import EchoMode, ServoBus
+from busarm.bus.id_scan import ScanResult
 from busarm.bus.transport import Transport
 from busarm.errors import (
     BusConflictError,

@@ -1,43 +1,30 @@
-"""What every command shares: the global settings, parameter types, consoles, the arm
-and robot options, rich tables and progress bars. Command modules import shared helpers
-from here only.
-
-Parameter types check values (IDs, angles, times) while argv is parsed, so bad
-input fails before any port is opened and nothing reaches the bus.
+"""What every command shares: the global settings, consoles, the arm and robot options,
+the scene options. Command modules import shared helpers from here only: the ones that
+live in other modules (parameter types, servo tables, what the stop says...) are
+re-exported here.
 """
 
 from __future__ import annotations
 
-import math
 import os
-import re
 import signal
 import threading
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import FrameType
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any
 
 import click
 from rich.console import Console
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    TaskID,
-    TextColumn,
-    TimeElapsedColumn,
-)
-from rich.table import Table
 
 from busarm.arm.arm import Arm
 from busarm.arm.calibration import Calibration, load_calibration
 from busarm.arm.config import ArmConfig, load_arm_config
 from busarm.arm.kinematics import ArmKinematics
 from busarm.bus.board import BoardLink
-from busarm.bus.driver import DEFAULT_RETRIES, DEFAULT_TIMEOUT_MARGIN_S, ScanResult, ServoBus
+from busarm.bus.driver import DEFAULT_RETRIES, DEFAULT_TIMEOUT_MARGIN_S, ServoBus
 from busarm.bus.transport import DEFAULT_BAUDRATE, open_transport
 from busarm.cli.arm_inputs import (
     check_gap_mm,
@@ -51,6 +38,38 @@ from busarm.cli.exits import JobNotDone
 from busarm.cli.help_style import metavar_from_help, unit_metavar
 from busarm.cli.live_robot import open_live_robot, realtime_twin, twin_store_port
 from busarm.cli.mobile_common import arena_from_spec, mobile_options, open_mobile_robot
+from busarm.cli.param_types import (
+    ANGLE,
+    ID_LIST,
+    MOVE_TIME,
+    NUMBER_ARGS,
+    POSE,
+    SERVO_ID,
+    SPEED,
+    AngleType,
+    CheckedType,
+    IdListType,
+    PoseType,
+    RangeType,
+    ServoIdType,
+    angle_list,
+    parse_float_list,
+    parse_int,
+    parse_pose,
+)
+from busarm.cli.servo_tables import (
+    BAD_REPLY,
+    NO_REPLY,
+    NOT_HERE,
+    alarm_names,
+    fmt,
+    scan_progress,
+    scan_report,
+    scan_with_progress,
+    state_row,
+    state_table,
+    try_read,
+)
 from busarm.cli.sessions import Session, announced, find_session, running_sessions
 from busarm.cli.stopping import (
     add_detail,
@@ -67,33 +86,16 @@ from busarm.errors import (
     BusArmError,
     BusTimeoutError,
     ConfigError,
-    ProtocolError,
     TransportError,
     UnreliableLineError,
 )
 from busarm.fileio import robot_folder
-from busarm.protocol import MAX_SERVO_ID, AlarmFlag, check_servo_id
 from busarm.twin.scene import MAX_BLOCKS, Scene
-from busarm.units import (
-    MOVE_TIME_MAX_MS,
-    POSITION_MAX_DEG,
-    POSITION_MIN_DEG,
-    check_range,
-    parse_ids,
-    range_text,
-)
 
 if TYPE_CHECKING:
-    from busarm.base.odometry import Pose2D
     from busarm.robot import Robot
     from busarm.robot.calibration_store import CalibrationStore
     from busarm.sim.pty import PtyServer
-
-T = TypeVar("T")
-
-NO_REPLY = "no reply"
-BAD_REPLY = "bad reply"
-NOT_HERE = "n/a (the controller board cannot read it)"
 
 SIM_NOTE = ("note: no --port given: using a simulated arm that lives for this one command "
             "(it starts straight up every time); to keep one between commands, run "
@@ -110,7 +112,15 @@ __all__ += ["check_gap_mm", "gap_report", "joints_in", "joints_to_move",
 __all__ += ["announced", "find_session"]  # running `sim serve`/`twin serve` (cli.sessions)
 __all__ += ["arena_from_spec", "mobile_options", "open_mobile_robot"]  # cli.mobile_common
 __all__ += ["open_live_robot", "realtime_twin", "twin_store_port"]  # cli.live_robot
-__all__ += ["JobNotDone", "metavar_from_help"]  # exit codes, help style (cli.exits, help_style)
+__all__ += ["JobNotDone", "metavar_from_help",  # exit codes, help style (cli.exits, help_style)
+            "unit_metavar"]
+# Values checked while argv is parsed (busarm.cli.param_types).
+__all__ += ["ANGLE", "ID_LIST", "MOVE_TIME", "NUMBER_ARGS", "POSE", "SERVO_ID", "SPEED",
+            "AngleType", "CheckedType", "IdListType", "PoseType", "RangeType", "ServoIdType",
+            "angle_list", "parse_float_list", "parse_int", "parse_pose"]
+# Live readings, scans (busarm.cli.servo_tables).
+__all__ += ["BAD_REPLY", "NOT_HERE", "NO_REPLY", "alarm_names", "fmt", "scan_progress",
+            "scan_report", "scan_with_progress", "state_row", "state_table", "try_read"]
 
 
 PIPE_WIDTH = 1000
@@ -287,248 +297,6 @@ def _check_answering(bus: ServoBus, ids: list[int],
 pass_settings = click.make_pass_decorator(Settings, ensure=True)
 
 
-class CheckedType(click.ParamType):
-    """A parameter type whose converter raises ConfigError; shown as a usage error."""
-
-    def parse(self, text: str) -> Any:
-        raise NotImplementedError
-
-    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
-        if not isinstance(value, str):
-            return value
-        try:
-            return self.parse(value)
-        except ConfigError as exc:
-            self.fail(str(exc), param, ctx)
-
-
-def _number(text: str, what: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise ConfigError(f"{text!r} is not a number ({what})") from None
-    if not math.isfinite(value):
-        raise ConfigError(f"{text!r} is not a finite number ({what})")
-    return value
-
-
-def parse_float_list(text: str, what: str) -> list[float]:
-    """Finite numbers separated by commas or spaces (``0,60,0`` or ``"0 60 0"``: lists are
-    written either way everywhere); ConfigError naming ``what`` and the bad one."""
-    return [_number(t, what) for t in re.split(r"[,\s]+", text.strip())]
-
-
-def parse_pose(text: str, option: str) -> Pose2D:
-    """``X,Y,YAW`` (m, m, deg) -> a Pose2D; ConfigError naming ``option`` otherwise."""
-    from busarm.base.odometry import Pose2D
-
-    values = parse_float_list(text, f"{option} X,Y,YAW (m, m, deg)")
-    if len(values) != 3:
-        raise ConfigError(f"{option} {text!r}: expected X,Y,YAW (m, m, deg), e.g. 0.5,-1.2,90")
-    return Pose2D(values[0], values[1], math.radians(values[2]))
-
-
-def angle_list(kind: RangeType) -> Callable[[click.Context, click.Parameter, tuple[str, ...]],
-                                            tuple[float, ...]]:
-    """A callback for an ``nargs=-1`` argument of angles: ``0 60 0`` or ``0,60,0``, each
-    checked as ``kind``."""
-    def convert(ctx: click.Context, param: click.Parameter,
-                values: tuple[str, ...]) -> tuple[float, ...]:
-        text = " ".join(values).strip()
-        return tuple(kind.parse(str(v)) for v in parse_float_list(text, kind.name)) if text \
-            else ()
-    return convert
-
-
-def parse_int(text: str, what: str) -> int:
-    """An integer from decimal (or 0x/0b/0o) text; ConfigError naming ``what`` if not."""
-    t = text.strip()
-    try:
-        return int(t, 0) if t[:2].lower() in ("0x", "0b", "0o") else int(t)
-    except ValueError:
-        raise ConfigError(f"{text!r} is not an integer ({what})") from None
-
-
-class ServoIdType(CheckedType):
-    """A servo ID, 0..253 (or 254, broadcast, where allowed)."""
-
-    name = "id"
-
-    def __init__(self, allow_broadcast: bool = False) -> None:
-        self.allow_broadcast = allow_broadcast
-
-    def get_metavar(self, param: click.Parameter) -> str:
-        return "ID"
-
-    def parse(self, text: str) -> int:
-        hi = MAX_SERVO_ID + 1 if self.allow_broadcast else MAX_SERVO_ID
-        return check_servo_id(parse_int(text, f"servo ID 0..{hi}"),
-                              allow_broadcast=self.allow_broadcast)
-
-
-class AngleType(CheckedType):
-    """An angle in degrees from the servo's mid-point, within ``lo..hi``."""
-
-    name = "deg"
-
-    def __init__(self, lo: float = POSITION_MIN_DEG, hi: float = POSITION_MAX_DEG) -> None:
-        self.lo, self.hi = lo, hi
-
-    def parse(self, text: str) -> float:
-        value = _number(text, f"an angle in deg, {range_text(self.lo, self.hi)}")
-        return check_range("angle", value, self.lo, self.hi, "deg")
-
-
-class RangeType(CheckedType):
-    """A number within ``lo..hi`` of the given unit."""
-
-    def __init__(self, name: str, lo: float, hi: float, unit: str) -> None:
-        self.name, self.lo, self.hi, self.unit = name, lo, hi, unit
-
-    def get_metavar(self, param: click.Parameter) -> str | None:
-        if isinstance(param, click.Argument):
-            return None  # an argument is shown by its own name (X Y Z)
-        # One word (it is one argument): its unit, as for every number option.
-        return unit_metavar(self.unit) or self.name.upper().replace(" ", "_")
-
-    def parse(self, text: str) -> float:
-        value = _number(text, f"{self.name} in {self.unit}, {range_text(self.lo, self.hi)}")
-        return check_range(self.name, value, self.lo, self.hi, self.unit)
-
-
-class IdListType(CheckedType):
-    """Servo IDs such as ``1,2,3`` or ``0-20,100``."""
-
-    name = "ids"
-
-    def parse(self, text: str) -> list[int]:
-        return list(dict.fromkeys(parse_ids(text)))
-
-
-class PoseType(CheckedType):
-    """Targets such as ``1=0,2=-30,3=45`` (servo ID = angle in deg)."""
-
-    name = "pose"
-
-    def parse(self, text: str) -> dict[int, float]:
-        pose: dict[int, float] = {}
-        for part in text.split(","):
-            if not part.strip():
-                continue
-            sid_text, sep, angle_text = part.partition("=")
-            if not sep:
-                raise ConfigError(f"pose {text!r}: {part.strip()!r} is not ID=ANGLE")
-            sid = ServoIdType().parse(sid_text)
-            if sid in pose:
-                raise ConfigError(f"pose {text!r}: servo {sid} is given twice")
-            pose[sid] = AngleType().parse(angle_text)
-        if not pose:
-            raise ConfigError(f"pose {text!r}: no ID=ANGLE given")
-        return pose
-
-
-SERVO_ID = ServoIdType()
-ANGLE = AngleType()
-MOVE_TIME = RangeType("time", 0.0, MOVE_TIME_MAX_MS / 1000.0, "s")
-SPEED = RangeType("speed", 0.1, 10000.0, "deg/s")
-ID_LIST = IdListType()
-POSE = PoseType()
-
-
-def try_read(read: Callable[[], T]) -> T | str:
-    """``read()``, or ``"no reply"`` if the servo did not answer (or ``"bad reply"``)."""
-    try:
-        return read()
-    except BusTimeoutError:
-        return NO_REPLY
-    except ProtocolError:
-        return BAD_REPLY
-
-
-def fmt(value: object, spec: str = "", unit: str = "") -> str:
-    """``value`` formatted with ``spec`` and ``unit``; strings ("no reply") as they are."""
-    if isinstance(value, str):
-        return value
-    text = format(value, spec)
-    return f"{text} {unit}" if unit else text
-
-
-def state_row(bus: ServoBus, sid: int, *, torque: bool = False) -> list[str]:
-    """ID, position, temperature and voltage of one servo (and torque); "no reply" per field."""
-    row = [
-        str(sid),
-        fmt(try_read(lambda: bus.read_position_deg(sid)), "+.1f"),
-        fmt(try_read(lambda: bus.read_temp_c(sid)), "d"),
-        fmt(try_read(lambda: bus.read_vin_v(sid)), ".2f"),
-    ]
-    if torque:
-        loaded = try_read(lambda: bus.read_torque(sid))
-        row.append(loaded if isinstance(loaded, str) else ("on" if loaded else "off"))
-    return row
-
-
-def state_table(
-    bus: ServoBus, ids: Iterable[int], *, title: str | None = None, torque: bool = False,
-    targets: dict[int, float] | None = None,
-) -> Table:
-    """A table of live readings, one row per servo (optionally with each target)."""
-    table = Table(title=title, title_justify="left")
-    table.add_column("ID", justify="right")
-    if targets is not None:
-        table.add_column("target (deg)", justify="right")
-    table.add_column("position (deg)", justify="right")
-    table.add_column("temp (C)", justify="right")
-    table.add_column("voltage (V)", justify="right")
-    if torque:
-        table.add_column("torque", justify="center")
-    for sid in ids:
-        row = state_row(bus, sid, torque=torque)
-        if targets is not None:
-            row.insert(1, f"{targets[sid]:+.1f}" if sid in targets else "")
-        style = "red" if NO_REPLY in row else None
-        table.add_row(*row, style=style)
-    return table
-
-
-def scan_with_progress(bus: ServoBus, ids: Sequence[int], console: Console) -> ScanResult:
-    """``bus.scan(ids)`` behind a progress bar (shown on ``console``, then removed)."""
-    with scan_progress(console, len(ids)) as advance:
-        return bus.scan(ids, progress=lambda _sid: advance())
-
-
-@contextmanager
-def scan_progress(console: Console, total: int) -> Iterator[Callable[[], None]]:
-    """A transient progress bar for a scan of ``total`` IDs; yields its advance()."""
-    progress = Progress(
-        TextColumn("scanning IDs"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        transient=True,
-    )
-    with progress:
-        task: TaskID = progress.add_task("scan", total=total)
-        yield lambda: progress.advance(task, 1)
-
-
-def scan_report(bus: ServoBus, result: ScanResult, console: Console, asked: int) -> None:
-    """Print the servos a scan found (with readings) and any conflicts, in red."""
-    console.print(
-        f"scanned {asked} ID(s) in {result.duration_s:.2f} s: "
-        f"found {len(result.found)} servo(s)"
-        + (f": {', '.join(map(str, result.found))}" if result.found else "")
-    )
-    healthy = [sid for sid in result.found if sid not in result.conflicts]
-    if healthy:
-        console.print(state_table(bus, healthy))
-    for sid in result.conflicts:
-        console.print(
-            f"[red]conflict: more than one servo answers at ID {sid} (duplicate IDs); "
-            "disconnect all but one and renumber with set-id[/red]"
-        )
-
-
 class ArmContext:
     """The arm options of the ``arm`` and ``actions`` groups, loaded on first use."""
 
@@ -568,6 +336,15 @@ class ArmContext:
         calibration = self.calibration()
         with self.settings.open_bus(port, check_ids=self.config.servo_ids) as bus:
             yield Arm(bus, self.config, calibration, check=check)
+
+
+def hold_where_it_stands(arm: Arm, settings: Settings) -> None:
+    """Torque on where the arm stands (after a limp spell: calibration, teaching); servos
+    outside their limits are left limp, with a warning."""
+    limp = arm.hold_here()
+    if limp:
+        settings.err.print(f"warning: servos {limp} are outside their limits: left limp "
+                           "(torque off); move them back by hand", highlight=False)
 
 
 pass_arm = click.make_pass_decorator(ArmContext)
@@ -629,15 +406,6 @@ def make_scene(scene_file: Path | None, seed: int | None, blocks: int | None,
         return load_scene(scene_file)
     names = [c.strip() for c in (colors or DEFAULT_COLORS).split(",") if c.strip()]
     return random_scene(seed or 0, 5 if blocks is None else blocks, names)
-
-
-NUMBER_ARGS = {"ignore_unknown_options": True}
-
-
-def alarm_names(mask: AlarmFlag) -> str:
-    """``over-temperature, stalled`` style names of an alarm mask (``none`` if empty)."""
-    names = [f.name.lower().replace("_", "-") for f in AlarmFlag if f and f in mask and f.name]
-    return ", ".join(names) or "none"
 
 
 def lidar_port_or_default(given: str | None) -> str:

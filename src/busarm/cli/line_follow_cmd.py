@@ -50,7 +50,7 @@ def parse_clear_colors(text: str) -> list[str]:
     """--colors: block colours to clear (``none``: none); ConfigError naming one that is
     not a block colour of the shipped thresholds."""
     from busarm.robot.locate import NOT_BLOCK_COLORS
-    from busarm.vision.color import default_thresholds, parse_color_names
+    from busarm.vision.color_thresholds import default_thresholds, parse_color_names
 
     if text.strip().lower() == "none":
         return []

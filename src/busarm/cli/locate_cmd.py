@@ -64,7 +64,11 @@ def locate(settings: Settings, camera_src: str | None, intrinsics: Path | None,
     left out, and so are the vendor's black and white (lines, the table) unless asked.
     """
     from busarm.vision.annotate import annotate, save_image
-    from busarm.vision.color import default_thresholds, load_thresholds, parse_color_names
+    from busarm.vision.color_thresholds import (
+        default_thresholds,
+        load_thresholds,
+        parse_color_names,
+    )
 
     ac = ArmContext(settings, config, None)
     table = load_thresholds(thresholds) if thresholds else default_thresholds()

@@ -23,6 +23,7 @@ from busarm import __version__
 from busarm.bus.driver import DEFAULT_RETRIES, DEFAULT_TIMEOUT_MARGIN_S
 from busarm.bus.transport import DEFAULT_BAUDRATE
 from busarm.cli import (
+    actions_cmds,
     arm_cmds,
     base_cmds,
     board_cmds,
@@ -222,8 +223,8 @@ def cli(
 
 
 for _module in (
-    bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, twin_cmds, camera_cmds,
-    vision_cmds, pick_cmd, demo, motor_cmd, dashboard_cmd, board_cmds, base_cmds,
+    bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, actions_cmds, twin_cmds,
+    camera_cmds, vision_cmds, pick_cmd, demo, motor_cmd, dashboard_cmd, board_cmds, base_cmds,
     lidar_cmds, map_cmds, line_follow_cmd, transport_cmd, ros_cmds,
 ):
     for _command in _module.COMMANDS:
@@ -232,9 +233,9 @@ for _module in (
 cli.add_command(bench)
 # `vision locate` needs the arm; the rest of `vision` does not.
 vision_cmds.vision.add_command(locate_cmd.locate)
-# `arm poses` and `actions list` are kept out of arm_cmds (which is long enough).
+# `arm poses` and `actions list` are kept out of arm_cmds and actions_cmds.
 arm_cmds.arm.add_command(poses_cmd.poses)
-arm_cmds.actions.add_command(samples_cmd.samples_list)
+actions_cmds.actions.add_command(samples_cmd.samples_list)
 # Last, once every command is in: `busarm arm pose --port twin`, `busarm --config X arm pose`.
 option_places.accept_everywhere(cli)
 option_places.name_numbers(cli)

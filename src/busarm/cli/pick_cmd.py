@@ -36,6 +36,7 @@ from busarm.errors import ConfigError
 
 if TYPE_CHECKING:
     from busarm.apps.pick_sort import RunReport
+    from busarm.robot import Robot
 
 DEFAULT_REPORT = "pick-sort-report"
 
@@ -122,9 +123,7 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
     Exit code 0 when every block was sorted or skipped for a reason it gives (bin full,
     out of reach, an unknown colour...), 1 when a block failed.
     """
-    from busarm.apps.pick_job import PickJob
-    from busarm.apps.pick_settings import PickSortSettings
-    from busarm.vision.color import parse_color_names
+    from busarm.vision.color_thresholds import parse_color_names
 
     names = parse_color_names(colors or DEFAULT_COLORS)
     scene = None
@@ -133,17 +132,7 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
         scene = make_scene(scene_file, seed, blocks, None if scene_file else colors)
     if not settings.port_given:
         _note_own_twin(settings, scene.source if scene is not None else "")
-    bins_given = parse_bins(bins_text) if bins_text is not None else None
-    others = [c for c in bins_given or () if c not in names]
-    sorting = f"the colours to sort ({', '.join(names)}; --colors chooses them)"
-    if bins_given is not None and not set(bins_given) & set(names):
-        raise ConfigError(f"--bins has no bin for {sorting}: "
-                          + (f"{', '.join(others)} is not one of them; " if others else "")
-                          + "give COLOUR=X,Y for at least one of them")
-    if others:  # a typo, or a colour left out of --colors: said, not silently ignored
-        settings.err.print(f"warning: --bins {', '.join(others)}: not one of {sorting}; "
-                           "no block goes there", highlight=False, markup=False,
-                           soft_wrap=True)
+    bins_given = _bins_for(settings, bins_text, names)
     ac = ArmContext(settings, config, None)
     survey_poses = parse_survey(survey_text, ac.config)
     check_writable(report_dir / "report.json" if report_dir.is_dir() else report_dir)
@@ -157,18 +146,8 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
                              progress=lambda text: None if " view " in text else
                              settings.err.print(text, highlight=False,
                                                 soft_wrap=True)) as robot:
-        job = PickJob(robot, report_dir, colors=names, survey_poses=survey_poses,
-                      settings=PickSortSettings(order=order),
-                      progress=lambda text: settings.err.print(text, highlight=False))
         simulated = robot.clock.is_simulated
-        try:
-            report, path = job.run()
-        except BaseException as exc:
-            # What the gripper holds and where the report is join the one line that
-            # reports the stop (with each servo's torque, read back: busarm.cli.main).
-            for note in job.notes:
-                add_detail(exc, note)
-            raise
+        report, path = _run_job(settings, robot, report_dir, names, survey_poses, order)
     if as_json:
         click.echo(json.dumps(json.loads(path.read_text()), indent=2))
     else:
@@ -177,6 +156,44 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
     if failed:  # skipped ones (bin full, out of reach...) were left by design
         raise JobNotDone(f"{failed} block(s) failed to be sorted (the reasons above, and in "
                          f"{report_dir}/report.json)")
+
+
+def _bins_for(settings: Settings, bins_text: str | None,
+              names: list[str]) -> dict[str, tuple[float, float]] | None:
+    """The bins --bins gives (None: the robot's): refused if none is for a colour to sort;
+    a bin for another colour is warned of."""
+    bins_given = parse_bins(bins_text) if bins_text is not None else None
+    others = [c for c in bins_given or () if c not in names]
+    sorting = f"the colours to sort ({', '.join(names)}; --colors chooses them)"
+    if bins_given is not None and not set(bins_given) & set(names):
+        raise ConfigError(f"--bins has no bin for {sorting}: "
+                          + (f"{', '.join(others)} is not one of them; " if others else "")
+                          + "give COLOUR=X,Y for at least one of them")
+    if others:  # a typo, or a colour left out of --colors: said, not silently ignored
+        settings.err.print(f"warning: --bins {', '.join(others)}: not one of {sorting}; "
+                           "no block goes there", highlight=False, markup=False,
+                           soft_wrap=True)
+    return bins_given
+
+
+def _run_job(settings: Settings, robot: Robot, report_dir: Path, names: list[str],
+             survey_poses: list[tuple[float, ...]], order: str) -> tuple[RunReport, Path]:
+    """Sort the table with ``robot``: the report and its file. A stop's one line also
+    says what the gripper holds and where the report is."""
+    from busarm.apps.pick_job import PickJob
+    from busarm.apps.pick_settings import PickSortSettings
+
+    job = PickJob(robot, report_dir, colors=names, survey_poses=survey_poses,
+                  settings=PickSortSettings(order=order),
+                  progress=lambda text: settings.err.print(text, highlight=False))
+    try:
+        return job.run()
+    except BaseException as exc:
+        # What the gripper holds and where the report is join the one line that
+        # reports the stop (with each servo's torque, read back: busarm.cli.main).
+        for note in job.notes:
+            add_detail(exc, note)
+        raise
 
 
 def _print_summary(report: RunReport, simulated: bool, wall_s: float,

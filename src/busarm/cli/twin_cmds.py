@@ -17,6 +17,7 @@ from busarm.cli.common import (
     announced,
     arena_from_spec,
     make_scene,
+    parse_float_list,
     pass_settings,
     scene_options,
 )
@@ -24,8 +25,11 @@ from busarm.errors import ConfigError
 from busarm.twin.scene import MAX_BLOCKS
 
 if TYPE_CHECKING:
+    from busarm.arm.config import ArmConfig
     from busarm.twin.arena import Arena
+    from busarm.twin.scene import Scene
     from busarm.twin.twin import Twin
+    from busarm.vision.camera import UInt8Image
 
 
 @click.group()
@@ -159,43 +163,25 @@ def snapshot(ctx: click.Context, scene_file: Path | None, seed: int | None, bloc
     when). --view arm writes the camera frame alone, unmarked, as vision gets it.
     --arena draws the mobile robot's arena from straight above instead.
     """
-    import cv2
-    import numpy as np
-
     if arena_spec is not None:
-        given = [name for name, value in (("--scene", scene_file), ("--seed", seed),
-                                          ("--blocks", blocks), ("--colors", colors),
-                                          ("--joints", joints)) if value is not None]
-        given += [f"--{name}" for name in ("pose", "lens", "view") if ctx.get_parameter_source(
-            name) is not click.core.ParameterSource.DEFAULT]
-        if given:
-            raise ConfigError(f"--arena draws the arena from above: {', '.join(given)} "
-                              f"{'does' if len(given) == 1 else 'do'} not apply to it")
+        _refuse_with_arena(ctx, {"--scene": scene_file, "--seed": seed, "--blocks": blocks,
+                                 "--colors": colors, "--joints": joints})
         _arena_snapshot(arena_from_spec(arena_spec), png, config)
         return
 
     from busarm.arm.config import load_arm_config
-    from busarm.arm.kinematics import ArmKinematics
-    from busarm.cli.common import parse_float_list
     from busarm.twin.lens import lens_by_name
-    from busarm.twin.snapshot import marked_overview, titled, with_caption
+    from busarm.twin.snapshot import marked_overview
     from busarm.twin.twin import Twin
-    from busarm.vision.annotate import IMAGE_EXTENSIONS, save_image
+    from busarm.vision.annotate import save_image
 
     cfg = load_arm_config(config)
     if joints is not None and ctx.get_parameter_source("pose") is not \
             click.core.ParameterSource.DEFAULT:
         raise ConfigError("give either --pose or --joints, not both")
-    start = cfg.check_joints(
-        parse_float_list(joints, "joint angle") if joints is not None else cfg.pose(pose))
-    tool_z = ArmKinematics.from_config(cfg, check_table=False).fk(start).z_mm
-    if tool_z < cfg.table_z_mm:
-        raise ConfigError(f"those joints put the tool {cfg.table_z_mm - tool_z:.0f} mm into the "
-                          "table; the arm cannot stand there")
+    start = _start_joints(cfg, pose, joints)
     scene = make_scene(scene_file, seed, blocks, colors)
-    if png.suffix.lower() not in IMAGE_EXTENSIONS:  # before rendering anything
-        raise ConfigError(f"--png {png}: extension {png.suffix or '(none)'!r} is not one of "
-                          f"{', '.join(IMAGE_EXTENSIONS)}")
+    _check_picture_file(png)  # before rendering anything
     with Twin(cfg, scene, lens=lens_by_name(lens), start_joints_deg=start,
               realtime=False) as tw:
         arm_view = tw.render_camera()
@@ -204,20 +190,68 @@ def snapshot(ctx: click.Context, scene_file: Path | None, seed: int | None, bloc
         picture, caption = arm_view, "arm camera frame, unmarked"
     else:
         at = f"joints {joints}" if joints is not None else f"pose {pose}"
-        arm_view = titled(arm_view, f"arm camera ({lens} lens), {at}")
-        h = arm_view.shape[0]
-        scaled = np.asarray(cv2.resize(overview, (round(overview.shape[1] * h /
-                                                        overview.shape[0]), h)), dtype=np.uint8)
-        seed_text = f", seed {scene.seed}" if scene.seed is not None and \
-            f"seed {scene.seed}" not in scene.source else ""
-        caption = (f"busarm twin snapshot: scene {scene.source}{seed_text} "
-                   f"({len(scene.blocks)} blocks, {len(scene.bins)} bins), {cfg.name}; "
-                   f"{datetime.now().astimezone():%Y-%m-%d %H:%M:%S %Z}")
-        picture = with_caption(overview if view == "overview" else
-                               np.hstack([arm_view, scaled]), [caption])
+        picture, caption = _captioned(arm_view, overview, f"arm camera ({lens} lens), {at}",
+                                      scene, cfg.name, view)
     save_image(png, picture)
     click.echo(f"wrote {png}: {'arm camera and overview' if view == 'both' else view} "
                f"({picture.shape[1]}x{picture.shape[0]}): {caption}")
+
+
+def _refuse_with_arena(ctx: click.Context, options: dict[str, object]) -> None:
+    """--arena draws the arena from above: the scene and arm ``options`` (by name), and
+    --pose/--lens/--view, do not apply to it."""
+    given = [name for name, value in options.items() if value is not None]
+    given += [f"--{name}" for name in ("pose", "lens", "view") if ctx.get_parameter_source(
+        name) is not click.core.ParameterSource.DEFAULT]
+    if given:
+        raise ConfigError(f"--arena draws the arena from above: {', '.join(given)} "
+                          f"{'does' if len(given) == 1 else 'do'} not apply to it")
+
+
+def _start_joints(cfg: ArmConfig, pose: str, joints: str | None) -> tuple[float, ...]:
+    """The joints to render the arm in (--joints, else the pose named --pose), refused if
+    they put the tool into the table."""
+    from busarm.arm.kinematics import ArmKinematics
+
+    start = cfg.check_joints(
+        parse_float_list(joints, "joint angle") if joints is not None else cfg.pose(pose))
+    tool_z = ArmKinematics.from_config(cfg, check_table=False).fk(start).z_mm
+    if tool_z < cfg.table_z_mm:
+        raise ConfigError(f"those joints put the tool {cfg.table_z_mm - tool_z:.0f} mm into the "
+                          "table; the arm cannot stand there")
+    return start
+
+
+def _captioned(arm_view: UInt8Image, overview: UInt8Image, title: str, scene: Scene,
+               arm_name: str, view: str) -> tuple[UInt8Image, str]:
+    """The overview (with the titled arm camera's picture on its left for ``view`` both)
+    over a caption saying what it is; the picture and the caption."""
+    import cv2
+    import numpy as np
+
+    from busarm.twin.snapshot import titled, with_caption
+
+    arm_view = titled(arm_view, title)
+    h = arm_view.shape[0]
+    scaled = np.asarray(cv2.resize(overview, (round(overview.shape[1] * h /
+                                                    overview.shape[0]), h)), dtype=np.uint8)
+    seed_text = f", seed {scene.seed}" if scene.seed is not None and \
+        f"seed {scene.seed}" not in scene.source else ""
+    caption = (f"busarm twin snapshot: scene {scene.source}{seed_text} "
+               f"({len(scene.blocks)} blocks, {len(scene.bins)} bins), {arm_name}; "
+               f"{datetime.now().astimezone():%Y-%m-%d %H:%M:%S %Z}")
+    picture = with_caption(overview if view == "overview" else
+                           np.hstack([arm_view, scaled]), [caption])
+    return picture, caption
+
+
+def _check_picture_file(png: Path) -> None:
+    """--png must name a picture file we write (checked before rendering anything)."""
+    from busarm.vision.annotate import IMAGE_EXTENSIONS
+
+    if png.suffix.lower() not in IMAGE_EXTENSIONS:
+        raise ConfigError(f"--png {png}: extension {png.suffix or '(none)'!r} is not one of "
+                          f"{', '.join(IMAGE_EXTENSIONS)}")
 
 
 def _arena_snapshot(arena: Arena, png: Path, config: str) -> None:
@@ -226,11 +260,9 @@ def _arena_snapshot(arena: Arena, png: Path, config: str) -> None:
     from busarm.twin.arena_picture import arena_picture
     from busarm.twin.snapshot import with_caption
     from busarm.twin.twin import Twin
-    from busarm.vision.annotate import IMAGE_EXTENSIONS, save_image
+    from busarm.vision.annotate import save_image
 
-    if png.suffix.lower() not in IMAGE_EXTENSIONS:  # before rendering anything
-        raise ConfigError(f"--png {png}: extension {png.suffix or '(none)'!r} is not one of "
-                          f"{', '.join(IMAGE_EXTENSIONS)}")
+    _check_picture_file(png)  # before rendering anything
     with Twin(load_arm_config(config), arena=arena, realtime=False) as tw:
         with twin_lidar(tw) as device:
             one = device.read_scan(2.0)

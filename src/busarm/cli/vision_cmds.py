@@ -19,7 +19,8 @@ from busarm.errors import ConfigError
 
 if TYPE_CHECKING:
     from busarm.vision.camera import CameraFrame
-    from busarm.vision.color import ColorDetector, ColorThresholds, Detection
+    from busarm.vision.color import ColorDetector, Detection
+    from busarm.vision.color_thresholds import ColorThresholds
     from busarm.vision.tags import TagDetection
 
 DEFAULT_MIN_AREA_PX = 200.0
@@ -43,7 +44,7 @@ def vision() -> None:
 
 def _load_thresholds(ctx: click.Context, thresholds: str | None, vendor_yaml: str | None,
                      section: str) -> ColorThresholds:
-    from busarm.vision.color import default_thresholds, load_thresholds
+    from busarm.vision.color_thresholds import default_thresholds, load_thresholds
 
     if thresholds is not None and vendor_yaml is not None:
         raise ConfigError("give --thresholds or --vendor-yaml, not both")
@@ -128,7 +129,8 @@ def detect(
     """Find colour blocks in camera frames: colour, centroid (px), yaw (deg), area (px)."""
     from busarm.vision.annotate import annotate, save_image
     from busarm.vision.camera import EndOfFrames, open_camera
-    from busarm.vision.color import ColorDetector, parse_color_names
+    from busarm.vision.color import ColorDetector
+    from busarm.vision.color_thresholds import parse_color_names
     from busarm.vision.tags import detect_tags
 
     table = _load_thresholds(ctx, thresholds, vendor_yaml, section)

@@ -21,7 +21,8 @@ from busarm.errors import BusArmError
 from busarm.robot import Robot
 from busarm.vision.annotate import annotate
 from busarm.vision.camera import CameraSource
-from busarm.vision.color import ColorDetector, Detection, default_thresholds
+from busarm.vision.color import ColorDetector, Detection
+from busarm.vision.color_thresholds import default_thresholds
 
 log = logging.getLogger(__name__)
 

@@ -94,7 +94,7 @@ class MobileSetup:
 def block_colors() -> list[str]:
     """The colours a block may have (the shipped thresholds' but the line's and table's)."""
     from busarm.robot.locate import NOT_BLOCK_COLORS
-    from busarm.vision.color import default_thresholds
+    from busarm.vision.color_thresholds import default_thresholds
 
     return [c for c in default_thresholds().names if c not in NOT_BLOCK_COLORS]
 

@@ -33,6 +33,7 @@ from pathlib import Path
 from fastapi import FastAPI, Request, WebSocket, WebSocketDisconnect
 from fastapi.responses import FileResponse, JSONResponse, Response, StreamingResponse
 from starlette.middleware.base import BaseHTTPMiddleware, RequestResponseEndpoint
+from starlette.types import ASGIApp
 
 from busarm.dashboard.access import COOKIE, Access
 from busarm.dashboard.feeds import Feed
@@ -65,25 +66,50 @@ class Delivered:
         return key
 
 
+class _Guard(BaseHTTPMiddleware):
+    """Every HTTP request passes ``Access`` first; the printed link's token is kept as the
+    page's cookie."""
+
+    def __init__(self, app: ASGIApp, access: Access) -> None:
+        super().__init__(app)
+        self.access = access
+
+    async def dispatch(self, request: Request, call_next: RequestResponseEndpoint) -> Response:
+        access = self.access
+        why = access.refusal(request.headers, request.query_params, request.cookies,
+                             websocket=False)
+        if why is not None:
+            return JSONResponse({"error": why}, status_code=403)
+        response = await call_next(request)
+        token = request.query_params.get("token")
+        if token and access.token is not None:  # the printed link: keep it for the page
+            response.set_cookie(COOKIE, token, httponly=True, samesite="strict")
+        return response
+
+
 def make_app(service: RobotService, access: Access, feeds: dict[str, Feed]) -> FastAPI:
     """The application: routes for the page, its WebSocket, cameras and reports."""
     app = FastAPI(title="busarm dashboard", docs_url=None, redoc_url=None, openapi_url=None)
     delivered = Delivered()
+    app.add_middleware(_Guard, access=access)
+    _page_routes(app, service, delivered)
+    _media_routes(app, service, feeds, delivered)
 
-    class Guard(BaseHTTPMiddleware):
-        async def dispatch(self, request: Request,
-                           call_next: RequestResponseEndpoint) -> Response:
-            why = access.refusal(request.headers, request.query_params, request.cookies,
-                                 websocket=False)
-            if why is not None:
-                return JSONResponse({"error": why}, status_code=403)
-            response = await call_next(request)
-            token = request.query_params.get("token")
-            if token and access.token is not None:  # the printed link: keep it for the page
-                response.set_cookie(COOKIE, token, httponly=True, samesite="strict")
-            return response
+    @app.websocket("/ws")
+    async def ws(socket: WebSocket) -> None:
+        why = access.refusal(socket.headers, socket.query_params, socket.cookies,
+                             websocket=True)
+        if why is not None:
+            await socket.close(code=1008, reason=why[:120])
+            return
+        await socket.accept()
+        await _session(socket, service, delivered)
 
-    app.add_middleware(Guard)
+    return app
+
+
+def _page_routes(app: FastAPI, service: RobotService, delivered: Delivered) -> None:
+    """The page and its files, and the JSON of the state, the robot and what was sent."""
 
     @app.get("/")
     async def index() -> Response:
@@ -104,6 +130,11 @@ def make_app(service: RobotService, access: Access, feeds: dict[str, Feed]) -> F
     @app.get("/api/robot")
     async def robot() -> JSONResponse:
         return JSONResponse(service.describe())
+
+
+def _media_routes(app: FastAPI, service: RobotService, feeds: dict[str, Feed],
+                  delivered: Delivered) -> None:
+    """The camera streams, the map picture and the reports' files."""
 
     @app.get("/camera/{name}.mjpg")
     async def camera(name: str) -> Response:
@@ -130,18 +161,6 @@ def make_app(service: RobotService, access: Access, feeds: dict[str, Feed]) -> F
         if root not in path.parents or not path.is_file():
             return JSONResponse({"error": f"no report file {name}/{file}"}, status_code=404)
         return FileResponse(path)
-
-    @app.websocket("/ws")
-    async def ws(socket: WebSocket) -> None:
-        why = access.refusal(socket.headers, socket.query_params, socket.cookies,
-                             websocket=True)
-        if why is not None:
-            await socket.close(code=1008, reason=why[:120])
-            return
-        await socket.accept()
-        await _session(socket, service, delivered)
-
-    return app
 
 
 def _static(name: str) -> Response:

@@ -37,7 +37,7 @@ from busarm.robot.locate import CAMERA_LINK_NAME, link2base
 from busarm.units import check_range
 from busarm.vision.calibration import CameraIntrinsics
 from busarm.vision.calibration.core import invert_transform
-from busarm.vision.color import ColorRange
+from busarm.vision.color_thresholds import ColorRange
 from busarm.vision.floor_line import FloorLineSighting, find_floor_line
 from busarm.vision.localize import camera_to_base
 

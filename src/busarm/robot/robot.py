@@ -28,11 +28,12 @@ its servo bus, wrist camera, camera calibration and bins come over the link
 from __future__ import annotations
 
 import tempfile
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import Any, TypeVar
 from urllib.parse import parse_qs, urlsplit
 
 from busarm.arm.arm import Arm
@@ -70,9 +71,11 @@ from busarm.vision.calibration import (
     load_intrinsics,
 )
 from busarm.vision.camera import CameraSource, open_camera
-from busarm.vision.color import ColorDetector, ColorThresholds, default_thresholds
+from busarm.vision.color import ColorDetector
+from busarm.vision.color_thresholds import ColorThresholds, default_thresholds
 
 Bins = dict[str, tuple[float, float]]
+_T = TypeVar("_T")
 ZENOH_PREFIX = "zenoh://"
 
 
@@ -169,87 +172,53 @@ class Robot:
         has its own.
         """
         if port.startswith(ZENOH_PREFIX):
-            if scene is not None or arena is not None or chassis is not None or lidar:
-                raise ConfigError(f"{port}: a robot served on Zenoh has what it has where it "
-                                  "is served (its scene, arena and parts are chosen there)")
             return cls._open_remote(port, camera=camera, config=config,
                                     arm_calibration=arm_calibration, intrinsics=intrinsics,
                                     hand_eye=hand_eye, bins=bins, needs=needs,
-                                    baudrate=baudrate, **bus_options)
+                                    baudrate=baudrate, scene=scene, arena=arena,
+                                    chassis=chassis, lidar=lidar, **bus_options)
         behind = board_target(port)  # the twin behind a simulated controller board
         twin_port = behind if behind is not None and is_twin_url(behind) else port
-        on_twin = is_twin_url(twin_port)
-        if (scene is not None or arena is not None) and not on_twin:
-            raise ConfigError(f"{'a scene' if scene is not None else 'an arena'} is for the "
-                              f"twin; {port} is not one (use --port twin, or no --port)")
-        if calibration_store is not None and calibration_dir is not None:
-            raise ConfigError("give a calibration_store or a calibration_dir, not both")
-        store = calibration_store if intrinsics is None and hand_eye is None else None
-        if not on_twin:  # a missing adapter first: it is what to fix first
-            check_device(port)
-        _check_needs(needs, port, on_twin, camera, intrinsics, hand_eye, bins, store,
-                     calibrate)
-        given = config if isinstance(config, ArmConfig | None) else load_arm_config(config)
-        cal = (arm_calibration if isinstance(arm_calibration, Calibration | None)
-               else load_calibration(arm_calibration))
-        twin: Twin | None = None
-        transport: Transport
-        if on_twin:  # the arm is the twin's (its URL's config=, if the program gave none)
-            url = with_board(twin_port, board) if board else twin_port
-            if twin_port is behind:
-                transport = twin_behind_board(url, baudrate, config=given, scene=scene,
-                                              arena=arena)
-                twin = transport.twin
-            else:
-                twin = twin_from_url(url, baudrate, config=given, scene=scene, arena=arena)
-                transport = TwinTransport(twin)
-            cfg = twin.config
-        else:
-            cfg = given or load_arm_config()
-            if chassis is not None:  # the arm stands on the mobile base's deck
-                cfg = deck_mounted(cfg)
-            transport = open_transport(port, baudrate=baudrate)
-        opened: list[Any] = [transport]
-        try:
+        store = _checked_store(port, is_twin_url(twin_port), scene, arena, calibration_store,
+                               calibration_dir, intrinsics, hand_eye)
+        _check_needs(needs, port, is_twin_url(twin_port), camera, intrinsics, hand_eye, bins,
+                     store, calibrate)
+        given, cal = _arm_files(config, arm_calibration)
+        transport, twin, cfg = _arm_transport(port, twin_port, behind, board, baudrate, given,
+                                              scene, arena, chassis)
+        with _closed_on_error([transport]) as opened:  # a failure: nothing sent, just close
             bus = servo_bus_on(transport, **bus_options)
             arm = Arm(bus, cfg, cal)
-            source = _open_camera(camera, twin)
-            if source is not None:
-                opened.append(source)
+            source = _kept(opened, _open_camera(camera, twin))
             made_for = None if store is None or source is None else MadeFor.for_camera(
                 store.robot, source, cfg, twin)
             calibration = _camera_calibration(twin, intrinsics, hand_eye, calibrate,
                                               calibration_dir, progress, store, made_for)
-            base = _open_base(bus, twin, chassis)
-            if base is not None:
-                opened.append(base)
-            lidar_source = (twin_lidar(twin) if lidar is None and twin is not None
-                            and twin.arena is not None
-                            else open_any_lidar(lidar) if lidar is not None else None)
-            if lidar_source is not None:
-                opened.append(lidar_source)
+            base = _kept(opened, _open_base(bus, twin, chassis))
+            lidar_source = _kept(opened, _open_lidar(lidar, twin))
             robot = cls(arm, camera=source, calibration=calibration, bins=bins, twin=twin,
                         base=base, lidar=lidar_source)
             robot.port = port
             return robot
-        except BaseException:
-            for thing in reversed(opened):  # nothing was sent to the arm: just close
-                thing.close()
-            raise
 
     @classmethod
     def _open_remote(cls, port: str, *, camera: str | None,
                      config: ArmConfig | str | Path | None,
                      arm_calibration: Calibration | str | Path | None,
                      intrinsics: Path | None, hand_eye: Path | None, bins: Bins | None,
-                     needs: Collection[str], baudrate: int, **bus_options: Any) -> Robot:
+                     needs: Collection[str], baudrate: int, scene: Scene | None,
+                     arena: Arena | None, chassis: ChassisConfig | str | Path | None,
+                     lidar: str | None, **bus_options: Any) -> Robot:
         """The robot served on another computer (busarm.robot.remote): its config, camera,
-        calibration and bins are the served robot's unless given here."""
+        calibration and bins are the served robot's unless given here (not its world or
+        mobile parts)."""
+        if scene is not None or arena is not None or chassis is not None or lidar:
+            raise ConfigError(f"{port}: a robot served on Zenoh has what it has where it "
+                              "is served (its scene, arena and parts are chosen there)")
         from busarm.robot.remote import fetch_info, remote_parts
 
         transport = open_transport(port, baudrate=baudrate)
-        opened: list[Any] = [transport]
-        try:
+        with _closed_on_error([transport]) as opened:
             parts = remote_parts(transport, fetch_info(transport),  # type: ignore[arg-type]
                                  camera=camera is None)
             if parts.camera is not None:
@@ -259,9 +228,7 @@ class Robot:
                 opened.append(source)
             calibration = (parts.calibration if intrinsics is None else _camera_calibration(
                 None, intrinsics, hand_eye, False, None, quiet))
-            given = config if isinstance(config, ArmConfig | None) else load_arm_config(config)
-            cal = (arm_calibration if isinstance(arm_calibration, Calibration | None)
-                   else load_calibration(arm_calibration))
+            given, cal = _arm_files(config, arm_calibration)
             _check_needs(needs, port, True, camera, None, None, None, None, True)  # known
             missing = [what for what, have in (("camera", source is not None),
                                                ("camera_calibration", calibration is not None),
@@ -274,10 +241,6 @@ class Robot:
             robot = cls(arm, camera=source, calibration=calibration, bins=bins or parts.bins)
             robot.port = port
             return robot
-        except BaseException:
-            for thing in reversed(opened):
-                thing.close()
-            raise
 
     # ------------------------------------------------------------------ parts
 
@@ -361,6 +324,78 @@ NEEDS = {"camera": "the wrist camera (--camera)",
          "camera_calibration": "the camera's calibration files (--intrinsics from busarm "
                                "camera calibrate, --hand-eye from busarm camera handeye)",
          "bins": "where the bins are (--bins COLOUR=X,Y;...)"}
+
+
+def _checked_store(port: str, on_twin: bool, scene: Scene | None, arena: Arena | None,
+                   calibration_store: CalibrationStore | None, calibration_dir: Path | None,
+                   intrinsics: Path | None, hand_eye: Path | None) -> CalibrationStore | None:
+    """The calibration store to use (none when calibration files are given), after the
+    checks that come before anything is opened."""
+    if (scene is not None or arena is not None) and not on_twin:
+        raise ConfigError(f"{'a scene' if scene is not None else 'an arena'} is for the "
+                          f"twin; {port} is not one (use --port twin, or no --port)")
+    if calibration_store is not None and calibration_dir is not None:
+        raise ConfigError("give a calibration_store or a calibration_dir, not both")
+    if not on_twin:  # a missing adapter first: it is what to fix first
+        check_device(port)
+    return calibration_store if intrinsics is None and hand_eye is None else None
+
+
+def _arm_files(config: ArmConfig | str | Path | None,
+               arm_calibration: Calibration | str | Path | None,
+               ) -> tuple[ArmConfig | None, Calibration | None]:
+    """The arm config and calibration given, loaded from their files if named."""
+    given = config if isinstance(config, ArmConfig | None) else load_arm_config(config)
+    cal = (arm_calibration if isinstance(arm_calibration, Calibration | None)
+           else load_calibration(arm_calibration))
+    return given, cal
+
+
+def _arm_transport(port: str, twin_port: str, behind: str | None, board: str | None,
+                   baudrate: int, given: ArmConfig | None, scene: Scene | None,
+                   arena: Arena | None, chassis: ChassisConfig | str | Path | None,
+                   ) -> tuple[Transport, Twin | None, ArmConfig]:
+    """The arm's transport, the twin when it is one, and the arm's config: the twin's (its
+    URL's config=, if the program gave none), else the one given or the default."""
+    if not is_twin_url(twin_port):
+        cfg = given or load_arm_config()
+        if chassis is not None:  # the arm stands on the mobile base's deck
+            cfg = deck_mounted(cfg)
+        return open_transport(port, baudrate=baudrate), None, cfg
+    url = with_board(twin_port, board) if board else twin_port
+    transport: Transport
+    if twin_port is behind:
+        transport = twin_behind_board(url, baudrate, config=given, scene=scene, arena=arena)
+        twin = transport.twin
+    else:
+        twin = twin_from_url(url, baudrate, config=given, scene=scene, arena=arena)
+        transport = TwinTransport(twin)
+    return transport, twin, twin.config
+
+
+@contextmanager
+def _closed_on_error(opened: list[Any]) -> Iterator[list[Any]]:
+    """``opened``, whose things (each with ``close()``) are closed, newest first, if the
+    block fails."""
+    try:
+        yield opened
+    except BaseException:
+        for thing in reversed(opened):
+            thing.close()
+        raise
+
+
+def _kept(opened: list[Any], thing: _T) -> _T:
+    """``thing``, added to ``opened`` unless it is None."""
+    if thing is not None:
+        opened.append(thing)
+    return thing
+
+
+def _open_lidar(lidar: str | None, twin: Twin | None) -> LidarSource | None:
+    """The Lidar on the port given, else an arena twin's own, else None."""
+    return (twin_lidar(twin) if lidar is None and twin is not None and twin.arena is not None
+            else open_any_lidar(lidar) if lidar is not None else None)
 
 
 def _open_base(bus: ServoBus, twin: Twin | None,

@@ -34,7 +34,8 @@ from busarm.protocol import (
     decode_request,
     encode_reply,
 )
-from busarm.sim.servo import ServoParams, SimServo
+from busarm.sim.servo import SimServo
+from busarm.sim.servo_params import ServoParams
 from busarm.sim.storage import load_state, record_from_servo, save_state, servo_from_record
 from busarm.units import check_range
 

@@ -25,7 +25,8 @@ from pathlib import Path
 
 from busarm.errors import ConfigError
 from busarm.fileio import write_text_atomic
-from busarm.sim.servo import ServoParams, SimServo
+from busarm.sim.servo import SimServo
+from busarm.sim.servo_params import ServoParams
 
 FORMAT_NAME = "busarm-sim-servos"
 FORMAT_VERSION = 1

@@ -302,27 +302,15 @@ def arm_bodies(config: ArmConfig, spec: TwinModelSpec) -> list[str]:
     world for an arm on a table, the chassis for the mobile robot)."""
     g = config.geometry
     m = M_PER_MM
-    lim = [(math.radians(j.min_deg), math.radians(j.max_deg)) for j in config.joints]
-    names = [j.name for j in config.joints]
     table_z = config.table_z_mm * m
-    pad_t, pad_w, pad_l = (v * m for v in FINGER_PAD_MM)
-    max_half_gap = (config.gripper.max_pulses - config.gripper.min_pulses) \
-        * config.gripper.gap_mm_per_pulse / 2 * m
-    cam = spec.mount.cam2link
-    cam_quat = quat_from_matrix(cam[:3, :3] @ MJ_FROM_CV)
-    out: list[str] = []
-    w = out.append
-
+    out = [f'    <geom name="base" class="arm" type="cylinder" contype="0" conaffinity="0" '
+           f'pos="0 0 {table_z + 0.02:.9g}" size="0.045 0.02"/>',
+           f'    <geom name="column" class="arm" type="cylinder" contype="0" conaffinity="0" '
+           f'pos="0 0 {table_z + g.base_height_mm * m / 2:.9g}" '
+           f'size="0.022 {g.base_height_mm * m / 2 - 0.01:.9g}"/>']
     # The arm: modified DH, body i at RotX(alpha) TransX(a) TransZ(d), turning about z.
     dh = [(0.0, 0.0, g.base_height_mm), (-math.pi / 2, 0.0, 0.0), (0.0, g.upper_arm_mm, 0.0),
           (0.0, g.forearm_mm, 0.0), (-math.pi / 2, 0.0, g.wrist_mm)]
-    base_r = 0.045
-    w(f'    <geom name="base" class="arm" type="cylinder" contype="0" conaffinity="0" '
-      f'pos="0 0 {table_z + 0.02:.9g}" size="{base_r} 0.02"/>')
-    w(f'    <geom name="column" class="arm" type="cylinder" contype="0" conaffinity="0" '
-      f'pos="0 0 {table_z + g.base_height_mm * m / 2:.9g}" '
-      f'size="0.022 {g.base_height_mm * m / 2 - 0.01:.9g}"/>')
-    indent = "    "
     link_geoms = [
         # link1: the shoulder bracket on top of the column.
         '<geom class="arm" type="box" size="0.03 0.03 0.02" contype="0" conaffinity="0"/>',
@@ -331,55 +319,77 @@ def arm_bodies(config: ArmConfig, spec: TwinModelSpec) -> list[str]:
         _link_geom(0.016, (0, g.wrist_mm * m, 0)),
         '<geom class="arm" type="box" size="0.03 0.018 0.015" pos="0 0 0.0"/>',
     ]
-    for i, ((alpha, a, d), name, (lo, hi)) in enumerate(zip(dh, names, lim, strict=True)):
+    coms = [(0, 0, 0), (g.upper_arm_mm * m / 2, 0, 0), (g.forearm_mm * m / 2, 0, 0),
+            (0, g.wrist_mm * m / 2, 0), (0, 0, 0.04)]
+    indent = "    "
+    for i, ((alpha, a, d), joint) in enumerate(zip(dh, config.joints, strict=True)):
         rot = _rot_x(alpha)
         pos = np.array([a, 0.0, 0.0]) + rot @ np.array([0.0, 0.0, d])
         pos_m = pos * m  # the base frame is MuJoCo's world frame (the table may be offset)
-        w(f'{indent}<body name="link{i + 1}" childclass="arm" pos="{_fmt(pos_m)}" '
-          f'quat="{_fmt(quat_from_matrix(rot))}">')
         mass = LINK_MASS_KG[i]
-        com = [(0, 0, 0), (g.upper_arm_mm * m / 2, 0, 0), (g.forearm_mm * m / 2, 0, 0),
-               (0, g.wrist_mm * m / 2, 0), (0, 0, 0.04)][i]
-        w(f'{indent}  <inertial pos="{_fmt(com)}" mass="{mass}" '
-          f'diaginertia="{_fmt((mass * 0.0006,) * 3)}"/>')
-        w(f'{indent}  <joint name="{name}" axis="0 0 1" range="{lo:.9g} {hi:.9g}"/>')
-        w(f'{indent}  {link_geoms[i]}')
+        lo, hi = math.radians(joint.min_deg), math.radians(joint.max_deg)
+        out += [f'{indent}<body name="link{i + 1}" childclass="arm" pos="{_fmt(pos_m)}" '
+                f'quat="{_fmt(quat_from_matrix(rot))}">',
+                f'{indent}  <inertial pos="{_fmt(coms[i])}" mass="{mass}" '
+                f'diaginertia="{_fmt((mass * 0.0006,) * 3)}"/>',
+                f'{indent}  <joint name="{joint.name}" axis="0 0 1" range="{lo:.9g} {hi:.9g}"/>',
+                f'{indent}  {link_geoms[i]}']
         if i == 3:
-            cam_pos = cam[:3, 3] * m
-            w(f'{indent}  <camera name="arm_camera" pos="{_fmt(cam_pos)}" '
-              f'quat="{_fmt(cam_quat)}" fovy="{spec.camera_fovy_deg:.9g}"/>')
-            w(f'{indent}  <geom class="arm" type="box" size="0.02 0.012 0.012" '
-              f'pos="{_fmt(cam_pos + cam[:3, :3] @ np.array([0, 0, -0.014]))}" '
-              f'quat="{_fmt(quat_from_matrix(cam[:3, :3]))}" contype="0" conaffinity="0"/>')
-            # The bracket holding it: a bar from the wrist joint to the camera body.
-            bracket_end = cam_pos + cam[:3, :3] @ np.array([0, 0, -0.02])
-            w(f'{indent}  <geom class="arm" type="capsule" size="0.006" contype="0" '
-              f'conaffinity="0" fromto="0 0 0 {_fmt(bracket_end)}"/>')
+            out += _camera_geoms(spec, indent + "  ")
         indent += "  "
-    # The gripper on link 5 (tool axis z5): a palm, then two fingers sliding along y5.
-    tool = g.tool_mm * m
-    palm_len = tool - pad_l - 0.004
-    w(f'{indent}<geom class="arm" type="box" size="0.014 0.028 {palm_len / 2:.9g}" '
-      f'pos="0 0 {palm_len / 2:.9g}"/>')
-    w(f'{indent}<site name="tool" pos="0 0 {tool:.9g}" size="0.004"/>')
-    for side, sign in (("left", 1.0), ("right", -1.0)):
-        w(f'{indent}<body name="finger_{side}" pos="0 0 {tool - pad_l / 2:.9g}">')
-        w(f'{indent}  <inertial pos="0 {sign * pad_t:.9g} 0" mass="0.02" '
-          'diaginertia="2e-6 2e-6 2e-6"/>')
-        w(f'{indent}  <joint name="finger_{side}" type="slide" axis="0 {sign:g} 0" '
-          f'range="0 {max_half_gap:.9g}" damping="20" armature="2" frictionloss="0"/>')
-        # The finger's blade from its pad back to the palm (seen, never touching).
-        w(f'{indent}  <geom type="box" contype="0" conaffinity="0" '
-          f'pos="0 {sign * pad_t * 0.25:.9g} {-pad_l / 2 - 0.01:.9g}" '
-          f'size="{_fmt((pad_w / 2, pad_t / 4, 0.012))}"/>')
-        # Priority: the rubber pad's friction rules every contact it makes.
-        w(f'{indent}  <geom name="finger_{side}" type="box" condim="4" priority="1" '
-          f'friction="{PAD_FRICTION} 0.02 0.002" solref="0.004 1" solimp="0.95 0.99 0.001" '
-          f'pos="0 {sign * pad_t / 2:.9g} 0" size="{_fmt((pad_w / 2, pad_t / 2, pad_l / 2))}"/>')
-        w(f'{indent}</body>')
+    out += _gripper(config, indent)
     for _ in range(5):
         indent = indent[:-2]
-        w(f'{indent}</body>')
+        out.append(f'{indent}</body>')
+    return out
+
+
+def _camera_geoms(spec: TwinModelSpec, indent: str) -> list[str]:
+    """The arm camera on its link (the wrist's): the MuJoCo camera, the camera's body
+    and the bracket holding it."""
+    m = M_PER_MM
+    cam = spec.mount.cam2link
+    cam_quat = quat_from_matrix(cam[:3, :3] @ MJ_FROM_CV)
+    cam_pos = cam[:3, 3] * m
+    # The bracket holding it: a bar from the wrist joint to the camera body.
+    bracket_end = cam_pos + cam[:3, :3] @ np.array([0, 0, -0.02])
+    return [f'{indent}<camera name="arm_camera" pos="{_fmt(cam_pos)}" '
+            f'quat="{_fmt(cam_quat)}" fovy="{spec.camera_fovy_deg:.9g}"/>',
+            f'{indent}<geom class="arm" type="box" size="0.02 0.012 0.012" '
+            f'pos="{_fmt(cam_pos + cam[:3, :3] @ np.array([0, 0, -0.014]))}" '
+            f'quat="{_fmt(quat_from_matrix(cam[:3, :3]))}" contype="0" conaffinity="0"/>',
+            f'{indent}<geom class="arm" type="capsule" size="0.006" contype="0" '
+            f'conaffinity="0" fromto="0 0 0 {_fmt(bracket_end)}"/>']
+
+
+def _gripper(config: ArmConfig, indent: str) -> list[str]:
+    """The gripper on link 5 (tool axis z5): a palm, then two fingers sliding along y5."""
+    m = M_PER_MM
+    pad_t, pad_w, pad_l = (v * m for v in FINGER_PAD_MM)
+    max_half_gap = (config.gripper.max_pulses - config.gripper.min_pulses) \
+        * config.gripper.gap_mm_per_pulse / 2 * m
+    tool = config.geometry.tool_mm * m
+    palm_len = tool - pad_l - 0.004
+    out = [f'{indent}<geom class="arm" type="box" size="0.014 0.028 {palm_len / 2:.9g}" '
+           f'pos="0 0 {palm_len / 2:.9g}"/>',
+           f'{indent}<site name="tool" pos="0 0 {tool:.9g}" size="0.004"/>']
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        out += [
+            f'{indent}<body name="finger_{side}" pos="0 0 {tool - pad_l / 2:.9g}">',
+            f'{indent}  <inertial pos="0 {sign * pad_t:.9g} 0" mass="0.02" '
+            'diaginertia="2e-6 2e-6 2e-6"/>',
+            f'{indent}  <joint name="finger_{side}" type="slide" axis="0 {sign:g} 0" '
+            f'range="0 {max_half_gap:.9g}" damping="20" armature="2" frictionloss="0"/>',
+            # The finger's blade from its pad back to the palm (seen, never touching).
+            f'{indent}  <geom type="box" contype="0" conaffinity="0" '
+            f'pos="0 {sign * pad_t * 0.25:.9g} {-pad_l / 2 - 0.01:.9g}" '
+            f'size="{_fmt((pad_w / 2, pad_t / 4, 0.012))}"/>',
+            # Priority: the rubber pad's friction rules every contact it makes.
+            f'{indent}  <geom name="finger_{side}" type="box" condim="4" priority="1" '
+            f'friction="{PAD_FRICTION} 0.02 0.002" solref="0.004 1" '
+            'solimp="0.95 0.99 0.001" '
+            f'pos="0 {sign * pad_t / 2:.9g} 0" size="{_fmt((pad_w / 2, pad_t / 2, pad_l / 2))}"/>',
+            f'{indent}</body>']
     return out
 
 

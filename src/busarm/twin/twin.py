@@ -25,10 +25,7 @@ looks the same every time.
 
 from __future__ import annotations
 
-import copy
-import ctypes.util
 import math
-import os
 import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -46,7 +43,8 @@ from busarm.clock import WALL_CLOCK, Clock, SimClock
 from busarm.errors import ConfigError, TwinError
 from busarm.protocol import Command, Request
 from busarm.sim.bus import SimBus, WireTiming
-from busarm.sim.servo import ServoParams, SimServo
+from busarm.sim.servo import SimServo
+from busarm.sim.servo_params import ServoParams
 from busarm.twin.arena import Arena
 from busarm.twin.arena_model import build_arena_mjcf, floor_texture
 from busarm.twin.boards import board2base, check_boards_fit, scene_textures
@@ -64,6 +62,7 @@ from busarm.twin.model import (
     TwinModelSpec,
     build_mjcf,
 )
+from busarm.twin.mujoco_gl import Renderers, import_mujoco
 from busarm.twin.scene import Block, Scene, random_scene
 
 FloatArray = npt.NDArray[np.float64]
@@ -75,37 +74,6 @@ MAX_CATCH_UP_S = 0.25
 """At most this much simulated time per tick: after a longer stall (a debugger, a loaded
 machine) the twin's clock slips rather than integrating seconds in one go."""
 EFFORT_STEP = 0.05
-GL_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri (or libosmesa6 for MUJOCO_GL=osmesa)"
-
-
-def _choose_gl_backend() -> str:
-    """MUJOCO_GL as given, else EGL or OSMesa, whichever this machine has."""
-    given = os.environ.get("MUJOCO_GL")
-    if given:
-        if given not in ("egl", "osmesa", "glfw"):
-            raise TwinError(f"MUJOCO_GL={given!r}; allowed: egl, osmesa (headless) or glfw")
-        return given
-    if ctypes.util.find_library("EGL"):
-        return "egl"
-    if ctypes.util.find_library("OSMesa"):
-        return "osmesa"
-    raise TwinError(f"no headless OpenGL for the twin's camera: install {GL_PACKAGES} "
-                    "(Debian/Ubuntu: sudo apt-get install ...), or set MUJOCO_GL")
-
-
-def _import_mujoco() -> Any:
-    os.environ["MUJOCO_GL"] = _choose_gl_backend()
-    if os.environ["MUJOCO_GL"] == "egl":
-        os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
-    try:
-        import mujoco
-    except ImportError as exc:
-        raise TwinError(f"the twin needs MuJoCo: pip install mujoco ({exc})") from exc
-    except Exception as exc:  # MuJoCo's GL loaders raise whatever their library does
-        raise TwinError(f"MuJoCo cannot start its {os.environ['MUJOCO_GL']!r} OpenGL backend "
-                        f"({type(exc).__name__}: {exc}); install {GL_PACKAGES}, or set "
-                        "MUJOCO_GL=egl or osmesa") from exc
-    return mujoco
 
 
 @dataclass(frozen=True)
@@ -120,6 +88,14 @@ class BlockState:
     yaw_deg: float
     size_mm: float
     is_upright: bool
+
+
+def _twin_clock(realtime: bool, clock: SimClock | None) -> Clock:
+    """The wall clock for a real-time twin, else ``clock`` or a new SimClock."""
+    if realtime and clock is not None:
+        raise ConfigError("a real-time twin follows the wall clock: give a SimClock "
+                          "only with realtime=False")
+    return WALL_CLOCK if realtime else (clock or SimClock(step_s=CONTROL_PERIOD_S))
 
 
 class Twin:
@@ -146,7 +122,7 @@ class Twin:
         chassis: ChassisConfig | None = None,
         slip: SlipModel | None = None,
     ) -> None:
-        self.mujoco = _import_mujoco()
+        self.mujoco = import_mujoco()
         self.config = config if config is not None else load_arm_config()
         if arena is not None:  # the arm stands on the mobile base's deck
             self.config = deck_mounted(self.config)
@@ -160,46 +136,73 @@ class Twin:
         self.mount = mount if mount is not None else CameraMount.from_config(
             self.config.camera).offset(*AS_BUILT_MOUNT_ERROR)
         self.kin = ArmKinematics.from_config(self.config, check_table=False)
+        start, grip = self._start_pose(start_joints_deg, gripper_pulses)
+        self._build_model()
+        self._lock = threading.RLock()
+        self._renderers = Renderers(self.mujoco)
+        self._closed = False
+        self.slipped_s = 0.0
+        self._find_parts()
+
+        # Start: arm at rest in the start pose, servos holding it, blocks settled.
+        self.lidar_noise = LidarNoise()
+        """What the twin's Lidar adds to the truth (busarm.twin.lidar)."""
+        self.mobile = None if arena is None or self.chassis is None else MobileBase(
+            self.model, self.data, self.chassis, arena.start, slip, seed=arena.seed or 0)
+        """The base's coupling to a simulated board (an arena twin only)."""
+        self._settle(start, grip)
+        self.realtime = realtime
+        self.clock: Clock = _twin_clock(realtime, clock)
+        self._t0 = self.clock.now()
+        self.servos = self._power_servos(start, grip)
+        self.bus = SimBus(self.servos, timing=timing or WireTiming(), echo=echo, clock=self.clock)
+        self._read_sensors()
+        self._start_physics()
+
+    def _start_pose(self, joints_deg: Sequence[float] | None,
+                    gripper_pulses: int | None) -> tuple[tuple[float, ...], int]:
+        """The start pose's joint angles and gripper pulses, checked."""
         cfg = self.config
-        if start_joints_deg is None:
+        if joints_deg is None:
             # Looking down at the table, so a fresh twin's camera sees the blocks.
-            start_joints_deg = cfg.pose("look" if "look" in cfg.poses_deg else "home")
-        start = cfg.check_joints(start_joints_deg)
-        g = cfg.gripper
-        grip = g.open_pulses if gripper_pulses is None else gripper_pulses
-        g.check_pulses(grip)
+            joints_deg = cfg.pose("look" if "look" in cfg.poses_deg else "home")
+        start = cfg.check_joints(joints_deg)
+        grip = cfg.gripper.open_pulses if gripper_pulses is None else gripper_pulses
+        cfg.gripper.check_pulses(grip)
+        return start, grip
+
+    def _build_model(self) -> None:
+        """The world's MJCF (``mjcf``), compiled with its assets (board prints, an
+        arena's floor) into ``model`` and ``data``."""
+        cfg = self.config
         board_textures = scene_textures(self.scene, cfg.table_z_mm)
         check_boards_fit(self.scene, cfg.table_z_mm)
         width, height, fovy = self.lens.render_geometry()
         spec = TwinModelSpec(self.mount, fovy, (width, height), textures=tuple(board_textures))
         assets = {name: data for name, data, _w, _h, _pose in board_textures}
-        if arena is None or self.chassis is None:
+        if self.arena is None or self.chassis is None:
             self.mjcf = build_mjcf(cfg, self.scene, spec)
         else:
-            self.mjcf = build_arena_mjcf(cfg, self.chassis, arena, spec)
-            assets.update([floor_texture(arena)])
-        mj = self.mujoco
+            self.mjcf = build_arena_mjcf(cfg, self.chassis, self.arena, spec)
+            assets.update([floor_texture(self.arena)])
         try:
-            self.model = mj.MjModel.from_xml_string(self.mjcf, assets)
+            self.model = self.mujoco.MjModel.from_xml_string(self.mjcf, assets)
         except ValueError as exc:
             raise TwinError(f"MuJoCo rejected the generated model: {exc}") from exc
-        self.data = mj.MjData(self.model)
+        self.data = self.mujoco.MjData(self.model)
         self._render_size = (width, height)
-        self._lock = threading.RLock()
-        self._local = threading.local()
-        self._renderers: list[Any] = []
-        self._closed = False
-        self.slipped_s = 0.0
 
-        m = self.model
+    def _find_parts(self) -> None:
+        """The model's addresses of the joints, actuators and bodies the coupling uses."""
+        m, cfg, n_blocks = self.model, self.config, len(self.scene.blocks)
         self._joint_qpos = [m.joint(j.name).qposadr[0] for j in cfg.joints]
         self._joint_act = [m.actuator(j.name).id for j in cfg.joints]
         self._finger_qpos = m.joint("finger_left").qposadr[0]
         self._finger_right_qpos = m.joint("finger_right").qposadr[0]
         self._grip_act = m.actuator("gripper").id
-        self._block_body = [m.body(f"block{i}").id for i in range(len(self.scene.blocks))]
-        self._block_qpos = [m.joint(f"block{i}").qposadr[0] for i in range(len(self.scene.blocks))]
-        self._block_dof = [m.joint(f"block{i}").dofadr[0] for i in range(len(self.scene.blocks))]
+        self._block_body = [m.body(f"block{i}").id for i in range(n_blocks)]
+        self._block_qpos = [m.joint(f"block{i}").qposadr[0] for i in range(n_blocks)]
+        self._block_dof = [m.joint(f"block{i}").dofadr[0] for i in range(n_blocks)]
         self._link4 = m.body("link4").id
         self._torque = [JOINT_TORQUE_NM] * len(cfg.joints) + [GRIPPER_TORQUE_NM]
         self._acts = [*self._joint_act, self._grip_act]
@@ -208,13 +211,10 @@ class Twin:
         # and the servo's rate term.
         self._last_cmd: list[tuple[float, float] | None] = [None] * len(cfg.joints)
 
-        # Start: arm at rest in the start pose, servos holding it, blocks settled.
-        d = self.data
-        self.lidar_noise = LidarNoise()
-        """What the twin's Lidar adds to the truth (busarm.twin.lidar)."""
-        self.mobile = None if arena is None or self.chassis is None else MobileBase(
-            m, d, self.chassis, arena.start, slip, seed=arena.seed or 0)
-        """The base's coupling to a simulated board (an arena twin only)."""
+    def _settle(self, start: Sequence[float], grip: float) -> None:
+        """The arm at rest in the start pose, the servos holding it, then ``SETTLE_S`` of
+        physics for the blocks to settle; the simulated time starts at 0 after that."""
+        mj, m, d = self.mujoco, self.model, self.data
         for adr, act, angle in zip(self._joint_qpos, self._joint_act, start, strict=True):
             d.qpos[adr] = math.radians(angle)
             d.ctrl[act] = math.radians(angle)
@@ -225,28 +225,25 @@ class Twin:
         mj.mj_step(m, d, nstep=round(SETTLE_S / m.opt.timestep))
         d.time = 0.0
 
-        self.realtime = realtime
-        if realtime and clock is not None:
-            raise ConfigError("a real-time twin follows the wall clock: give a SimClock "
-                              "only with realtime=False")
-        self.clock: Clock = WALL_CLOCK if realtime else (clock or SimClock(
-            step_s=CONTROL_PERIOD_S))
-        self._t0 = self.clock.now()
+    def _power_servos(self, start: Sequence[float], grip: float) -> list[SimServo]:
+        """The simulated servos, powered on and holding the start pose, as after the
+        vendor's start-up move; each senses its joint in the physics."""
+        cfg = self.config
         servos: list[SimServo] = []
         for j, angle in zip(cfg.joints, start, strict=True):
             servos.append(SimServo(j.servo_id, params=ServoParams.arm_35kg(),
                                    position_pulses=j.pulses_from_angle_deg(angle), now=self._t0))
-        servos.append(SimServo(g.servo_id, params=ServoParams.gripper(),
+        servos.append(SimServo(cfg.gripper.servo_id, params=ServoParams.gripper(),
                                position_pulses=float(grip), now=self._t0))
         self._sensed = [s.physical_pulses for s in servos]
         for k, servo in enumerate(servos):
-            # Powered on and holding the start pose, as after the vendor's start-up move.
             servo.handle(Request(servo.servo_id, Command.MOVE_TIME_WRITE,
                                  (round(servo.physical_pulses), 0)), self._t0)
             servo.horn_sensor = self._sensor(k)
-        self.servos = servos
-        self.bus = SimBus(servos, timing=timing or WireTiming(), echo=echo, clock=self.clock)
-        self._read_sensors()
+        return servos
+
+    def _start_physics(self) -> None:
+        """Physics follows the clock: stepped by a SimClock's waits, else by a thread."""
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         if isinstance(self.clock, SimClock):
@@ -268,9 +265,7 @@ class Twin:
         if isinstance(self.clock, SimClock):
             self.clock.detach(self._tick)
         self.release_renderers()
-        # Renderers of threads that did not release theirs: their GL context cannot be
-        # made current here, so they are left to the process's exit.
-        self._renderers.clear()
+        self._renderers.forget_others()
 
     @property
     def lock(self) -> threading.RLock:
@@ -515,30 +510,7 @@ class Twin:
 
     def release_renderers(self) -> None:
         """Close the renderers this thread made (a GL context lives in its thread)."""
-        cache = getattr(self._local, "renderers", None) or {}
-        for renderer in cache.values():
-            renderer.close()
-            self._renderers.remove(renderer)
-        self._local.renderers = {}
-
-    def _renderer(self, width: int, height: int, live: bool = False) -> Any:
-        cache = getattr(self._local, "renderers", None)
-        if cache is None:
-            cache = self._local.renderers = {}
-        key = (width, height, live)
-        if key not in cache:
-            model = self.model
-            if live:  # the same model drawn without multisampling: a live view's own context
-                model = copy.copy(self.model)
-                model.vis.quality.offsamples = 0
-            try:
-                cache[key] = self.mujoco.Renderer(model, height, width)
-            except Exception as exc:  # the GL backend's own errors vary by backend
-                raise TwinError(
-                    f"cannot render with MUJOCO_GL={os.environ.get('MUJOCO_GL')}: {exc}; "
-                    f"install {GL_PACKAGES}") from exc
-            self._renderers.append(cache[key])
-        return cache[key]
+        self._renderers.release()
 
     def snapshot(self) -> Any:
         """A copy of the simulation's state now (an ``MjData``), to render from later or
@@ -559,7 +531,7 @@ class Twin:
         works on keep them. ``data``: a ``snapshot()`` to draw instead of now.
         """
         size = self._render_size if camera == "arm_camera" else (640, 480)
-        renderer = self._renderer(*size, live)
+        renderer = self._renderers.get(self.model, *size, live)
         if data is not None:
             renderer.update_scene(data, camera=camera)
         else:

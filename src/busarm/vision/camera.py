@@ -254,6 +254,26 @@ def _usb_backend() -> int:
     return cv2.CAP_V4L2 if sys.platform.startswith("linux") else cv2.CAP_ANY
 
 
+def _usb_device_name(device: str | int, width_px: int, height_px: int, fps: float,
+                     fourcc: str, read_timeout_s: float) -> str:
+    """The device path of a USB camera, after checking what it is asked for."""
+    check_int_range("width_px", width_px, 16, 8192)
+    check_int_range("height_px", height_px, 16, 8192)
+    check_range("fps", fps, 1.0, 1000.0)
+    check_range("read_timeout_s", read_timeout_s, 0.05, 60.0)
+    if fourcc not in FOURCCS:
+        raise ConfigError(f"fourcc {fourcc!r} is not one of {', '.join(FOURCCS)}")
+    if isinstance(device, bool) or not isinstance(device, int | str):
+        raise ConfigError(f"camera device must be a path or an index, got {device!r}")
+    if isinstance(device, int) and not 0 <= device <= 255:
+        raise ConfigError(f"camera index {device} is out of range 0..255")
+    name = device if isinstance(device, str) else f"/dev/video{device}"
+    if sys.platform.startswith("linux") and not os.path.exists(name):
+        # Checked first: OpenCV would print its own warnings and just fail to open.
+        raise CameraError(f"no camera at {name}")
+    return name
+
+
 class UsbCamera(CameraBase):
     """A USB (UVC) camera through ``cv2.VideoCapture`` (V4L2 on Linux).
 
@@ -270,20 +290,7 @@ class UsbCamera(CameraBase):
         height_px: int = DEFAULT_HEIGHT_PX, fps: float = DEFAULT_FPS, fourcc: str = "YUYV",
         *, read_timeout_s: float = DEFAULT_READ_TIMEOUT_S,
     ) -> None:
-        check_int_range("width_px", width_px, 16, 8192)
-        check_int_range("height_px", height_px, 16, 8192)
-        check_range("fps", fps, 1.0, 1000.0)
-        check_range("read_timeout_s", read_timeout_s, 0.05, 60.0)
-        if fourcc not in FOURCCS:
-            raise ConfigError(f"fourcc {fourcc!r} is not one of {', '.join(FOURCCS)}")
-        if isinstance(device, bool) or not isinstance(device, int | str):
-            raise ConfigError(f"camera device must be a path or an index, got {device!r}")
-        if isinstance(device, int) and not 0 <= device <= 255:
-            raise ConfigError(f"camera index {device} is out of range 0..255")
-        name = device if isinstance(device, str) else f"/dev/video{device}"
-        if sys.platform.startswith("linux") and not os.path.exists(name):
-            # Checked first: OpenCV would print its own warnings and just fail to open.
-            raise CameraError(f"no camera at {name}")
+        name = _usb_device_name(device, width_px, height_px, fps, fourcc, read_timeout_s)
         # OpenCV's V4L2 backend ignores CAP_PROP_READ_TIMEOUT_MSEC and waits 10 s for a
         # stalled camera, or what this variable says (whole seconds, read once per
         # process at the first wait): the first camera opened sets it.

@@ -45,7 +45,7 @@ from busarm.units import check_range, listing
 from busarm.vision.calibration.camera_model import CameraIntrinsics
 from busarm.vision.calibration.core import as_transform, invert_transform
 from busarm.vision.camera import check_bgr_image
-from busarm.vision.color import ColorRange, default_thresholds
+from busarm.vision.color_thresholds import ColorRange, default_thresholds
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]

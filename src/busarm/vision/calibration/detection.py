@@ -192,49 +192,73 @@ def _refine_tag_corners(
         return quads, np.zeros(0, bool)
     img = gray.astype(np.float32)
     q = quads.astype(np.float64)
-    stations = np.linspace(0.12, 0.88, 10)  # away from the corners, where edges meet
-    unit = np.linspace(-1.0, 1.0, 17)
     ok = np.ones(m_tags, bool)
     for _ in range(iterations):
-        d = np.roll(q, -1, axis=1) - q  # edge k runs from corner k to corner k + 1
-        length = np.linalg.norm(d, axis=-1)
-        ok &= length.min(axis=1) >= 8.0 * TAG_MIN_CELL_PX
-        e = d / np.maximum(length, 1e-9)[..., None]
-        normal = np.stack([e[..., 1], -e[..., 0]], axis=-1)  # outward: corners run clockwise
-        # Profiles reach 0.6 cell inward (inside the one-cell black border), at most 4 px.
-        half = np.clip(0.6 * length.min(axis=1) / 8.0, 1.5, 4.0)
-        s = unit[None, :] * half[:, None]  # (M, P)
-        base = q[:, :, None, :] + stations[None, None, :, None] * d[:, :, None, :]
-        pts = base[:, :, :, None, :] + s[:, None, None, :, None] * normal[:, :, None, None, :]
-        flat = pts.reshape(-1, unit.size, 2).astype(np.float32)
-        vals = cv2.remap(
-            img, flat[..., 0], flat[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
-        ).reshape(pts.shape[:-1])
-        grad = np.clip(np.diff(vals, axis=-1), 0.0, None)  # dark (inside) to bright (outside)
-        mid = 0.5 * (s[:, 1:] + s[:, :-1])
-        total = grad.sum(axis=-1)
-        offset = (grad * mid[:, None, None, :]).sum(axis=-1) / np.maximum(total, 1e-9)
-        weight = (total > 20.0).astype(np.float64)  # a real edge rises by 20+ grey levels
+        edge_pts, weight, large = _edge_points(img, q)
         count = weight.sum(axis=-1)
-        ok &= (count >= 4).all(axis=1)
-        edge_pts = base + offset[..., None] * normal[:, :, None, :]
-        centre = (edge_pts * weight[..., None]).sum(axis=2) / np.maximum(count, 1.0)[..., None]
-        c = edge_pts - centre[:, :, None, :]
-        cov = np.einsum("mksi,mksj,mks->mkij", c, c, weight)
-        direction = np.linalg.eigh(cov)[1][..., :, 1]  # the principal axis of each edge
-        # Corner k is where edge k - 1 meets edge k.
-        c_prev, d_prev = np.roll(centre, 1, axis=1), np.roll(direction, 1, axis=1)
-        det = d_prev[..., 0] * direction[..., 1] - d_prev[..., 1] * direction[..., 0]
-        ok &= (np.abs(det) > 0.05).all(axis=1)
-        diff = centre - c_prev
-        lam = (diff[..., 0] * direction[..., 1] - diff[..., 1] * direction[..., 0]) / np.where(
-            np.abs(det) > 1e-9, det, 1.0
-        )
-        new_q = c_prev + lam[..., None] * d_prev
+        ok &= large & (count >= 4).all(axis=1)
+        new_q, crossed = _edge_crossings(edge_pts, weight, count)
+        ok &= crossed
         # A tag whose fit failed keeps its previous corners (and is reported not ok).
         q = np.where(ok[:, None, None] & np.isfinite(new_q), new_q, q)
     ok &= np.abs(q - quads).max(axis=(1, 2)) < 3.0  # refinement must not wander off
     return q, ok
+
+
+_EDGE_STATIONS = np.linspace(0.12, 0.88, 10)
+"""Where along each edge it is located: away from the corners, where edges meet."""
+_PROFILE = np.linspace(-1.0, 1.0, 17)
+"""The samples of a profile across an edge, in units of its half length."""
+
+
+def _edge_points(
+    img: npt.NDArray[np.float32], q: FloatArray
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.bool_]]:
+    """Each tag edge located at ``_EDGE_STATIONS``: the points (M, 4, S, 2), their
+    weights (M, 4, S: 1 where the edge rises by 20+ grey levels, else 0) and which tags
+    are large enough (cells of ``TAG_MIN_CELL_PX``) to refine."""
+    stations, unit = _EDGE_STATIONS, _PROFILE
+    d = np.roll(q, -1, axis=1) - q  # edge k runs from corner k to corner k + 1
+    length = np.linalg.norm(d, axis=-1)
+    large = length.min(axis=1) >= 8.0 * TAG_MIN_CELL_PX
+    e = d / np.maximum(length, 1e-9)[..., None]
+    normal = np.stack([e[..., 1], -e[..., 0]], axis=-1)  # outward: corners run clockwise
+    # Profiles reach 0.6 cell inward (inside the one-cell black border), at most 4 px.
+    half = np.clip(0.6 * length.min(axis=1) / 8.0, 1.5, 4.0)
+    s = unit[None, :] * half[:, None]  # (M, P)
+    base = q[:, :, None, :] + stations[None, None, :, None] * d[:, :, None, :]
+    pts = base[:, :, :, None, :] + s[:, None, None, :, None] * normal[:, :, None, None, :]
+    flat = pts.reshape(-1, unit.size, 2).astype(np.float32)
+    vals = cv2.remap(
+        img, flat[..., 0], flat[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+    ).reshape(pts.shape[:-1])
+    grad = np.clip(np.diff(vals, axis=-1), 0.0, None)  # dark (inside) to bright (outside)
+    mid = 0.5 * (s[:, 1:] + s[:, :-1])
+    total = grad.sum(axis=-1)
+    offset = (grad * mid[:, None, None, :]).sum(axis=-1) / np.maximum(total, 1e-9)
+    weight = (total > 20.0).astype(np.float64)  # a real edge rises by 20+ grey levels
+    edge_pts: FloatArray = base + offset[..., None] * normal[:, :, None, :]
+    return edge_pts, weight, large
+
+
+def _edge_crossings(
+    edge_pts: FloatArray, weight: FloatArray, count: FloatArray
+) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+    """A line fitted through each edge's points, and the corners where neighbouring
+    lines cross (M, 4, 2); which tags' lines all cross at a clear angle."""
+    centre = (edge_pts * weight[..., None]).sum(axis=2) / np.maximum(count, 1.0)[..., None]
+    c = edge_pts - centre[:, :, None, :]
+    cov = np.einsum("mksi,mksj,mks->mkij", c, c, weight)
+    direction = np.linalg.eigh(cov)[1][..., :, 1]  # the principal axis of each edge
+    # Corner k is where edge k - 1 meets edge k.
+    c_prev, d_prev = np.roll(centre, 1, axis=1), np.roll(direction, 1, axis=1)
+    det = d_prev[..., 0] * direction[..., 1] - d_prev[..., 1] * direction[..., 0]
+    diff = centre - c_prev
+    lam = (diff[..., 0] * direction[..., 1] - diff[..., 1] * direction[..., 0]) / np.where(
+        np.abs(det) > 1e-9, det, 1.0
+    )
+    corners: FloatArray = c_prev + lam[..., None] * d_prev
+    return corners, (np.abs(det) > 0.05).all(axis=1)
 
 
 @functools.lru_cache(maxsize=1)
