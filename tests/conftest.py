@@ -10,6 +10,7 @@ them.
 
 from __future__ import annotations
 
+import fcntl
 import gc
 import os
 import shutil
@@ -197,10 +198,18 @@ def twin_calibration(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Pa
     by our own flows (a few seconds), for the tests that need a calibrated twin."""
     from busarm.robot import Robot
 
-    folder = tmp_path_factory.mktemp("twin-calibration")
-    with Robot.open("twin", calibration_dir=folder):
-        pass
-    return folder / "camera.json", folder / "hand_eye.json"
+    if os.environ.get("PYTEST_XDIST_WORKER") is None:
+        folder = tmp_path_factory.mktemp("twin-calibration")
+    else:  # one calibration for all of pytest-xdist's workers: the first makes it
+        folder = tmp_path_factory.getbasetemp().parent / "twin-calibration"
+    folder.mkdir(exist_ok=True)
+    files = folder / "camera.json", folder / "hand_eye.json"
+    with open(folder / ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        if not all(f.exists() for f in files):
+            with Robot.open("twin", calibration_dir=folder):
+                pass
+    return files
 
 
 def keep_twin_calibration(config_home: Path, files: tuple[Path, Path]) -> Path:

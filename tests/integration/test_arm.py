@@ -46,6 +46,8 @@ from busarm.sim.transport import SimTransport
 from busarm.units import DEG_PER_PULSE
 from conftest import BOARD_WAY, open_board_bus, sim_bus_on
 
+pytestmark = pytest.mark.realtime
+
 VENDOR = Path(__file__).resolve().parents[1] / "data" / "vendor"
 MOVES = (Command.MOVE_TIME_WRITE, Command.MOVE_TIME_WAIT_WRITE)
 UPRIGHT = (0.0, -90.0, 0.0, -90.0, 0.0)

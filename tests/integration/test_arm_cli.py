@@ -16,6 +16,8 @@ from busarm.cli.main import cli
 from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.pty import PtyServer
 
+pytestmark = pytest.mark.realtime
+
 SIM = "sim://?timing=0"
 VENDOR = Path(__file__).resolve().parents[1] / "data" / "vendor" / "arm_action_1.d6a"
 

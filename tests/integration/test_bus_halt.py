@@ -15,6 +15,8 @@ from busarm.errors import HaltedError
 from busarm.protocol import Command
 from conftest import SimArm
 
+pytestmark = pytest.mark.realtime
+
 
 def test_halt_refuses_writes_until_rearmed(arm: SimArm) -> None:
     bus = arm.bus

@@ -32,6 +32,8 @@ from busarm.sim.servo import SimServo
 from busarm.sim.servo_params import ServoParams
 from conftest import sigint_and_wait, wait_for
 
+pytestmark = pytest.mark.realtime
+
 SIM = "sim://?timing=0"
 
 

@@ -154,6 +154,7 @@ def test_a_stale_calibration_is_refused_saying_why(
         assert "camera calibrate" not in line
 
 
+@pytest.mark.slow
 def test_a_twin_with_another_lens_calibrates_again_and_the_commands_remake_it(
         first_run: tuple[Path, subprocess.CompletedProcess[str], float],
         tmp_path: Path) -> None:

@@ -61,6 +61,7 @@ def whole_runs(tmp_path_factory: pytest.TempPathFactory, twin_calibration: tuple
         yield {name: pool.submit(run, name) for name in WHOLE_RUNS}
 
 
+@pytest.mark.slow
 def test_transport_on_a_seeded_arena_delivers_and_writes_its_report(
         whole_runs: dict[str, Future[Done]]) -> None:
     tmp_path, done = whole_runs["transport"].result()

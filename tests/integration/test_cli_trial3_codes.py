@@ -40,6 +40,8 @@ from busarm.sim.bus import WireTiming
 from busarm.sim.pty import PtyServer
 from conftest import ListeningSim, keep_twin_calibration, sigint_and_wait
 
+pytestmark = pytest.mark.realtime
+
 FAR1 = {"format": "busarm.scene", "version": 1, "seed": 3,
         "table": {"x_min_mm": -200.0, "x_max_mm": 420.0, "y_min_mm": -400.0,
                   "y_max_mm": 400.0},

@@ -22,6 +22,8 @@ import pytest
 
 from busarm.bench.bus import SimServerProcess
 
+pytestmark = pytest.mark.realtime
+
 PYTHON_REPR = re.compile(r"\[[^\]]*\]|\{'|None|drop_rate|duration_s|speed_deg_s|e\+\d")
 """A Python list, dict repr, None, an internal name or an exponent in a message."""
 

@@ -44,6 +44,8 @@ from busarm.sim.bus import WireTiming
 from busarm.sim.pty import PtyServer
 from conftest import ListeningSim
 
+pytestmark = pytest.mark.realtime
+
 CONFIG = load_arm_config()
 GRIPPER_ID = CONFIG.gripper.servo_id
 

@@ -32,6 +32,8 @@ from busarm.sim.bus import WireTiming
 from busarm.sim.pty import PtyServer
 from conftest import ListeningSim, sigint_and_wait
 
+pytestmark = pytest.mark.realtime
+
 VENDOR = Path(__file__).resolve().parents[1] / "data" / "vendor" / "arm_action_1.d6a"
 ARM_IDS = (1, 2, 3, 4, 5, 10)
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1", "COLUMNS": "120"}

@@ -50,7 +50,7 @@ from conftest import (
     wait_for,
 )
 
-pytestmark = pytest.mark.usefixtures("no_gc_pauses")
+pytestmark = [pytest.mark.realtime, pytest.mark.usefixtures("no_gc_pauses")]
 
 ArmFactory = Callable[..., SimArm]
 """``arm_with(ids, **bus_kwargs)``: a simulated bus with these servo IDs, the ``way`` given."""

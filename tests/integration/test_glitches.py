@@ -26,7 +26,7 @@ from busarm.sim.pty import PtyServer
 from busarm.sim.transport import SimTransport
 from conftest import SimArm, lx_wire_only
 
-pytestmark = pytest.mark.usefixtures("no_gc_pauses")
+pytestmark = [pytest.mark.realtime, pytest.mark.usefixtures("no_gc_pauses")]
 
 SLACK_S = 0.005
 """What a call may take beyond its own timeouts: scheduling on a busy 2-core machine."""

@@ -26,6 +26,8 @@ from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.pty import PtyServer
 from busarm.sim.storage import load_state
 
+pytestmark = pytest.mark.realtime
+
 
 @contextlib.contextmanager
 def arm_from_state(kind: str, state: Path) -> Iterator[ServoBus]:

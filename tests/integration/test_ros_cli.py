@@ -146,6 +146,7 @@ def test_cmd_vel_drives_the_base_until_the_twists_stop(mobile_bridge: str) -> No
         session.close()
 
 
+@pytest.mark.slow
 def test_pick_sort_on_another_process_sorts_the_served_table(
         tmp_path: Path, twin_calibration: tuple[Path, Path]) -> None:
     """`busarm --port zenoh://... pick-sort`: the servo bus, the camera, its calibration and

@@ -16,6 +16,8 @@ from busarm.errors import BusConflictError, ConfigError, MotionTimeoutError
 from busarm.sim.bus import ARM_SERVO_IDS, SimBus, WireTiming
 from conftest import BOARD_WAY, sim_bus_on
 
+pytestmark = pytest.mark.realtime
+
 
 @pytest.fixture(params=["inproc", BOARD_WAY])
 def way(request: pytest.FixtureRequest) -> str:

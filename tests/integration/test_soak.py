@@ -24,7 +24,7 @@ from busarm.protocol import Command
 from busarm.sim.servo import SimServo
 from busarm.sim.storage import record_from_servo, save_state
 
-pytestmark = pytest.mark.usefixtures("no_gc_pauses")
+pytestmark = [pytest.mark.realtime, pytest.mark.usefixtures("no_gc_pauses")]
 
 SLACK_S = 0.005
 """What a call may take beyond its own timeouts: scheduling on a busy 2-core machine."""

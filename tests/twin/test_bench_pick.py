@@ -9,6 +9,7 @@ from busarm.bench.pick import run_pick_bench
 from busarm.errors import ConfigError
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(300)
 def test_scenes_sorted_in_two_worker_processes_are_scored_in_scene_order() -> None:
     lines: list[str] = []

@@ -117,6 +117,7 @@ def box_gap_m(twin: Twin) -> float:
 # ---------------------------------------------------------------------- following
 
 
+@pytest.mark.slow
 def test_a_lap_on_the_tape(twin_calibration: tuple[Path, Path]) -> None:
     arena = ellipse_arena()
     offsets: list[tuple[float, float]] = []
@@ -143,6 +144,7 @@ def test_a_lap_on_the_tape(twin_calibration: tuple[Path, Path]) -> None:
     assert data["finished"] and len(data["path"]) == len(report.path) > 100
 
 
+@pytest.mark.slow
 def test_a_person_on_the_tape_stops_the_robot_until_they_go(
         twin_calibration: tuple[Path, Path]) -> None:
     arena = ellipse_arena(box=True)
@@ -210,6 +212,7 @@ def test_the_end_of_the_tape_is_searched_for_then_reported(
     assert math.dist((end.x_m, end.y_m), tape_end) < 0.3  # it went to the end of it
 
 
+@pytest.mark.slow
 def test_a_block_on_the_tape_is_put_aside(twin_calibration: tuple[Path, Path]) -> None:
     arena = ellipse_arena(block_at_m=1.0)
     with robot_in(arena, twin_calibration) as (robot, twin):

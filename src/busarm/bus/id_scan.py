@@ -162,6 +162,14 @@ class IdScan(ServoRegisters):
         if old_id == new_id:
             raise ConfigError(f"servo already has ID {new_id}")
         result = self.scan([old_id, new_id])
+        silent = [s for s in (old_id, new_id) if s not in result.found + result.conflicts]
+        if silent:
+            # A scan's deadline is short: silence is asked again with the bus's own
+            # margin before it is taken as absence (a busy computer hears answers late,
+            # and a servo missed at the new ID would end up sharing it).
+            again = self.scan(silent, margin_s=self.timeout_margin_s)
+            result = ScanResult(sorted({*result.found, *again.found}),
+                                sorted({*result.conflicts, *again.conflicts}))
         if old_id in result.conflicts:
             raise BusConflictError(
                 f"more than one servo answers at ID {old_id}; disconnect all but one first"
