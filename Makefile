@@ -56,7 +56,7 @@ demo: $(STAMP) gl
 # process compiles busarm's modules again (0.2 s a command).
 # The suite runs in TEST_WORKERS processes (pytest-xdist). The tests that time a simulated
 # line in wall-clock time (marked realtime: a servo's reply deadline of a few ms) run after
-# the others, so that no twin's physics or rendering competes with them for the cores.
+# the others in one process, so that nothing else competes with them for the cores.
 # Exit code 5 is "no test selected" (PYTEST_ARGS picked none of that half).
 TEST_WORKERS ?= 2
 PYTEST := env -u PYTHONDONTWRITEBYTECODE PYTHONPYCACHEPREFIX=$(CURDIR)/$(VENV)/pycache \
@@ -66,7 +66,7 @@ test: $(STAMP) gl browser
 	$(BIN)/mypy
 	$(BIN)/lint-imports --no-cache
 	$(PYTEST) -n $(TEST_WORKERS) -m "not realtime" $(PYTEST_ARGS) || [ $$? = 5 ]
-	$(PYTEST) -n $(TEST_WORKERS) -m realtime $(PYTEST_ARGS) || [ $$? = 5 ]
+	$(PYTEST) -m realtime $(PYTEST_ARGS) || [ $$? = 5 ]
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests

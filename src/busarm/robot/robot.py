@@ -179,10 +179,11 @@ class Robot:
                                     chassis=chassis, lidar=lidar, **bus_options)
         behind = board_target(port)  # the twin behind a simulated controller board
         twin_port = behind if behind is not None and is_twin_url(behind) else port
-        store = _checked_store(port, is_twin_url(twin_port), scene, arena, calibration_store,
+        on_twin = is_twin_url(twin_port)
+        store = _checked_store(port, on_twin, scene, arena, calibration_store,
                                calibration_dir, intrinsics, hand_eye)
-        _check_needs(needs, port, is_twin_url(twin_port), camera, intrinsics, hand_eye, bins,
-                     store, calibrate)
+        _check_needs(needs, port, on_twin, camera, intrinsics, hand_eye, bins, store,
+                     calibrate)
         given, cal = _arm_files(config, arm_calibration)
         transport, twin, cfg = _arm_transport(port, twin_port, behind, board, baudrate, given,
                                               scene, arena, chassis)
