@@ -6,6 +6,15 @@ adapter echoing and not echoing, and through the simulated controller board on a
 replies the board never passes on) says so with ``lx_wire_only``, one of LX commands the
 board cannot pass on with ``lx_commands_only``. Leaked threads fail the test that leaked
 them.
+
+Time: in-process, the simulated servos live on a simulated clock (``arm.sim.clock``):
+a move or a reply waited for costs only the CPU it takes, and the time a test reads is
+the simulation's, whatever else the computer is doing. Through a pty they answer in
+wall-clock time (another program could be at the other end), so those buses get a
+generous reply margin (``PTY_MARGIN_S``): a busy computer may hear a reply late, which
+is not what these tests are about. A test whose subject is a deadline on the wall clock
+gives its own margin and says why. Tests on the wall clock carry the ``wallclock``
+marker with that reason (``pytest -m wallclock --collect-only`` lists them).
 """
 
 from __future__ import annotations
@@ -17,7 +26,6 @@ import shutil
 import signal
 import subprocess
 import threading
-import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -30,6 +38,7 @@ from hypothesis import settings
 from busarm.bus.board_bus import BoardServoBus
 from busarm.bus.driver import ServoBus
 from busarm.bus.transport import BOARD_PREFIX
+from busarm.clock import WALL_CLOCK, Clock
 from busarm.protocol import SPECS, Command, FrameParser
 from busarm.sim.board import SimBoard
 from busarm.sim.bus import ARM_SERVO_IDS, SimBus, WireTiming
@@ -42,6 +51,13 @@ settings.register_profile("ci", derandomize=True, print_blob=True)
 if os.environ.get("CI"):
     settings.load_profile("ci")
 
+
+PTY_MARGIN_S = 0.3
+"""The reply margin of a bus on a pty whose deadline is not what the test checks: the
+driver's default (4 ms) is for a computer that does nothing else; a test machine running
+other tests beside it (or two CPU-bound programs) may hear a reply tens, at times hundreds,
+of ms late. It costs time only where a reply never comes."""
+PTY_REASON = "bytes through a real pseudo-terminal, served by a thread in wall-clock time"
 
 LX_WAYS = ["inproc-noecho", "inproc-echo", "pty-noecho", "pty-echo"]
 """The plain LX line: in-process or through a pty, the adapter echoing or not."""
@@ -76,9 +92,14 @@ def make_sim_arm(
     kind: str, *, ids: tuple[int, ...] = ARM_SERVO_IDS, echo: bool = False,
     board: bool = False, **bus_kwargs: object
 ) -> tuple[SimArm, PtyServer | None]:
-    """A bus on simulated servos: in-process (``kind`` "inproc") or on a pty ("pty"),
-    through a simulated controller board on that pty if ``board``."""
-    sim = SimBus.with_ids(ids, timing=WireTiming(), echo=echo)
+    """A bus on simulated servos: in-process (``kind`` "inproc", on a simulated clock) or
+    on a pty ("pty", the wall clock, with ``PTY_MARGIN_S`` unless ``timeout_margin_s``
+    is given), through a simulated controller board on that pty if ``board``."""
+    on_pty = board or kind == "pty"
+    sim = SimBus.with_ids(ids, timing=WireTiming(), echo=echo,
+                          clock=WALL_CLOCK if on_pty else None)
+    if on_pty:
+        bus_kwargs.setdefault("timeout_margin_s", PTY_MARGIN_S)
     if board:
         board_bus, sim_board, server = open_board_bus(sim, **bus_kwargs)
         return SimArm(board_bus, sim, kind, sim_board), server
@@ -92,8 +113,10 @@ def make_sim_arm(
 
 def open_board_bus(sim: SimBus, **bus_kwargs: object
                    ) -> tuple[BoardServoBus, SimBoard, PtyServer]:
-    """A simulated controller board in front of ``sim``, served on a pty and opened as
-    ``board:///dev/pts/N``: the bus, the board, and the server to stop."""
+    """A simulated controller board in front of ``sim`` (on the wall clock), served on a
+    pty and opened as ``board:///dev/pts/N`` (with ``PTY_MARGIN_S`` unless
+    ``timeout_margin_s`` is given): the bus, the board, and the server to stop."""
+    bus_kwargs.setdefault("timeout_margin_s", PTY_MARGIN_S)
     board = SimBoard(sim)
     server = PtyServer(board)
     try:
@@ -130,6 +153,37 @@ def make_sim_arm_way(way: str, **kwargs: Any) -> tuple[SimArm, PtyServer | None]
     sim_arm, server = make_sim_arm(kind, echo=line == "echo", board=line == "board", **kwargs)
     assert sim_arm.bus.echo is (line == "echo"), "echo auto-detection failed"
     return sim_arm, server
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption("--wallclock-reasons", action="store_true",
+                     help="with --collect-only: list the tests on the wall clock, each "
+                          "group with its reason (docs/benchmarks.md keeps the list)")
+
+
+def pytest_report_collectionfinish(config: pytest.Config, items: list[pytest.Item]
+                                   ) -> list[str]:
+    """The tests on the wall clock, grouped by file and reason (--wallclock-reasons)."""
+    if not config.getoption("--wallclock-reasons"):
+        return []
+    groups: dict[tuple[str, str], list[str]] = {}
+    for item in items:
+        mark = item.get_closest_marker("wallclock")
+        if mark is not None:
+            reason = str(mark.args[0]) if mark.args else "(no reason given)"
+            groups.setdefault((item.nodeid.split("::")[0], reason), []).append(item.name)
+    lines = [f"{len(names):4d}  {path}: {reason}" for (path, reason), names in sorted(
+        groups.items())]
+    return [f"{sum(len(n) for n in groups.values())} tests on the wall clock:", *lines]
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The ``arm`` fixture's pty ways run on the wall clock: marked so."""
+    for item in items:
+        spec = getattr(item, "callspec", None)
+        way = spec.params.get("arm", spec.params.get("way")) if spec is not None else None
+        if isinstance(way, str) and way.startswith("pty"):
+            item.add_marker(pytest.mark.wallclock(PTY_REASON))
 
 
 @pytest.fixture(params=WAYS)
@@ -255,11 +309,29 @@ def sigint_and_wait(proc: subprocess.Popen[str], timeout_s: float = 30.0
     return proc.returncode, out, err
 
 
-def wait_for(predicate: Callable[[], bool], timeout_s: float = 2.0) -> bool:
-    """Poll until ``predicate()`` holds (True) or ``timeout_s`` passes (False)."""
-    deadline = time.monotonic() + timeout_s
+def wait_for(predicate: Callable[[], bool], timeout_s: float = 10.0,
+             clock: Clock = WALL_CLOCK) -> bool:
+    """Poll until ``predicate()`` holds (True) or ``timeout_s`` of ``clock`` pass (False).
+    On the wall clock the budget is generous: only a failing test waits it out."""
+    deadline = clock.now() + timeout_s
     while not predicate():
-        if time.monotonic() > deadline:
+        if clock.now() > deadline:
             return False
-        time.sleep(0.002)
+        clock.sleep(0.002)
     return True
+
+
+IN_PROCESS_PORT = "sim://?seed=31337"
+
+
+def in_process_port(monkeypatch: pytest.MonkeyPatch, sim: SimBus) -> str:
+    """The port by which commands run in this process (click's runner) open ``sim``, the
+    test's own simulated servos, kept from one command to the next as a served arm is
+    (and on its clock: simulated unless it was made on another)."""
+    import busarm.sim.transport as transport
+
+    made = transport.sim_bus_from_url
+    monkeypatch.setattr(transport, "sim_bus_from_url", lambda url, baudrate=115200:
+                        sim if url == IN_PROCESS_PORT else made(url, baudrate))
+    return IN_PROCESS_PORT
+

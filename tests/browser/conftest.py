@@ -250,3 +250,11 @@ def dashboard(
     """`busarm dashboard --http-port 0` on the twin (real time), one per test module."""
     with running_dashboard(dashboard_config_home, tmp_path_factory.mktemp("dashboard")) as d:
         yield d
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """A real browser's tests are slow ones (`make test-fast` leaves them out)."""
+    here = Path(__file__).parent
+    for item in items:
+        if here in Path(item.fspath).parents:
+            item.add_marker(pytest.mark.slow)

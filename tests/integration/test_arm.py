@@ -6,16 +6,18 @@ simulator in-process, and behind the simulated controller board served on a pty
 (``board:///dev/pts/N``). What reached the servos is what the simulator heard (its
 ``taps``); the host's writes are seen by wrapping the transport's ``write`` (test
 instrumentation only). Where timing does not matter the simulator runs without wire
-timing, and the property test runs on a virtual clock shared by the arm and the
-simulator (in-process only: a pty serves on the wall clock).
+timing. In-process the arm and the simulator share a simulated clock (``rig.sim.clock``):
+a move waited for costs only the CPU it takes, and every time below is that clock's. A
+pty serves on the wall clock (another program could be at the other end), so the board
+way runs in wall-clock time, with a generous reply margin (``BOARD_MARGIN_S``).
 """
 
 from __future__ import annotations
 
 import math
 import threading
-import time
 from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from unittest import mock
@@ -44,15 +46,17 @@ from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.pty import PtyServer
 from busarm.sim.transport import SimTransport
 from busarm.units import DEG_PER_PULSE
-from conftest import BOARD_WAY, open_board_bus, sim_bus_on
-
-pytestmark = pytest.mark.realtime
+from conftest import BOARD_WAY, open_board_bus, sim_bus_on, wait_for
 
 VENDOR = Path(__file__).resolve().parents[1] / "data" / "vendor"
 MOVES = (Command.MOVE_TIME_WRITE, Command.MOVE_TIME_WAIT_WRITE)
 UPRIGHT = (0.0, -90.0, 0.0, -90.0, 0.0)
 RIG_WAYS = ["inproc", BOARD_WAY]
 """The simulated servos in-process, and behind the simulated controller board on a pty."""
+BOARD_MARGIN_S = 0.5
+"""The reply margin behind the board on a pty: no test here waits for a reply that never
+comes, so a wide one costs nothing, and a computer loaded far beyond the tests' two
+workers (a load of 20 on 2 cores) was seen to hear a reply 0.3 s late."""
 
 
 @dataclass
@@ -102,19 +106,34 @@ class Rig:
             self.sim.taps.remove(self.heard.append)
 
 
+def bus_on(sim: SimBus, way: str) -> AbstractContextManager[ServoBus]:
+    """``sim_bus_on``, with ``BOARD_MARGIN_S`` behind the board."""
+    if way == BOARD_WAY:
+        return sim_bus_on(sim, way, timeout_margin_s=BOARD_MARGIN_S)
+    return sim_bus_on(sim, way)
+
+
+def sim_for(way: str, *, timing: bool = False, clock: Clock | None = None) -> SimBus:
+    """The arm's simulated servos for ``way``: in-process on a simulated clock (their own
+    unless ``clock`` is given), behind the board on a pty on the wall clock."""
+    if way == BOARD_WAY:
+        clock = WALL_CLOCK
+    return SimBus.with_ids(timing=WireTiming(enabled=timing), clock=clock)
+
+
 def make_rig(
-    *, timing: bool = False, clock: Clock = WALL_CLOCK,
+    *, timing: bool = False, clock: Clock | None = None,
     calibration: Calibration | None = None, sim: SimBus | None = None, way: str = "inproc",
 ) -> Rig:
     if sim is None:
-        sim = SimBus.with_ids(timing=WireTiming(enabled=timing), clock=clock)
+        sim = sim_for(way, timing=timing, clock=clock)
     heard: list[Request] = []
     sim.taps.append(heard.append)
     writes: list[bytes] = []
     rig_box: list[Rig] = []
     bus: ServoBus
     if way == BOARD_WAY:
-        bus, board, server = open_board_bus(sim)
+        bus, board, server = open_board_bus(sim, timeout_margin_s=BOARD_MARGIN_S)
         transport = bus.transport
     else:
         transport, board, server = SimTransport(sim), None, None
@@ -156,13 +175,45 @@ def rig(way: str) -> Iterator[Rig]:
 
 
 def stable_positions(rig: Rig, seconds: float = 0.3) -> dict[int, float]:
-    """Positions now; asserts they do not change over ``seconds``."""
+    """Positions once the servos have heard a stop; asserts they do not change over
+    ``seconds`` (of the servos' clock). Behind the board another thread relays the stop,
+    in wall-clock time: it is waited for (the bus may be closed, nothing to sync with)."""
+    assert wait_for(lambda: any(r.command is Command.MOVE_STOP for r in rig.heard)), \
+        "no MOVE_STOP reached the servos"
     before = rig.positions()
-    time.sleep(seconds)
+    rig.sim.clock.sleep(seconds)
     after = rig.positions()
     for sid in before:
         assert abs(after[sid] - before[sid]) <= 0.5, (sid, before[sid], after[sid])
     return after
+
+
+@contextmanager
+def at_time(clock: Clock, at_s: float, action: Callable[[], None]) -> Iterator[None]:
+    """``action()`` once ``clock`` reads ``at_s``, during the ``with`` block: on a
+    simulated clock at that simulated moment (run by whoever is waiting on the clock), on
+    the wall clock by a timer thread (cancelled, and joined, on leaving)."""
+    if not isinstance(clock, SimClock):
+        timer = threading.Timer(at_s - clock.now(), action)
+        timer.start()
+        try:
+            yield
+        finally:
+            timer.cancel()
+            timer.join()
+        return
+    done: list[bool] = []
+
+    def check() -> None:
+        if not done and clock.now() >= at_s:
+            done.append(True)
+            action()
+
+    clock.attach(check)
+    try:
+        yield
+    finally:
+        clock.detach(check)
 
 
 # ---------------------------------------------------------------------------- joint moves
@@ -298,10 +349,12 @@ def test_every_move_frame_is_within_limits_and_speeds(ops: list[tuple]) -> None:
 
 
 def test_straight_line_tracks_within_2_mm_with_wire_timing() -> None:
-    # In-process only: the pose is measured from the five joints read one after another,
-    # and behind the board (on a pty) those reads are slower, so on a busy machine the
-    # measured pose is skewed by most of a millimetre that the motion itself is not
-    # (sampled on the simulator, the board's line tracks within about 1.2 mm).
+    # In-process only, on the simulated clock (the wire's timing is the simulation's, the
+    # same on any computer): the pose is measured from the five joints read one after
+    # another, and behind the board (on a pty, in wall-clock time) those reads are slower,
+    # so on a busy machine the measured pose is skewed by most of a millimetre that the
+    # motion itself is not (sampled on the simulator, the board's line tracks within
+    # about 1.2 mm).
     rig = make_rig(timing=True)
     try:
         rig.arm.move_to(150, -100, 60, -90, speed_deg_s=180.0)
@@ -349,7 +402,7 @@ def test_exception_in_with_block_stops_the_arm(way: str) -> None:
     try:
         with pytest.raises(RuntimeError, match="boom"), rig.arm as a:
             a.move_joints(target, duration_s=3.0, wait=False)
-            time.sleep(0.3)
+            rig.sim.clock.sleep(0.3)  # under way
             raise RuntimeError("boom")
         after = stable_positions(rig)  # held still: the stop has reached the servos
     finally:
@@ -429,26 +482,24 @@ def test_stop_event_stops_playback_and_holds(rig: Rig) -> None:
         ActionFrame(1000, (p, 500, 500, 500, 500, 500)) for p in (650, 800, 650)
     ))
     stop = threading.Event()
-    timer = threading.Timer(0.4, stop.set)
-    timer.start()
-    try:
+    with at_time(rig.sim.clock, rig.sim.clock.now() + 0.4, stop.set):
         played = rig.arm.play(group, stop_event=stop)
-    finally:
-        timer.join()
     assert played == 1
     after = stable_positions(rig)
     assert 510 < after[1] < 640  # stopped on the way to 650
+    if rig.board is None:  # on the simulated clock: 0.4 s into 1 s from 500 to 650, exactly
+        assert after[1] == pytest.approx(560, abs=1)
     assert any(r.command is Command.MOVE_STOP for r in rig.requests())
 
 
 def test_record_frames_by_hand_and_play_them_back(rig: Rig, tmp_path: Path) -> None:
-    now = time.monotonic()
+    now = rig.sim.clock.now()
     rig.sim.servo(1).move_by_hand(600, now)
     rig.sim.servo(3).move_by_hand(400, now)
     rig.sim.servo(10).move_by_hand(300, now)
     first = rig.arm.record_frame(700)
     assert first == ActionFrame(700, (600, 500, 400, 500, 500, 300))
-    now = time.monotonic()
+    now = rig.sim.clock.now()
     rig.sim.servo(2).move_by_hand(450, now)
     rig.sim.servo(4).move_by_hand(560, now)
     second = rig.arm.record_frame(700)
@@ -471,10 +522,10 @@ def test_record_frames_by_hand_and_play_them_back(rig: Rig, tmp_path: Path) -> N
 
 def _displaced_sim(way: str, servo_id: int = 3, pulses: int = 512) -> SimBus:
     """The arm upright, with one horn off by ``pulses - 500`` (moved there, then unloaded)."""
-    sim = SimBus.with_ids(timing=WireTiming(enabled=False))
-    with sim_bus_on(sim, way) as bus:
+    sim = sim_for(way)
+    with bus_on(sim, way) as bus:
         bus.move_pulses(servo_id, pulses, 0)
-        time.sleep(0.05)
+        bus.clock.sleep(0.05)
         bus.set_torque(servo_id, False)
     sim.advance()
     assert round(sim.servo(servo_id).position_pulses) == pulses
@@ -483,7 +534,7 @@ def _displaced_sim(way: str, servo_id: int = 3, pulses: int = 512) -> SimBus:
 
 def _measure(sim: SimBus, config: ArmConfig, way: str
              ) -> tuple[dict[int, float], dict[int, int]]:
-    with sim_bus_on(sim, way) as bus:
+    with bus_on(sim, way) as bus:
         measured = {j.servo_id: bus.read_position_deg(j.servo_id) for j in config.joints}
         present = {
             j.servo_id: round(bus.read_offset_deg(j.servo_id) / DEG_PER_PULSE)
@@ -504,10 +555,10 @@ def test_calibration_with_hardware_offset(way: str) -> None:
     assert all(c.hardware_offset_pulses == 0 for c in cal.joints if c.servo_id != 3)
 
     # Before the offset is written, the servo's stored 0 contradicts the calibration.
-    with sim_bus_on(sim, way) as bus, pytest.raises(CalibrationError, match="servo 3"):
+    with bus_on(sim, way) as bus, pytest.raises(CalibrationError, match="servo 3"):
         Arm(bus, config, cal)
 
-    with sim_bus_on(sim, way) as bus:  # write it as `busarm arm calibrate` does
+    with bus_on(sim, way) as bus:  # write it as `busarm arm calibrate` does
         bus.adjust_offset_deg(3, by_id[3].hardware_offset_deg)
         bus.save_offset(3)
     rig = make_rig(sim=sim, calibration=cal, way=way)
@@ -523,7 +574,7 @@ def test_calibration_with_hardware_offset(way: str) -> None:
         JointCalibration(c.name, c.servo_id, 11 if c.servo_id == 3 else 0) for c in cal.joints
     ))
     for other in (None, wrong):
-        with sim_bus_on(sim, way) as bus, pytest.raises(CalibrationError, match="servo 3"):
+        with bus_on(sim, way) as bus, pytest.raises(CalibrationError, match="servo 3"):
             Arm(bus, config, other)
 
 
@@ -562,9 +613,9 @@ def test_calibration_for_other_joints_raises(way: str) -> None:
         JointCalibration("knee" if c.servo_id == 3 else c.name, c.servo_id)
         for c in identity.joints
     ))
-    sim = SimBus.with_ids(timing=WireTiming(enabled=False))
+    sim = sim_for(way)
     for cal in (other_ids, fewer, renamed):
-        with sim_bus_on(sim, way) as bus:
+        with bus_on(sim, way) as bus:
             bus.read_temp_c(1)  # answered: what the bus sent on opening has arrived
             before = sim.frames_received
             with pytest.raises(CalibrationError, match="calibrate"):
@@ -597,3 +648,18 @@ def test_plan_line_from_upright_fails_fast(rig: Rig) -> None:
             pass  # expected: refused
         except _TooLong as exc:
             pytest.fail(f"expected LimitError, got a runaway plan: {exc}")
+
+
+def test_a_recorded_stream_ends_on_a_line_that_takes_no_time() -> None:
+    """Recording the settling after the last waypoint waits between reads: on a simulated
+    line without wire timing a read takes no time, and the tail once never ended."""
+    sim = SimBus.with_ids(timing=WireTiming(enabled=False))
+    with ServoBus(SimTransport(sim)) as bus:
+        arm = Arm(bus, load_arm_config())
+        home = arm.config.pose("home")
+        record = arm.stream([0.1, 0.2], [home, home], record=True)
+    times = [t for t, _ in record.measured]
+    # A sample as each waypoint is sent (at 0 and 0.1 s), then one every 10 ms until the
+    # last waypoint's arrival (0.2 s) and 50 ms more.
+    assert times[:2] == [0.0, pytest.approx(0.1)]
+    assert times[2:] == pytest.approx([0.1 + 0.01 * k for k in range(15)])

@@ -1,11 +1,11 @@
 """``busarm arm`` and ``busarm actions`` end to end, in-process with click's CliRunner,
-against ``sim://?timing=0`` or a SimBus served on a real pseudo-terminal."""
+against ``sim://?timing=0`` or simulated servos of the test's own (``sim_arm``), which
+the commands open from one run to the next as a served arm, both on their simulated
+clock."""
 
 from __future__ import annotations
 
 import json
-import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -14,9 +14,8 @@ from click.testing import CliRunner, Result
 from busarm.bus.driver import ServoBus
 from busarm.cli.main import cli
 from busarm.sim.bus import SimBus, WireTiming
-from busarm.sim.pty import PtyServer
-
-pytestmark = pytest.mark.realtime
+from busarm.sim.transport import SimTransport
+from conftest import in_process_port
 
 SIM = "sim://?timing=0"
 VENDOR = Path(__file__).resolve().parents[1] / "data" / "vendor" / "arm_action_1.d6a"
@@ -35,11 +34,13 @@ def assert_one_error(result: Result, code: int) -> str:
 
 
 @pytest.fixture
-def pty_arm() -> Iterator[tuple[str, SimBus]]:
+def sim_arm(monkeypatch: pytest.MonkeyPatch) -> tuple[str, SimBus]:
+    """The arm's six simulated servos (no wire timing, on their simulated clock), and the
+    port by which commands run in this process open them, kept from one command to the
+    next as a served arm is."""
     sim = SimBus.with_ids(timing=WireTiming(enabled=False))
-    server = PtyServer(sim)
-    yield server.start(), sim
-    server.stop()
+    url = in_process_port(monkeypatch, sim)
+    return url, sim
 
 
 def test_fk_and_ik_json() -> None:
@@ -76,8 +77,8 @@ def test_unreachable_ik_and_bad_numbers() -> None:
     assert "'x1'" in line
 
 
-def test_pose_move_to_home_on_a_pty(pty_arm: tuple[str, SimBus]) -> None:
-    path, sim = pty_arm
+def test_pose_move_to_home(sim_arm: tuple[str, SimBus]) -> None:
+    path, sim = sim_arm
     result = run("arm", "pose", "--json", port=path)
     assert result.exit_code == 0, result.stderr
     assert json.loads(result.stdout)["joints_deg"]["elbow_pitch"] == pytest.approx(0)
@@ -101,11 +102,11 @@ def test_gripper_close_on_a_block() -> None:
     assert result.exit_code == 0 and "closed on nothing" in result.stdout
 
 
-def test_calibrate_non_interactive(pty_arm: tuple[str, SimBus], tmp_path: Path) -> None:
-    path, sim = pty_arm
-    with ServoBus.open(path) as bus:
+def test_calibrate_non_interactive(sim_arm: tuple[str, SimBus], tmp_path: Path) -> None:
+    path, sim = sim_arm
+    with ServoBus(SimTransport(sim)) as bus:
         bus.move_pulses(3, 512, 0)
-        time.sleep(0.05)
+        sim.clock.sleep(0.05)
         bus.set_torque(3, False)
     out = tmp_path / "cal.json"
     result = run("arm", "calibrate", "--yes", "--out", str(out), port=path)
@@ -123,7 +124,7 @@ def test_calibrate_non_interactive(pty_arm: tuple[str, SimBus], tmp_path: Path) 
     assert "servo 3" in line and "calibrate" in line
 
 
-def test_actions_show_play_record(tmp_path: Path, pty_arm: tuple[str, SimBus]) -> None:
+def test_actions_show_play_record(tmp_path: Path, sim_arm: tuple[str, SimBus]) -> None:
     result = run("actions", "show", str(VENDOR), "--json")
     assert result.exit_code == 0, result.stderr
     data = json.loads(result.stdout)
@@ -132,8 +133,8 @@ def test_actions_show_play_record(tmp_path: Path, pty_arm: tuple[str, SimBus]) -
     result = run("actions", "play", str(VENDOR), "--speed-scale", "2")
     assert result.exit_code == 0, result.stderr
     assert "played 2 of 2 frames" in result.stdout
-    path, sim = pty_arm
-    sim.servo(1).move_by_hand(620, time.monotonic())
+    path, sim = sim_arm
+    sim.servo(1).move_by_hand(620, sim.clock.now())
     out = tmp_path / "taught.d6a"
     result = run("actions", "record", str(out), "--interval", "0.05", "--frames", "3", port=path)
     assert result.exit_code == 0, result.stderr

@@ -1,5 +1,7 @@
 """The base on a simulated controller board: in this process on simulated time, through a
-pty on the wall clock, and by the real CLI. The truth is the simulated board's wheels."""
+pty on the wall clock (its watchdog thread), and by the CLI (in this process on
+``board://sim``, simulated time; once as a real program). The truth is the simulated
+board's wheels."""
 
 from __future__ import annotations
 
@@ -10,18 +12,21 @@ import time
 from collections.abc import Iterator
 
 import pytest
+from click.testing import CliRunner, Result
 
 from busarm.base.base import Base
 from busarm.base.config import load_chassis_config
 from busarm.base.kinematics import MecanumKinematics, Twist
 from busarm.bus.board import BoardLink
 from busarm.bus.transport import BOARD_PREFIX, open_transport
-from busarm.clock import SimClock
+from busarm.cli.main import cli
+from busarm.clock import WALL_CLOCK, SimClock
 from busarm.errors import ConfigError
 from busarm.sim.board import SimBoard
 from busarm.sim.bus import SimBus
 from busarm.sim.pty import PtyServer
 from busarm.sim.transport import SimTransport
+from conftest import PTY_MARGIN_S, wait_for
 
 CONFIG = load_chassis_config()
 KIN = MecanumKinematics(CONFIG)
@@ -114,11 +119,13 @@ def test_an_exception_leaves_the_wheels_stopped() -> None:
         base.drive(0.1, 0, 0)
 
 
+@pytest.mark.wallclock("the watchdog is a thread waiting in wall-clock time, the board "
+                        "served on a real pty")
 def test_through_a_pty_on_the_wall_clock_the_watchdog_thread_stops_the_wheels() -> None:
-    board = SimBoard(SimBus.with_ids([1]))
+    board = SimBoard(SimBus.with_ids([1], clock=WALL_CLOCK))
     server = PtyServer(board)
     port = BOARD_PREFIX + server.start()
-    link = BoardLink(open_transport(port))
+    link = BoardLink(open_transport(port), timeout_margin_s=PTY_MARGIN_S)
     try:
         with Base(link, CONFIG) as base:
             assert base.odometry_source == "encoders"
@@ -128,12 +135,11 @@ def test_through_a_pty_on_the_wall_clock_the_watchdog_thread_stops_the_wheels() 
                 time.sleep(0.02)
             assert all(w.target_rev_s != 0 for w in board.wheels)
             assert base.odometry().pose.x_m > 0.02
-            deadline = time.monotonic() + CONFIG.command_timeout_s + 1.0
-            while base.watchdog_stops == 0 and time.monotonic() < deadline:
-                time.sleep(0.02)
-            time.sleep(0.05)  # the stop frame crosses the pty
+            # Generous deadlines: only a failing test waits them out.
+            assert wait_for(lambda: base.watchdog_stops > 0, CONFIG.command_timeout_s + 10.0)
+            # The stop frame crosses the pty to the board.
+            assert wait_for(lambda: [w.target_rev_s for w in board.wheels] == [0.0] * 4)
             assert base.watchdog_stops == 1
-            assert [w.target_rev_s for w in board.wheels] == [0.0] * 4
     finally:
         link.close()
         server.stop()
@@ -142,29 +148,39 @@ def test_through_a_pty_on_the_wall_clock_the_watchdog_thread_stops_the_wheels() 
 # ---------------------------------------------------------------------- the CLI
 
 
-def busarm(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "busarm", *args], capture_output=True,
-                          text=True, timeout=60)
+def busarm(*args: str) -> Result:
+    """The command line in this process (``board://sim`` is on simulated time there)."""
+    return CliRunner(mix_stderr=False).invoke(cli, list(args))
+
+
+def test_cli_base_as_a_real_program() -> None:
+    # The one run of ``busarm base`` as a process of its own: its exit code and output.
+    done = subprocess.run(
+        [sys.executable, "-m", "busarm", "--port", "board://sim", "base", "move-by", "0.2",
+         "-0.1", "-30"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "x +0.20" in done.stdout and "y -0.10" in done.stdout and "yaw -30." in done.stdout
+    assert "wheels stopped" in done.stdout
 
 
 def test_cli_move_by_and_drive_on_a_simulated_board() -> None:
     done = busarm("--port", "board://sim", "base", "move-by", "0.2", "-0.1", "-30")
-    assert done.returncode == 0, done.stderr
+    assert done.exit_code == 0, done.stderr
     assert "x +0.20" in done.stdout and "y -0.10" in done.stdout and "yaw -30." in done.stdout
     assert "from encoders" in done.stdout and "wheels stopped" in done.stdout
     done = busarm("--port", "board://sim?encoders=0", "base", "drive", "0.4", "0", "0",
                   "--time", "0.3")
-    assert done.returncode == 0, done.stderr
+    assert done.exit_code == 0, done.stderr
     assert "vx +0.2" in done.stdout  # ramping up at 0.8 m/s^2
     assert "from commands" in done.stdout
 
 
 def test_cli_odom_and_stop() -> None:
     done = busarm("--port", "board://sim?encoders=0", "base", "odom", "--time", "0.1")
-    assert done.returncode == 0, done.stderr
+    assert done.exit_code == 0, done.stderr
     assert "x +0.000 m" in done.stdout and "odometry from commands" in done.stdout
     done = busarm("--port", "board://sim", "base", "stop")
-    assert done.returncode == 0 and "0 rev/s" in done.stdout
+    assert done.exit_code == 0 and "0 rev/s" in done.stdout
 
 
 @pytest.mark.parametrize(("args", "said"), [
@@ -180,6 +196,6 @@ def test_cli_odom_and_stop() -> None:
 ])
 def test_cli_bad_input_is_one_error(args: list[str], said: str) -> None:
     done = busarm(*args)
-    assert done.returncode == 2, (done.stdout, done.stderr)
+    assert done.exit_code == 2, (done.stdout, done.stderr)
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and said in lines[0], lines

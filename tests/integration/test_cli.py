@@ -1,40 +1,47 @@
 """The ``busarm`` command line, end to end.
 
-Most tests run the CLI in-process (click's CliRunner) against the in-process
-simulator (``sim://?timing=0``) or against a SimBus served on a real pseudo-terminal,
-whose counters show what reached the bus. ``sim serve`` and ``monitor`` are also run
-as real subprocesses and stopped with SIGINT.
+The CLI runs in this process (click's CliRunner) against the in-process simulator
+(``sim://?timing=0``) or against simulated servos of the test's own (``sim_servos``),
+which the commands open from one run to the next as a served arm, on their simulated
+clock: their counters show exactly what reached the bus, and a wait costs only the CPU
+it takes. ``sim serve`` and ``monitor`` are also run as real subprocesses on a real
+pseudo-terminal and stopped with SIGINT; ``demo`` serves its own arm on one.
 """
 
 from __future__ import annotations
 
+import io
 import os
 import re
 import signal
 import subprocess
 import sys
-import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 import click
 import pytest
 from click.testing import CliRunner, Result
+from rich.console import Console
 from serial.tools import list_ports
 from serial.tools.list_ports_common import ListPortInfo
 
+from busarm.arm.arm import Arm
+from busarm.arm.config import load_arm_config
 from busarm.bus.driver import ServoBus
-from busarm.cli import bus_cmds
+from busarm.cli import bus_cmds, demo
 from busarm.cli.main import cli
-from busarm.sim.bus import SimBus, WireTiming
-from busarm.sim.pty import PtyServer
+from busarm.clock import SimClock
+from busarm.sim.bus import ARM_SERVO_IDS, SimBus, WireTiming
 from busarm.sim.servo import SimServo
 from busarm.sim.servo_params import ServoParams
-from conftest import sigint_and_wait, wait_for
-
-pytestmark = pytest.mark.realtime
+from busarm.sim.transport import SimTransport
+from conftest import in_process_port, sigint_and_wait
 
 SIM = "sim://?timing=0"
+MARGIN = ("--timeout-margin-ms", "200")
+"""For a command at a pty served by another process (wall-clock time) on a computer that
+may be busy: a reply heard late is not what these tests are about."""
 
 
 def run(*args: str, port: str = SIM) -> Result:
@@ -51,28 +58,33 @@ def assert_one_error(result: Result, code: int) -> str:
     return lines[0]
 
 
-PtyFactory = Callable[[Sequence[SimServo]], tuple[str, SimBus]]
+SimFactory = Callable[[Sequence[SimServo]], tuple[str, SimBus]]
+CLOCK_START_S = 0.0
+"""A fresh SimClock's time: the servos given to ``sim_servos`` are made at it."""
 
 
 @pytest.fixture
-def pty_sim() -> Iterator[PtyFactory]:
-    """Serve simulated servos (no wire timing) on a pseudo-terminal: -> (path, SimBus)."""
-    servers: list[PtyServer] = []
-
+def sim_servos(monkeypatch: pytest.MonkeyPatch) -> SimFactory:
+    """Simulated servos (no wire timing, on a fresh simulated clock) that commands run in
+    this process open by the port returned, kept from one command to the next as a
+    served arm is: -> (port, SimBus)."""
     def start(servos: Sequence[SimServo]) -> tuple[str, SimBus]:
-        bus = SimBus(servos, timing=WireTiming(enabled=False))
-        server = PtyServer(bus)
-        servers.append(server)
-        return server.start(), bus
+        sim = SimBus(servos, timing=WireTiming(enabled=False), clock=SimClock(CLOCK_START_S))
+        return in_process_port(monkeypatch, sim), sim
 
-    yield start
-    for server in servers:
-        server.stop()
+    return start
 
 
 def servos(*ids: int, **params: object) -> list[SimServo]:
-    now = time.monotonic()
-    return [SimServo(sid, params=ServoParams(**params), now=now) for sid in ids]  # type: ignore[arg-type]
+    return [SimServo(sid, params=ServoParams(**params), now=CLOCK_START_S)  # type: ignore[arg-type]
+            for sid in ids]
+
+
+def sleep_and_advance(bus: SimBus, seconds: float) -> None:
+    """Let ``seconds`` of the servos' simulated time pass, and bring them up to it (the
+    simulation advances when asked)."""
+    bus.clock.sleep(seconds)
+    bus.advance()
 
 
 # ---------------------------------------------------------------------------- help
@@ -191,16 +203,14 @@ BAD_INPUT = [
 
 @pytest.mark.parametrize("args", BAD_INPUT, ids=" ".join)
 def test_bad_input_is_one_error_exit_2_and_sends_nothing(
-    args: list[str], pty_sim: PtyFactory
+    args: list[str], sim_servos: SimFactory
 ) -> None:
-    path, bus = pty_sim(servos(1, 2, 3))
-    result = run(*args, port=path)
+    port, bus = sim_servos(servos(1, 2, 3))
+    result = run(*args, port=port)
     assert_one_error(result, 2)
-    # Control: one valid write now (broadcast: no presence check); the pty delivers bytes
-    # in order, so anything the bad command had sent would be counted before it.
-    assert run("--echo", "off", "stop", port=path).exit_code == 0
-    assert wait_for(lambda: bus.frames_received >= 1)
-    time.sleep(0.02)
+    assert (bus.frames_received, bus.frames_rejected) == (0, 0)
+    # Control: one valid write now (broadcast: no presence check) is counted.
+    assert run("--echo", "off", "stop", port=port).exit_code == 0
     assert (bus.frames_received, bus.frames_rejected) == (1, 0)
 
 
@@ -252,12 +262,12 @@ def test_scan_finds_the_arm() -> None:
     assert "11.10" in result.stdout  # supply voltage column
 
 
-def test_scan_reports_duplicate_ids(pty_sim: PtyFactory) -> None:
-    now = time.monotonic()
+def test_scan_reports_duplicate_ids(sim_servos: SimFactory) -> None:
+    now = CLOCK_START_S
     # Two servos on ID 3 at different positions: their position replies collide.
     twins = [SimServo(3, now=now), SimServo(3, position_pulses=400.0, now=now)]
-    path, _ = pty_sim([*twins, SimServo(4, now=now)])
-    result = run("scan", "--ids", "0-9", port=path)
+    port, _ = sim_servos([*twins, SimServo(4, now=now)])
+    result = run("scan", "--ids", "0-9", port=port)
     assert result.exit_code == 0, result.stderr
     assert "conflict: more than one servo answers at ID 3" in result.stdout
 
@@ -273,9 +283,9 @@ def test_monitor_count() -> None:
 # ---------------------------------------------------------------------------- servo commands
 
 
-def test_info_shows_every_field_and_no_reply(pty_sim: PtyFactory) -> None:
-    path, _ = pty_sim(servos(1, answers_wait_read=False))
-    result = run("info", "1", port=path)
+def test_info_shows_every_field_and_no_reply(sim_servos: SimFactory) -> None:
+    port, _ = sim_servos(servos(1, answers_wait_read=False))
+    result = run("info", "1", port=port)
     assert result.exit_code == 0, result.stderr
     out = result.stdout
     for field in ("position", "last move", "angle offset", "angle limits", "voltage limits",
@@ -287,8 +297,8 @@ def test_info_shows_every_field_and_no_reply(pty_sim: PtyFactory) -> None:
     assert "6.50..12.00 V" in out
 
 
-def test_move_single_and_pose_with_wait(pty_sim: PtyFactory) -> None:
-    path, bus = pty_sim(servos(1, 2, 3))
+def test_move_single_and_pose_with_wait(sim_servos: SimFactory) -> None:
+    path, bus = sim_servos(servos(1, 2, 3))
     result = run("move", "2", "-30", "--time", "0.1", "--wait", port=path)
     assert result.exit_code == 0, result.stderr
     assert abs(bus.servo(2).position_pulses - 375) <= 1
@@ -299,39 +309,40 @@ def test_move_single_and_pose_with_wait(pty_sim: PtyFactory) -> None:
     assert abs(bus.servo(3).position_pulses - 400) <= 1
 
 
-def test_stop_and_torque(pty_sim: PtyFactory) -> None:
-    path, bus = pty_sim(servos(1, 2))
+def test_stop_and_torque(sim_servos: SimFactory) -> None:
+    path, bus = sim_servos(servos(1, 2))
     assert run("torque", "on", port=path).exit_code == 0
-    assert wait_for(lambda: bus.servo(1).is_loaded and bus.servo(2).is_loaded)
+    assert bus.servo(1).is_loaded and bus.servo(2).is_loaded
     assert run("torque", "off", "2", port=path).exit_code == 0
-    assert wait_for(lambda: not bus.servo(2).is_loaded)
+    assert not bus.servo(2).is_loaded
     assert bus.servo(1).is_loaded
-    run("move", "1", "100", "--time", "5", port=path)
+    assert run("move", "1", "100", "--time", "5", port=path).exit_code == 0
+    sleep_and_advance(bus, 1.0)  # a fifth of the way
     result = run("stop", port=path)
     assert result.exit_code == 0 and "stopped all servos" in result.stdout
-    time.sleep(0.1)
+    sleep_and_advance(bus, 0.1)
     held = bus.servo(1).position_pulses
-    time.sleep(0.1)
-    assert bus.servo(1).position_pulses == held < 600
+    sleep_and_advance(bus, 0.1)
+    assert 500 < bus.servo(1).position_pulses == held < 600
 
 
-def test_set_id_refuses_two_servos(pty_sim: PtyFactory) -> None:
-    path, bus = pty_sim(servos(1, 2))
+def test_set_id_refuses_two_servos(sim_servos: SimFactory) -> None:
+    path, bus = sim_servos(servos(1, 2))
     message = assert_one_error(run("set-id", "7", port=path), 1)
     assert "2 servos on the bus" in message
     assert [s.servo_id for s in bus.servos] == [1, 2]
 
 
-def test_set_id_refuses_duplicate_ids(pty_sim: PtyFactory) -> None:
-    now = time.monotonic()
-    path, bus = pty_sim([SimServo(3, now=now), SimServo(3, position_pulses=420.0, now=now)])
+def test_set_id_refuses_duplicate_ids(sim_servos: SimFactory) -> None:
+    now = CLOCK_START_S
+    path, bus = sim_servos([SimServo(3, now=now), SimServo(3, position_pulses=420.0, now=now)])
     assert "more than one servo" in assert_one_error(run("set-id", "3", "7", port=path), 1)
     assert "more than one servo" in assert_one_error(run("set-id", "7", port=path), 1)
     assert [s.servo_id for s in bus.servos] == [3, 3]
 
 
-def test_set_id_with_one_servo(pty_sim: PtyFactory) -> None:
-    path, bus = pty_sim(servos(3))
+def test_set_id_with_one_servo(sim_servos: SimFactory) -> None:
+    path, bus = sim_servos(servos(3))
     result = run("set-id", "7", port=path)
     assert result.exit_code == 0, result.stderr
     assert "servo 3 is now ID 7" in result.stdout
@@ -357,23 +368,69 @@ def test_offset_limits_led_write_and_read_back() -> None:
 # ---------------------------------------------------------------------------- demo
 
 
+def _table(text: str) -> list[tuple[str, list[str]]]:
+    """The tool path table's rows in order: the step, and the cells after it (t, x, y, z,
+    pitch, off line)."""
+    return [(line.split("│")[1].strip(), line.split("│")[2:-1])
+            for line in text.splitlines() if line.count("│") == 8]
+
+
+def _table_rows(text: str) -> dict[str, list[str]]:
+    """The tool path table's rows, by step."""
+    return dict(_table(text))
+
+
 def test_demo_picks_and_places_along_straight_lines() -> None:
-    result = CliRunner(mix_stderr=False).invoke(
-        cli, ["demo", "--no-timing", "--line-speed", "300"], env={"BUSARM_PORT": None}
-    )
-    assert result.exit_code == 0, result.stderr
-    assert "no --port given" not in result.stderr  # the demo runs its own simulator
-    assert "found 6 servo(s): 1, 2, 3, 4, 5, 10" in result.stdout
-    assert "grip: holding the" in result.stdout
-    rows = {
-        line.split("│")[1].strip(): line.split("│")[2:-1]
-        for line in result.stdout.splitlines() if line.count("│") == 8
-    }
+    """The demo's pick-and-place and its tool path table, on the demo's arm (servos 1-5
+    and 10, a block between the fingers) in this process on its simulated clock, with
+    wire timing (its reads take time, so the path is measured along each move)."""
+    sim = SimBus.with_ids(ARM_SERVO_IDS, timing=WireTiming())
+    sim.put_block_in_gripper()
+    with ServoBus(SimTransport(sim)) as bus:
+        arm = Arm(bus, load_arm_config())
+        path = demo._ToolPath(arm, 300.0)
+        demo._pick_and_place(arm, path)
+    console = Console(width=120, record=True, file=io.StringIO())
+    console.print(path.table)
+    text = console.export_text()
+    assert "grip: holding the block" in text
+    rows = _table_rows(text)
     for step in ("down to grasp", "lift", "carry", "lower", "retreat"):
         off_line_mm = float(rows[step][-1])
         assert off_line_mm < 2.0, (step, off_line_mm)
     x, y, z = (float(v) for v in rows["down to grasp"][1:4])
     assert abs(x - 200) < 2 and abs(y + 110) < 2 and abs(z - 15) < 2
+    # Measured along the way, not only at the end: the rows between "lift" and "carry"
+    # go from the pick's side (y -110) towards the place's (y +120).
+    table = _table(text)
+    lift = next(k for k, (step, _) in enumerate(table) if step == "lift")
+    ys = [float(cells[2]) for _, cells in table[lift + 1:lift + 4]]
+    assert min(ys) > -100 and max(ys) < 110 and ys == sorted(ys), ys
+
+
+@pytest.mark.wallclock("`demo` serves its own simulated arm on a real pseudo-terminal, "
+                       "in wall-clock time")
+def test_demo_serves_its_own_arm_on_a_pty(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The command: no --port needed, its arm scanned through the pty, driven there, and
+    the tool path printed. (The whole pick-and-place takes 10 s on the wall clock; the
+    test above runs it on the simulated clock, so here only the grip, the block the demo
+    put between the fingers felt through the pty.)"""
+    gripped: list[bool] = []
+
+    def grip_only(arm: Arm, path: demo._ToolPath) -> None:
+        path.row("start")
+        gripped.append(arm.grip().is_holding)
+
+    monkeypatch.setattr(demo, "_pick_and_place", grip_only)
+    result = CliRunner(mix_stderr=False).invoke(
+        cli, ["--timeout-margin-ms", "200", "demo", "--no-timing"], env={"BUSARM_PORT": None})
+    assert result.exit_code == 0, result.stderr
+    assert "no --port given" not in result.stderr  # the demo runs its own simulator
+    assert re.search(r"simulated arm on pseudo-terminal /dev/\S+", result.stdout)
+    assert "found 6 servo(s): 1, 2, 3, 4, 5, 10" in result.stdout
+    assert gripped == [True]
+    assert "tool path (measured" in result.stdout and "start" in _table_rows(result.stdout)
+    assert re.search(r"done in [\d.]+ s \(retries: \d+, timeouts: \d+", result.stdout)
 
 
 # ---------------------------------------------------------------------------- subprocesses
@@ -386,9 +443,11 @@ def _busarm() -> list[str]:
 
 
 def _sigint_and_wait(proc: subprocess.Popen[str]) -> tuple[int, str, str]:
-    return sigint_and_wait(proc, 10)
+    return sigint_and_wait(proc, 30)
 
 
+@pytest.mark.wallclock("`sim serve` and `monitor` as processes, on a real pty, stopped "
+                       "with SIGINT")
 def test_sim_serve_and_monitor_as_subprocesses() -> None:
     env = {**os.environ, "COLUMNS": "120"}
     server = subprocess.Popen(
@@ -400,14 +459,15 @@ def test_sim_serve_and_monitor_as_subprocesses() -> None:
         path = server.stdout.readline().strip()
         assert path.startswith("/dev/"), path
         scan = subprocess.run(
-            [*_busarm(), "--port", path, "scan", "--ids", "0-20"],
+            [*_busarm(), "--port", path, *MARGIN, "scan", "--ids", "0-20"],
             capture_output=True, text=True, timeout=30, env=env,
         )
         assert scan.returncode == 0, scan.stderr
         assert "found 6 servo(s): 1, 2, 3, 4, 5, 10" in scan.stdout
 
         monitor = subprocess.Popen(
-            [*_busarm(), "--port", path, "monitor", "--ids", "1,10", "--interval", "0.05"],
+            [*_busarm(), "--port", path, *MARGIN, "monitor", "--ids", "1,10", "--interval",
+             "0.05"],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
             # Ctrl+C must reach it even when the tests run as a background job (which
             # starts every child with SIGINT ignored).
@@ -431,39 +491,34 @@ def test_sim_serve_and_monitor_as_subprocesses() -> None:
 # ---------------------------------------------------------------------------- safety checks
 
 
-def test_writes_to_a_missing_servo_fail_and_write_nothing(pty_sim: PtyFactory) -> None:
-    path, bus = pty_sim(servos(1))
+def test_writes_to_a_missing_servo_fail_and_write_nothing(sim_servos: SimFactory) -> None:
+    path, bus = sim_servos(servos(1))
     assert run("move", "1", "100", "--time", "5", port=path).exit_code == 0
     cases = [(["move", "7", "10"], 1), (["stop", "7"], 1), (["torque", "off", "7"], 1),
              (["limits", "7", "--temp", "70"], 1), (["led", "7", "off"], 1),
              (["offset", "7", "3"], 1), (["stop", "1", "7"], 2)]
     for args, reads in cases:
-        time.sleep(0.02)
         before = bus.frames_received
         result = run("--echo", "off", "--retries", "0", *args, port=path)
         assert assert_one_error(result, 1) == "error: no servo answers at ID 7", args
         # Only the presence checks (one read per ID) reached the bus: no write, no stop.
-        time.sleep(0.02)
         assert bus.frames_received - before == reads, args
     assert bus.servo(1).is_loaded
-    bus.servo(1).advance(time.monotonic())  # the simulation advances when asked
+    bus.advance()  # the simulation advances when asked
     position = bus.servo(1).position_pulses
-    time.sleep(0.05)
-    bus.servo(1).advance(time.monotonic())
+    sleep_and_advance(bus, 0.05)
     assert bus.servo(1).position_pulses > position  # still moving: nothing stopped it
 
 
-def test_move_outside_the_servos_angle_limits_is_refused(pty_sim: PtyFactory) -> None:
-    path, bus = pty_sim(servos(1, 2))
+def test_move_outside_the_servos_angle_limits_is_refused(sim_servos: SimFactory) -> None:
+    path, bus = sim_servos(servos(1, 2))
     assert run("limits", "2", "--angle", "-30", "30", port=path).exit_code == 0
-    time.sleep(0.02)
     before = bus.frames_received
     message = assert_one_error(run("--echo", "off", "move", "2", "60", port=path), 2)
     assert "+60.0 deg for servo 2" in message and "-30.0..+30.0 deg" in message
     message = assert_one_error(run("--echo", "off", "move", "--pose", "1=60,2=-45",
                                    port=path), 2)
     assert "servo 2" in message
-    time.sleep(0.05)
     assert bus.frames_received - before == 3  # the limit reads only
     assert bus.servo(1).position_pulses == bus.servo(2).position_pulses == 500
     result = run("move", "2", "30", "--time", "0", "--wait", port=path)
@@ -480,9 +535,9 @@ def test_vin_limits_that_would_unload_the_servo_need_force() -> None:
 
 
 def test_monitor_ctrl_c_leaves_the_arm_as_it_was(
-    pty_sim: PtyFactory, monkeypatch: pytest.MonkeyPatch
+    sim_servos: SimFactory, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    path, bus = pty_sim(servos(1))
+    path, bus = sim_servos(servos(1))
 
     def interrupted(*args: object) -> None:
         raise KeyboardInterrupt
@@ -496,17 +551,16 @@ def test_monitor_ctrl_c_leaves_the_arm_as_it_was(
     line = result.stderr.strip()
     assert line.startswith("interrupted: ") and "\n" not in line, line
     assert not any(word in line for word in ("MOVE_STOP", "stopped", "holding")), line
-    bus.servo(1).advance(time.monotonic())
+    bus.advance()
     position = bus.servo(1).position_pulses
-    time.sleep(0.1)
-    bus.servo(1).advance(time.monotonic())
+    sleep_and_advance(bus, 0.1)
     assert bus.servo(1).position_pulses > position
 
 
 def test_ctrl_c_during_a_command_says_the_servos_stopped(
-    pty_sim: PtyFactory, monkeypatch: pytest.MonkeyPatch
+    sim_servos: SimFactory, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    path, bus = pty_sim(servos(1))
+    path, bus = sim_servos(servos(1))
 
     def interrupted(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt
@@ -516,11 +570,9 @@ def test_ctrl_c_during_a_command_says_the_servos_stopped(
     assert result.exit_code == 130, result.stderr
     assert result.stderr.strip() == ("interrupted: all servos stopped (MOVE_STOP); servo 1 "
                                      "holding position (torque on)")
-    time.sleep(0.05)
-    bus.servo(1).advance(time.monotonic())
+    sleep_and_advance(bus, 0.05)
     held = bus.servo(1).position_pulses
-    time.sleep(0.1)
-    bus.servo(1).advance(time.monotonic())
+    sleep_and_advance(bus, 0.1)
     assert bus.servo(1).position_pulses == held < 600
 
 

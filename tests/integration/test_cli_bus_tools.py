@@ -2,17 +2,16 @@
 that finds nothing, a port that is no serial device, IDs out of range, servo moves past
 the arm's joint limits, and the offline ``decode``/``encode`` tools.
 
-Most run the CLI in-process (click's CliRunner) against the in-process simulator; where
-the serial line matters (echo) the servos are served on a real pseudo-terminal, whose
-counters show what reached the bus.
+The CLI runs in this process (click's CliRunner) against the in-process simulator, or
+simulated servos of the test's own (``sim_bus``, opened by the commands from one run to
+the next as a served arm), on their simulated clock: their counters show exactly what
+reached the bus. ``decode -`` also reads the standard input of a real process.
 """
 
 from __future__ import annotations
 
 import subprocess
 import sys
-import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -23,7 +22,7 @@ from busarm.cli.main import cli
 from busarm.errors import ConfigError
 from busarm.protocol import Command
 from busarm.sim.bus import SimBus, WireTiming
-from busarm.sim.pty import PtyServer
+from conftest import in_process_port
 
 SIM = "sim://?timing=0"
 ECHOING_SIM = "sim://?timing=0&echo=1"
@@ -43,19 +42,12 @@ def one_error(result: Result, code: int) -> str:
 
 
 @pytest.fixture
-def pty_bus() -> Iterator[tuple[str, SimBus]]:
-    """Servos 1-5 and 10 on a pseudo-terminal whose adapter does not echo: (path, SimBus)."""
+def sim_bus(monkeypatch: pytest.MonkeyPatch) -> tuple[str, SimBus]:
+    """Servos 1-5 and 10 whose adapter does not echo, on their simulated clock, and the
+    port by which commands run in this process open them: (port, SimBus)."""
     bus = SimBus.with_ids([1, 2, 3, 4, 5, 10], timing=WireTiming(enabled=False))
-    server = PtyServer(bus)
-    path = server.start()
-    yield path, bus
-    server.stop()
-
-
-def settle(bus: SimBus) -> int:
-    """Frames the simulated servos received, once the pty has delivered what was sent."""
-    time.sleep(0.05)
-    return bus.frames_received
+    url = in_process_port(monkeypatch, bus)
+    return url, bus
 
 
 # ---------------------------------------------------------------------------- echo
@@ -72,9 +64,9 @@ def test_echo_on_with_an_adapter_that_does_not_echo_scan_says_so() -> None:
 
 
 def test_echo_on_with_an_adapter_that_does_not_echo_info_says_so(
-    pty_bus: tuple[str, SimBus],
+    sim_bus: tuple[str, SimBus],
 ) -> None:
-    path, _ = pty_bus
+    path, _ = sim_bus
     result = run("--echo", "on", "info", "1", port=path)
     message = one_error(result, 1)
     assert "servo 1 answered POS_READ, but our own request did not come back" in message
@@ -150,9 +142,9 @@ def test_read_state_of_a_string_id_is_a_type_error_naming_it() -> None:
 
 
 def test_servo_move_past_its_joints_limits_is_refused_sending_nothing(
-    pty_bus: tuple[str, SimBus],
+    sim_bus: tuple[str, SimBus],
 ) -> None:
-    path, bus = pty_bus
+    path, bus = sim_bus
     message = one_error(run("move", "2", "100", port=path), 2)
     assert message == (
         "error: servo 2 is joint shoulder_pitch of the JetAuto Pro arm: +100.0 deg is "
@@ -162,12 +154,12 @@ def test_servo_move_past_its_joints_limits_is_refused_sending_nothing(
     message = one_error(run("move", "--pose", "1=10,10=60", port=path), 2)
     assert "servo 10 is the gripper of the JetAuto Pro arm" in message
     assert "-72.0..+48.0 deg" in message
-    assert settle(bus) == 0
+    assert bus.frames_received == 0
     assert bus.servo(2).position_pulses == 500
 
 
-def test_ignore_arm_limits_moves_anyway_and_is_documented(pty_bus: tuple[str, SimBus]) -> None:
-    path, bus = pty_bus
+def test_ignore_arm_limits_moves_anyway_and_is_documented(sim_bus: tuple[str, SimBus]) -> None:
+    path, bus = sim_bus
     result = run("move", "2", "100", "--time", "0", "--wait", "--ignore-arm-limits", port=path)
     assert result.exit_code == 0, result.stderr
     # Past the joint's +90 deg (875 pulses), at +100 deg but for the load's few pulses.
@@ -210,14 +202,14 @@ def test_decode_shows_the_checksum_a_bad_frame_should_have() -> None:
     assert "expected 0x16" in bad_only.stdout
 
 
+@pytest.mark.wallclock("the standard input of a real process (a pipe from `encode`)")
 def test_decode_reads_standard_input_given_as_dash() -> None:
-    encoded = subprocess.run(
-        [sys.executable, "-m", "busarm", "encode", "POS_READ", "1"],
-        capture_output=True, text=True, check=True,
-    ).stdout
+    encoded = run("encode", "POS_READ", "1")
+    assert encoded.exit_code == 0, encoded.stderr
     decoded = subprocess.run(
-        [sys.executable, "-m", "busarm", "decode", "-"], input=encoded + "5555fe030ef0\n",
-        capture_output=True, text=True, check=False,
+        [sys.executable, "-m", "busarm", "decode", "-"],
+        input=encoded.stdout + "5555fe030ef0\n", capture_output=True, text=True,
+        check=False, timeout=60,
     )
     assert decoded.returncode == 0, decoded.stderr
     assert decoded.stdout.splitlines() == [

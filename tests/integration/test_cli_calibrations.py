@@ -23,6 +23,8 @@ import pytest
 from busarm.fileio import config_home
 from busarm.robot.calibration_store import CalibrationStore, robot_key
 
+pytestmark = pytest.mark.slow  # the twin's calibration flows, made again and again
+
 
 def busarm(*args: str, config: Path, timeout_s: float = 300.0
            ) -> tuple[subprocess.CompletedProcess[str], float]:

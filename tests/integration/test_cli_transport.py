@@ -27,6 +27,8 @@ from busarm.nav.map_files import load_map
 from busarm.nav.points import load_points
 from conftest import keep_twin_calibration
 
+pytestmark = pytest.mark.slow  # whole mobile jobs as processes
+
 SEED = 1
 TWIN_PORT = f"board://twin?family=arena&seed={SEED}"
 

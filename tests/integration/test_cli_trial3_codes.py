@@ -13,8 +13,10 @@
   limp and says a stop outside the servo's angle limits.
 - ``pick-sort`` says "out of reach" of a block beyond the gripper's reach, and skips it.
 
-The CLI runs as subprocesses where signals, pipes or a process's exit code are the point,
-else through click's runner on a real pseudo-terminal whose simulated servos are checked.
+The CLI runs as subprocesses where signals, pipes, stdin or a process's exit code are the
+point (those that need the simulated servos' truth serve them on a real pseudo-terminal, in
+wall-clock time, with a generous reply margin), else in this process through click's
+runner, on simulated servos of the test's own on a simulated clock (``in_process``).
 """
 
 from __future__ import annotations
@@ -35,12 +37,22 @@ from click.testing import CliRunner, Result
 
 from busarm.bus.driver import ServoBus
 from busarm.cli.main import cli
+from busarm.clock import WALL_CLOCK
 from busarm.protocol import Command, ServoMode
-from busarm.sim.bus import WireTiming
+from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.pty import PtyServer
-from conftest import ListeningSim, keep_twin_calibration, sigint_and_wait
+from busarm.sim.transport import SimTransport
+from conftest import (
+    PTY_MARGIN_S,
+    ListeningSim,
+    in_process_port,
+    keep_twin_calibration,
+    sigint_and_wait,
+)
 
-pytestmark = pytest.mark.realtime
+MARGIN = ("--timeout-margin-ms", "200")
+"""For a command at a pty served in wall-clock time, on a computer that may be busy: a
+reply heard late is not what these tests are about."""
 
 FAR1 = {"format": "busarm.scene", "version": 1, "seed": 3,
         "table": {"x_min_mm": -200.0, "x_max_mm": 420.0, "y_min_mm": -400.0,
@@ -56,10 +68,20 @@ FAR1 = {"format": "busarm.scene", "version": 1, "seed": 3,
 """A red block at x = 380 mm, beyond the gripper's reach (the third trial's far1.json)."""
 
 
+PTY_REASON = ("a command as its own process at simulated servos served on a pty, in "
+              "wall-clock time")
+
+
+def in_process(monkeypatch: pytest.MonkeyPatch, sim: SimBus) -> str:
+    """The port by which commands run in this process (click's runner) open ``sim``, the
+    test's own simulated servos (on their simulated clock), kept from one command to the
+    next as a served arm is."""
+    url = in_process_port(monkeypatch, sim)
+    return url
 
 
 def _serve(ids: tuple[int, ...]) -> Iterator[tuple[str, ListeningSim]]:
-    sim = ListeningSim.with_ids(ids, timing=WireTiming(enabled=False))
+    sim = ListeningSim.with_ids(ids, timing=WireTiming(enabled=False), clock=WALL_CLOCK)
     assert isinstance(sim, ListeningSim)
     server = PtyServer(sim)
     yield server.start(), sim
@@ -68,14 +90,18 @@ def _serve(ids: tuple[int, ...]) -> Iterator[tuple[str, ListeningSim]]:
 
 @pytest.fixture
 def pty_arm() -> Iterator[tuple[str, ListeningSim]]:
-    """The arm's six simulated servos on a real pseudo-terminal."""
+    """The arm's six simulated servos on a real pseudo-terminal (wall-clock time), for a
+    command run as its own process."""
     yield from _serve((1, 2, 3, 4, 5, 10))
 
 
 @pytest.fixture
-def pty_wheel() -> Iterator[tuple[str, ListeningSim]]:
-    """One simulated servo, ID 7, on a real pseudo-terminal (a wheel, not the arm's)."""
-    yield from _serve((7,))
+def wheel(monkeypatch: pytest.MonkeyPatch) -> tuple[str, ListeningSim]:
+    """One simulated servo, ID 7 (a wheel, not the arm's), for commands in this process:
+    its port, and its simulated servo."""
+    sim = ListeningSim.with_ids((7,), timing=WireTiming(enabled=False))
+    assert isinstance(sim, ListeningSim)
+    return in_process(monkeypatch, sim), sim
 
 
 @pytest.fixture(scope="module")
@@ -99,9 +125,11 @@ def home(tmp_path_factory: pytest.TempPathFactory, twin_calibration: tuple[Path,
             os.environ[key] = value
 
 
-def run(*args: str, port: str | None = None, input: str | None = None) -> Result:
+def run(*args: str, port: str | None = None, input: str | None = None,
+        env: dict[str, str | None] | None = None) -> Result:
+    """``busarm ARGS`` in this process (``env``: variables set, or unset by None)."""
     return CliRunner(mix_stderr=False).invoke(
-        cli, [*(("--port", port) if port else ()), *args], input=input)
+        cli, [*(("--port", port) if port else ()), *args], input=input, env=env)
 
 
 def busarm(*args: str, env: dict[str, str] | None = None,
@@ -152,9 +180,9 @@ def test_a_block_beyond_reach_is_skipped_as_out_of_reach_and_the_run_exits_0(
         home: dict[str, str], tmp_path: Path) -> None:
     scene = tmp_path / "far1.json"
     scene.write_text(json.dumps(FAR1))
-    result = finished("pick-sort", "--scene", str(scene), "--report", str(tmp_path / "r"),
-                      env=home)
-    assert result.returncode == 0, result.stderr
+    result = run("pick-sort", "--scene", str(scene), "--report", str(tmp_path / "r"),
+                 env={"XDG_CONFIG_HOME": home["XDG_CONFIG_HOME"]})  # the twin's calibration
+    assert result.exit_code == 0, result.stderr
     row = next(line for line in result.stdout.splitlines() if line.startswith("red"))
     # Seen only in part (cut by the picture's edge, even facing it): where it may be is
     # beyond the farthest grasp on its bearing, and it says so, with both distances.
@@ -209,17 +237,21 @@ def test_a_benchmark_exits_1_when_it_prints_fail(monkeypatch: pytest.MonkeyPatch
 
 
 def test_the_vision_benchmark_counts_its_own_fail(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr("busarm.bench.vision.TARGET_LOCATE_FPS", 1e12)
+    monkeypatch.setattr("busarm.bench.vision.TARGET_SPEEDUP", 0.0)  # met, however busy
+    monkeypatch.setattr("busarm.bench.vision.TARGET_LOCATE_FPS", 1e12)  # out of reach
     result = run("bench", "vision", "--pictures", "1", "--seconds", "0.5")
-    assert one_error(result, 1).startswith("error: 1 target(s) missed"), result.stderr
+    assert one_error(result, 1) == "error: 1 target(s) missed: FAIL in the report"
     assert "FAIL >= 1e+12" in result.stdout, result.stdout
 
 
 # ---------------------------------------------------------------------- interrupted, EOF
 
 
+@pytest.mark.wallclock("Ctrl+C to a command as its own process, while it turns")
 def test_an_interrupted_motor_stops_and_exits_130(home: dict[str, str]) -> None:
-    proc = busarm("--port", "sim://?ids=7", "motor", "7", "300", "--time", "30", env=home)
+    # pace=1: the 30 s of simulated turning take (at least) 30 s, for Ctrl+C to come first.
+    proc = busarm("--port", "sim://?ids=7&pace=1", "motor", "7", "300", "--time", "30",
+                  env=home)
     wait_for(proc.stderr, "turning at speed 300", proc)
     code, out, err = ctrl_c(proc)
     assert code == 130, err
@@ -228,21 +260,24 @@ def test_an_interrupted_motor_stops_and_exits_130(home: dict[str, str]) -> None:
     assert "Traceback" not in err
 
 
+@pytest.mark.wallclock("Ctrl+C to a command as its own process, while it records")
 def test_an_interrupted_recording_writes_its_frames_and_exits_130(
         home: dict[str, str], tmp_path: Path) -> None:
     taught = tmp_path / "taught.d6a"
-    proc = busarm("--port", "sim", "actions", "record", str(taught), "--interval", "0.1",
-                  env=home)
+    # pace=1: a frame every 0.1 s of wall-clock time, as at a real arm.
+    proc = busarm("--port", "sim://?pace=1", "actions", "record", str(taught), "--interval",
+                  "0.1", env=home)
     wait_for(proc.stderr, "frame 3:", proc)
     code, out, err = ctrl_c(proc)
     assert code == 130, err
     frames = int(re.search(r"wrote (\d+) frames to ", out)[1])  # type: ignore[index]
     assert frames >= 3 and taught.exists()
     assert err.strip().splitlines()[-1].startswith(f"interrupted after frame {frames}: "), err
-    shown = finished("actions", "show", str(taught), env=home)
-    assert shown.returncode == 0 and f"{frames} frames" in shown.stdout, shown.stderr
+    shown = run("actions", "show", str(taught))
+    assert shown.exit_code == 0 and f"{frames} frames" in shown.stdout, shown.stderr
 
 
+@pytest.mark.wallclock("Ctrl+C to a command as its own process, waiting on its stdin")
 def test_a_recording_interrupted_before_any_frame_writes_nothing_and_exits_130(
         home: dict[str, str], tmp_path: Path) -> None:
     taught = tmp_path / "taught.d6a"
@@ -256,11 +291,12 @@ def test_a_recording_interrupted_before_any_frame_writes_nothing_and_exits_130(
     assert not taught.exists() and out == ""
 
 
+@pytest.mark.wallclock(PTY_REASON + ": its stdin ends")
 def test_the_input_ending_at_a_question_is_bad_input_not_an_interruption(
         pty_arm: tuple[str, ListeningSim], tmp_path: Path) -> None:
     path, sim = pty_arm
     out = tmp_path / "cal.json"
-    result = finished("--port", path, "arm", "calibrate", "--out", str(out))
+    result = finished("--port", path, *MARGIN, "arm", "calibrate", "--out", str(out))
     assert result.returncode == 2, result.stderr
     assert "Is the arm in that pose?" in result.stderr  # asked, on stderr; then one line:
     line = result.stderr.strip().splitlines()[-1]
@@ -275,6 +311,7 @@ def test_the_input_ending_at_a_question_is_bad_input_not_an_interruption(
     assert not moves & set(sim.writes()), sim.writes()  # nothing moved, nothing stored
 
 
+@pytest.mark.wallclock("Ctrl+C to a command as its own process")
 def test_vision_detect_interrupted_says_nothing_of_servos(home: dict[str, str]) -> None:
     proc = busarm("vision", "detect", "--camera", "twin", "--frames", "0", env=home)
     wait_for(proc.stdout, "block(s)", proc)
@@ -286,6 +323,7 @@ def test_vision_detect_interrupted_says_nothing_of_servos(home: dict[str, str]) 
 # ---------------------------------------------------------------------- a closed pipe
 
 
+@pytest.mark.wallclock("a command as its own process whose stdout's reader goes away")
 def test_a_reader_that_goes_away_ends_the_command_quietly(home: dict[str, str]) -> None:
     proc = busarm("vision", "detect", "--camera", "twin", "--frames", "0", env=home)
     assert proc.stdout is not None
@@ -297,13 +335,14 @@ def test_a_reader_that_goes_away_ends_the_command_quietly(home: dict[str, str]) 
     assert err == "", err  # no message, no traceback
 
 
+@pytest.mark.wallclock(PTY_REASON + ": its stdout has no reader")
 def test_a_closed_pipe_that_stopped_the_arm_says_so(pty_arm: tuple[str, ListeningSim],
                                                     home: dict[str, str]) -> None:
     path, sim = pty_arm
     read_end, write_end = os.pipe()
     os.close(read_end)  # no reader, before it prints "moving ..."
-    proc = busarm("--port", path, "move", "1", "100", "--time", "5", "--wait", env=home,
-                  stdout=write_end)
+    proc = busarm("--port", path, *MARGIN, "move", "1", "100", "--time", "5", "--wait",
+                  env=home, stdout=write_end)
     os.close(write_end)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 141, err
@@ -359,36 +398,39 @@ def test_garbled_replies_are_said_damaged_by_the_driver() -> None:
 # ---------------------------------------------------------------------- what stops say
 
 
+@pytest.mark.wallclock(PTY_REASON + ", Ctrl+C to it")
 def test_monitor_only_reads_and_its_ctrl_c_sends_nothing(
         pty_arm: tuple[str, ListeningSim], home: dict[str, str]) -> None:
     path, sim = pty_arm
-    assert run("move", "1", "-40", "--time", "6", port=path).exit_code == 0
-    with ServoBus.open(path, echo="off") as bus:
+    # A slow move (30 s: still under way however long the monitor takes to start).
+    assert run("move", "1", "-40", "--time", "30", *MARGIN, port=path).exit_code == 0
+    with ServoBus.open(path, echo="off", timeout_margin_s=PTY_MARGIN_S) as bus:
         bus.read_id(1)  # answered after the move was taken
     sim.heard.clear()
-    proc = busarm("--port", path, "monitor", "--ids", "1", "--interval", "0.05", env=home)
+    proc = busarm("--port", path, *MARGIN, "monitor", "--ids", "1", "--interval", "0.05",
+                  env=home)
     wait_for(proc.stdout, "refresh 2", proc)
     code, _, err = ctrl_c(proc)
     assert code == 130, err
     assert err.strip().splitlines() == ["interrupted: nothing was written to the servos"]
     assert sim.writes() == []  # no MOVE_STOP: the move of "another program" goes on
-    servo = sim.servo(1)
-    servo.advance(time.monotonic())
+    servo = sim.servo(1)  # the servo's model, 0.1 s on: still on its way
+    now = time.monotonic()
+    servo.advance(now)
     before = servo.position_pulses
-    time.sleep(0.1)
-    servo.advance(time.monotonic())
+    servo.advance(now + 0.1)
     assert servo.position_pulses < before
 
 
 def test_motor_stop_leaves_a_limp_servo_limp_and_says_where_it_is(
-        pty_wheel: tuple[str, ListeningSim]) -> None:
-    path, sim = pty_wheel
-    with ServoBus.open(path, echo="off") as bus:
+        wheel: tuple[str, ListeningSim]) -> None:
+    path, sim = wheel
+    with ServoBus(SimTransport(sim), echo="off") as bus:
         bus.set_motor_speed(7, 300)
         bus.set_torque(7, False)  # made limp while turning
         assert not bus.read_torque(7)  # (the simulator has taken the writes)
     servo = sim.servo(7)
-    servo.move_by_hand(-150, time.monotonic())  # turned past the angle limits
+    servo.move_by_hand(-150, sim.clock.now())  # turned past the angle limits
     result = run("motor", "7", "stop", port=path)
     assert result.exit_code == 0, result.stderr
     said = " ".join(result.stdout.split())
@@ -397,15 +439,15 @@ def test_motor_stop_leaves_a_limp_servo_limp_and_says_where_it_is(
     assert ("outside its angle limits -120.0..+120.0 deg: a move within them brings it back "
             "(`busarm move 7 0`)") in said, said
     assert not servo.is_loaded  # not energised
-    with ServoBus.open(path, echo="off") as bus:
+    with ServoBus(SimTransport(sim), echo="off") as bus:
         assert bus.read_mode(7).mode == ServoMode.POSITION and bus.read_mode(7).motor_speed == 0
     assert run("move", "7", "0", "--time", "0.5", "--wait", port=path).exit_code == 0
 
 
 def test_a_stop_within_the_limits_says_nothing_of_them(
-        pty_wheel: tuple[str, ListeningSim]) -> None:
-    path, _ = pty_wheel
-    with ServoBus.open(path, echo="off") as bus:
+        wheel: tuple[str, ListeningSim]) -> None:
+    path, sim = wheel
+    with ServoBus(SimTransport(sim), echo="off") as bus:
         bus.move_deg(7, 10.0, 0.0)  # torque on, holding at +10
         bus.set_motor_speed(7, 0)
     out = " ".join(run("motor", "7", "stop", port=path).stdout.split())
@@ -416,8 +458,8 @@ def test_a_stop_within_the_limits_says_nothing_of_them(
 # ---------------------------------------------------------------------- smaller ones
 
 
-def test_a_bare_gripper_gap_is_millimetres(pty_arm: tuple[str, ListeningSim]) -> None:
-    path, sim = pty_arm
+def test_a_bare_gripper_gap_is_millimetres() -> None:
+    path = "sim"
     bare, with_unit = run("arm", "gripper", "25", port=path), run("arm", "gripper", "25mm",
                                                                   port=path)
     assert bare.exit_code == with_unit.exit_code == 0, bare.stderr
@@ -427,9 +469,8 @@ def test_a_bare_gripper_gap_is_millimetres(pty_arm: tuple[str, ListeningSim]) ->
         "25mm" in line
 
 
-def test_an_offset_rounded_to_the_servos_steps_says_so(
-        pty_arm: tuple[str, ListeningSim]) -> None:
-    path, _ = pty_arm
+def test_an_offset_rounded_to_the_servos_steps_says_so() -> None:
+    path = "sim"
     out = run("offset", "2", "0.1", port=path).stdout
     assert out.startswith("servo 2 angle offset: +0.00 deg (rounded from +0.1 deg to the "
                           "servo's steps of 0.24 deg; not saved"), out
@@ -438,12 +479,12 @@ def test_an_offset_rounded_to_the_servos_steps_says_so(
 
 
 def test_a_missing_adapter_is_said_before_what_the_job_needs(home: dict[str, str]) -> None:
-    line = one_error(finished("--port", "/dev/ttyUSB9", "pick-sort", env=home), 1)
+    line = one_error(run("--port", "/dev/ttyUSB9", "pick-sort"), 1)
     assert line.startswith("error: cannot open '/dev/ttyUSB9': it does not exist"), line
-    env = {**home, "BUSARM_PORT": "/dev/ttyUSB9"}
-    line = one_error(finished("scan", env=env), 1)
+    env: dict[str, str | None] = {"BUSARM_PORT": "/dev/ttyUSB9"}
+    line = one_error(run("scan", env=env), 1)
     assert line.endswith("; the port came from $BUSARM_PORT"), line
-    line = one_error(finished("scan", "--port", "/dev/ttyUSB8", env=env), 1)
+    line = one_error(run("scan", "--port", "/dev/ttyUSB8", env=env), 1)
     assert "/dev/ttyUSB8" in line and "BUSARM_PORT" not in line, line
 
 
@@ -452,24 +493,26 @@ def test_a_bin_for_a_colour_not_sorted_is_said(home: dict[str, str]) -> None:
     assert line == ("error: --bins has no bin for the colours to sort (red, green, blue; "
                     "--colors chooses them): purple is not one of them; give COLOUR=X,Y "
                     "for at least one of them"), line
-    result = finished("--port", "/dev/ttyUSB9", "pick-sort", "--bins", "purple=1,2;red=3,4",
-                      env=home)
+    result = run("--port", "/dev/ttyUSB9", "pick-sort", "--bins", "purple=1,2;red=3,4")
     assert result.stderr.splitlines()[0] == (
         "warning: --bins purple: not one of the colours to sort (red, green, blue; --colors "
         "chooses them); no block goes there"), result.stderr
 
 
+@pytest.mark.wallclock("a network camera refused at once, in wall-clock time")
 def test_a_refused_camera_stream_is_said_refused_at_once() -> None:
+    # (That a command as its own process says it in one line, no OpenCV noise on its
+    # stderr: test_cli_additions' test_camera_stream_that_fails_gives_one_error_in_time.)
     start = time.monotonic()
-    line = one_error(finished("vision", "detect", "--camera", "http://127.0.0.1:1/video"), 1)
+    line = one_error(run("vision", "detect", "--camera", "http://127.0.0.1:1/video"), 1)
     assert line == ("error: cannot open camera stream http://127.0.0.1:1/video: the "
                     "connection was refused (nothing listens on 127.0.0.1:1)"), line
     assert time.monotonic() - start < 15
 
 
 def test_poses_need_no_bus_and_say_nothing_of_one(home: dict[str, str]) -> None:
-    result = finished("arm", "poses", "--json", env=home)
-    assert result.returncode == 0 and result.stderr == "", result.stderr
+    result = run("arm", "poses", "--json")
+    assert result.exit_code == 0 and result.stderr == "", result.stderr
     assert {p["name"] for p in json.loads(result.stdout)["poses"]} >= {"home", "look"}
 
 

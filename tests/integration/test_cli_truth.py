@@ -7,6 +7,10 @@ pick-sort's stop is one line that says what the gripper really holds, and its re
 stays valid JSON; a Ctrl+C at any moment, even while the program loads, ends with one
 line and exit code 130. Each claim is checked against the simulated servos (or the
 twin's ground truth), not only against the text.
+
+The commands run in this process (click's runner) on simulated servos of the test's own,
+on their simulated clock (``sim_arm``), or on the twin; a Ctrl+C is a real SIGINT to a
+real process (``busarm``), at servos served on a real pseudo-terminal (``pty_arm``).
 """
 
 from __future__ import annotations
@@ -25,26 +29,39 @@ import pytest
 from click.testing import CliRunner, Result
 
 from busarm.bus.driver import ServoBus
+from busarm.cli import stopping
 from busarm.cli.main import cli
+from busarm.clock import WALL_CLOCK
 from busarm.errors import ConfigError, MotionTimeoutError
 from busarm.protocol import Command
-from busarm.sim.bus import WireTiming
+from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.pty import PtyServer
-from conftest import ListeningSim, sigint_and_wait
-
-pytestmark = pytest.mark.realtime
+from busarm.sim.transport import SimTransport
+from conftest import PTY_MARGIN_S, ListeningSim, in_process_port, sigint_and_wait, wait_for
 
 VENDOR = Path(__file__).resolve().parents[1] / "data" / "vendor" / "arm_action_1.d6a"
 ARM_IDS = (1, 2, 3, 4, 5, 10)
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1", "COLUMNS": "120"}
+MARGIN = ("--timeout-margin-ms", "200")
+"""For a command at a pty (wall-clock time) on a computer that may be busy: a reply heard
+late is not what these tests are about."""
+SIGINT_REASON = "Ctrl+C (SIGINT) to a real process"
 
 
+@pytest.fixture
+def sim_arm(monkeypatch: pytest.MonkeyPatch) -> tuple[str, ListeningSim]:
+    """The arm's six simulated servos (no wire timing) on their simulated clock: the port
+    commands open them by, and the servos."""
+    sim = ListeningSim.with_ids(timing=WireTiming(enabled=False))
+    assert isinstance(sim, ListeningSim)
+    return in_process_port(monkeypatch, sim), sim
 
 
 @pytest.fixture
 def pty_arm() -> Iterator[tuple[str, ListeningSim]]:
-    """The arm's six simulated servos on a real pseudo-terminal (no wire timing)."""
-    sim = ListeningSim.with_ids(timing=WireTiming(enabled=False))
+    """The arm's six simulated servos on a real pseudo-terminal (no wire timing), in
+    wall-clock time."""
+    sim = ListeningSim.with_ids(timing=WireTiming(enabled=False), clock=WALL_CLOCK)
     assert isinstance(sim, ListeningSim)
     server = PtyServer(sim)
     yield server.start(), sim
@@ -64,21 +81,54 @@ def one_line(result: Result, code: int) -> str:
     return lines[0]
 
 
-def hold(path: str, *ids: int) -> None:
-    """Torque on for ``ids``: each holds where it stands (a move there, time 0)."""
-    with ServoBus.open(path) as bus:
+def hold(servos: SimBus | str, *ids: int) -> None:
+    """Torque on for ``ids``: each holds where it stands (a move there, time 0). The
+    simulated servos in this process, or the path of the pty they are served on."""
+    with (ServoBus.open(servos, timeout_margin_s=PTY_MARGIN_S) if isinstance(servos, str)
+          else ServoBus(SimTransport(servos))) as bus:
         for sid in ids:
             bus.move_pulses(sid, bus.read_position_pulses(sid), 0)
 
 
-def busarm(*args: str) -> subprocess.Popen[str]:
+def busarm(*args: str, env: dict[str, str] = ENV) -> subprocess.Popen[str]:
     """``python -m busarm ARGS`` with the default SIGINT (background test runs start
     children with SIGINT ignored)."""
     return subprocess.Popen(
         [sys.executable, "-m", "busarm", *args], stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE, text=True, env=ENV,
+        stderr=subprocess.PIPE, text=True, env=env,
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
+
+LOADING_MARK = """\
+import os, sys
+
+class _Loading:
+    \"\"\"Makes the file $BUSARM_TEST_LOADING as busarm's command line starts to load
+    (its first import of busarm.cli: in busarm.__main__.main, which handles a Ctrl+C).\"\"\"
+
+    def find_spec(self, name, path=None, target=None):
+        if name == "busarm.cli":
+            sys.meta_path.remove(self)
+            open(os.environ["BUSARM_TEST_LOADING"], "w").close()
+        return None
+
+sys.meta_path.insert(0, _Loading())
+"""
+"""A ``sitecustomize`` for ``busarm``'s process: how a test knows, on the process's own
+terms, that the program has started loading (Python's own start-up before it, tens of ms
+idle, far more on a busy computer, is the interpreter's: a Ctrl+C there is Python's)."""
+
+
+def busarm_loading(tmp_path: Path, *args: str) -> subprocess.Popen[str]:
+    """``busarm(*args)``, returned once the program has started to load."""
+    (tmp_path / "sitecustomize.py").write_text(LOADING_MARK)
+    mark = tmp_path / "loading"
+    path = os.pathsep.join(p for p in (str(tmp_path), ENV.get("PYTHONPATH")) if p)
+    proc = busarm(*args, env={**ENV, "PYTHONPATH": path, "BUSARM_TEST_LOADING": str(mark)})
+    if not wait_for(lambda: mark.exists() or proc.poll() is not None, timeout_s=60):
+        proc.kill()
+    assert mark.exists(), proc.communicate()
+    return proc
 
 
 def ctrl_c(proc: subprocess.Popen[str]) -> tuple[int, str, str]:
@@ -89,8 +139,8 @@ def ctrl_c(proc: subprocess.Popen[str]) -> tuple[int, str, str]:
 
 
 def test_refusals_before_any_write_say_nothing_about_stopping(
-        pty_arm: tuple[str, ListeningSim]) -> None:
-    path, sim = pty_arm
+        sim_arm: tuple[str, ListeningSim]) -> None:
+    path, sim = sim_arm
     cases = [(["set-id", "1", "2"], "ID 2 is already taken"),
              (["arm", "move-joints", "0", "60", "0", "-90", "0"], "shoulder_pitch"),
              (["arm", "move-to", "200", "0", "-50"], "below the table"),
@@ -108,9 +158,9 @@ def test_refusals_before_any_write_say_nothing_about_stopping(
 
 
 def test_declining_calibrate_is_not_an_interruption_and_changes_nothing(
-        pty_arm: tuple[str, ListeningSim], tmp_path: Path) -> None:
-    path, sim = pty_arm
-    hold(path, *ARM_IDS)
+        sim_arm: tuple[str, ListeningSim], tmp_path: Path) -> None:
+    path, sim = sim_arm
+    hold(sim, *ARM_IDS)
     out = tmp_path / "cal.json"
     for answers in ("n\n", "y\nn\n"):  # no at the first question, then at the second
         sim.heard.clear()
@@ -130,8 +180,8 @@ def test_declining_calibrate_is_not_an_interruption_and_changes_nothing(
 
 
 def test_an_error_after_a_move_says_stopped_and_holding(
-        pty_arm: tuple[str, ListeningSim], monkeypatch: pytest.MonkeyPatch) -> None:
-    path, sim = pty_arm
+        sim_arm: tuple[str, ListeningSim], monkeypatch: pytest.MonkeyPatch) -> None:
+    path, sim = sim_arm
 
     def late(*args: object, **kwargs: object) -> None:
         raise MotionTimeoutError("servo 1 is late")
@@ -142,19 +192,19 @@ def test_an_error_after_a_move_says_stopped_and_holding(
                     "servo 1 holding position (torque on)")
     servo = sim.servo(1)
     assert servo.is_loaded
-    servo.advance(time.monotonic())
+    sim.advance()
     held = servo.position_pulses
-    time.sleep(0.1)
-    servo.advance(time.monotonic())
+    sim.clock.sleep(0.1)
+    sim.advance()
     assert servo.position_pulses == held < 900  # stopped on its way, and holding there
 
 
 def test_an_error_while_the_arm_is_limp_says_limp(
-        pty_arm: tuple[str, ListeningSim], monkeypatch: pytest.MonkeyPatch) -> None:
+        sim_arm: tuple[str, ListeningSim], monkeypatch: pytest.MonkeyPatch) -> None:
     from busarm.cli import arm_cmds
 
-    path, sim = pty_arm
-    hold(path, *ARM_IDS)
+    path, sim = sim_arm
+    hold(sim, *ARM_IDS)
 
     def fails(*args: object, **kwargs: object) -> None:
         raise ConfigError("the readings make no sense")
@@ -167,13 +217,15 @@ def test_an_error_while_the_arm_is_limp_says_limp(
     assert not any(sim.servo(sid).is_loaded for sid in ARM_IDS)
 
 
+@pytest.mark.wallclock(SIGINT_REASON + ", a monitor at servos served on a real pty")
 def test_monitor_ctrl_c_sends_and_says_nothing_of_stopping(
         pty_arm: tuple[str, ListeningSim]) -> None:
     path, sim = pty_arm
     hold(path, 2)  # servo 1 stays limp, as the simulated servos start
-    time.sleep(0.1)  # (the simulator has taken the hold's writes)
+    # The hold's move, its last write, has reached the servos: nothing more will come.
+    assert wait_for(lambda: sim.servo(2).is_loaded)
     sim.heard.clear()
-    monitor = busarm("--port", path, "monitor", "--ids", "1,2", "--interval", "0.05")
+    monitor = busarm("--port", path, *MARGIN, "monitor", "--ids", "1,2", "--interval", "0.05")
     assert monitor.stdout is not None
     while "refresh 2" not in monitor.stdout.readline():
         assert monitor.poll() is None, monitor.communicate()
@@ -184,10 +236,11 @@ def test_monitor_ctrl_c_sends_and_says_nothing_of_stopping(
     assert not sim.servo(1).is_loaded and sim.servo(2).is_loaded
 
 
+@pytest.mark.wallclock(SIGINT_REASON + ", moving servos served on a real pty")
 def test_ctrl_c_during_a_move_exits_130_with_one_true_line(
         pty_arm: tuple[str, ListeningSim]) -> None:
     path, sim = pty_arm
-    move = busarm("--port", path, "move", "1", "100", "--time", "5", "--wait")
+    move = busarm("--port", path, *MARGIN, "move", "1", "100", "--time", "5", "--wait")
     assert move.stdout is not None
     assert "moving" in move.stdout.readline()
     code, _, err = ctrl_c(move)
@@ -197,11 +250,15 @@ def test_ctrl_c_during_a_move_exits_130_with_one_true_line(
     assert sim.servo(1).is_loaded
 
 
-@pytest.mark.parametrize("after_s", [0.1, 0.3, 0.6, 1.2])
-def test_a_ctrl_c_at_any_moment_is_one_line_and_130(after_s: float) -> None:
-    """From while the program loads (about 0.4 s of imports) to the move itself."""
-    proc = busarm("--port", "sim", "move", "1", "100", "--time", "10", "--wait")
-    time.sleep(after_s)
+@pytest.mark.wallclock(SIGINT_REASON + " at a moment of the wall clock, as a person presses it")
+@pytest.mark.parametrize("after_s", [0.0, 0.3, 0.6, 1.2])
+def test_a_ctrl_c_at_any_moment_is_one_line_and_130(after_s: float, tmp_path: Path) -> None:
+    """From while the program loads (about 0.4 s of imports) to the move itself (a 10 s
+    move on the wall clock: ``realtime=1``, or the simulated one would be over first),
+    ``after_s`` after the program started to load."""
+    proc = busarm_loading(tmp_path, "--port", "sim://?realtime=1", *MARGIN, "move", "1",
+                          "100", "--time", "10", "--wait")
+    time.sleep(after_s)  # the moment of the Ctrl+C: the subject, not a wait for anything
     code, out, err = ctrl_c(proc)
     assert code == 130, (out, err)
     assert "Traceback" not in out + err
@@ -210,7 +267,7 @@ def test_a_ctrl_c_at_any_moment_is_one_line_and_130(after_s: float) -> None:
     assert lines[0] in ("interrupted: nothing was written to the servos",
                         "interrupted: all servos stopped (MOVE_STOP); servo 1 holding "
                         "position (torque on)"), err
-    if after_s == 0.1:  # still loading: no port was even opened
+    if after_s == 0.0:  # still loading: no port was even opened
         assert lines[0] == "interrupted: nothing was written to the servos"
 
 
@@ -306,18 +363,15 @@ def test_pick_sort_error_mid_run_is_one_line_that_names_the_silent_servo(
     assert data["totals"]["median_cycle_s"] is None
 
 
-def test_a_stop_after_the_servos_were_let_go_does_not_say_nothing_was_written() -> None:
+def test_a_stop_after_the_servos_were_let_go_does_not_say_nothing_was_written(
+        monkeypatch: pytest.MonkeyPatch) -> None:
     # A Ctrl+C as a finished job prints its summary comes after the bus closed: what was
-    # written must not be denied. (In a fresh interpreter: the record is per process.)
-    script = (
-        "from busarm.bus.driver import ServoBus\n"
-        "from busarm.cli.stopping import marking_the_stop, unwritten_text\n"
-        "print(unwritten_text())\n"
-        "bus = ServoBus.open('sim')\n"
-        "with marking_the_stop(bus, bus):\n"
-        "    bus.set_torque(1, True)\n"
-        "print(unwritten_text())\n")
-    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                         timeout=60, check=True).stdout.splitlines()
-    assert out[0] == "nothing was written to the servos"
-    assert out[1].startswith("after the command was done with the servos"), out
+    # written must not be denied. (The record is per process: this one's, made fresh, as
+    # a new process starts it.)
+    monkeypatch.setattr(stopping, "_wrote_before", [])
+    monkeypatch.setattr(stopping, "_without_servos", [])
+    assert stopping.unwritten_text() == "nothing was written to the servos"
+    bus = ServoBus.open("sim")
+    with stopping.marking_the_stop(bus, bus):
+        bus.set_torque(1, True)
+    assert stopping.unwritten_text().startswith("after the command was done with the servos")

@@ -60,7 +60,7 @@ class Server:
 
 
 def _serve(tmp_path: Path, access: Access) -> Iterator[Server]:
-    robot = Robot.open("sim")
+    robot = Robot.open("sim://?realtime=1")  # live, as `busarm dashboard` opens it
     service = RobotService(robot, folder=tmp_path / "robot", reports=tmp_path / "reports")
     transport = robot.arm.bus.transport
     assert isinstance(transport, SimTransport)
@@ -229,8 +229,8 @@ def test_released_jog_stops_at_once(server: Server) -> None:
         for _ in range(3):
             time.sleep(0.1)
             ws.send('{"type": "heartbeat"}')
+        released = time.monotonic()  # before the send: the stop may reach the servos first
         ws.send('{"type": "jog_stop"}')
-        released = time.monotonic()
         receive(ws, "log", saying="(released)")
         stops = [t for t, r in server.requests if r.command is Command.MOVE_STOP]
         assert stops and 0 <= stops[-1] - released < 1.0  # the figure: bench dashboard
@@ -330,7 +330,7 @@ class SlowCamera(CameraBase):
 
 
 def test_a_camera_streams_as_mjpeg_even_when_its_first_frame_is_slow(tmp_path: Path) -> None:
-    robot = Robot.open("sim")
+    robot = Robot.open("sim://?realtime=1")  # live, as `busarm dashboard` opens it
     service = RobotService(robot, folder=tmp_path / "robot").start()
     feed = Feed("wrist", SlowCamera(), fps=20)
     http = ServerThread(service, Access.for_bind("127.0.0.1"), {"wrist": feed}).start()

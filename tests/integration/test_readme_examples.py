@@ -26,6 +26,8 @@ The rules, applied to each ```sh code block of the section, in order:
   (camera.json, ws.png) are there for the next. Each must exit 0 with no traceback and
   no ``error:`` line. Nothing runs on the developer's files: the runtime folder (running
   servers) and $XDG_CONFIG_HOME (kept calibrations, saved poses) are the test's own.
+* BUSY: the lines run with ``BUSARM_TIMEOUT_MARGIN_MS`` set (``MARGIN_MS``), as the
+  README says to on a computer busy with other work: the rest of the suite runs beside.
 * KEPT: each block's $XDG_CONFIG_HOME starts with the twin's camera calibration kept in
   it (the session's ``twin_calibration``, as a first ``pick-sort`` would have kept it),
   so that the lines run as they do for a reader after their first sort: none makes it
@@ -76,6 +78,10 @@ INTERACTIVE = {f"{BUSARM} arm calibrate": "y\n" * 4}
 MISSED = re.compile(r"error: \d+ target\(s\) missed: FAIL in the report")
 """The line of a benchmark that printed FAIL (exit code 1): allowed (see BENCH)."""
 LINE_TIMEOUT_S = 120.0
+MARGIN_MS = "200"
+"""The reply margin the lines run with (BUSARM_TIMEOUT_MARGIN_MS, as the README says to
+set on a busy computer): the rest of the suite runs beside them, and a served arm's
+replies may come tens of ms late; the lines themselves run as written."""
 
 
 def _section(text: str, title: str = "## Using it") -> str:
@@ -137,7 +143,7 @@ def _workdir(tmp_path: Path, calibration: tuple[Path, Path]) -> tuple[Path, dict
     env = {k: v for k, v in os.environ.items()
            if k not in ("BUSARM_PORT", "BUSARM_ARM", "BUSARM_CALIBRATION")}
     env.update(BUSARM_RUNTIME_DIR=str(tmp_path / "run"), XDG_CONFIG_HOME=str(tmp_path / "config"),
-               COLUMNS="120", PYTHONUNBUFFERED="1")
+               COLUMNS="120", PYTHONUNBUFFERED="1", BUSARM_TIMEOUT_MARGIN_MS=MARGIN_MS)
     keep_twin_calibration(tmp_path / "config", calibration)
     return tmp_path, env
 
@@ -261,6 +267,7 @@ def block_runs(tmp_path_factory: pytest.TempPathFactory, twin_calibration: tuple
 
 @pytest.mark.slow
 @pytest.mark.timeout(900)
+@pytest.mark.wallclock("the README's lines run as written, as processes, some on a served arm")
 @pytest.mark.parametrize("number", range(len(BLOCKS)), ids=lambda n: f"block{n + 1}")
 def test_readme_block_runs_as_written(number: int,
                                       block_runs: Callable[[int], tuple[Run, float]]) -> None:

@@ -23,6 +23,9 @@ from busarm.ros import messages as m
 from busarm.ros.node import RosNode
 from conftest import keep_twin_calibration
 
+pytestmark = [pytest.mark.slow, pytest.mark.wallclock(
+    "`busarm ros` processes over a loopback Zenoh session, a real-time twin served")]
+
 BUSARM = str(Path(sys.executable).with_name("busarm"))
 
 
@@ -120,7 +123,7 @@ def test_cmd_vel_drives_the_base_until_the_twists_stop(mobile_bridge: str) -> No
     try:
         odom = Inbox(peer, "/odom", m.ODOMETRY)
         scan = Inbox(peer, "/scan", m.LASER_SCAN)
-        room = Inbox(peer, "/map", m.OCCUPANCY_GRID).next(timeout_s=5.0)[0]
+        room = Inbox(peer, "/map", m.OCCUPANCY_GRID).next(timeout_s=15.0)[0]
         assert (room.info.width, room.info.height) == (40, 20) and room.data[0] == 100
         assert room.data[41] == 0  # inside the walls: free
         twist = peer.publisher("/cmd_vel", m.TWIST)
@@ -166,8 +169,8 @@ def test_pick_sort_on_another_process_sorts_the_served_table(
         assert "sorted 1, failed 0" in out.stdout
         session = open_session(connect=[endpoint])
         try:
-            replies = list(session.get("busarm/busarm/truth", timeout=3.0))
-            info = list(session.get("busarm/busarm/info", timeout=3.0))
+            replies = list(session.get("busarm/busarm/truth", timeout=10.0))
+            info = list(session.get("busarm/busarm/info", timeout=10.0))
         finally:
             session.close()
         truth = json.loads(replies[0].ok.payload.to_bytes())

@@ -2,27 +2,34 @@
 faults named in motion timeouts, and the simulator's power-off state.
 
 Scans and broadcast reads on a noisy or shared LX line are the LX wire's own; the tests
-of the bus's calls also run behind the simulated controller board on a pty (``way``)."""
+of the bus's calls also run behind the simulated controller board on a pty (``way``).
+In-process (``sim://`` URLs included) the servos are on a simulated clock, so a long move
+waited for costs only CPU; behind the board on a pty they are on the wall clock."""
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import pytest
 
 from busarm.bus.driver import ServoBus
+from busarm.clock import WALL_CLOCK
 from busarm.errors import BusConflictError, ConfigError, MotionTimeoutError
 from busarm.sim.bus import ARM_SERVO_IDS, SimBus, WireTiming
 from conftest import BOARD_WAY, sim_bus_on
-
-pytestmark = pytest.mark.realtime
 
 
 @pytest.fixture(params=["inproc", BOARD_WAY])
 def way(request: pytest.FixtureRequest) -> str:
     """The simulated servos in-process, or behind the simulated controller board on a pty."""
     return str(request.param)
+
+
+def sim_for(way: str, ids: list[int], **kwargs: object) -> SimBus:
+    """Simulated servos for ``way``: on a simulated clock in-process, on the wall clock
+    behind the board on a pty (a pty serves in wall-clock time)."""
+    return SimBus.with_ids(ids, clock=WALL_CLOCK if way == BOARD_WAY else None,
+                           **kwargs)  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3, 4, 5])
@@ -50,18 +57,18 @@ def test_broadcast_id_read_with_several_servos_is_a_conflict() -> None:
 
 def test_default_wait_covers_the_whole_commanded_move() -> None:
     # Longer than any fixed default would allow: the wait follows the move. (In-process
-    # only: the bookkeeping is ServoBus's, the same behind the board, and a second run
-    # would cost another 5.5 s.)
+    # only, on the simulated clock: the bookkeeping is ServoBus's, the same behind the
+    # board, where a second run would cost another 5.5 s of wall-clock time.)
     bus = ServoBus.open("sim://?ids=3")
-    t0 = time.monotonic()
+    t0 = bus.clock.now()
     bus.move_deg(3, 20.0, 5.5)
     positions = bus.wait_until_reached({3: 20.0})
     assert abs(positions[3] - 20.0) <= 1.0
-    assert time.monotonic() - t0 >= 5.0
+    assert bus.clock.now() - t0 >= 5.0
 
 
 def test_motion_timeout_names_a_servo_that_unloaded(way: str) -> None:
-    with sim_bus_on(SimBus.with_ids([2]), way) as bus:
+    with sim_bus_on(sim_for(way, [2]), way) as bus:
         bus.write_vin_limits_v(2, 11.5, 11.9)  # the simulated supply is 11.1 V
         bus.move_deg(2, 30.0, 0.3)
         with pytest.raises(MotionTimeoutError, match="servo 2 .*torque off"):
@@ -70,12 +77,12 @@ def test_motion_timeout_names_a_servo_that_unloaded(way: str) -> None:
 
 def test_power_off_keeps_where_the_horns_are(tmp_path: Path, way: str) -> None:
     state = tmp_path / "servos.json"
-    sim = SimBus.with_ids([1, 2], state_file=state, timing=WireTiming(enabled=False))
+    sim = sim_for(way, [1, 2], state_file=state, timing=WireTiming(enabled=False))
     with sim_bus_on(sim, way, echo="off") as bus:
         bus.move_deg(1, 45.0, 0.2)
         bus.wait_until_reached({1: 45.0}, tolerance_deg=0.3)
     sim.power_off()
-    again = SimBus.with_ids([1, 2], state_file=state)
+    again = sim_for(way, [1, 2], state_file=state)
     with sim_bus_on(again, way, echo="off") as bus:
         assert bus.read_position_deg(1) == pytest.approx(45.0, abs=0.3)
         assert bus.read_position_deg(2) == pytest.approx(0.0, abs=0.3)

@@ -1,7 +1,10 @@
 """Renumbering on a line whose servos answer later than an ID scan waits for (a busy
 computer, a slow adapter): ``set_id`` asks a silent ID again with the bus's own margin
 before it takes the silence as absence, so it neither refuses a servo that is there nor
-hands out an ID another servo holds."""
+hands out an ID another servo holds.
+
+The servos are on a simulated clock: their late answers are late by exactly the
+turnaround below, on any computer."""
 
 from __future__ import annotations
 
@@ -11,8 +14,6 @@ from busarm.bus.driver import ServoBus
 from busarm.errors import BusConflictError
 from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.transport import SimTransport
-
-pytestmark = pytest.mark.realtime  # the servos answer in wall-clock time
 
 SLOW_TURNAROUND_S = 0.03
 """Past a scan's deadline and its wait for stragglers, within the bus's margin below."""

@@ -8,6 +8,8 @@ import pytest
 from busarm.bench.pick import run_pick_bench
 from busarm.errors import ConfigError
 
+pytestmark = pytest.mark.slow  # benchmark runs
+
 
 @pytest.mark.slow
 @pytest.mark.timeout(300)

@@ -28,6 +28,8 @@ from busarm.twin.lens import LensSpec
 from busarm.twin.model import AS_BUILT_MOUNT_ERROR
 from busarm.vision.calibration import CameraIntrinsics, load_hand_eye, load_intrinsics
 
+pytestmark = pytest.mark.slow  # camera calibration flows on the twin
+
 
 def run(*args: str, port: str = "twin") -> Result:
     return CliRunner(mix_stderr=False).invoke(cli, ["--port", port, *args])

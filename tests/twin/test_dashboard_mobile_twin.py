@@ -26,6 +26,8 @@ from busarm.dashboard.service import RobotService
 from busarm.robot import Robot
 from busarm.twin.twin import Twin
 
+pytestmark = pytest.mark.slow  # a real-time twin behind the dashboard
+
 SEED = 3
 STILL_M_S = 0.005
 STILL_RAD_S = 0.01

@@ -34,6 +34,8 @@ from busarm.twin.arena_gen import distance_to_line_m, loop_points
 from busarm.twin.twin import Twin
 from busarm.vision.floor_line import _smooth
 
+pytestmark = pytest.mark.slow  # laps of the twin's tape
+
 RADII_M = (0.8, 0.55)
 PARKED = (1.2, 0.95)
 """Where the box waits, in a corner well away from the tape."""

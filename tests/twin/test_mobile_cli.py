@@ -28,6 +28,9 @@ from busarm.base.config import load_chassis_config
 from busarm.twin.arena import Arena, Room, StartPose, save_arena
 from busarm.twin.arena_picture import LIDAR_BGR
 
+pytestmark = [pytest.mark.slow, pytest.mark.wallclock(
+    "mobile commands as processes, most at a twin served by another process")]
+
 WALL_X_M = 1.5
 """The wall the robot faces: the room's +x side, straight ahead of its start."""
 MOVE_M = 0.3
@@ -81,7 +84,9 @@ def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Served]:
             if k not in ("BUSARM_PORT", "BUSARM_LIDAR", "BUSARM_ARM", "BUSARM_CALIBRATION")}
     env = {**base, "BUSARM_RUNTIME_DIR": str(folder / "run"),
            "XDG_CONFIG_HOME": str(folder / "config"), "COLUMNS": "200",
-           "PYTHONUNBUFFERED": "1"}
+           # The served twin answers in wall-clock time beside the rest of the suite: a
+           # generous reply margin, as the README says to set on a busy computer.
+           "PYTHONUNBUFFERED": "1", "BUSARM_TIMEOUT_MARGIN_MS": "200"}
     proc = subprocess.Popen(
         [sys.executable, "-m", "busarm", "twin", "serve", "--arena", str(arena)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,

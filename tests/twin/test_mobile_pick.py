@@ -46,6 +46,8 @@ from busarm.twin.arena import Arena, Room, Solid, StartPose, arena_from_toml
 from busarm.twin.arena_gen import random_arena
 from busarm.twin.twin import Twin
 
+pytestmark = pytest.mark.slow  # whole mobile picks on the twin
+
 SHOULDER_SERVO_END_DEG = 30.0
 """The shoulder servo's end of travel (pulse 0), past the vendor's IK limit of 0 deg."""
 HALF_WIDTH_M = 0.131

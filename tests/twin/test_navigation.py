@@ -44,6 +44,8 @@ from busarm.twin.arena_tasks import transport_points
 from busarm.twin.mobile import MobileBase
 from busarm.twin.twin import Twin
 
+pytestmark = pytest.mark.slow  # the mobile robot mapping and driving an arena
+
 FloatArray = npt.NDArray[np.float64]
 
 PARKED = (1.8, -0.8)

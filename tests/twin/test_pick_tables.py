@@ -14,6 +14,8 @@ from busarm.twin.clutter import clutter_scene
 from busarm.twin.scene import DEFAULT_BINS, Block, Distractor, Scene
 from busarm.twin.twin import BlockState
 
+pytestmark = pytest.mark.slow  # whole pick-sort runs on the twin
+
 
 @pytest.fixture(scope="module")
 def calibration(twin_calibration: tuple[Path, Path]) -> tuple[Path, Path]:

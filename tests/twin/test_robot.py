@@ -74,8 +74,10 @@ def test_missing_parts_are_refused_before_the_port_is_opened() -> None:
 
 
 def test_a_robot_without_a_camera_says_what_is_missing() -> None:
-    with Robot.open("sim") as robot:
-        assert not robot.is_twin and not robot.clock.is_simulated
+    with Robot.open("sim://?realtime=1") as robot:
+        assert not robot.clock.is_simulated
+    with Robot.open("sim") as robot:  # the simulator in this process: simulated time
+        assert not robot.is_twin and robot.clock.is_simulated
         assert not robot.has_camera and robot.bins == {}
         with pytest.raises(ConfigError, match="needs the wrist camera"):
             _ = robot.camera

@@ -303,10 +303,13 @@ class Arm(ArmServos):
                 result.commanded_deg.append(tuple(joints[k]))
                 if record:
                     result.measured.append((self.clock.now() - t0, self.read_joints_deg()))
-            if record:
+            if record:  # the settling after the last waypoint, a sample every 10 ms
                 end = t0 + times[-1] + 0.05
-                while self.clock.now() < end:
-                    result.measured.append((self.clock.now() - t0, self.read_joints_deg()))
+                while (now := self.clock.now()) < end:
+                    result.measured.append((now - t0, self.read_joints_deg()))
+                    # Waited, not read flat out: a read may take no time (a simulated
+                    # line without wire timing), and the tail would then never end.
+                    self.clock.sleep(min(0.01, end - now))
 
         with self._lock:
             self._guarded(run)

@@ -47,6 +47,8 @@ MAX_STEP_S = 0.1
 after a pause ramps from standing, not in one jump)."""
 DETECT_S = 0.3
 """How long a new Base listens for encoder reports before it integrates commands."""
+DETECT_SAMPLES = 3
+"""IMU reports heard without an encoder report before the firmware is taken to send none."""
 IMU_FRESH_S = 0.1
 """An IMU sample older than this is not used for the heading."""
 REPORT_PERIOD_S = 0.01
@@ -350,9 +352,9 @@ class Base:
             for report in link.poll(min(0.02, max(end - self.clock.now(), 0.0))):
                 if isinstance(report, ImuSample):
                     samples += 1
-            if link.readings.encoders is not None and samples >= 3:
+            if link.readings.encoders is not None and samples >= DETECT_SAMPLES:
                 return "encoders"
-            if samples >= 3 and link.readings.imu_at_s > imu_before:
+            if samples >= DETECT_SAMPLES and link.readings.imu_at_s > imu_before:
                 return "commands"  # encoders come at the IMU's rate when they come at all
         return "encoders" if link.readings.encoders is not None else "commands"
 

@@ -23,7 +23,7 @@ from dataclasses import asdict, dataclass, field
 from busarm.bench.common import latency_percentiles_ms, machine_info
 from busarm.bus.board import SERVO_LINE_BAUDRATE
 from busarm.bus.board_bus import BoardServoBus
-from busarm.bus.driver import ServoBus
+from busarm.bus.driver import DEFAULT_TIMEOUT_MARGIN_S, ServoBus
 from busarm.errors import BusArmError, ConfigError, TransportError
 from busarm.progress import Progress, quiet
 from busarm.protocol import SPECS, Command, encode_request
@@ -271,12 +271,14 @@ def run_bench(
     turnaround_ms: float = 0.5,
     echo: str = "auto",
     progress: Progress = quiet,
+    timeout_margin_s: float = DEFAULT_TIMEOUT_MARGIN_S,
 ) -> BusBenchReport:
     """Run the three measurements on ``port`` (whose servos must include ``servo_ids``);
     ``progress`` hears of each stage as it starts."""
     if not servo_ids:
         raise ConfigError("bench needs at least one servo ID")
-    with ServoBus.open(port, echo=echo, turnaround_s=turnaround_ms / 1000.0) as bus:
+    with ServoBus.open(port, echo=echo, turnaround_s=turnaround_ms / 1000.0,
+                       timeout_margin_s=timeout_margin_s) as bus:
         if bus.clock.is_simulated:
             raise ConfigError(f"{port} runs on a simulated clock: its wire takes no real time "
                               "to measure; bench the servo simulator (the default port, "

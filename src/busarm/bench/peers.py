@@ -67,6 +67,7 @@ from busarm.bench.peers_report import (
     print_rates,
     print_summary,
 )
+from busarm.clock import WALL_CLOCK
 from busarm.sim.bus import ARM_SERVO_IDS, GRIPPER_ID, SimBus, WireTiming
 from busarm.sim.pty import PtyServer
 from busarm.sim.servo import SimServo
@@ -245,7 +246,7 @@ def glitch_sim() -> Iterator[tuple[SimBus, str]]:
         )
         for sid in ARM_SERVO_IDS
     ]
-    bus = SimBus(servos, timing=WireTiming(BAUD, TURNAROUND_MS / 1000, True))
+    bus = SimBus(servos, timing=WireTiming(BAUD, TURNAROUND_MS / 1000, True), clock=WALL_CLOCK)
     server = PtyServer(bus)
     path = server.start()
     try:

@@ -74,6 +74,7 @@ def bench(
         return
     kwargs = dict(servo_ids=servo_ids, reads=reads, loops=loops, scans=scans,
                   turnaround_ms=turnaround_ms, echo=settings.echo,
+                  timeout_margin_s=settings.timeout_margin_ms / 1000.0,
                   progress=lambda text: settings.err.print(f"bench {text}", highlight=False))
     if settings.port in ("sim", "board://sim"):
         ids = ",".join(map(str, servo_ids))

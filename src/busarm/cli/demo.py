@@ -40,12 +40,13 @@ def demo(settings: Settings, no_timing: bool, line_speed: float) -> None:
     block between the fingers). Prints the tool path measured from the servos.
     Takes about 30 s.
     """
+    from busarm.clock import WALL_CLOCK
     from busarm.sim.bus import ARM_SERVO_IDS, SimBus, WireTiming
     from busarm.sim.pty import PtyServer
 
     out = settings.out
     timing = WireTiming(settings.baudrate, enabled=not no_timing)
-    sim = SimBus.with_ids(ARM_SERVO_IDS, timing=timing)
+    sim = SimBus.with_ids(ARM_SERVO_IDS, timing=timing, clock=WALL_CLOCK)
     sim.put_block_in_gripper()
     with PtyServer(sim) as server:
         out.print(f"simulated arm on pseudo-terminal [bold]{server.path}[/bold]")

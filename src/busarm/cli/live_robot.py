@@ -7,6 +7,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+from urllib.parse import parse_qsl, urlsplit
 
 from busarm.errors import ConfigError
 
@@ -19,25 +20,29 @@ DEFAULT_PORT = "twin://?realtime=1"
 
 
 def realtime_twin(port: str) -> str:
-    """A twin URL (``twin``, ``twin://?...``, or a twin behind a simulated board,
-    ``board://twin?...``) that follows the wall clock (a twin in this process otherwise
-    runs as fast as it computes, which no person can watch or stop in time)."""
+    """A twin or simulator URL in this process (``twin``, ``twin://?...``, ``sim``,
+    ``sim://?...``, or either behind a simulated board, ``board://twin?...``) that follows
+    the wall clock (in-process simulations otherwise run as fast as they compute, which
+    no person can watch or stop in time); any other port as it is."""
     from busarm.bus.transport import board_target
     from busarm.sim.board import split_board_keys
     from busarm.twin.transport import is_twin_url, twin_query
 
     behind = board_target(port)
-    twin = behind if behind is not None else port
-    if not is_twin_url(twin):
+    inner = behind if behind is not None else port
+    if is_twin_url(inner):
+        query = twin_query(split_board_keys(inner)[0])  # the twin's keys (not a board's)
+    elif inner == "sim" or inner.startswith("sim://"):
+        query = dict(parse_qsl(urlsplit(inner).query)) if "://" in inner else {}
+    else:
         return port
-    query = twin_query(split_board_keys(twin)[0])  # the twin's keys (not a board's)
     if "pace" in query:
-        raise ConfigError(f"--port {port}: the dashboard runs the twin in real time; "
+        raise ConfigError(f"--port {port}: the dashboard runs the robot in real time; "
                           "leave out pace=")
     if query.get("realtime") == "1":
         return port
-    if port == "twin":
-        return "twin://?realtime=1"
+    if port in ("twin", "sim"):
+        return f"{port}://?realtime=1"
     return port + ("&" if "?" in port else "?") + "realtime=1"
 
 

@@ -193,7 +193,9 @@ class BusArmGroup(click.Group):
 @click.option(
     "--timeout-margin-ms", type=click.FloatRange(0.0, 1000.0),
     default=DEFAULT_TIMEOUT_MARGIN_S * 1000.0, show_default=True,
-    help="Slack in ms added to each reply deadline (which is derived from the baud rate).",
+    envvar="BUSARM_TIMEOUT_MARGIN_MS", show_envvar=True,
+    help="Slack in ms added to each reply deadline (which is derived from the baud rate); "
+         "raise it on a computer busy with other work, which may hear replies late.",
 )
 @click.option(
     "--retries", type=click.IntRange(0, 10), default=DEFAULT_RETRIES, show_default=True,

@@ -87,6 +87,7 @@ def serve(
     if board and echo:
         raise ConfigError("--echo: a controller board's link does not echo (give one of "
                           "--board and --echo)")
+    from busarm.clock import WALL_CLOCK
     from busarm.sim.pty import PtyServer
 
     bus = SimBus.with_ids(
@@ -95,6 +96,7 @@ def serve(
         echo=echo,
         faults=FaultInjection(drop_rate=drop, corrupt_rate=corrupt, seed=seed),
         state_file=state,
+        clock=WALL_CLOCK,  # served: the programs at the pty wait in wall-clock time
     )
     if block:
         bus.put_block_in_gripper()

@@ -24,6 +24,7 @@ from busarm.protocol.rmw_zenoh import (
     TYPE_HASH_NOT_SUPPORTED,
     Attachment,
     Entity,
+    History,
     Qos,
     Reliability,
     gid_of,
@@ -79,10 +80,14 @@ class RosPublisher:
         self.gid = gid_of(self.entity.token())
         self._sequence = itertools.count(1)
         self._lock = threading.Lock()
-        # Never block the robot's loops on a slow subscriber: drop instead (rmw_zenoh
-        # blocks only for reliable keep-all); express: no batching, the least latency.
+        # Never block the robot's loops on a slow subscriber: drop instead, except for
+        # reliable keep-all, which blocks as rmw_zenoh's does (a publisher that asks for
+        # every message to arrive); express: no batching, the least latency.
+        keep_all = (qos.reliability == Reliability.RELIABLE
+                    and qos.history == History.KEEP_ALL)
         self._publisher = node.session.declare_publisher(
-            self.key, congestion_control=zenoh.CongestionControl.DROP, express=True,
+            self.key, express=True, congestion_control=(
+                zenoh.CongestionControl.BLOCK if keep_all else zenoh.CongestionControl.DROP),
             reliability=(zenoh.Reliability.BEST_EFFORT
                          if qos.reliability == Reliability.BEST_EFFORT
                          else zenoh.Reliability.RELIABLE))

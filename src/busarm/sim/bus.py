@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
-from busarm.clock import WALL_CLOCK, Clock
+from busarm.clock import Clock, SimClock
 from busarm.errors import ConfigError, ProtocolError
 from busarm.protocol import (
     BROADCAST_ID,
@@ -155,7 +155,13 @@ class SimLine(Protocol):
 
 
 class SimBus:
-    """Simulated servos on one half-duplex line. Thread-safe."""
+    """Simulated servos on one half-duplex line. Thread-safe.
+
+    Its time is ``clock``'s: by default a simulated clock of its own (``SimClock``), so
+    that waiting for a move or a reply costs only the CPU it takes to simulate; the
+    servos given must have been made at ``clock.now()``. A bus served on a pty, which
+    other programs talk to in wall-clock time, is given ``WALL_CLOCK``.
+    """
 
     framing = "lx"
 
@@ -166,14 +172,14 @@ class SimBus:
         timing: WireTiming | None = None,
         echo: bool = False,
         faults: FaultInjection | None = None,
-        clock: Clock = WALL_CLOCK,
+        clock: Clock | None = None,
         state_file: Path | None = None,
     ) -> None:
         self.servos = list(servos)
         self.timing = timing or WireTiming()
         self.echo = echo
         self.faults = faults or FaultInjection()
-        self.clock = clock
+        self.clock: Clock = clock if clock is not None else SimClock()
         self.state_file = state_file
         self._rng = random.Random(self.faults.seed)
         self._parser = FrameParser()
@@ -196,12 +202,15 @@ class SimBus:
         *,
         gripper_id: int | None = GRIPPER_ID,
         state_file: Path | None = None,
-        clock: Clock = WALL_CLOCK,
+        clock: Clock | None = None,
         **kwargs: object,
     ) -> SimBus:
         """Servos with these IDs (the arm's by default). With ``state_file``, their stored
-        settings are loaded from it if it exists and saved to it on every saved write."""
+        settings are loaded from it if it exists and saved to it on every saved write.
+        On a simulated clock of its own unless ``clock`` is given (``WALL_CLOCK`` for a
+        bus served on a pty, which other programs talk to in wall-clock time)."""
         ids = list(ids)
+        clock = clock if clock is not None else SimClock()
         now = clock.now()
         if state_file is not None and not state_file.parent.is_dir():
             raise ConfigError(

@@ -13,7 +13,15 @@ URL query parameters (all optional):
 ``seed``        fault generator seed                                 0
 ``state``       path of a power-off state file                       (none)
 ``block``       1 = a 3 cm block sits between the gripper's fingers  0
+``realtime``    1 = the wall clock (replies and moves take real time) 0
+``pace``        simulated seconds per wall second (unset: flat out)  (none)
 =============== ==================================================== =================
+
+The simulator runs on a simulated clock (``busarm.clock.SimClock``), as the twin does:
+a move or a reply waited for costs only the CPU it takes to simulate, and every time
+reported is simulated seconds. ``realtime=1`` puts it on the wall clock (to time a
+program against a real line's pace); ``pace=1`` keeps simulated time no faster than the
+wall clock, for a person watching.
 """
 
 from __future__ import annotations
@@ -22,13 +30,14 @@ import threading
 from pathlib import Path
 from urllib.parse import parse_qs, urlsplit
 
+from busarm.clock import WALL_CLOCK, Clock, SimClock
 from busarm.errors import ConfigError, TransportError
 from busarm.protocol import SERVO_TURNAROUND_S
 from busarm.sim.bus import ARM_SERVO_IDS, FaultInjection, SimBus, SimLine, WireTiming
 from busarm.units import check_range, listing, parse_ids
 
 _KNOWN = {"ids", "echo", "timing", "turnaround_ms", "drop", "corrupt", "late", "late_ms", "seed",
-          "state", "block"}
+          "state", "block", "realtime", "pace"}
 
 
 def query_float(q: dict[str, str], key: str, default: float, what: str = "sim URL") -> float:
@@ -82,11 +91,24 @@ def sim_bus_from_url(url: str, baudrate: int = 115200) -> SimBus:
     )
     state = Path(q["state"]) if q.get("state") else None
     bus = SimBus.with_ids(
-        ids, timing=timing, echo=query_flag(q, "echo", False), faults=faults, state_file=state
+        ids, timing=timing, echo=query_flag(q, "echo", False), faults=faults, state_file=state,
+        clock=_url_clock(q),
     )
     if query_flag(q, "block", False):
         bus.put_block_in_gripper()
     return bus
+
+
+def _url_clock(q: dict[str, str]) -> Clock:
+    """The wall clock for ``realtime=1``, else a simulated one (paced by ``pace=``)."""
+    realtime = query_flag(q, "realtime", False)
+    if "pace" not in q:
+        return WALL_CLOCK if realtime else SimClock()
+    if realtime:
+        raise ConfigError("sim URL: pace= and realtime=1 exclude each other: realtime is "
+                          "the wall clock")
+    return SimClock(pace=check_range("sim URL: pace", query_float(q, "pace", 1.0),
+                                     0.01, 1000.0))
 
 
 class SimTransport:
