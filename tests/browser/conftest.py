@@ -253,8 +253,11 @@ def dashboard(
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """A real browser's tests are slow ones (`make test-fast` leaves them out)."""
+    """A real browser's tests are slow ones (`make test-fast` leaves them out), on the wall
+    clock: a page drives a live dashboard server."""
     here = Path(__file__).parent
     for item in items:
         if here in Path(item.fspath).parents:
             item.add_marker(pytest.mark.slow)
+            item.add_marker(pytest.mark.wallclock(
+                "a real browser's page at a live dashboard server on a real-time robot"))

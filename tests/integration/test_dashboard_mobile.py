@@ -30,6 +30,9 @@ from busarm.robot import Robot
 from busarm.sim.board import SimBoard
 from busarm.sim.transport import SimTransport
 
+LIVE = pytest.mark.wallclock(
+    "a live dashboard server: a real-time robot, its page's heartbeats and watchdogs")
+
 
 @pytest.fixture
 def board_robot() -> Iterator[Robot]:
@@ -70,6 +73,7 @@ def wheel_targets(robot: Robot) -> list[float]:
     return [w.target_rev_s for w in transport.bus.wheels]
 
 
+@LIVE
 def test_a_robot_without_a_base_refuses_the_mobile_jobs(plain_robot: Robot,
                                                          tmp_path: Path) -> None:
     service, http = serve(plain_robot, tmp_path)
@@ -97,6 +101,7 @@ def test_a_robot_without_a_base_refuses_the_mobile_jobs(plain_robot: Robot,
         service.close()
 
 
+@LIVE
 def test_the_estop_latches_the_wheels_until_rearmed(board_robot: Robot,
                                                      tmp_path: Path) -> None:
     base = board_robot.base

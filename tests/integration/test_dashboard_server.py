@@ -34,6 +34,9 @@ from busarm.sim.transport import SimTransport
 from busarm.units import DEG_PER_PULSE
 from busarm.vision.camera import CameraBase
 
+pytestmark = pytest.mark.wallclock(
+    "a live dashboard server: a real-time robot, its page's heartbeats and watchdogs")
+
 TOKEN = "a-token-of-thirty-two-characters"
 
 

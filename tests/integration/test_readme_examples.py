@@ -28,6 +28,9 @@ The rules, applied to each ```sh code block of the section, in order:
   servers) and $XDG_CONFIG_HOME (kept calibrations, saved poses) are the test's own.
 * BUSY: the lines run with ``BUSARM_TIMEOUT_MARGIN_MS`` set (``MARGIN_MS``), as the
   README says to on a computer busy with other work: the rest of the suite runs beside.
+* CHECKED: the whole mobile jobs (``map build``, ``transport``) are the smoke runs of
+  their commands as processes: what they print and write is checked further here
+  (``CHECKED``), as a reader would look at it, rather than run again elsewhere.
 * KEPT: each block's $XDG_CONFIG_HOME starts with the twin's camera calibration kept in
   it (the session's ``twin_calibration``, as a first ``pick-sort`` would have kept it),
   so that the lines run as they do for a reader after their first sort: none makes it
@@ -37,6 +40,7 @@ The rules, applied to each ```sh code block of the section, in order:
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import signal
@@ -48,8 +52,11 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import cv2
 import pytest
 
+from busarm.nav.map_files import load_map
+from busarm.nav.points import load_points
 from conftest import keep_twin_calibration
 
 README = Path(__file__).resolve().parents[2] / "README.md"
@@ -75,6 +82,53 @@ SMALLER = {
 }
 """README line (without its comment) -> the smaller run of the same commands."""
 INTERACTIVE = {f"{BUSARM} arm calibrate": "y\n" * 4}
+
+
+def _check_map_build(folder: Path, out: str, err: str) -> None:
+    """``map build ... --out map.yaml``: one line saying what it made, ROS map_server
+    files that load, and ``map show`` of them agreeing."""
+    said = out.strip().splitlines()
+    assert len(said) == 1, out
+    assert said[0].startswith("map map.yaml: ") and " cells of 2.5 cm (" in said[0], said
+    assert "; stopped: explored" in said[0], said
+    assert (folder / "map.pgm").is_file() and cv2.imread(str(folder / "map.png")) is not None
+    assert "np." not in (folder / "map.yaml").read_text()  # plain numbers: map_server reads it
+    shown = subprocess.run([sys.executable, "-m", "busarm", "map", "show", "map.yaml"],
+                           cwd=folder, capture_output=True, text=True, timeout=60)
+    assert shown.returncode == 0, shown.stderr
+    spec = load_map(folder / "map.yaml").spec
+    assert f"{spec.width} x {spec.height} cells" in said[0]
+    assert shown.stdout.startswith(f"map map.yaml: {spec.width} x {spec.height} cells")
+
+
+def _check_transport(folder: Path, out: str, err: str) -> None:
+    """``transport --arena N``: explored, delivered, and its report folder whole."""
+    said = out.strip().splitlines()
+    assert len(said) == 1 and said[0].startswith("delivered: "), out
+    assert said[0].endswith("report transport-report/report.json")
+    assert "no map given: exploring the arena first" in err
+    report_dir = folder / "transport-report"
+    report = json.loads((report_dir / "report.json").read_text())
+    assert report["format"] == "busarm.transport_report"
+    assert report["delivered"] is True and report["why"] == "delivered"
+    assert report["pick"] == "pick" and report["place"] == "place"
+    assert all(phase["ok"] for phase in report["phases"])
+    assert [t["ok"] for t in report["trips"]] and all(t["ok"] for t in report["trips"])
+    assert report["placed_at_m"] is not None
+    picture = cv2.imread(str(report_dir / "map.png"))
+    assert picture is not None and picture.ndim == 3
+    points = load_points(report_dir / "points.toml")
+    assert set(points.points) == {"pick", "place"}
+    assert points.map_path == report_dir / "map.yaml"
+    grid = load_map(report_dir / "map.yaml")  # the map the job ran on, as saved
+    assert grid.spec.width > 50 and grid.spec.height > 50
+
+
+CHECKED = {
+    f"{BUSARM} map build --arena 3 --out map.yaml --png map.png": _check_map_build,
+    f"{BUSARM} transport --arena 3": _check_transport,
+}
+"""README line (without its comment) -> a check of what it printed and wrote (CHECKED)."""
 MISSED = re.compile(r"error: \d+ target\(s\) missed: FAIL in the report")
 """The line of a benchmark that printed FAIL (exit code 1): allowed (see BENCH)."""
 LINE_TIMEOUT_S = 120.0
@@ -224,6 +278,12 @@ def _run_line(line: str, command: str, cwd: Path, env: dict[str, str],
         return
     run.ran.append((line, time.monotonic() - start))
     run.check(line, done.returncode, done.stdout, done.stderr)
+    if command in CHECKED and done.returncode == 0:
+        try:
+            CHECKED[command](cwd, done.stdout, done.stderr)
+        except AssertionError as exc:
+            run.failures.append(f"{line}\n  what it printed or wrote: {exc}\n"
+                                f"  stdout: {done.stdout.strip()[-2000:]}")
 
 
 def test_the_using_it_section_has_examples_of_each_kind() -> None:
@@ -231,7 +291,7 @@ def test_the_using_it_section_has_examples_of_each_kind() -> None:
     assert len(BLOCKS) >= 4 and len(lines) >= 25, BLOCKS
     assert any(any(d in line for d in HARDWARE) for line in lines)
     assert any(any(s in line for s in SERVERS) for line in lines)
-    stale = set(SMALLER) | set(INTERACTIVE)
+    stale = set(SMALLER) | set(INTERACTIVE) | set(CHECKED)
     stale -= {_command(line) for line in lines}
     assert not stale, f"rules for lines the README no longer has: {sorted(stale)}"
 

@@ -26,7 +26,8 @@ from busarm.dashboard.service import RobotService
 from busarm.robot import Robot
 from busarm.twin.twin import Twin
 
-pytestmark = pytest.mark.slow  # a real-time twin behind the dashboard
+pytestmark = [pytest.mark.slow, pytest.mark.wallclock(
+    "a live dashboard server on a real-time twin in an arena")]
 
 SEED = 3
 STILL_M_S = 0.005

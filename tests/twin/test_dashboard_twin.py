@@ -8,6 +8,7 @@ import json
 import time
 from pathlib import Path
 
+import pytest
 from websockets.sync.client import connect
 
 from busarm.dashboard.access import Access
@@ -18,6 +19,8 @@ from busarm.protocol import Command
 from busarm.robot import Robot
 
 
+@pytest.mark.slow
+@pytest.mark.wallclock("a live dashboard server on a real-time twin sorting its table")
 def test_estop_halts_a_running_pick_sort(twin_calibration: tuple[Path, Path],
                                          tmp_path: Path) -> None:
     intrinsics, hand_eye = twin_calibration

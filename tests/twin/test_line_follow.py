@@ -301,6 +301,7 @@ def test_the_command_follows_a_fifth_of_a_lap(tmp_path: Path,
     assert picture is not None and picture.shape[2] == 3
 
 
+@pytest.mark.wallclock("Ctrl+C to a line-follow process while it drives")
 def test_ctrl_c_stops_the_wheels_and_keeps_the_report(
         tmp_path: Path, twin_calibration: tuple[Path, Path]) -> None:
     folder = tmp_path / "report"
