@@ -223,6 +223,7 @@ def test_a_block_that_failed_makes_pick_sort_exit_1_after_its_report(
 def test_a_benchmark_exits_1_when_it_prints_fail(monkeypatch: pytest.MonkeyPatch,
                                                  as_json: bool) -> None:
     args = ["bench", "ik", "--n", "20", "--batch-n", "20", *(["--json"] if as_json else [])]
+    monkeypatch.setenv("COLUMNS", "200")  # the table's cells whole, whatever ran before
     monkeypatch.setattr("busarm.bench.ik.TARGET_SINGLE_US", float("inf"))
     monkeypatch.setattr("busarm.bench.ik.TARGET_BATCH_PER_S", 0.0)
     met = run(*args)

@@ -88,7 +88,7 @@ def _check_map_build(folder: Path, out: str, err: str) -> None:
     """``map build ... --out map.yaml``: one line saying what it made, ROS map_server
     files that load, and ``map show`` of them agreeing."""
     said = out.strip().splitlines()
-    assert len(said) == 1, out
+    assert len(said) == 2 and said[1] == "drawn to map.png", out
     assert said[0].startswith("map map.yaml: ") and " cells of 2.5 cm (" in said[0], said
     assert "; stopped: explored" in said[0], said
     assert (folder / "map.pgm").is_file() and cv2.imread(str(folder / "map.png")) is not None
