@@ -186,16 +186,23 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             item.add_marker(pytest.mark.wallclock(PTY_REASON))
 
 
-@pytest.fixture(params=WAYS)
-def arm(request: pytest.FixtureRequest) -> Iterator[SimArm]:
-    """The simulated 6-servo arm behind a ServoBus, five ways (echo detected at open)."""
-    sim_arm, server = make_sim_arm_way(request.param)
+@contextmanager
+def sim_arm_way(way: str, **kwargs: Any) -> Iterator[SimArm]:
+    """``make_sim_arm_way`` for a ``with`` block: the bus closed, the pty stopped after."""
+    sim_arm, server = make_sim_arm_way(way, **kwargs)
     try:
         yield sim_arm
     finally:
         sim_arm.bus.close()
         if server is not None:
             server.stop()
+
+
+@pytest.fixture(params=WAYS)
+def arm(request: pytest.FixtureRequest) -> Iterator[SimArm]:
+    """The simulated 6-servo arm behind a ServoBus, five ways (echo detected at open)."""
+    with sim_arm_way(request.param) as sim_arm:
+        yield sim_arm
 
 
 @pytest.fixture(autouse=True, scope="session")

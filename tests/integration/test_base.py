@@ -1,13 +1,11 @@
 """The base on a simulated controller board: in this process on simulated time, through a
 pty on the wall clock (its watchdog thread), and by the CLI (in this process on
-``board://sim``, simulated time; once as a real program). The truth is the simulated
-board's wheels."""
+``board://sim``, simulated time; the README's `base move-by` line is its run as a
+process). The truth is the simulated board's wheels."""
 
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 import time
 from collections.abc import Iterator
 
@@ -151,16 +149,6 @@ def test_through_a_pty_on_the_wall_clock_the_watchdog_thread_stops_the_wheels() 
 def busarm(*args: str) -> Result:
     """The command line in this process (``board://sim`` is on simulated time there)."""
     return CliRunner(mix_stderr=False).invoke(cli, list(args))
-
-
-def test_cli_base_as_a_real_program() -> None:
-    # The one run of ``busarm base`` as a process of its own: its exit code and output.
-    done = subprocess.run(
-        [sys.executable, "-m", "busarm", "--port", "board://sim", "base", "move-by", "0.2",
-         "-0.1", "-30"], capture_output=True, text=True, timeout=120)
-    assert done.returncode == 0, done.stderr
-    assert "x +0.20" in done.stdout and "y -0.10" in done.stdout and "yaw -30." in done.stdout
-    assert "wheels stopped" in done.stdout
 
 
 def test_cli_move_by_and_drive_on_a_simulated_board() -> None:

@@ -21,7 +21,7 @@ from typing import Any
 import pytest
 from websockets.sync.client import ClientConnection, connect
 
-from busarm.cli.common import realtime_twin
+from busarm.cli.common import realtime_port
 from busarm.dashboard.access import Access
 from busarm.dashboard.server import ServerThread
 from busarm.dashboard.service import RobotService
@@ -148,7 +148,7 @@ ARENA = "board://twin?family=arena&seed=3"
 ])
 def test_the_dashboard_runs_a_twin_behind_a_board_in_real_time(port: str,
                                                                realtime: str) -> None:
-    assert realtime_twin(port) == realtime
+    assert realtime_port(port) == realtime
 
 
 @pytest.mark.parametrize(("args", "said"), [

@@ -30,7 +30,7 @@ from busarm.protocol import Command, PositionReply, TempReply, VinReply, encode_
 from busarm.sim.bus import FaultInjection, SimBus, WireTiming
 from busarm.sim.pty import PtyServer
 from busarm.sim.transport import SimTransport
-from conftest import LX_WAYS, PTY_MARGIN_S, SimArm, make_sim_arm_way, wait_for
+from conftest import LX_WAYS, PTY_MARGIN_S, SimArm, sim_arm_way, wait_for
 
 WALL_SLACK_S = 0.5
 """What each attempt of a read on the wall clock may take beyond its deadline: a loaded
@@ -120,13 +120,8 @@ def lx_arm(way: str, pty_margin_s: float = PTY_MARGIN_S) -> Iterator[SimArm]:
     """conftest's arm, one of ``LX_WAYS`` (parametrized by ``way``: conftest marks the pty
     ways ``wallclock``); through a pty with ``pty_margin_s``."""
     kwargs = {"timeout_margin_s": pty_margin_s} if way.startswith("pty") else {}
-    arm, server = make_sim_arm_way(way, **kwargs)
-    try:
+    with sim_arm_way(way, **kwargs) as arm:
         yield arm
-    finally:
-        arm.bus.close()
-        if server is not None:
-            server.stop()
 
 
 # Stray bytes and late replies on the LX wire: behind a controller board the host never

@@ -36,7 +36,7 @@ from busarm.cli.arm_inputs import (
 )
 from busarm.cli.exits import JobNotDone
 from busarm.cli.help_style import metavar_from_help, unit_metavar
-from busarm.cli.live_robot import open_live_robot, realtime_twin, twin_store_port
+from busarm.cli.live_robot import open_live_robot, realtime_port, twin_store_port
 from busarm.cli.mobile_common import arena_from_spec, mobile_options, open_mobile_robot
 from busarm.cli.param_types import (
     ANGLE,
@@ -111,7 +111,7 @@ __all__ += ["check_gap_mm", "gap_report", "joints_in", "joints_to_move",
             "parse_gripper_target", "robot_folder", "target_in"]
 __all__ += ["announced", "find_session"]  # running `sim serve`/`twin serve` (cli.sessions)
 __all__ += ["arena_from_spec", "mobile_options", "open_mobile_robot"]  # cli.mobile_common
-__all__ += ["open_live_robot", "realtime_twin", "twin_store_port"]  # cli.live_robot
+__all__ += ["open_live_robot", "realtime_port", "twin_store_port"]  # cli.live_robot
 __all__ += ["JobNotDone", "metavar_from_help",  # exit codes, help style (cli.exits, help_style)
             "unit_metavar"]
 # Values checked while argv is parsed (busarm.cli.param_types).

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 DEFAULT_PORT = "twin://?realtime=1"
 
 
-def realtime_twin(port: str) -> str:
+def realtime_port(port: str) -> str:
     """A twin or simulator URL in this process (``twin``, ``twin://?...``, ``sim``,
     ``sim://?...``, or either behind a simulated board, ``board://twin?...``) that follows
     the wall clock (in-process simulations otherwise run as fast as they compute, which
@@ -86,7 +86,7 @@ def open_live_robot(settings: Settings, table: Table, **options: Any
             raise ConfigError(f"--port {settings.port}: a twin behind the board stands in "
                               "an arena (family=arena&seed=N), not at a table: leave out "
                               "--scene/--seed/--blocks/--colors")
-        settings.port = realtime_twin(settings.port)
+        settings.port = realtime_port(settings.port)
     # A twin behind a simulated board keeps its calibration and poses as `twin` does.
     store = (CalibrationStore.for_port("twin") if settings.port_given
              and twin_store_port(settings.port) == "twin" else
