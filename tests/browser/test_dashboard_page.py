@@ -75,15 +75,20 @@ def joint_deg(dashboard: Dashboard, name: str = JOINT) -> float:
     return float(dashboard.api("state")["joints_deg"][names.index(name)])
 
 
-def still_deg(dashboard: Dashboard, name: str = JOINT) -> float:
-    """The joint once it has stopped: two reads 0.5 s apart within 0.5 deg (after a short
-    settling); fails if it keeps moving."""
-    time.sleep(0.3)
+def still_deg(dashboard: Dashboard, name: str = JOINT, timeout_s: float = 5.0) -> float:
+    """The joint once it has stopped: two reads 0.5 s apart within 0.5 deg; fails if it
+    keeps moving for ``timeout_s`` (a busy computer slows the twin, so a stop's last
+    fraction of a degree may come late in wall time)."""
+    end = time.monotonic() + timeout_s
     a = joint_deg(dashboard, name)
-    time.sleep(0.5)
-    b = joint_deg(dashboard, name)
-    assert abs(b - a) <= STILL_DEG, f"{name} still moving after the release: {a:.2f} -> {b:.2f}"
-    return b
+    while True:
+        time.sleep(0.5)
+        b = joint_deg(dashboard, name)
+        if abs(b - a) <= STILL_DEG:
+            return b
+        assert time.monotonic() < end, (
+            f"{name} still moving after {timeout_s} s: {a:.2f} -> {b:.2f}")
+        a = b
 
 
 def hold(page: Page, selector: str, seconds: float) -> None:

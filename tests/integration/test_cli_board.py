@@ -1,7 +1,8 @@
-"""The commands through the controller board, as a user runs them: the real CLI as
-subprocesses against ``busarm sim serve --board`` (the board on a pty, found by commands
-without --port too), ``busarm board info | beep``, what the board cannot do said as one
-error, and ``twin serve --board``.
+"""The commands through the controller board, as a user runs them: ``busarm sim serve
+--board`` and ``twin serve --board`` as processes of their own (the board on a real pty),
+the commands at them in this process through click's runner (by the board's port, or
+found without --port), ``busarm board info | beep``, and what the board cannot do said as
+one error (those on ``board://sim``, the simulated board in this process).
 
 Each test has its own config and runtime folders (XDG_CONFIG_HOME, XDG_RUNTIME_DIR,
 BUSARM_RUNTIME_DIR under tmp_path), so nothing here sees a server another test or a
@@ -16,51 +17,72 @@ import re
 import signal
 import subprocess
 import sys
+import traceback
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
+from click.testing import CliRunner, Result
 
+from busarm.cli.main import cli
 from conftest import sigint_and_wait
 
-pytestmark = pytest.mark.slow  # commands as processes, some through a served board
-SERVED = pytest.mark.wallclock("commands as processes at a board served on a pty by another")
+SERVED = pytest.mark.wallclock("commands in this process at a board served on a pty by "
+                               "another process")
+SERVER = pytest.mark.slow  # a server started as its own process (a few seconds to start)
 
 BOARD_PORT = re.compile(r"board:///dev/pts/\d+")
 NOT_READABLE = "n/a (the controller board cannot read it)"
 
+Env = dict[str, str | None]
+"""Variables for a command in this process: None removes one for the call."""
+
 
 @pytest.fixture
-def env(tmp_path: Path) -> dict[str, str]:
-    """A user with no --port, BUSARM_PORT or arm options set, and folders of this test's own;
-    with a generous reply margin, as the README says to set on a busy computer (the served
-    board answers in wall-clock time beside the rest of the suite)."""
-    base = {k: v for k, v in os.environ.items()
-            if k not in ("BUSARM_PORT", "BUSARM_ARM", "BUSARM_CALIBRATION")}
+def env(tmp_path: Path) -> Env:
+    """A user with no --port, BUSARM_PORT or arm options set (None: removed), and folders
+    of this test's own; with a generous reply margin, as the README says to set on a busy
+    computer (the served board answers in wall-clock time beside the rest of the suite).
+    The commands run in this process with these set for the call only (click's runner);
+    a server's process gets them on top of this one's environment (``process_env``)."""
     runtime = tmp_path / "xdg-run"
     runtime.mkdir(mode=0o700)
-    return {**base, "XDG_CONFIG_HOME": str(tmp_path / "config"),
-            "XDG_RUNTIME_DIR": str(runtime), "BUSARM_RUNTIME_DIR": str(tmp_path / "run"),
-            "COLUMNS": "200", "PYTHONUNBUFFERED": "1", "BUSARM_TIMEOUT_MARGIN_MS": "200"}
+    return {"BUSARM_PORT": None, "BUSARM_ARM": None, "BUSARM_CALIBRATION": None,
+            "XDG_CONFIG_HOME": str(tmp_path / "config"), "XDG_RUNTIME_DIR": str(runtime),
+            "BUSARM_RUNTIME_DIR": str(tmp_path / "run"), "COLUMNS": "200",
+            "BUSARM_TIMEOUT_MARGIN_MS": "200"}
 
 
-def busarm(*args: str, env: dict[str, str], timeout_s: float = 60.0
-           ) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "busarm", *args], capture_output=True,
-                          text=True, env=env, timeout=timeout_s)
+def process_env(env: Env) -> dict[str, str]:
+    """``env`` as the whole environment of a process: this one's, with ``env`` over it."""
+    base = {k: v for k, v in os.environ.items() if k not in env}
+    return {**base, **{k: v for k, v in env.items() if v is not None},
+            "PYTHONUNBUFFERED": "1"}
 
 
-def ok(result: subprocess.CompletedProcess[str]) -> str:
-    assert result.returncode == 0, (result.args, result.stdout, result.stderr)
+def busarm(*args: str, env: Env) -> Result:
+    """``busarm ARGS`` in this process (click's runner), in ``env``."""
+    return CliRunner(mix_stderr=False).invoke(cli, list(args), env=env, prog_name="busarm")
+
+
+def not_crashed(result: Result) -> None:
+    """No exception but the exit's (a runner keeps the traceback a process would print)."""
+    assert result.exception is None or isinstance(result.exception, SystemExit), (
+        "".join(traceback.format_exception(*result.exc_info)) if result.exc_info else "")
     assert "Traceback" not in result.stderr
+
+
+def ok(result: Result) -> str:
+    not_crashed(result)
+    assert result.exit_code == 0, (result.exit_code, result.stdout, result.stderr)
     return result.stdout
 
 
-def one_error(result: subprocess.CompletedProcess[str], code: int) -> str:
-    assert result.returncode == code, (result.stdout, result.stderr)
+def one_error(result: Result, code: int) -> str:
+    not_crashed(result)
+    assert result.exit_code == code, (result.stdout, result.stderr)
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
-    assert "Traceback" not in result.stderr
     return lines[0]
 
 
@@ -75,10 +97,10 @@ class Server:
     """``busarm sim|twin serve --board`` in its own process; its first stdout line is the
     port. Stopped as a user stops it: Ctrl+C, exit code 0."""
 
-    def __init__(self, args: list[str], env: dict[str, str]) -> None:
+    def __init__(self, args: list[str], env: Env) -> None:
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "busarm", *args], stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE, text=True, env=env,
+            stderr=subprocess.PIPE, text=True, env=process_env(env),
             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
         assert self.proc.stdout is not None
         self.port = self.proc.stdout.readline().strip()
@@ -96,7 +118,7 @@ class Server:
 
 
 @pytest.fixture
-def serve(env: dict[str, str]) -> Iterator[Callable[..., Server]]:
+def serve(env: Env) -> Iterator[Callable[..., Server]]:
     """Start a server (killed at the end if the test did not stop it)."""
     started: list[Server] = []
 
@@ -114,10 +136,11 @@ def serve(env: dict[str, str]) -> Iterator[Callable[..., Server]]:
 # ---------------------------------------------------------------------- sim serve --board
 
 
+@SERVER
 @SERVED
 @pytest.mark.parametrize("way", ["--port", "found"])
 def test_servo_and_arm_commands_through_a_served_board(
-        env: dict[str, str], serve: Callable[..., Server], way: str) -> None:
+        env: Env, serve: Callable[..., Server], way: str) -> None:
     """By its port, or found without --port: scan, info, move, monitor, an arm move the
     next command still sees."""
     server = serve("sim", "serve", "--board")
@@ -148,9 +171,10 @@ def test_servo_and_arm_commands_through_a_served_board(
     assert "simulator stopped" in server.stop()
 
 
+@SERVER
 @SERVED
 def test_board_info_shows_the_battery_the_imu_and_gravity(
-        env: dict[str, str], serve: Callable[..., Server]) -> None:
+        env: Env, serve: Callable[..., Server]) -> None:
     server = serve("sim", "serve", "--board")
     result = busarm("board", "info", "--time", "0.5", env=env)
     table = ok(result)
@@ -169,7 +193,7 @@ def test_board_info_shows_the_battery_the_imu_and_gravity(
     server.stop()
 
 
-def test_the_boards_url_keys_reach_the_simulated_board_and_servos(env: dict[str, str]) -> None:
+def test_the_boards_url_keys_reach_the_simulated_board_and_servos(env: Env) -> None:
     scan = ok(busarm("scan", "--ids", "0-12", "--port", "board://sim?ids=3,7", env=env))
     assert "found 2 servo(s): 3, 7" in scan
     table = ok(busarm("board", "info", "--time", "0.5", "--port",
@@ -181,13 +205,13 @@ def test_the_boards_url_keys_reach_the_simulated_board_and_servos(env: dict[str,
 # ---------------------------------------------------------------------- errors
 
 
-def test_board_info_on_a_port_that_is_not_a_boards(env: dict[str, str]) -> None:
+def test_board_info_on_a_port_that_is_not_a_boards(env: Env) -> None:
     said = one_error(busarm("board", "info", "--port", "sim", env=env), 2)
     assert said == ("error: sim is not a controller board's port (give "
                     "board:///dev/ttyACM0, or board://sim)")
 
 
-def test_a_silent_board_is_one_error(env: dict[str, str]) -> None:
+def test_a_silent_board_is_one_error(env: Env) -> None:
     said = one_error(busarm("board", "beep", "--port", "board://sim?silent=1", env=env), 1)
     assert "no report from the controller board in 1 s" in said
     assert "is it powered, and is this its port?" in said
@@ -198,7 +222,7 @@ def test_a_silent_board_is_one_error(env: dict[str, str]) -> None:
     (["motor", "7", "stop"], "motor (continuous rotation) mode"),
     (["led", "1", "on"], "the servos' LEDs"),
 ])
-def test_what_the_board_cannot_do_is_one_error(env: dict[str, str], args: list[str],
+def test_what_the_board_cannot_do_is_one_error(env: Env, args: list[str],
                                                what: str) -> None:
     said = one_error(busarm(*args, "--port", "board://sim", env=env), 2)
     assert said.startswith(f"error: the controller board cannot do {what}: "), said
@@ -208,9 +232,10 @@ def test_what_the_board_cannot_do_is_one_error(env: dict[str, str], args: list[s
 # ---------------------------------------------------------------------- twin serve --board
 
 
+@SERVER
 @SERVED
 def test_twin_serve_board_gives_a_board_port_and_a_camera(
-        env: dict[str, str], serve: Callable[..., Server]) -> None:
+        env: Env, serve: Callable[..., Server]) -> None:
     server = serve("twin", "serve", "--board", "--seed", "2", "--blocks", "1")
     assert server.proc.stdout is not None
     camera = server.proc.stdout.readline().strip()

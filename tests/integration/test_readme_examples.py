@@ -28,9 +28,10 @@ The rules, applied to each ```sh code block of the section, in order:
   servers) and $XDG_CONFIG_HOME (kept calibrations, saved poses) are the test's own.
 * BUSY: the lines run with ``BUSARM_TIMEOUT_MARGIN_MS`` set (``MARGIN_MS``), as the
   README says to on a computer busy with other work: the rest of the suite runs beside.
-* CHECKED: the whole mobile jobs (``map build``, ``transport``) are the smoke runs of
-  their commands as processes: what they print and write is checked further here
-  (``CHECKED``), as a reader would look at it, rather than run again elsewhere.
+* CHECKED: the whole jobs (``map build``, ``transport``, ``line-follow``, ``bench
+  locate``) are the smoke runs of their commands as processes: what they print and
+  write is checked further here (``CHECKED``), as a reader would look at it, rather
+  than run again elsewhere.
 * KEPT: each block's $XDG_CONFIG_HOME starts with the twin's camera calibration kept in
   it (the session's ``twin_calibration``, as a first ``pick-sort`` would have kept it),
   so that the lines run as they do for a reader after their first sort: none makes it
@@ -124,9 +125,47 @@ def _check_transport(folder: Path, out: str, err: str) -> None:
     assert grid.spec.width > 50 and grid.spec.height > 50
 
 
+def _check_line_follow(folder: Path, out: str, err: str) -> None:
+    """``line-follow --arena 3`` (a fifth of a lap): what it says it does, its summary,
+    and its report folder (how well it followed, by the twin's truth: test_line_follow)."""
+    assert err.splitlines()[:2] == [
+        "Robot('JetAuto Pro arm' on twin, cameras=['overview', 'wrist'], base, lidar): 0.2 "
+        "lap(s) of the line at 0.2 m/s", "the arm looks ahead: following the line"], err
+    summary = out.strip().splitlines()[-1]
+    data = json.loads((folder / "line-follow-report" / "report.json").read_text())
+    cleared = sum(b["outcome"] == "cleared" for b in data["blocks"])
+    assert summary.startswith("followed 0.2"), summary
+    assert f"{cleared} block(s) cleared, 0 stop(s)" in summary, summary
+    assert summary.endswith("Report: line-follow-report/"), summary
+    assert data["format"] == "busarm.line_follow_report" and data["finished"]
+    assert data["why"] == "0.2 laps done" and data["laps_done"] >= 0.2
+    assert data["travelled_m"] > 0.5 and data["lateral_max_mm"] < 30.0
+    assert len(data["blocks"]) == cleared  # every block met was put aside
+    picture = cv2.imread(str(folder / "line-follow-report" / "path.png"))
+    assert picture is not None and picture.shape[2] == 3
+
+
+PYTHON_REPR = re.compile(r"\[[^\]]*\]|\{'|None|drop_rate|duration_s|speed_deg_s|e\+\d")
+"""A Python list, dict repr, None, an internal name or an exponent in a message."""
+
+
+def _check_bench_locate(folder: Path, out: str, err: str) -> None:
+    """``bench vision ; bench locate``: the located blocks counted per bearing of the arm,
+    the lens's distortion and the median error said in words, no Python in sight."""
+    assert re.search(r"^location error: median [\d.]+ mm \(ok <= 2\)", out, re.M), out
+    assert re.search(r"lens distortion k1 -?[\d.]+, k2 -?[\d.]+, p1 ", out), out
+    assert not PYTHON_REPR.search(out), out
+    bearings = re.findall(r"^bearing ([-+]\d+) deg: (\d+) located, (\d+) missed", err, re.M)
+    assert len(bearings) >= 2, err
+    located = re.search(r"located (\d+)", out)
+    assert located and sum(int(n) for _, n, _ in bearings) == int(located.group(1)), (err, out)
+
+
 CHECKED = {
     f"{BUSARM} map build --arena 3 --out map.yaml --png map.png": _check_map_build,
     f"{BUSARM} transport --arena 3": _check_transport,
+    f"{BUSARM} line-follow --arena 3": _check_line_follow,
+    f"{BUSARM} bench vision ; {BUSARM} bench locate": _check_bench_locate,
 }
 """README line (without its comment) -> a check of what it printed and wrote (CHECKED)."""
 MISSED = re.compile(r"error: \d+ target\(s\) missed: FAIL in the report")
@@ -179,12 +218,15 @@ class Run:
     smaller: list[str] = field(default_factory=list)
     failures: list[str] = field(default_factory=list)
 
-    def check(self, line: str, code: int, out: str, err: str) -> None:
+    def check(self, line: str, code: int, out: str, err: str) -> bool:
+        """Whether the line did its job (or missed only a speed target); a failure if not."""
         errors = [x for x in err.splitlines() if x.startswith("error:")]
         if f"{BUSARM} bench" in line and errors and all(MISSED.fullmatch(x) for x in errors):
             code, errors = (0 if code == 1 else code), []  # a speed target, missed (BENCH)
         if code != 0 or "Traceback" in out + err or errors:
             self.failures.append(f"{line}\n  exit {code}\n  stderr: {err.strip()[-2000:]}")
+            return False
+        return True
 
 
 def _workdir(tmp_path: Path, calibration: tuple[Path, Path]) -> tuple[Path, dict[str, str]]:
@@ -277,8 +319,7 @@ def _run_line(line: str, command: str, cwd: Path, env: dict[str, str],
                             f"  stderr: {said.strip()[-2000:]}")
         return
     run.ran.append((line, time.monotonic() - start))
-    run.check(line, done.returncode, done.stdout, done.stderr)
-    if command in CHECKED and done.returncode == 0:
+    if run.check(line, done.returncode, done.stdout, done.stderr) and command in CHECKED:
         try:
             CHECKED[command](cwd, done.stdout, done.stderr)
         except AssertionError as exc:

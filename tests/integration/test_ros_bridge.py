@@ -49,7 +49,10 @@ def bridge(tmp_path_factory: pytest.TempPathFactory,
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     env = {**os.environ, "XDG_CONFIG_HOME": str(root / "config"),
            "BUSARM_RUNTIME_DIR": str(root / "run")}
-    proc = subprocess.Popen([BUSARM, "ros", "bridge", "--seed", "3", "--listen", endpoint],
+    # Two camera frames a second: enough for the tests that read one, and each frame is a
+    # full render and detection on the CPU the rest of the suite shares.
+    proc = subprocess.Popen([BUSARM, "ros", "bridge", "--seed", "3", "--listen", endpoint,
+                             "--fps", "2"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     assert proc.stdout is not None
     line = proc.stdout.readline()

@@ -2,6 +2,13 @@
 in its own process (board, camera and Lidar ports; found by ``lidar scan`` and ``base``
 without --lidar/--port), ``twin snapshot --arena``, and bad input as one error each.
 
+The served twin is the one process here (on the wall clock, as a user runs it; the
+SIGINT test's subject is that process). Every other ``busarm`` command runs in this
+process through click's runner: those at the served twin find it by its runtime file
+and talk to it through its real ptys (wall-clock time, so they carry the ``wallclock``
+mark, with a generous reply margin); the rest (an in-process arena twin on its simulated
+clock, a snapshot, bad input) never touch the wall clock.
+
 The served twin has its own runtime folder (BUSARM_RUNTIME_DIR), so nothing here sees a
 server another test or a developer runs, and is shared by the tests that need it (they
 run in file order; the last one stops it).
@@ -23,37 +30,43 @@ from typing import Any
 import cv2
 import numpy as np
 import pytest
+from click.testing import CliRunner, Result
 
 from busarm.base.config import load_chassis_config
+from busarm.cli.main import cli
 from busarm.twin.arena import Arena, Room, StartPose, save_arena
 from busarm.twin.arena_picture import LIDAR_BGR
 
-pytestmark = [pytest.mark.slow, pytest.mark.wallclock(
-    "mobile commands as processes, most at a twin served by another process")]
+pytestmark = pytest.mark.slow
+at_the_served_twin = pytest.mark.wallclock(
+    "`busarm twin serve --arena` as its own process (wall-clock time), with commands run "
+    "in this process at it through its ptys")
 
 WALL_X_M = 1.5
 """The wall the robot faces: the room's +x side, straight ahead of its start."""
 MOVE_M = 0.3
 
 
-def busarm(*args: str, env: dict[str, str] | None = None, cwd: Path | None = None,
-           timeout_s: float = 60.0) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "busarm", *args], capture_output=True,
-                          text=True, env=env, cwd=cwd, timeout=timeout_s)
+def run(*args: str, env: dict[str, str | None] | None = None) -> Result:
+    """``busarm ARGS`` in this process through click's runner, its output captured; ``env``
+    changes this process's environment for the command only (None: unset)."""
+    return CliRunner(mix_stderr=False).invoke(cli, list(args), env=env)
 
 
-def ok(result: subprocess.CompletedProcess[str]) -> str:
-    assert result.returncode == 0, (result.args, result.stdout, result.stderr)
-    assert "Traceback" not in result.stderr
+def ok(result: Result) -> str:
+    assert result.exit_code == 0, (result.exit_code, result.stdout, result.stderr,
+                                   result.exception)
+    assert result.exception is None, result.exc_info  # not a crash
     return result.stdout
 
 
-def one_error(result: subprocess.CompletedProcess[str]) -> str:
+def one_error(result: Result) -> str:
     """The single ``error:`` line of a command refused as bad input (exit 2)."""
-    assert result.returncode == 2, (result.args, result.stdout, result.stderr)
+    assert result.exit_code == 2, (result.exit_code, result.stdout, result.stderr,
+                                   result.exception)
+    assert isinstance(result.exception, SystemExit), result.exc_info  # not a crash
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
-    assert "Traceback" not in result.stderr
     return lines[0]
 
 
@@ -64,12 +77,17 @@ def facing_a_wall(path: Path) -> Path:
     return path
 
 
+UNSET = ("BUSARM_PORT", "BUSARM_LIDAR", "BUSARM_ARM", "BUSARM_CALIBRATION")
+"""What a user who finds the served twin has not set: no port, Lidar or arm options."""
+
+
 @dataclass
 class Served:
-    """``busarm twin serve --arena FILE`` running: its process, env and three lines."""
+    """``busarm twin serve --arena FILE`` running: its process, the environment changes a
+    command at it runs with (``run``'s env), its runtime folder and its three lines."""
 
     proc: subprocess.Popen[str]
-    env: dict[str, str]
+    env: dict[str, str | None]
     runtime: Path
     board: str
     camera: str
@@ -80,16 +98,17 @@ class Served:
 def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Served]:
     folder = tmp_path_factory.mktemp("mobile")
     arena = facing_a_wall(folder / "wall.toml")
-    base = {k: v for k, v in os.environ.items()
-            if k not in ("BUSARM_PORT", "BUSARM_LIDAR", "BUSARM_ARM", "BUSARM_CALIBRATION")}
-    env = {**base, "BUSARM_RUNTIME_DIR": str(folder / "run"),
-           "XDG_CONFIG_HOME": str(folder / "config"), "COLUMNS": "200",
-           # The served twin answers in wall-clock time beside the rest of the suite: a
-           # generous reply margin, as the README says to set on a busy computer.
-           "PYTHONUNBUFFERED": "1", "BUSARM_TIMEOUT_MARGIN_MS": "200"}
+    given = {"BUSARM_RUNTIME_DIR": str(folder / "run"),
+             "XDG_CONFIG_HOME": str(folder / "config"), "COLUMNS": "200",
+             # The served twin answers in wall-clock time beside the rest of the suite: a
+             # generous reply margin, as the README says to set on a busy computer.
+             "BUSARM_TIMEOUT_MARGIN_MS": "200"}
+    env: dict[str, str | None] = {**dict.fromkeys(UNSET), **given}
+    server_env = {**{k: v for k, v in os.environ.items() if k not in UNSET}, **given,
+                  "PYTHONUNBUFFERED": "1"}
     proc = subprocess.Popen(
         [sys.executable, "-m", "busarm", "twin", "serve", "--arena", str(arena)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=server_env,
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         assert proc.stdout is not None
@@ -104,14 +123,16 @@ def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Served]:
 
 def scan_json(served: Served) -> dict[str, Any]:
     """``busarm lidar scan --json`` without --lidar."""
-    data: dict[str, Any] = json.loads(ok(busarm("lidar", "scan", "--json", env=served.env)))
+    data: dict[str, Any] = json.loads(ok(run("lidar", "scan", "--json", env=served.env)))
     return data
 
 
 def range_ahead_m(scan: dict[str, Any]) -> float:
-    """The median range of the beams within 3 deg of straight ahead (bearing 0)."""
+    """The median range of the beams within 5 deg of straight ahead (bearing 0): about
+    five beams, of which a Lidar may miss one or two (a flat wall 1 m off is 4 mm further
+    at 5 deg)."""
     ahead = [r for a, r in zip(scan["angles_deg"], scan["ranges_m"], strict=True)
-             if r is not None and min(a % 360, 360 - a % 360) <= 3.0]
+             if r is not None and min(a % 360, 360 - a % 360) <= 5.0]
     assert len(ahead) >= 2, scan["ranges_m"]
     return float(np.median(ahead))
 
@@ -119,6 +140,7 @@ def range_ahead_m(scan: dict[str, Any]) -> float:
 # ---------------------------------------------------------------------- twin serve --arena
 
 
+@at_the_served_twin
 def test_serve_arena_gives_board_camera_and_lidar_ports(served: Served) -> None:
     assert re.fullmatch(r"board:///dev/pts/\d+", served.board), served.board
     assert re.fullmatch(r"twin://127\.0\.0\.1:\d+", served.camera), served.camera
@@ -129,6 +151,7 @@ def test_serve_arena_gives_board_camera_and_lidar_ports(served: Served) -> None:
         "twin", served.board, served.camera, served.lidar)
 
 
+@at_the_served_twin
 def test_lidar_scan_without_lidar_reads_the_served_lidar(served: Served) -> None:
     scan = scan_json(served)
     assert scan["port"] == served.lidar
@@ -141,12 +164,13 @@ def test_lidar_scan_without_lidar_reads_the_served_lidar(served: Served) -> None
     assert abs(scan["nearest_bearing_deg"] % 180 - 90) <= 10.0, scan["nearest_bearing_deg"]
 
 
+@at_the_served_twin
 def test_moving_forward_brings_the_wall_ahead_closer(served: Served) -> None:
     lidar_x_m = load_chassis_config().lidar.x_m
     before = range_ahead_m(scan_json(served))
     assert before == pytest.approx(WALL_X_M - lidar_x_m, abs=0.03)
 
-    moved = ok(busarm("base", "move-by", str(MOVE_M), "0", "0", env=served.env))
+    moved = ok(run("base", "move-by", str(MOVE_M), "0", "0", env=served.env))
     found = re.search(r"moved to x ([-+.\d]+) m, y ([-+.\d]+) m, yaw ([-+.\d]+) deg", moved)
     assert found, moved
     assert float(found[1]) == pytest.approx(MOVE_M, abs=0.02)
@@ -156,8 +180,9 @@ def test_moving_forward_brings_the_wall_ahead_closer(served: Served) -> None:
     assert before - after == pytest.approx(MOVE_M, abs=0.04)
 
 
+@at_the_served_twin
 def test_base_odom_prints_a_pose(served: Served) -> None:
-    result = busarm("base", "odom", "--time", "0.2", env=served.env)
+    result = run("base", "odom", "--time", "0.2", env=served.env)
     text = ok(result)
     # Its own odometry starts where the robot stands: at rest, at the origin.
     found = re.search(r"x ([-+.\d]+) m\s+y ([-+.\d]+) m\s+yaw ([-+.\d]+) deg\s+\(moving "
@@ -167,6 +192,7 @@ def test_base_odom_prints_a_pose(served: Served) -> None:
     assert f"(pid {served.proc.pid}) on {served.board}" in result.stderr
 
 
+@at_the_served_twin
 def test_sigint_stops_the_server_and_removes_its_session(served: Served) -> None:
     session = served.runtime / f"twin-{served.proc.pid}.json"
     assert session.exists()
@@ -185,7 +211,7 @@ def test_sigint_stops_the_server_and_removes_its_session(served: Served) -> None
 
 def test_lidar_scan_of_an_in_process_arena_twin() -> None:
     url = "twin://?family=arena&seed=4"
-    scan = json.loads(ok(busarm("lidar", "scan", "--lidar", url, "--json")))
+    scan = json.loads(ok(run("lidar", "scan", "--lidar", url, "--json")))
     assert scan["port"] == url
     assert scan["beams"] >= 190 and scan["returns"] >= 0.9 * scan["beams"]
 
@@ -195,7 +221,7 @@ def test_lidar_scan_of_an_in_process_arena_twin() -> None:
 
 def test_snapshot_arena_writes_a_picture_from_above(tmp_path: Path) -> None:
     png = tmp_path / "arena.png"
-    out = ok(busarm("twin", "snapshot", "--arena", "3", "--png", str(png)))
+    out = ok(run("twin", "snapshot", "--arena", "3", "--png", str(png)))
     image = cv2.imread(str(png))
     assert image is not None
     h, w = image.shape[:2]
@@ -215,7 +241,7 @@ def test_snapshot_of_an_arena_with_overlapping_boxes_is_refused(tmp_path: Path) 
         "[[boxes]]\nx_m = 1.5\ny_m = 0.0\nsize_x_m = 0.4\nsize_y_m = 0.4\nheight_m = 0.3\n"
         "[[boxes]]\nx_m = 1.7\ny_m = 0.1\nsize_x_m = 0.4\nsize_y_m = 0.4\nheight_m = 0.3\n")
     png = tmp_path / "never.png"
-    error = one_error(busarm("twin", "snapshot", "--arena", str(path), "--png", str(png)))
+    error = one_error(run("twin", "snapshot", "--arena", str(path), "--png", str(png)))
     assert str(path) in error and "box 0 and box 1 overlap" in error
     assert not png.exists()
 
@@ -236,9 +262,10 @@ def test_snapshot_of_an_arena_with_overlapping_boxes_is_refused(tmp_path: Path) 
     (["base", "odom", "--port", "board://twin?arena=missing.toml"], ["missing.toml"]),
 ], ids=["serve-seed", "serve-echo", "serve-missing-file", "snapshot-view",
         "lidar-table-twin", "url-arena-blocks", "url-slip-without-arena", "url-missing-file"])
-def test_bad_input_is_one_error(tmp_path: Path, args: list[str], named: list[str]) -> None:
-    env = {**os.environ, "BUSARM_RUNTIME_DIR": str(tmp_path / "run")}
-    result = busarm(*args, env=env, cwd=tmp_path)  # relative files are in tmp_path
+def test_bad_input_is_one_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                args: list[str], named: list[str]) -> None:
+    monkeypatch.chdir(tmp_path)  # relative files are in tmp_path
+    result = run(*args, env={"BUSARM_RUNTIME_DIR": str(tmp_path / "run")})
     error = one_error(result)
     for name in named:
         assert name in error, (name, error)

@@ -240,9 +240,11 @@ class GraspPlanner:
         c = np.linspace(0.0, reach, max(2, math.ceil(reach / step) + 1))
         d = np.linspace(0.0, slide, max(2, math.ceil(slide / step) + 1))
         grid = np.stack(np.meshgrid(a, b, c, d, indexing="ij"), axis=-1).reshape(-1, 4)
-        offsets = (np.outer(grid[:, 0], y_axis) + np.outer(grid[:, 1], x_axis)
-                   + np.outer(grid[:, 2] + grid[:, 3], back))
-        return [tip + side * (gap_mm / 2 + t / 2) * y_axis + offsets for side in (-1.0, 1.0)]
+        across: FloatArray = np.outer(grid[:, 0], y_axis)
+        along: FloatArray = np.outer(grid[:, 1], x_axis)
+        offsets: FloatArray = across + along + np.outer(grid[:, 2] + grid[:, 3], back)
+        half: FloatArray = (gap_mm / 2 + t / 2) * y_axis
+        return [tip + side * half + offsets for side in (-1.0, 1.0)]
 
     def _first_hit(self, plan: GraspPlan, gap_mm: float, neighbours: Sequence[Footprint]
                    ) -> tuple[float, float, str] | None:

@@ -61,8 +61,9 @@ class BlockRecords:
         here = np.array([sighting.location.x_mm, sighting.location.y_mm])
         for key, (outcome, start, end) in list(self._pushed.items()):
             # A pushed block ends somewhere along its push: the record goes there too.
-            a, b = np.asarray(start), np.asarray(end)
-            t = float(np.clip(np.dot(here - a, b - a) / max(np.dot(b - a, b - a), 1e-9), 0, 1))
+            a, b = np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64)
+            ab, ah = b - a, here - a
+            t = float(np.clip(float(np.dot(ah, ab)) / max(float(np.dot(ab, ab)), 1e-9), 0, 1))
             if outcome.color == sighting.color and float(
                     np.linalg.norm(here - (a + t * (b - a)))) < 2 * SAME_BLOCK_MM:
                 del self._pushed[key]

@@ -100,6 +100,9 @@ class RobotService:
         self.reader = StateReader(robot.arm)
         self.names = tuple(j.name for j in robot.config.joints)
         self._lock = threading.RLock()
+        # Held while a jog target is sent and while a jog is ended: a stop's MOVE_STOP is
+        # never followed by a target the control thread planned just before it.
+        self._jog_io = threading.Lock()
         self._subscribers: dict[str, Publish] = {}
         self.driver: str | None = None
         self._heard = 0.0  # when the driver was last heard from (time.monotonic)
@@ -278,11 +281,13 @@ class RobotService:
 
     def stop(self, why: str, *, who: str | None) -> None:
         """Cancel the job and the jog; every servo holds (MOVE_STOP). Not latched."""
-        with self._lock:
-            self._jog = None
-            job = self._job
+        with self._jog_io:
+            with self._lock:
+                self._jog = None
+                job = self._job
+            if job is None:
+                self.arm.bus.emergency_stop()
         if job is None:
-            self.arm.bus.emergency_stop()
             self.log(f"stopped: {why}; every servo holds where it stopped")
             return
         with self._lock:  # before the halt: a job it ends at once must find it (_end_job)
@@ -319,11 +324,12 @@ class RobotService:
             self._jog_target = None
 
     def _stop_jog(self, why: str) -> None:
-        with self._lock:
-            jog, self._jog = self._jog, None
-        if jog is None:
-            return
-        self.arm.bus.stop(self.arm.config.joint_ids)
+        with self._jog_io:
+            with self._lock:
+                jog, self._jog = self._jog, None
+            if jog is None:
+                return
+            self.arm.bus.stop(self.arm.config.joint_ids)
         what = jog.joint or f"tool {jog.axis}"
         self.log(f"jog {what} stopped ({why}); the joints hold")
 
@@ -346,7 +352,10 @@ class RobotService:
             self._stop_jog(step.blocked or "blocked")
             return
         try:
-            self.arm.command_joints(step.joints_deg, self.period_s * 2)
+            with self._jog_io:
+                if self._jog is not jog:
+                    return  # released (or stopped) while this step was planned
+                self.arm.command_joints(step.joints_deg, self.period_s * 2)
         except (BusArmError, ValueError) as exc:
             self._stop_jog(str(exc))
             return

@@ -293,9 +293,10 @@ class ParticleFilter:
         member = self._main_cluster()
         w, p = self._weights, self._poses
         share = float(w[member].sum())
-        wc, pc = w[member] / share, p[member]
-        yaw = math.atan2(float(np.sum(wc * np.sin(pc[:, 2]))),
-                         float(np.sum(wc * np.cos(pc[:, 2]))))
+        wc: FloatArray = w[member] / share
+        pc: FloatArray = p[member]
+        heading: FloatArray = pc[:, 2]
+        yaw = math.atan2(float(np.sum(wc * np.sin(heading))), float(np.sum(wc * np.cos(heading))))
         mean = np.array([float(np.sum(wc * pc[:, 0])), float(np.sum(wc * pc[:, 1])), yaw])
         dev = p - mean
         dev[:, 2] = _wrap(dev[:, 2])  # the yaw's spread on the circle, about the mean's

@@ -110,9 +110,9 @@ def near_convex(corners: FloatArray, points: FloatArray, margin_mm: float
     """Which ``points`` (N x 2) lie inside the convex polygon ``corners`` (M x 2, in
     order, either way round) or within ``margin_mm`` of each of its edges' lines."""
     poly = np.asarray(corners, dtype=np.float64)
-    edges = np.roll(poly, -1, axis=0) - poly
-    area = float(np.sum(poly[:, 0] * np.roll(poly[:, 1], -1) - np.roll(poly[:, 0], -1)
-                        * poly[:, 1]))
+    ahead: FloatArray = np.roll(poly, -1, axis=0)
+    edges = ahead - poly
+    area = float(np.sum(poly[:, 0] * ahead[:, 1] - ahead[:, 0] * poly[:, 1]))
     normals = np.stack([edges[:, 1], -edges[:, 0]], axis=1) * (1.0 if area > 0 else -1.0)
     lengths = np.maximum(np.linalg.norm(normals, axis=1), 1e-12)
     outward = np.einsum("nmk,mk->nm", points[:, None, :] - poly[None, :, :], normals) / lengths

@@ -258,8 +258,10 @@ def tag_pose(
             proj, _ = cv2.fisheye.projectPoints(obj.reshape(-1, 1, 3), rvec, tvec, k, d)
         else:
             proj, _ = cv2.projectPoints(obj, rvec, tvec, k, d)
-        err = float(np.sqrt(np.mean(np.sum((proj.reshape(4, 2) - image_pts.reshape(4, 2)) ** 2,
-                                           axis=1))))
+        # Typed steps: one expression of cv2's loosely typed arrays costs mypy seconds.
+        fit: FloatArray = np.asarray(proj, dtype=np.float64).reshape(4, 2)
+        miss: FloatArray = fit - image_pts.reshape(4, 2)
+        err = float(np.sqrt(np.mean(np.sum(miss * miss, axis=1))))
         if best is None or err < best[0]:
             best = (err, np.asarray(rvec, np.float64), np.asarray(tvec, np.float64))
     assert best is not None

@@ -320,7 +320,9 @@ class CameraIntrinsics:
         start = (target - (self.cx, self.cy)) / (self.fx, self.fy)
         xy = np.array(np.where(np.isfinite(xy), xy, start), dtype=np.float64)
         for _ in range(30):
-            probe = np.stack([xy, xy + np.array([h, 0.0]), xy + np.array([0.0, h])], axis=1)
+            right: FloatArray = xy + np.array([h, 0.0])
+            down: FloatArray = xy + np.array([0.0, h])
+            probe = np.stack([xy, right, down], axis=1)
             f = self._distort(probe)
             r = f[:, 0] - target
             if np.abs(r).max() < 1e-7:
