@@ -56,15 +56,17 @@ demo: $(STAMP) gl
 # process compiles busarm's modules again (0.2 s a command).
 # The suite runs in TEST_WORKERS processes (pytest-xdist), all of it in one pass: the
 # simulations run on their simulated clocks, and the tests on the wall clock (marked
-# `wallclock`) are written for a busy computer. mypy (a minute of one core on a fresh
-# clone) runs beside the tests, and its verdict counts as theirs does.
+# `wallclock`) are written for a busy computer. The slow tests are collected first
+# (tests/conftest.py) and an idle worker takes over half of another's queue (worksteal),
+# so the long jobs start early and neither worker ends alone. mypy (under a minute of one
+# core on a fresh clone) runs beside the tests, and its verdict counts as theirs does.
 # Exit code 5 is "no test selected" (PYTEST_ARGS picked none).
 TEST_WORKERS ?= 2
 PYTEST := env -u PYTHONDONTWRITEBYTECODE PYTHONPYCACHEPREFIX=$(CURDIR)/$(VENV)/pycache \
 	  $(BIN)/python -m pytest -q
 define TESTS_AND_TYPES
 	@$(BIN)/mypy > $(VENV)/mypy.log 2>&1 & types=$$!; \
-	$(PYTEST) -n $(TEST_WORKERS) $(1) $(PYTEST_ARGS); tests=$$?; [ $$tests = 5 ] && tests=0; \
+	$(PYTEST) -n $(TEST_WORKERS) --dist worksteal $(1) $(PYTEST_ARGS); tests=$$?; [ $$tests = 5 ] && tests=0; \
 	wait $$types; typed=$$?; cat $(VENV)/mypy.log; \
 	[ $$tests = 0 ] && [ $$typed = 0 ]
 endef

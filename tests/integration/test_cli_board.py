@@ -161,7 +161,10 @@ def test_servo_and_arm_commands_through_a_served_board(
 
     run("move", "1", "30", "--time", "0.3", "--wait")
     watched = run("monitor", "--count", "1", "--ids", "1-5,10")
-    assert re.search(r"│\s+1 │\s+\+30\.0 │", watched), watched
+    # --wait ends within 1 deg of the target (its help says so): on a busy computer the
+    # rest of the move may still be under way when the monitor reads, nearer than that.
+    seen = re.search(r"│\s+1 │\s+([-+]\d+\.\d) │", watched)
+    assert seen and float(seen[1]) == pytest.approx(30.0, abs=1.0), watched
 
     run("arm", "move-to", "200", "0", "40", "--pitch", "-90")
     pose = json.loads(run("arm", "pose", "--json"))["pose"]

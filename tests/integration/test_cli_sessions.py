@@ -2,11 +2,13 @@
 its runtime file), and options are accepted where users put them (``busarm arm pose
 --port X``, ``busarm --config X arm pose``).
 
-The servers run as real subprocesses (in wall-clock time), each test with its own runtime
-folder (BUSARM_RUNTIME_DIR), so nothing here sees a server another test or a developer
-runs; the commands that find one without --port run as processes too, given a generous
-reply margin (``MARGIN``). Where options are the point, not a server, the commands run in
-this process through click's runner on the simulated arm on its simulated clock.
+The servers (and the dashboard) run as real subprocesses (in wall-clock time), each test
+with its own runtime folder (BUSARM_RUNTIME_DIR), so nothing here sees a server another
+test or a developer runs; the commands at them run in this process through click's runner
+(found without --port through that folder, talking to the served arm over its pty), given
+a generous reply margin (``MARGIN``). Where options are the point, not a server, the
+commands run in this process on the simulated arm on its simulated clock. Only ``-v``'s
+logging to a command's stderr is checked on a command run as its own process.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import os
 import signal
 import subprocess
 import sys
+import traceback
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -37,38 +40,73 @@ MARGIN = ("--timeout-margin-ms", "200")
 """For a command at a served arm (wall-clock time) on a computer that may be busy: a reply
 heard late is not what these tests are about."""
 SERVED = ("`busarm sim|twin serve` as its own process (wall-clock time), found by commands "
-          "run as processes")
+          "run in this process")
 
-
-def busarm(*args: str, env: dict[str, str], timeout_s: float = 120.0
-           ) -> subprocess.CompletedProcess[str]:
-    """``busarm ARGS`` as its own process (with a generous reply margin, unless given)."""
-    margin = () if MARGIN[0] in args else MARGIN
-    return subprocess.run([sys.executable, "-m", "busarm", *args, *margin],
-                          capture_output=True, text=True, env=env, timeout=timeout_s)
+Env = dict[str, str | None]
+"""Variables for a command in this process: None removes one for the call."""
 
 
 @pytest.fixture
-def env(tmp_path: Path) -> dict[str, str]:
-    """The environment of a user with no --port, BUSARM_PORT or arm options set, and a
-    runtime folder of this test's own."""
-    base = {k: v for k, v in os.environ.items()
-            if k not in ("BUSARM_PORT", "BUSARM_ARM", "BUSARM_CALIBRATION")}
-    return {**base, "BUSARM_RUNTIME_DIR": str(tmp_path / "run"), "COLUMNS": "200"}
+def env(tmp_path: Path) -> Env:
+    """A user with no --port, BUSARM_PORT or arm options set (None: removed), and a
+    runtime folder of this test's own. The commands run in this process with these set
+    for the call only (click's runner); a server's process gets them on top of this
+    one's environment (``process_env``)."""
+    return {"BUSARM_PORT": None, "BUSARM_ARM": None, "BUSARM_CALIBRATION": None,
+            "BUSARM_RUNTIME_DIR": str(tmp_path / "run"), "COLUMNS": "200"}
+
+
+def process_env(env: Env) -> dict[str, str]:
+    """``env`` as the whole environment of a process: this one's, with ``env`` over it."""
+    base = {k: v for k, v in os.environ.items() if k not in env}
+    return {**base, **{k: v for k, v in env.items() if v is not None},
+            "PYTHONUNBUFFERED": "1"}
+
+
+def in_process(*args: str, env: Env) -> subprocess.CompletedProcess[str]:
+    """``busarm ARGS`` in this process (click's runner), in ``env``, as a finished process.
+    A crash (an exception other than the SystemExit of an exit code) fails the test: the
+    runner would swallow the traceback a process prints."""
+    result = CliRunner(mix_stderr=False).invoke(cli, list(args), env=env, prog_name="busarm")
+    not_crashed(result)
+    return subprocess.CompletedProcess(args, result.exit_code, result.stdout, result.stderr)
+
+
+def busarm(*args: str, env: Env) -> subprocess.CompletedProcess[str]:
+    """``busarm ARGS`` in this process, at a served arm (or finding none): with a generous
+    reply margin, unless given."""
+    margin = () if MARGIN[0] in args else MARGIN
+    return in_process(*args, *margin, env=env)
+
+
+def as_process(*args: str, env: Env, timeout_s: float = 120.0
+               ) -> subprocess.CompletedProcess[str]:
+    """``busarm ARGS`` as its own process (with a generous reply margin, unless given)."""
+    margin = () if MARGIN[0] in args else MARGIN
+    return subprocess.run([sys.executable, "-m", "busarm", *args, *margin],
+                          capture_output=True, text=True, env=process_env(env),
+                          timeout=timeout_s)
+
+
+def not_crashed(result: Result) -> None:
+    """No exception but the exit's (a runner keeps the traceback a process would print)."""
+    assert result.exception is None or isinstance(result.exception, SystemExit), (
+        "".join(traceback.format_exception(*result.exc_info)) if result.exc_info else "")
+    assert "Traceback" not in result.stderr
 
 
 class Server:
     """``busarm sim|twin serve`` in its own process; stop() sends SIGTERM."""
 
-    def __init__(self, args: list[str], env: dict[str, str]) -> None:
+    def __init__(self, args: list[str], env: Env) -> None:
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "busarm", *args], stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE, text=True, env={**env, "PYTHONUNBUFFERED": "1"},
+            stderr=subprocess.PIPE, text=True, env=process_env(env),
             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
         assert self.proc.stdout is not None
         self.path = self.proc.stdout.readline().strip()
         assert self.path.startswith("/dev/"), self.proc.communicate(timeout=30)
-        self.runtime = Path(env["BUSARM_RUNTIME_DIR"])
+        self.runtime = Path(str(env["BUSARM_RUNTIME_DIR"]))
 
     def runtime_files(self) -> list[Path]:
         return sorted(self.runtime.glob("*.json")) if self.runtime.is_dir() else []
@@ -102,12 +140,6 @@ def servers() -> Iterator[list[Server]]:
             server.proc.communicate(timeout=30)
 
 
-def in_process(*args: str, env: dict[str, str]) -> subprocess.CompletedProcess[str]:
-    """``busarm ARGS`` in this process (click's runner), in ``env``, as a finished process."""
-    result = CliRunner(mix_stderr=False).invoke(cli, list(args), env=env)
-    return subprocess.CompletedProcess(args, result.exit_code, result.stdout, result.stderr)
-
-
 def pose_of(result: subprocess.CompletedProcess[str]) -> dict[str, float]:
     assert result.returncode == 0, result.stderr
     pose: dict[str, float] = json.loads(result.stdout)["pose"]
@@ -123,7 +155,7 @@ def notes(result: subprocess.CompletedProcess[str]) -> list[str]:
 
 @pytest.mark.wallclock(SERVED)
 def test_a_served_arm_keeps_one_set_of_files_by_default_or_by_its_pty(
-        env: dict[str, str], servers: list[Server]) -> None:
+        env: Env, servers: list[Server]) -> None:
     server = Server(["sim", "serve", "--no-timing"], env)
     servers.append(server)
     server.wait_announced()
@@ -139,7 +171,7 @@ def test_a_served_arm_keeps_one_set_of_files_by_default_or_by_its_pty(
 
 @pytest.mark.wallclock(SERVED)
 def test_commands_without_port_build_on_a_running_sim_serve(
-        env: dict[str, str], servers: list[Server]) -> None:
+        env: Env, servers: list[Server]) -> None:
     server = Server(["sim", "serve", "--no-timing"], env)
     servers.append(server)
     runtime = server.wait_announced()
@@ -169,7 +201,7 @@ def test_commands_without_port_build_on_a_running_sim_serve(
 
 
 @pytest.mark.wallclock(SERVED)
-def test_the_newest_of_two_servers_is_used(env: dict[str, str], servers: list[Server]) -> None:
+def test_the_newest_of_two_servers_is_used(env: Env, servers: list[Server]) -> None:
     first = Server(["sim", "serve", "--no-timing", "--ids", "1,2,3,4,5,10"], env)
     servers.append(first)
     first.wait_announced()
@@ -186,7 +218,7 @@ def test_the_newest_of_two_servers_is_used(env: dict[str, str], servers: list[Se
 
 
 @pytest.mark.wallclock(SERVED)
-def test_a_killed_servers_file_is_ignored_and_removed(env: dict[str, str],
+def test_a_killed_servers_file_is_ignored_and_removed(env: Env,
                                                       servers: list[Server]) -> None:
     server = Server(["sim", "serve", "--no-timing"], env)
     servers.append(server)
@@ -252,7 +284,7 @@ def test_a_runtime_folder_of_another_user_is_not_trusted(
 
 @pytest.mark.wallclock(SERVED)
 def test_twin_serve_is_the_default_arm_with_its_camera(
-        env: dict[str, str], servers: list[Server], monkeypatch: pytest.MonkeyPatch) -> None:
+        env: Env, servers: list[Server], monkeypatch: pytest.MonkeyPatch) -> None:
     server = Server(["twin", "serve", "--seed", "2", "--blocks", "1"], env)
     servers.append(server)
     assert server.proc.stdout is not None
@@ -267,7 +299,7 @@ def test_twin_serve_is_the_default_arm_with_its_camera(
                              f"{server.proc.pid}) on {server.path} (--port sim for a fresh "
                              "simulated arm)"]
     # The robot commands (camera, vision locate) get its camera too.
-    monkeypatch.setenv(sessions.RUNTIME_DIR_ENV, env["BUSARM_RUNTIME_DIR"])
+    monkeypatch.setenv(sessions.RUNTIME_DIR_ENV, str(env["BUSARM_RUNTIME_DIR"]))
     settings = Settings(port_given=False, err=Console(file=io.StringIO()),
                         timeout_margin_ms=1000.0)
     with settings.open_robot(needs=("camera",)) as robot:
@@ -290,7 +322,7 @@ def one_error(result: Result, code: int = 2) -> str:
     assert result.exit_code == code, (result.stdout, result.stderr)
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
-    assert "Traceback" not in result.stderr
+    not_crashed(result)
     return lines[0]
 
 
@@ -332,9 +364,9 @@ def test_every_command_takes_the_global_options_after_it() -> None:
 
 
 @pytest.mark.wallclock("-v logs to the stderr of a command run as its own process")
-def test_verbose_after_the_command(env: dict[str, str]) -> None:
-    quiet = busarm("--port", "sim", "stop", env=env)
-    loud = busarm("stop", "--port", "sim", "-v", env=env)
+def test_verbose_after_the_command(env: Env) -> None:
+    quiet = as_process("--port", "sim", "stop", env=env)
+    loud = as_process("stop", "--port", "sim", "-v", env=env)
     assert quiet.returncode == loud.returncode == 0, loud.stderr
     assert "busarm" not in quiet.stderr and "busarm.bus" in loud.stderr, loud.stderr
 
@@ -407,7 +439,7 @@ def test_an_option_of_the_command_given_before_it_says_where_it_goes() -> None:
 
 @pytest.mark.wallclock(SERVED + ", Ctrl+C to the dashboard")
 def test_the_dashboard_watches_a_running_sim_serve_with_its_saved_poses(
-        env: dict[str, str], servers: list[Server], tmp_path: Path) -> None:
+        env: Env, servers: list[Server], tmp_path: Path) -> None:
     """Without --port the dashboard drives the served arm, and finds the poses the
     commands saved for it; Ctrl+C stops it as a server stops: exit 0, no traceback."""
     import urllib.request
@@ -420,7 +452,7 @@ def test_the_dashboard_watches_a_running_sim_serve_with_its_saved_poses(
     dashboard = subprocess.Popen(
         [sys.executable, "-m", "busarm", "dashboard", "--http-port", "0", "--reports",
          str(tmp_path / "reports"), *MARGIN], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, env={**env, "PYTHONUNBUFFERED": "1"},
+        text=True, env=process_env(env),
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         assert dashboard.stdout is not None

@@ -14,8 +14,9 @@
   runs a twin of its own, and how to sort the served one.
 
 The CLI runs in this process through click's runner, on simulated servos of the test's
-own on their simulated clock (``in_process``: their truth is then inspected), or as
-subprocesses where a process boundary is the point (a served twin, found by the commands).
+own on their simulated clock (``in_process_port``: their truth is then inspected), or at a
+``twin serve`` run as its own process (wall-clock time), found without --port through the
+test's runtime folder and talked to over its pty and its camera's socket.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ import re
 import signal
 import subprocess
 import sys
+import traceback
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -72,31 +74,41 @@ def sim_arm_with_block(monkeypatch: pytest.MonkeyPatch) -> tuple[str, ListeningS
     return _arm(monkeypatch, block=True)
 
 
+Env = dict[str, str | None]
+"""Variables for a command in this process: None removes one for the call."""
+
+
+def busarm(*args: str, env: Env | None = None, input: str | None = None) -> Result:
+    """``busarm ARGS`` in this process (click's runner), with ``env`` set for the call."""
+    return CliRunner(mix_stderr=False).invoke(cli, list(args), env=env, input=input,
+                                              prog_name="busarm")
+
+
 def run(*args: str, port: str, input: str | None = None) -> Result:
-    return CliRunner(mix_stderr=False).invoke(cli, ["--port", port, *args], input=input)
+    return busarm("--port", port, *args, input=input)
+
+
+def not_crashed(result: Result) -> None:
+    """No exception but the exit's (a runner keeps the traceback a process would print)."""
+    assert result.exception is None or isinstance(result.exception, SystemExit), (
+        "".join(traceback.format_exception(*result.exc_info)) if result.exc_info else "")
+    assert "Traceback" not in result.stdout + result.stderr
 
 
 def ok(result: Result) -> str:
+    not_crashed(result)
     assert result.exit_code == 0, (result.stdout, result.stderr)
-    assert "Traceback" not in result.stdout + result.stderr
     return str(result.stdout)
 
 
-def one_error(result: Result | subprocess.CompletedProcess[str], code: int) -> str:
-    """Exactly one ``error:`` line on stderr (no traceback), and exit code ``code``."""
-    got = result.exit_code if isinstance(result, Result) else result.returncode
-    assert got == code, (got, result.stdout, result.stderr)
+def one_error(result: Result, code: int) -> str:
+    """Exactly one ``error:`` line on stderr (no crash), and exit code ``code``."""
+    not_crashed(result)
+    assert result.exit_code == code, (result.exit_code, result.stdout, result.stderr)
     lines = [line for line in result.stderr.strip().splitlines()
              if not line.startswith("note: no --port given")]  # which arm: not an error
     assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
-    assert "Traceback" not in result.stdout + result.stderr
     return str(lines[0])
-
-
-def busarm(*args: str, env: dict[str, str] | None = None, timeout_s: float = 120.0
-           ) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "busarm", *args], capture_output=True,
-                          text=True, env=env, timeout=timeout_s, check=False)
 
 
 # ---------------------------------------------------------------------- 1: the base
@@ -284,23 +296,30 @@ def _keep_true_twin_calibration(config_home: Path, lens_name: str = "wide") -> P
 
 
 TWIN_REASON = ("`busarm twin serve` as its own process (wall-clock time), found by commands "
-               "run as processes without --port")
+               "run in this process without --port")
+
+
+def process_env(env: Env) -> dict[str, str]:
+    """``env`` as the whole environment of a process: this one's, with ``env`` over it."""
+    base = {k: v for k, v in os.environ.items() if k not in env}
+    return {**base, **{k: v for k, v in env.items() if v is not None},
+            "PYTHONUNBUFFERED": "1"}
 
 
 class TwinServe:
     """``busarm twin serve`` in its own process (its servos' pty, its camera's URL)."""
 
-    def __init__(self, env: dict[str, str], *args: str) -> None:
+    def __init__(self, env: Env, *args: str) -> None:
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "busarm", "twin", "serve", *args], stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE, text=True, env={**env, "PYTHONUNBUFFERED": "1"},
+            stderr=subprocess.PIPE, text=True, env=process_env(env),
             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
         assert self.proc.stdout is not None and self.proc.stderr is not None
         self.port = self.proc.stdout.readline().strip()
         self.camera = self.proc.stdout.readline().strip()
         assert self.port.startswith("/dev/") and self.camera.startswith("twin://127.0.0.1:")
         self.banner = [self.proc.stderr.readline().strip() for _ in range(2)]
-        runtime = Path(env["BUSARM_RUNTIME_DIR"])
+        runtime = Path(str(env["BUSARM_RUNTIME_DIR"]))
         assert wait_for(lambda: bool(list(runtime.glob("twin-*.json"))), timeout_s=30), \
             "twin serve did not announce itself"
 
@@ -311,12 +330,14 @@ class TwinServe:
 
 
 @pytest.fixture
-def twin_serve(tmp_path: Path) -> Iterator[tuple[TwinServe, dict[str, str], Path]]:
+def twin_serve(tmp_path: Path) -> Iterator[tuple[TwinServe, Env, Path]]:
     """A twin serve (seed 3, 2 blocks) in a runtime folder of this test's own, the
-    environment of commands that find it, and the twin's kept (true) calibration."""
-    env = {k: v for k, v in os.environ.items() if k not in ("BUSARM_PORT", "BUSARM_ARM")}
-    env |= {"BUSARM_RUNTIME_DIR": str(tmp_path / "run"), "XDG_CONFIG_HOME": str(tmp_path),
-            "COLUMNS": "200"}
+    variables of commands that find it (set for a command in this process, None removed;
+    its process gets them on top of this one's environment), and the twin's kept (true)
+    calibration."""
+    env: Env = {"BUSARM_PORT": None, "BUSARM_ARM": None,
+                "BUSARM_RUNTIME_DIR": str(tmp_path / "run"),
+                "XDG_CONFIG_HOME": str(tmp_path), "COLUMNS": "200"}
     folder = _keep_true_twin_calibration(tmp_path)
     serve = TwinServe(env, "--seed", "3", "--blocks", "2")
     try:
@@ -327,7 +348,7 @@ def twin_serve(tmp_path: Path) -> Iterator[tuple[TwinServe, dict[str, str], Path
 
 @pytest.mark.wallclock(TWIN_REASON)
 def test_a_served_twins_camera_uses_the_calibration_kept_for_the_twin(
-        twin_serve: tuple[TwinServe, dict[str, str], Path], tmp_path: Path) -> None:
+        twin_serve: tuple[TwinServe, Env, Path], tmp_path: Path) -> None:
     from busarm.twin.scene import random_scene
 
     serve, env, folder = twin_serve
@@ -336,7 +357,8 @@ def test_a_served_twins_camera_uses_the_calibration_kept_for_the_twin(
                                f"{serve.camera} --bins '{bins}')")
     for args in ((), ("--camera", serve.camera)):
         located = busarm("vision", "locate", "--json", *args, *MARGIN, env=env)
-        assert located.returncode == 0, located.stderr
+        not_crashed(located)
+        assert located.exit_code == 0, located.stderr
         assert f"using the camera calibration kept in {folder}/" in located.stderr
         seen = {(b["color"], round(b["x_mm"]), round(b["y_mm"]))
                 for b in json.loads(located.stdout)["blocks"]}
@@ -348,7 +370,8 @@ def test_a_served_twins_camera_uses_the_calibration_kept_for_the_twin(
     # pick-sort without --port: its own twin, said so, with how to sort the served one.
     sorted_own = busarm("pick-sort", "--blocks", "0", "--report", str(tmp_path / "r"),
                         env=env)
-    assert sorted_own.returncode == 0, sorted_own.stderr
+    not_crashed(sorted_own)
+    assert sorted_own.exit_code == 0, sorted_own.stderr
     assert (f"note: pick-sort runs a twin of its own (seed 0), not the arm of `busarm twin "
             f"serve` (pid {serve.proc.pid}) on {serve.port}; to sort the served table: busarm "
             f"--port {serve.port} pick-sort --camera {serve.camera} --bins") \
@@ -357,7 +380,7 @@ def test_a_served_twins_camera_uses_the_calibration_kept_for_the_twin(
 
 @pytest.mark.wallclock(TWIN_REASON)
 def test_a_calibration_for_another_lens_is_stale_for_a_served_twin(
-        twin_serve: tuple[TwinServe, dict[str, str], Path]) -> None:
+        twin_serve: tuple[TwinServe, Env, Path]) -> None:
     _, env, folder = twin_serve
     record = json.loads((folder / "camera.json").read_text())
     record["meta"]["made_for"]["twin_lens"]["distortion"][0] = -0.1

@@ -53,7 +53,7 @@ from busarm.cli import (
 from busarm.cli.bench_cmd import bench
 from busarm.cli.common import Settings, report_line, unwritten_text
 from busarm.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OUTPUT_CLOSED
-from busarm.cli.stopping import servos_note
+from busarm.cli.stopping import new_command, servos_note
 from busarm.errors import BusArmError, ConfigError
 
 EXIT_BUS_ERROR = EXIT_FAILED
@@ -128,6 +128,7 @@ class BusArmGroup(click.Group):
         standalone_mode: bool = True,
         **extra: Any,
     ) -> Any:
+        new_command()
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning
             try:

@@ -28,6 +28,14 @@ _without_servos: list[bool] = []
 F = TypeVar("F", bound=Callable[..., Any])
 
 
+def new_command() -> None:
+    """A command line starts: nothing written by it yet, its servos not yet known (so a
+    command run in the same process after another, as a test or a program does, says
+    only what is true of itself)."""
+    _wrote_before.clear()
+    _without_servos.clear()
+
+
 def no_servos(command: F) -> F:
     """Mark a command's function as one that has no servos (``vision detect``, the twin's
     benchmarks): a stop of it then says nothing of servos."""
