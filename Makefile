@@ -63,8 +63,8 @@ demo: $(STAMP) gl
 # Exit code 5 is "no test selected" (PYTEST_ARGS picked none).
 # Three workers on two cores: a third of the suite's time is spent waiting on the wall
 # clock (ptys, servers, a browser), which a third worker fills; beside other busy programs
-# it also keeps the suite's share of the cores (docs/benchmarks.md: 10 min 56 s there with
-# three, 12 min 15 s - 12 min 40 s with two; alone 7 min 25 s with three, 6 min 43 s with two).
+# it also keeps the suite's share of the cores (docs/benchmarks.md: 9-11 min there with
+# three, 12 min 15 s - 12 min 40 s with two; alone 5 min 54 s with three, 6 min 43 s with two).
 TEST_WORKERS ?= 3
 PYTEST := env -u PYTHONDONTWRITEBYTECODE PYTHONPYCACHEPREFIX=$(CURDIR)/$(VENV)/pycache \
 	  $(BIN)/python -m pytest -q

@@ -177,17 +177,20 @@ def pytest_report_collectionfinish(config: pytest.Config, items: list[pytest.Ite
     return [f"{sum(len(n) for n in groups.values())} tests on the wall clock:", *lines]
 
 
+def pytest_itemcollected(item: pytest.Item) -> None:
+    """The ``arm`` fixture's pty ways run on the wall clock: marked so (here, before ``-m``
+    selects by marks)."""
+    spec = getattr(item, "callspec", None)
+    way = spec.params.get("arm", spec.params.get("way")) if spec is not None else None
+    if isinstance(way, str) and way.startswith("pty"):
+        item.add_marker(pytest.mark.wallclock(PTY_REASON))
+
+
 @pytest.hookimpl(trylast=True)  # after the other conftests have marked theirs
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """The ``arm`` fixture's pty ways run on the wall clock: marked so. Then the slow tests
-    go first (in their order otherwise): pytest-xdist's workers start the long ones early
-    and share the short ones at the end, rather than one worker finishing a whole job alone
-    while the other waits."""
-    for item in items:
-        spec = getattr(item, "callspec", None)
-        way = spec.params.get("arm", spec.params.get("way")) if spec is not None else None
-        if isinstance(way, str) and way.startswith("pty"):
-            item.add_marker(pytest.mark.wallclock(PTY_REASON))
+    """The slow tests go first (in their order otherwise): pytest-xdist's workers start
+    the long ones early and share the short ones at the end, rather than one worker
+    finishing a whole job alone while the others wait."""
     items.sort(key=lambda item: item.get_closest_marker("slow") is None)
 
 
