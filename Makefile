@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-$(shell cat pyproject.toml | cksum | cut -d' ' -f1)
 
-.PHONY: demo test test-fast lint bench bench-peers bench-ik gl browser clean
+.PHONY: demo test test-fast lint docs bench bench-peers bench-ik gl browser clean
 
 $(BIN)/python:
 	@$(PYTHON) -c 'import venv, ensurepip' 2>/dev/null || { \
@@ -85,6 +85,11 @@ test-fast: $(STAMP) gl
 	$(BIN)/ruff check src tests
 	$(BIN)/lint-imports --no-cache
 	$(call TESTS_AND_TYPES,-m "not slow and not wallclock")
+
+# The API reference, from the docstrings, to build/api/ (open build/api/index.html); a
+# warning is an error. tests/unit/test_api_reference.py builds it in `make test` too.
+docs: $(STAMP)
+	$(BIN)/python docs/api_reference.py build/api
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests

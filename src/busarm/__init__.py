@@ -1,3 +1,186 @@
-"""busarm: drive LX bus-servo robotic arms, real or simulated."""
+"""busarm: drive a JetAuto Pro style robot (an arm of LX bus servos on a mecanum base with
+a 2D Lidar), real or simulated, from Python.
+
+Start with a robot: ``Robot.open("twin")`` is the simulated robot (the MuJoCo twin),
+``Robot.open("/dev/ttyUSB0")`` the real arm::
+
+    from busarm import Robot
+
+    with Robot.open("twin") as robot:
+        robot.arm.home()
+        print(robot.arm.pose())
+
+The names below are the ones a program needs; each is loaded on first use, so ``import
+busarm`` stays light (no MuJoCo, OpenCV or serial port until they are used).
+
+Units: metres, radians and seconds at the base and the Lidar (``Pose2D``, ``Twist``,
+``LaserScan``); millimetres and degrees where the arm's world is a table (``Pose``,
+joint angles), named so (``x_mm``, ``pitch_deg``).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from busarm.lazy import lazy_exports
 
 __version__ = "0.1.0"
+
+if TYPE_CHECKING:  # the same names, eagerly, for mypy and the API reference
+    from busarm.apps.explore import MapRun, build_map
+    from busarm.apps.line_follow import LineFollowJob, LineFollowReport
+    from busarm.apps.navigator import Navigator, NavSettings, Trip
+    from busarm.apps.transport import TransportJob, TransportReport
+    from busarm.arm import Arm, ArmConfig, ArmKinematics, Pose, load_arm_config
+    from busarm.base.base import Base
+    from busarm.base.config import ChassisConfig, load_chassis_config
+    from busarm.base.kinematics import Twist
+    from busarm.base.odometry import Pose2D
+    from busarm.bus.driver import ServoBus
+    from busarm.clock import WALL_CLOCK, Clock, SimClock
+    from busarm.errors import (
+        BusArmError,
+        BusTimeoutError,
+        CalibrationError,
+        CameraError,
+        ConfigError,
+        HaltedError,
+        KinematicsError,
+        LimitError,
+        MotionError,
+        MotionTimeoutError,
+        NavigationError,
+        ProtocolError,
+        TransportError,
+        TwinError,
+        UnreachableError,
+        VisionError,
+    )
+    from busarm.lidar.rplidar import RplidarA1, open_lidar
+    from busarm.lidar.scan import LaserScan, LidarSource
+    from busarm.nav.grid import OccupancyGrid
+    from busarm.nav.map_files import load_map, save_map
+    from busarm.nav.points import NamedPoint, NamedPoints, load_points, save_points
+    from busarm.robot import CameraCalibration, Robot
+    from busarm.sim.bus import SimBus
+    from busarm.twin.twin import Twin
+    from busarm.vision.camera import CameraFrame, CameraSource
+
+_SOURCES: dict[str, str] = {
+    # the robot
+    "Robot": "busarm.robot",
+    "CameraCalibration": "busarm.robot",
+    # the arm
+    "Arm": "busarm.arm",
+    "ArmConfig": "busarm.arm",
+    "ArmKinematics": "busarm.arm",
+    "Pose": "busarm.arm",
+    "load_arm_config": "busarm.arm",
+    # the base
+    "Base": "busarm.base.base",
+    "ChassisConfig": "busarm.base.config",
+    "load_chassis_config": "busarm.base.config",
+    "Pose2D": "busarm.base.odometry",
+    "Twist": "busarm.base.kinematics",
+    # sensors
+    "LaserScan": "busarm.lidar.scan",
+    "LidarSource": "busarm.lidar.scan",
+    "RplidarA1": "busarm.lidar.rplidar",
+    "open_lidar": "busarm.lidar.rplidar",
+    "CameraFrame": "busarm.vision.camera",
+    "CameraSource": "busarm.vision.camera",
+    # maps and navigation
+    "OccupancyGrid": "busarm.nav.grid",
+    "load_map": "busarm.nav.map_files",
+    "save_map": "busarm.nav.map_files",
+    "NamedPoint": "busarm.nav.points",
+    "NamedPoints": "busarm.nav.points",
+    "load_points": "busarm.nav.points",
+    "save_points": "busarm.nav.points",
+    "build_map": "busarm.apps.explore",
+    "MapRun": "busarm.apps.explore",
+    "Navigator": "busarm.apps.navigator",
+    "NavSettings": "busarm.apps.navigator",
+    "Trip": "busarm.apps.navigator",
+    # jobs
+    "TransportJob": "busarm.apps.transport",
+    "TransportReport": "busarm.apps.transport",
+    "LineFollowJob": "busarm.apps.line_follow",
+    "LineFollowReport": "busarm.apps.line_follow",
+    # the bus, the simulators, time
+    "ServoBus": "busarm.bus.driver",
+    "SimBus": "busarm.sim.bus",
+    "Twin": "busarm.twin.twin",
+    "Clock": "busarm.clock",
+    "SimClock": "busarm.clock",
+    "WALL_CLOCK": "busarm.clock",
+    # errors (all are BusArmError)
+    **dict.fromkeys((
+        "BusArmError", "BusTimeoutError", "CalibrationError", "CameraError", "ConfigError",
+        "HaltedError", "KinematicsError", "LimitError", "MotionError", "MotionTimeoutError",
+        "NavigationError", "ProtocolError", "TransportError", "TwinError", "UnreachableError",
+        "VisionError"), "busarm.errors"),
+}
+"""Each exported name and the module that defines it."""
+
+__all__ = [
+    "WALL_CLOCK",
+    "Arm",
+    "ArmConfig",
+    "ArmKinematics",
+    "Base",
+    "BusArmError",
+    "BusTimeoutError",
+    "CalibrationError",
+    "CameraCalibration",
+    "CameraError",
+    "CameraFrame",
+    "CameraSource",
+    "ChassisConfig",
+    "Clock",
+    "ConfigError",
+    "HaltedError",
+    "KinematicsError",
+    "LaserScan",
+    "LidarSource",
+    "LimitError",
+    "LineFollowJob",
+    "LineFollowReport",
+    "MapRun",
+    "MotionError",
+    "MotionTimeoutError",
+    "NamedPoint",
+    "NamedPoints",
+    "NavSettings",
+    "NavigationError",
+    "Navigator",
+    "OccupancyGrid",
+    "Pose",
+    "Pose2D",
+    "ProtocolError",
+    "Robot",
+    "RplidarA1",
+    "ServoBus",
+    "SimBus",
+    "SimClock",
+    "TransportError",
+    "TransportJob",
+    "TransportReport",
+    "Trip",
+    "Twin",
+    "TwinError",
+    "Twist",
+    "UnreachableError",
+    "VisionError",
+    "build_map",
+    "load_arm_config",
+    "load_chassis_config",
+    "load_map",
+    "load_points",
+    "open_lidar",
+    "save_map",
+    "save_points",
+]
+
+
+__getattr__, __dir__ = lazy_exports(__name__, _SOURCES, __all__)

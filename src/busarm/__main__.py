@@ -9,6 +9,12 @@ from collections.abc import Callable
 from types import FrameType
 from typing import Any, NoReturn
 
+__all__ = [
+    "EXIT_INTERRUPTED",
+    "main",
+]
+
+
 EXIT_INTERRUPTED = 130
 
 

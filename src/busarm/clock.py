@@ -23,6 +23,15 @@ from typing import Protocol, runtime_checkable
 
 from busarm.units import check_range
 
+__all__ = [
+    "MAX_SLEEP_S",
+    "WALL_CLOCK",
+    "Clock",
+    "SimClock",
+    "WallClock",
+]
+
+
 MAX_SLEEP_S = 3600.0
 """The longest single wait a clock accepts (a wait this long is a bug, not a plan)."""
 

@@ -7,6 +7,10 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+__all__ = [
+    "quaternion_wxyz",
+]
+
 
 def quaternion_wxyz(rotation: npt.ArrayLike) -> tuple[float, float, float, float]:
     """The unit quaternion (w, x, y, z), w >= 0, of a 3 x 3 rotation matrix.

@@ -15,6 +15,14 @@ from typing import Any
 from busarm.errors import ConfigError
 from busarm.units import check_int_range, check_range, listing, shown
 
+__all__ = [
+    "TomlReader",
+    "load_toml",
+    "parse_toml",
+    "toml_string",
+]
+
+
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10

@@ -14,6 +14,36 @@ from decimal import Decimal
 
 from busarm.errors import ConfigError
 
+__all__ = [
+    "CENTER_PULSES",
+    "DEG_PER_PULSE",
+    "MOTOR_SPEED_MAX",
+    "MOVE_TIME_MAX_MS",
+    "OFFSET_MAX_PULSES",
+    "OFFSET_MIN_PULSES",
+    "POSITION_MAX_DEG",
+    "POSITION_MAX_PULSES",
+    "POSITION_MIN_DEG",
+    "POSITION_MIN_PULSES",
+    "check_int_range",
+    "check_range",
+    "deg_from_pulses",
+    "fixed_number",
+    "listing",
+    "ms_from_s",
+    "mv_from_v",
+    "offset_deg_from_pulses",
+    "offset_pulses_from_deg",
+    "parse_ids",
+    "place_text",
+    "plain_number",
+    "pulses_from_deg",
+    "range_text",
+    "shown",
+    "v_from_mv",
+]
+
+
 DEG_PER_PULSE = 0.24
 """One position pulse is 0.24 deg (1000 pulses = 240 deg)."""
 CENTER_PULSES = 500

@@ -31,7 +31,7 @@ from busarm.apps.nav_sensing import SensedScan
 from busarm.apps.navigator import Navigator, NavSettings
 from busarm.apps.transport import TransportJob
 from busarm.base.odometry import Pose2D, wrap_rad
-from busarm.errors import NavigationError
+from busarm.errors import ConfigError, NavigationError
 from busarm.lidar.rplidar import RplidarA1
 from busarm.nav.map_files import OCCUPIED_THRESH
 from busarm.nav.mapping import compose, inverse
@@ -339,6 +339,9 @@ def test_a_robot_kidnapped_mid_trip_stops_or_recovers_touching_nothing(
 def test_go_to_reaches_its_goals_within_3_cm_touching_nothing(mapped: Mapped) -> None:
     with robot_at() as robot:
         nav = navigator(robot, mapped)
+        with pytest.raises(ConfigError, match=r"go_to: goal = \(0\.5, 0\.2, 0\.0\); give a Pose2D"):
+            nav.go_to((0.5, 0.2, 0.0))  # type: ignore[arg-type]
+        assert nav.trips == []
         for goal in (EAST_GOAL, WEST_GOAL):
             on_map = mapped.to_map(goal)
             trip = nav.go_to(on_map)

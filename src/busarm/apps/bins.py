@@ -10,6 +10,16 @@ from busarm.apps.footprint import Footprint
 from busarm.apps.grasp import GraspPlan, GraspPlanner
 from busarm.errors import ConfigError, UnreachableError
 
+__all__ = [
+    "BIN_PLACES",
+    "BIN_RADIUS_MM",
+    "BIN_SLOTS_MM",
+    "IN_BIN_MM",
+    "STACK_DROP_MM",
+    "BinPlaces",
+]
+
+
 BIN_RADIUS_MM = 45.0
 """A block seen this close to a bin's centre is in or at that bin: not to be picked."""
 IN_BIN_MM = 35.0

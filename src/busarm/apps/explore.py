@@ -26,6 +26,21 @@ from busarm.nav.planner import NoPath, plan_path
 from busarm.robot import Robot
 from busarm.units import check_range
 
+__all__ = [
+    "ARRIVED_M",
+    "EXPLORE_FREE_P",
+    "EXPLORE_SPEED_M_S",
+    "EXPLORE_YAW_RATE_RAD_S",
+    "EXTENT_M",
+    "REPLAN_S",
+    "RESOLUTION_M",
+    "ROBOT_RADIUS_M",
+    "Explorer",
+    "MapRun",
+    "build_map",
+]
+
+
 ROBOT_RADIUS_M = 0.2
 """The base's footprint as a disc (the JetAuto with its wheels is about 0.3 x 0.25 m)."""
 EXTENT_M = 16.0

@@ -13,6 +13,13 @@ import numpy.typing as npt
 
 from busarm.robot.obstacles import near_convex
 
+__all__ = [
+    "TOUCH_MM",
+    "FloatArray",
+    "Footprint",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 
 TOUCH_MM = 1e-6

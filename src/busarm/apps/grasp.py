@@ -18,6 +18,22 @@ from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import UnreachableError
 from busarm.units import check_range, place_text
 
+__all__ = [
+    "CLEARANCE_MARGIN_MM",
+    "LINE_CHECK_MM",
+    "MAX_CLOSING_TILT_DEG",
+    "MAX_TILTED_TURN_DEG",
+    "ROLL_STEP_DEG",
+    "SWEEP_SAMPLES",
+    "TILTED_PITCHES_DEG",
+    "FloatArray",
+    "GraspPlan",
+    "GraspPlanner",
+    "NoClearGrasp",
+    "Thing",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 
 TILTED_PITCHES_DEG = (-75.0, -60.0, -45.0, -30.0, -105.0, -120.0)

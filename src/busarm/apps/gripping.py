@@ -11,6 +11,12 @@ from busarm.arm import Arm
 from busarm.errors import ContactError, MotionTimeoutError
 from busarm.units import place_text
 
+__all__ = [
+    "descend_and_grip",
+    "lower_and_release",
+    "still_holding",
+]
+
 
 def still_holding(arm: Arm) -> bool:
     """Whether the gripper still stands short of closed (a dropped block lets it close)."""

@@ -20,6 +20,17 @@ from busarm.arm.chain import Joints
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import UnreachableError
 
+__all__ = [
+    "AIM_MM",
+    "GRID_DEG",
+    "SHOULDER_FROM_DEG",
+    "TILT_WEIGHT_MM",
+    "TOOL_CLEAR_MM",
+    "FloatArray",
+    "look_pose",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 
 GRID_DEG = 2.5

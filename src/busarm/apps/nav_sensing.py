@@ -24,6 +24,18 @@ from busarm.lidar.scan import LaserScan, LidarSource
 from busarm.nav.mapping import compose, inverse
 from busarm.robot import Robot
 
+__all__ = [
+    "CAUGHT_UP_S",
+    "MAX_SKIPPED",
+    "PAUSE_S",
+    "SCAN_TIMEOUT_S",
+    "FloatArray",
+    "ScanReader",
+    "SensedScan",
+    "deskewed",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 
 SCAN_TIMEOUT_S = 1.0

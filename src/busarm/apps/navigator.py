@@ -22,7 +22,7 @@ import numpy.typing as npt
 from busarm.apps.nav_sensing import ScanReader, SensedScan
 from busarm.base.kinematics import Twist
 from busarm.base.odometry import Pose2D
-from busarm.errors import NavigationError
+from busarm.errors import ConfigError, NavigationError
 from busarm.lidar.scan import to_points
 from busarm.nav.costmap import Costmap
 from busarm.nav.follower import FollowerSettings, PathFollower, blocked
@@ -32,6 +32,18 @@ from busarm.nav.mapping import compose, inverse, transform_points
 from busarm.nav.planner import NoPath, plan_path
 from busarm.robot import Robot
 from busarm.units import check_range
+
+__all__ = [
+    "GUARD_MARGIN_M",
+    "SETTLE_MAX_M",
+    "FloatArray",
+    "NavSettings",
+    "Navigator",
+    "Point",
+    "ScanHook",
+    "Trip",
+]
+
 
 Point = tuple[float, float]
 FloatArray = npt.NDArray[np.float64]
@@ -87,6 +99,12 @@ class Trip:
     def driven_m(self) -> float:
         return sum(math.dist((a.x_m, a.y_m), (b.x_m, b.y_m))
                    for a, b in zip(self.path, self.path[1:], strict=False))
+
+    def __repr__(self) -> str:
+        outcome = "arrived" if self.ok else f"not arrived ({self.why})" if self.why else "under way"
+        return (f"Trip(to {self.goal!r}, {outcome}, {self.seconds:.1f} s, "
+                f"{self.driven_m:.2f} m, {len(self.plans)} plan(s), "
+                f"{self.obstacle_stops} obstacle stop(s))")
 
 
 ScanHook = Callable[["Navigator", SensedScan], None]
@@ -186,6 +204,9 @@ class Navigator:
         ``keep_out`` discs (x, y, radius in m: where blocks are, which the Lidar does not
         see). Returns the trip; raises NavigationError (the base stopped) if it cannot
         get there."""
+        if not isinstance(goal, Pose2D):
+            raise ConfigError(f"go_to: goal = {goal!r}; give a Pose2D(x_m, y_m, yaw_rad) in "
+                              "the map's frame")
         if self.estimate is None:
             raise NavigationError("the base has not been localised on the map: localize() "
                                   "first")

@@ -25,6 +25,12 @@ from busarm.robot.locate import Sighting
 from busarm.units import place_text
 from busarm.vision.camera import CameraSource
 
+__all__ = [
+    "Image",
+    "PickJob",
+]
+
+
 Image = npt.NDArray[np.uint8]
 
 

@@ -6,6 +6,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+__all__ = [
+    "BlockOutcome",
+    "RunReport",
+]
+
 
 @dataclass
 class BlockOutcome:

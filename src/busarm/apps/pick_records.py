@@ -13,6 +13,13 @@ from busarm.apps.pick_outcomes import BlockOutcome, RunReport
 from busarm.apps.table_view import SAME_BLOCK_MM, off_mm, same_block
 from busarm.robot.locate import Sighting
 
+__all__ = [
+    "BlockRecords",
+    "Place",
+    "mark_moved",
+]
+
+
 Place = tuple[float, float]
 
 

@@ -23,6 +23,15 @@ from busarm.errors import ConfigError
 from busarm.fileio import write_bytes_atomic, write_text_atomic
 from busarm.vision.annotate import save_image
 
+__all__ = [
+    "GIF_FRAME_S",
+    "GIF_WIDTH_PX",
+    "Image",
+    "gif_bytes",
+    "write_report",
+]
+
+
 Image = npt.NDArray[np.uint8]
 GIF_WIDTH_PX = 320
 GIF_FRAME_S = 0.25

@@ -8,6 +8,12 @@ from dataclasses import dataclass
 from busarm.errors import ConfigError
 from busarm.units import check_int_range, check_range
 
+__all__ = [
+    "ORDERS",
+    "PickSortSettings",
+]
+
+
 ORDERS = ("nearest", "colors")
 
 

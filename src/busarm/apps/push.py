@@ -23,6 +23,20 @@ from busarm.apps.footprint import Footprint
 from busarm.apps.grasp import GraspPlan, GraspPlanner
 from busarm.errors import UnreachableError
 
+__all__ = [
+    "BEHIND_MM",
+    "BIN_KEEP_OFF_MM",
+    "LIMIT_MARGIN_DEG",
+    "PRESS_MM",
+    "PUSH_DIRECTIONS",
+    "PUSH_LENGTHS",
+    "PUSH_PITCHES_DEG",
+    "SLIDE_MM",
+    "Push",
+    "PushPlanner",
+]
+
+
 PUSH_DIRECTIONS = 16
 """Directions tried, evenly around the block."""
 PUSH_LENGTHS = (1.0, 1.5)

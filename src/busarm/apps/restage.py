@@ -13,6 +13,14 @@ from busarm.apps.grasp import GraspPlanner, Thing
 from busarm.errors import UnreachableError
 from busarm.units import place_text
 
+__all__ = [
+    "STAGING_BEARINGS_DEG",
+    "STAGING_RADII_MM",
+    "Restaged",
+    "staging_spot",
+]
+
+
 STAGING_RADII_MM = (150.0, 170.0, 190.0, 210.0)
 STAGING_BEARINGS_DEG = tuple(range(-40, 41, 10))
 """Where a block taken tilted may be set down to be taken again straight down."""

@@ -23,6 +23,17 @@ from busarm.robot.locate import BlockLocator, Sighting
 from busarm.robot.obstacles import Obstacle, refine
 from busarm.vision.camera import CameraSource
 
+__all__ = [
+    "CARRY_CLEARANCE_MM",
+    "MAX_EXTRA_LOOKS",
+    "OVER_THINGS_MM",
+    "SAME_BLOCK_MM",
+    "TableView",
+    "off_mm",
+    "same_block",
+]
+
+
 SAME_BLOCK_MM = 20.0
 """Two sightings this close are the same block."""
 OVER_THINGS_MM = 100.0

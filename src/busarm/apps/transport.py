@@ -36,6 +36,22 @@ from busarm.nav.points import WORK_AHEAD_M, NamedPoint, NamedPoints
 from busarm.progress import Progress, quiet
 from busarm.robot import Robot
 
+__all__ = [
+    "APPROACH_M",
+    "KEEP_OUT_M",
+    "SETTLE_SCANS",
+    "SETTLE_TOLERANCE_DEG",
+    "SETTLE_TOLERANCE_M",
+    "STOW_POSE",
+    "TEACH_LIMIT_S",
+    "Phase",
+    "TransportJob",
+    "TransportReport",
+    "run_transport",
+    "teach_point",
+]
+
+
 SETTLE_TOLERANCE_M = 0.01
 SETTLE_TOLERANCE_DEG = 1.0
 SETTLE_SCANS = 4

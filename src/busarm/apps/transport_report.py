@@ -24,6 +24,13 @@ from busarm.nav.map_picture import map_picture
 from busarm.nav.points import NamedPoints
 from busarm.vision.annotate import save_image
 
+__all__ = [
+    "Image",
+    "transport_picture",
+    "write_transport_report",
+]
+
+
 Image = npt.NDArray[np.uint8]
 
 

@@ -10,8 +10,9 @@ The names below are loaded on first use, so ``import busarm.arm.kinematics`` (or
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from busarm.lazy import lazy_exports
 
 if TYPE_CHECKING:  # the same names, eagerly, for mypy and the layer contract
     from busarm.arm.actions import ActionFrame, ActionGroup, read_d6a, write_d6a
@@ -42,35 +43,24 @@ __all__ = [
 ]
 
 _SOURCES: dict[str, str] = {
-    "ActionFrame": "actions",
-    "ActionGroup": "actions",
-    "read_d6a": "actions",
-    "write_d6a": "actions",
-    "Arm": "arm",
-    "GripResult": "arm",
-    "MotionRecord": "arm",
-    "Calibration": "calibration",
-    "load_calibration": "calibration",
-    "save_calibration": "calibration",
-    "ArmConfig": "config",
-    "load_arm_config": "config",
-    "GripperState": "gripper",
-    "gripper_state": "gripper",
-    "ArmKinematics": "kinematics",
-    "Pose": "chain",
+    "ActionFrame": ".actions",
+    "ActionGroup": ".actions",
+    "read_d6a": ".actions",
+    "write_d6a": ".actions",
+    "Arm": ".arm",
+    "GripResult": ".arm",
+    "MotionRecord": ".arm",
+    "Calibration": ".calibration",
+    "load_calibration": ".calibration",
+    "save_calibration": ".calibration",
+    "ArmConfig": ".config",
+    "load_arm_config": ".config",
+    "GripperState": ".gripper",
+    "gripper_state": ".gripper",
+    "ArmKinematics": ".kinematics",
+    "Pose": ".chain",
 }
 """Each exported name and the submodule that defines it."""
 
 
-def __getattr__(name: str) -> Any:
-    """Load an exported name from its submodule on first use (PEP 562)."""
-    submodule = _SOURCES.get(name)
-    if submodule is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{submodule}"), name)
-    globals()[name] = value  # later look-ups skip this function
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
+__getattr__, __dir__ = lazy_exports(__name__, _SOURCES, __all__)

@@ -162,7 +162,12 @@ class Arm(ArmServos):
 
     def home(self, **kwargs: float) -> float:
         """Go to the config's ``home`` pose."""
-        return self.move_joints(self.config.pose("home"), **kwargs)  # type: ignore[arg-type]
+        return self.move_to_pose("home", **kwargs)
+
+    def move_to_pose(self, name: str, **kwargs: float) -> float:
+        """Go to one of the config's named joint poses (``home``, ``look``...: its
+        ``[poses]``); ``kwargs`` as ``move_joints``. A ConfigError names the poses there are."""
+        return self.move_joints(self.config.pose(name), **kwargs)  # type: ignore[arg-type]
 
     # ------------------------------------------------------------------ Cartesian
 

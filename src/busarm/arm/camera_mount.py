@@ -17,6 +17,12 @@ import numpy.typing as npt
 from busarm.arm.config import CameraConfig
 from busarm.errors import ConfigError
 
+__all__ = [
+    "CameraMount",
+    "FloatArray",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 
 

@@ -40,6 +40,32 @@ from busarm.protocol.board import (
 )
 from busarm.units import check_range, range_text
 
+__all__ = [
+    "BREAK_S",
+    "COMMANDS_STOP_S",
+    "CONTROL_PERIOD_S",
+    "DETECT_S",
+    "DETECT_SAMPLES",
+    "DONE_M",
+    "DONE_RAD",
+    "GAIN_PER_S",
+    "HISTORY_SAMPLES",
+    "IMU_FRESH_S",
+    "MAX_PENDING_REPORTS",
+    "MAX_STEP_S",
+    "MEASURE_S",
+    "MOVE_MAX_DEG",
+    "MOVE_MAX_M",
+    "ODOMETRY_PERIOD_S",
+    "PROFILE_MARGIN",
+    "REPORT_PERIOD_S",
+    "SETTLE_S",
+    "Base",
+    "BaseOdometry",
+    "ReportStream",
+]
+
+
 CONTROL_PERIOD_S = 0.02
 """How often ``move_by`` reads the odometry and commands the wheels."""
 MAX_STEP_S = 0.1
@@ -152,6 +178,10 @@ class Base:
             self._thread = threading.Thread(target=self._watch, name="base-watchdog",
                                             daemon=True)
             self._thread.start()
+
+    def __repr__(self) -> str:
+        return (f"Base({self.config.name!r} on {self.link.transport.name}, odometry from "
+                f"{self.odometry_source})")
 
     # ------------------------------------------------------------------ commands
 

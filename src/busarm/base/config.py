@@ -14,6 +14,22 @@ from typing import Any
 
 from busarm.tomlfile import TomlReader, load_toml, parse_toml
 
+__all__ = [
+    "DEFAULT_ARM_MOUNT",
+    "DEFAULT_CHASSIS",
+    "FORMAT_NAME",
+    "FORMAT_VERSION",
+    "MOTOR_COUNT",
+    "SHIPPED",
+    "WHEELS",
+    "ChassisConfig",
+    "Mount",
+    "WheelMotor",
+    "chassis_config_from_toml",
+    "load_chassis_config",
+]
+
+
 FORMAT_NAME = "busarm.chassis"
 FORMAT_VERSION = 1
 SHIPPED = ("jetauto",)

@@ -21,6 +21,13 @@ from busarm.base.config import ChassisConfig
 from busarm.errors import ConfigError
 from busarm.units import range_text
 
+__all__ = [
+    "MecanumKinematics",
+    "Twist",
+    "WheelSpeeds",
+]
+
+
 WheelSpeeds = tuple[float, float, float, float]
 """Per wheel, in busarm.base.config.WHEELS order (front_left, rear_left, front_right,
 rear_right)."""

@@ -14,6 +14,19 @@ from dataclasses import dataclass
 
 from busarm.base.kinematics import MecanumKinematics, Twist, WheelSpeeds
 
+__all__ = [
+    "BIAS_GAIN",
+    "MAX_BIAS_RAD_S",
+    "STILL_M",
+    "STILL_TICKS",
+    "TWIST_SMOOTHING_S",
+    "GyroTurn",
+    "Odometry",
+    "Pose2D",
+    "wrap_rad",
+]
+
+
 STILL_M = 1e-5
 """Wheel travel (m) below which, over one update, the base is taken to stand still..."""
 TWIST_SMOOTHING_S = 0.05
@@ -47,6 +60,9 @@ class Pose2D:
     @property
     def yaw_deg(self) -> float:
         return math.degrees(self.yaw_rad)
+
+    def __repr__(self) -> str:
+        return f"Pose2D(x_m={self.x_m:.4g}, y_m={self.y_m:.4g}, yaw_rad={self.yaw_rad:.4g})"
 
     def moved_by(self, dx_m: float, dy_m: float, dyaw_rad: float) -> Pose2D:
         """This pose after a displacement given in its own frame (heading at mid-way)."""

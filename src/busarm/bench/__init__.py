@@ -22,3 +22,5 @@ they ran on, go to ``docs/benchmarks.md``. Every run function returns a dataclas
 - ``common`` -- what they share: machine info, latency percentiles, the progress
   callback, the twin calibration summary.
 """
+
+__all__: list[str] = []

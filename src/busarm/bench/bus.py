@@ -28,6 +28,22 @@ from busarm.errors import BusArmError, ConfigError, TransportError
 from busarm.progress import Progress, quiet
 from busarm.protocol import SPECS, Command, encode_request
 
+__all__ = [
+    "CPU_BATCH",
+    "WARM_UP_READS",
+    "BusBenchReport",
+    "BusBenchResult",
+    "ScanTimes",
+    "SimServerProcess",
+    "bench_os_floor",
+    "bench_position_reads",
+    "bench_scan",
+    "bench_state_loop",
+    "run_bench",
+    "sim_pty_server",
+]
+
+
 WARM_UP_READS = 200
 
 

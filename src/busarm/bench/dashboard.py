@@ -34,6 +34,14 @@ from busarm.protocol import Command, Request
 from busarm.robot import Robot
 from busarm.robot.calibration_store import CalibrationStore
 
+__all__ = [
+    "CHROMIUM_FLAGS",
+    "WARM_UP_S",
+    "DashboardBenchReport",
+    "run_dashboard_bench",
+]
+
+
 WARM_UP_S = 3.0
 """The pages load, open their streams and the feeds start, before the count begins."""
 

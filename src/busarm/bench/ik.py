@@ -37,6 +37,36 @@ from busarm.arm.kinematics import ArmKinematics
 from busarm.bench.common import machine_info
 from busarm.errors import UnreachableError
 
+__all__ = [
+    "BATCH_REPEATS",
+    "LIMIT_SLACK_DEG",
+    "OUTSIDE_MM",
+    "PEERS_HINT",
+    "PEER_Q0_DEG",
+    "POS_TOL_MM",
+    "ROT_TOL_DEG",
+    "TARGET_BATCH_PER_S",
+    "TARGET_SINGLE_US",
+    "WARM_UP",
+    "Accuracy",
+    "Batch",
+    "IkBenchReport",
+    "Outside",
+    "PeerResult",
+    "Timing",
+    "check_accuracy",
+    "check_outside",
+    "in_limits",
+    "outside_targets",
+    "pose_errors",
+    "random_joints",
+    "run_ik_bench",
+    "time_batch",
+    "timer_overhead_ns",
+    "timing_of",
+]
+
+
 POS_TOL_MM = 1e-3
 ROT_TOL_DEG = 1e-3
 LIMIT_SLACK_DEG = 1e-7

@@ -42,6 +42,16 @@ from busarm.bench.ik import (
     timing_of,
 )
 
+__all__ = [
+    "Solver",
+    "build_ikpy",
+    "build_rtb",
+    "main",
+    "robot_ik_lm_caveat",
+    "run_peers",
+]
+
+
 Solver = Callable[[npt.ArrayLike], tuple[FloatArray, bool]]
 """A peer's IK of a 4x4 target in mm: joints in radians, and whether it claims success."""
 

@@ -35,6 +35,21 @@ from busarm.errors import BusArmError
 from busarm.robot import Robot
 from busarm.twin.arena_gen import distance_to_line_m, random_arena
 
+__all__ = [
+    "CLEARED_M",
+    "MAX_WORKERS",
+    "OBSTACLE_AFTER_M",
+    "OBSTACLE_AHEAD_M",
+    "OBSTACLE_STAY_S",
+    "TARGET_LATERAL_MAX_M",
+    "TARGET_LATERAL_MEDIAN_M",
+    "LayoutRun",
+    "LineBenchReport",
+    "run_layout",
+    "run_line_bench",
+]
+
+
 TARGET_LATERAL_MEDIAN_M = 0.01
 TARGET_LATERAL_MAX_M = 0.03
 CLEARED_M = 0.12

@@ -43,6 +43,21 @@ from busarm.vision.calibration import (
     load_intrinsics,
 )
 
+__all__ = [
+    "BLOCK_GAP_MM",
+    "LOCATE_RADIUS_MM",
+    "MATCH_MM",
+    "SURVEY_BEARINGS_DEG",
+    "TARGET_MEDIAN_MM",
+    "TARGET_P95_MM",
+    "AccuracyReport",
+    "AccuracySummary",
+    "LocateBenchReport",
+    "localisation_accuracy",
+    "run_locate_bench",
+]
+
+
 TARGET_MEDIAN_MM = 2.0
 TARGET_P95_MM = 5.0
 SURVEY_BEARINGS_DEG = (-90.0, -45.0, 0.0, 45.0, 90.0)

@@ -21,6 +21,31 @@ from typing import Any
 
 from busarm.bus.driver import ServoBus
 
+__all__ = [
+    "AFTER_GLITCH",
+    "BAUD",
+    "CALL_LIMIT_S",
+    "CLIENTS",
+    "GLITCH_POSITIONS",
+    "LOG_CAPTURE",
+    "OPEN_LIMIT_S",
+    "POS_REPLY_BYTES",
+    "REQUEST_BYTES",
+    "TURNAROUND_MS",
+    "WIRE_LIMIT",
+    "WIRE_S",
+    "BusarmClient",
+    "Client",
+    "LewansoulClient",
+    "LogCapture",
+    "Outcome",
+    "PylxClient",
+    "close_client",
+    "guarded",
+    "open_client",
+]
+
+
 BAUD = 115200
 TURNAROUND_MS = 0.5
 REQUEST_BYTES = 6

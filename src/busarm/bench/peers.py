@@ -74,6 +74,25 @@ from busarm.sim.servo import SimServo
 from busarm.sim.servo_params import ServoParams
 from busarm.units import CENTER_PULSES
 
+__all__ = [
+    "ABORT_AFTER_ERRORS",
+    "GLITCH_TESTS",
+    "LATE_S",
+    "PEER_TIMEOUT_S",
+    "RATE_TOLERANCE",
+    "ROUNDS",
+    "WARMUP_READS",
+    "RateSamples",
+    "bench_rates",
+    "glitch_sim",
+    "glitch_test",
+    "main",
+    "rate_round",
+    "run_peer_bench",
+    "summarise",
+]
+
+
 PEER_TIMEOUT_S = 0.05
 """Read timeout given to the peers (busarm derives its own from the baud rate)."""
 LATE_S = 0.2

@@ -9,6 +9,20 @@ from dataclasses import asdict, dataclass
 
 from busarm.bench.peer_clients import AFTER_GLITCH, GLITCH_POSITIONS, WIRE_LIMIT
 
+__all__ = [
+    "GlitchResult",
+    "GlitchStep",
+    "PeersReport",
+    "PeersSummary",
+    "RateResult",
+    "RateStats",
+    "glitch_table",
+    "print_glitches",
+    "print_rates",
+    "print_summary",
+    "rate_table",
+]
+
 
 @dataclass
 class RateStats:

@@ -38,6 +38,23 @@ from busarm.units import check_int_range
 if TYPE_CHECKING:
     from busarm.apps.pick_sort import BlockOutcome
 
+__all__ = [
+    "DISTRACTOR_MOVED_MM",
+    "FAMILIES",
+    "MAX_FAILURES",
+    "MAX_WORKERS",
+    "TARGET_CYCLE_S",
+    "TARGET_SORTED",
+    "TARGET_SPEEDUP",
+    "PickBenchReport",
+    "PickFailure",
+    "SceneResult",
+    "SceneTask",
+    "run_pick_bench",
+    "run_scene",
+]
+
+
 TARGET_SORTED = 0.98
 TARGET_CYCLE_S = 5.0
 TARGET_SPEEDUP = 5.0

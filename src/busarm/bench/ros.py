@@ -49,6 +49,28 @@ from busarm.ros.recorder import McapRecorder
 if TYPE_CHECKING:
     import zenoh
 
+__all__ = [
+    "BUSARM",
+    "JOINT",
+    "STILL_DEG",
+    "FrozenLink",
+    "RosBenchReport",
+    "Truth",
+    "dropped_client",
+    "dropped_sender",
+    "faults",
+    "free_port",
+    "in_bins",
+    "move",
+    "pick_sort",
+    "read_mcap",
+    "run_ros_bench",
+    "running_bridge",
+    "stop_time_ms",
+    "stream_rates",
+]
+
+
 BUSARM = str(Path(sys.executable).with_name("busarm"))
 JOINT = "base_yaw"
 STILL_DEG = 0.1

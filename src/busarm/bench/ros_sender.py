@@ -17,6 +17,11 @@ from busarm.bus.zenoh_session import open_session
 from busarm.ros import messages as m
 from busarm.ros.node import RosNode
 
+__all__ = [
+    "main",
+    "one_point_trajectory",
+]
+
 
 def one_point_trajectory(joint: str, deg: float, seconds: float) -> object:
     """A JointTrajectory taking ``joint`` to ``deg`` in ``seconds``."""

@@ -49,6 +49,24 @@ from busarm.twin.arena_tasks import (
     true_map_surfaces,
 )
 
+__all__ = [
+    "DELIVERED_M",
+    "MAP_TIME_S",
+    "MAX_WORKERS",
+    "PUT_DOWN_S",
+    "TARGET_DELIVERED",
+    "TARGET_GLOBAL_S",
+    "TARGET_HEADING_DEG",
+    "TARGET_LOCALISATION_M",
+    "TEACH_GUESS",
+    "VENDOR_GRASP_S",
+    "ArenaRun",
+    "TransportBenchReport",
+    "run_arena",
+    "run_transport_bench",
+]
+
+
 DELIVERED_M = 0.03
 TARGET_DELIVERED = 0.95
 TARGET_LOCALISATION_M = 0.03

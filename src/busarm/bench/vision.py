@@ -31,6 +31,23 @@ from busarm.vision.color import (
 )
 from busarm.vision.color_thresholds import ColorThresholds, default_thresholds
 
+__all__ = [
+    "MAX_MISMATCHES",
+    "TARGET_LOCATE_FPS",
+    "TARGET_SPEEDUP",
+    "Agreement",
+    "CountMismatch",
+    "Detect",
+    "DetectionReport",
+    "DistanceStats",
+    "VisionBenchReport",
+    "bench_detection",
+    "match_detections",
+    "run_vision_bench",
+    "twin_pictures",
+]
+
+
 TARGET_SPEEDUP = 2.0
 TARGET_LOCATE_FPS = 500.0
 MAX_MISMATCHES = 20

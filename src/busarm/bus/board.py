@@ -55,6 +55,18 @@ from busarm.protocol.board import (
 )
 from busarm.units import check_range, range_text
 
+__all__ = [
+    "BOARD_SERVO_WAIT_S",
+    "DEFAULT_MARGIN_S",
+    "DEFAULT_RETRIES",
+    "REPORT_MAX_DATA",
+    "SERVO_LINE_BAUDRATE",
+    "WHEEL_LIMIT_REV_S",
+    "BoardLink",
+    "BoardReadings",
+]
+
+
 SERVO_LINE_BAUDRATE = 115200
 """The servo line behind the board (the LX servos' rate)."""
 BOARD_SERVO_WAIT_S = 0.012

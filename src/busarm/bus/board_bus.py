@@ -55,6 +55,13 @@ from busarm.protocol.board import (
     ServoWrite,
 )
 
+__all__ = [
+    "SCAN_RETRIES",
+    "BoardServoBus",
+    "unsupported",
+]
+
+
 log = logging.getLogger(__name__)
 
 _READS: dict[Command, ServoSub] = {

@@ -38,6 +38,13 @@ from busarm.protocol import (
     encode_request,
 )
 
+__all__ = [
+    "NO_ECHO_HINT",
+    "STALE_REPLY_S",
+    "BusCore",
+]
+
+
 STALE_REPLY_S = 1.0
 """How long after a timeout its reply is still expected to turn up late."""
 NO_ECHO_HINT = "the replies look like the adapter does not echo: try --echo off (or auto)"

@@ -36,6 +36,16 @@ from busarm.protocol import (
 )
 from busarm.units import check_int_range, check_range
 
+__all__ = [
+    "DEFAULT_RETRIES",
+    "DEFAULT_TIMEOUT_MARGIN_S",
+    "EchoMode",
+    "ServoBus",
+    "open_bus",
+    "servo_bus_on",
+]
+
+
 log = logging.getLogger(__name__)
 
 DEFAULT_TIMEOUT_MARGIN_S = 0.004

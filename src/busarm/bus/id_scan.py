@@ -18,6 +18,14 @@ from busarm.errors import (
 )
 from busarm.protocol import MAX_SERVO_ID, Command, FrameParser, check_servo_id, encode_request
 
+__all__ = [
+    "CONFLICT_PROBES",
+    "SCAN_MARGIN_S",
+    "IdScan",
+    "ScanResult",
+]
+
+
 CONFLICT_PROBES = 3
 """Position reads that decide whether a garbled ID is two servos or line noise."""
 SCAN_MARGIN_S = 0.0012

@@ -20,6 +20,17 @@ from busarm.errors import (
 )
 from busarm.protocol import Command
 
+__all__ = [
+    "CUT_SHORT_HINT",
+    "DAMAGED_HINT",
+    "LATE_HINT",
+    "QUIET_HINT",
+    "LineSighting",
+    "final_error",
+    "unexplained_error",
+]
+
+
 CUT_SHORT_HINT = ("bytes are lost on the line, or the replies come late: check the cabling and "
                   "its connectors, and a USB adapter's latency timer (`busarm ports`)")
 DAMAGED_HINT = ("bytes are lost or corrupted on the line: check the cabling and its connectors, "

@@ -26,6 +26,12 @@ from busarm.units import (
     pulses_from_deg,
 )
 
+__all__ = [
+    "WAIT_SLACK_S",
+    "ServoMotion",
+]
+
+
 WAIT_SLACK_S = 2.0
 """wait_until_reached's default allowance beyond the end of the commanded move."""
 

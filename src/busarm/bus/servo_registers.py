@@ -37,6 +37,11 @@ from busarm.units import (
     pulses_from_deg,
 )
 
+__all__ = [
+    "ServoRegisters",
+    "ServoState",
+]
+
 
 @dataclass(frozen=True)
 class ServoState:

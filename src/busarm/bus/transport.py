@@ -30,6 +30,23 @@ from typing import Any, Protocol, runtime_checkable
 from busarm.clock import WALL_CLOCK, Clock
 from busarm.errors import ConfigError, TransportError
 
+__all__ = [
+    "BOARD_BAUDRATE",
+    "BOARD_PREFIX",
+    "BOARD_SCHEMES",
+    "DEFAULT_BAUDRATE",
+    "SYSFS",
+    "TRANSPORT_SCHEMES",
+    "SerialTransport",
+    "Transport",
+    "adapter_latency_s",
+    "board_target",
+    "check_device",
+    "open_transport",
+    "usb_latency_timer_ms",
+]
+
+
 DEFAULT_BAUDRATE = 115200
 
 BOARD_BAUDRATE = 1_000_000

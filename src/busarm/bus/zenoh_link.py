@@ -38,6 +38,20 @@ from busarm.errors import BusArmError, ConfigError, TransportError
 if TYPE_CHECKING:
     import zenoh
 
+__all__ = [
+    "DEFAULT_ROBOT",
+    "LINK_MARGIN_S",
+    "SCHEME",
+    "BusServer",
+    "Check",
+    "ZenohTransport",
+    "bus_key",
+    "client_key",
+    "open_zenoh_transport",
+    "parse_zenoh_port",
+]
+
+
 SCHEME = "zenoh://"
 DEFAULT_ROBOT = "busarm"
 _TIMED = struct.Struct("<d")

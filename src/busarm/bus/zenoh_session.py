@@ -25,6 +25,20 @@ from busarm.errors import ConfigError, TransportError
 if TYPE_CHECKING:
     import zenoh
 
+__all__ = [
+    "DEFAULT_ENDPOINT",
+    "DEFAULT_PORT",
+    "LEASE_MS",
+    "TOKEN_ENV",
+    "TOKEN_USER",
+    "endpoint_host",
+    "is_loopback",
+    "need_zenoh",
+    "open_session",
+    "session_config",
+]
+
+
 DEFAULT_PORT = 7447
 """Zenoh's port, and rmw_zenoh's router's."""
 DEFAULT_ENDPOINT = f"tcp/127.0.0.1:{DEFAULT_PORT}"

@@ -4,3 +4,5 @@
 module adds a few commands (``bus_cmds``, ``servo_cmds``, ``config_cmds``,
 ``proto_cmds``, ``sim_cmds``, ``demo``).
 """
+
+__all__: list[str] = []

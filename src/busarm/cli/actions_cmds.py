@@ -26,6 +26,14 @@ from busarm.cli.common import (
 )
 from busarm.errors import ConfigError
 
+__all__ = [
+    "COMMANDS",
+    "actions",
+    "play",
+    "record",
+    "show",
+]
+
 
 @click.group()
 @arm_options

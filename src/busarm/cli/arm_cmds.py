@@ -52,6 +52,29 @@ from busarm.cli.common import (
 from busarm.errors import CalibrationError, ConfigError
 from busarm.units import DEG_PER_PULSE
 
+__all__ = [
+    "COMMANDS",
+    "DEFAULT_CALIBRATION_OUT",
+    "DEG",
+    "DURATION",
+    "JOINT_SPEED",
+    "LINE_SPEED",
+    "MM",
+    "arm",
+    "calibrate",
+    "fk",
+    "gripper",
+    "home",
+    "ik",
+    "ik_batch",
+    "move_joints",
+    "move_to",
+    "pose",
+    "urdf",
+    "workspace",
+]
+
+
 MM = RangeType("coordinate", -2000.0, 2000.0, "mm")
 DEG = RangeType("angle", -360.0, 360.0, "deg")
 JOINT_SPEED = RangeType("speed", 0.1, 1000.0, "deg/s")

@@ -23,6 +23,18 @@ from busarm.errors import ConfigError
 from busarm.fileio import robot_folder
 from busarm.units import check_range, fixed_number, listing, shown
 
+__all__ = [
+    "JOINTS_KEYS",
+    "TARGET_KEYS",
+    "check_gap_mm",
+    "gap_report",
+    "joints_from_json",
+    "joints_in",
+    "joints_to_move",
+    "parse_gripper_target",
+    "target_in",
+]
+
 
 def joints_to_move(config: ArmConfig, port: str, joints: tuple[float, ...],
                    pose_name: str | None, json_source: str | None) -> tuple[float, ...]:

@@ -14,6 +14,18 @@ from busarm.base.config import DEFAULT_CHASSIS, load_chassis_config
 from busarm.base.kinematics import MecanumKinematics, Twist
 from busarm.cli.common import RangeType, Settings, pass_settings
 
+__all__ = [
+    "COMMANDS",
+    "NEGATIVE_OK",
+    "base",
+    "chassis_option",
+    "drive",
+    "move_by",
+    "odom",
+    "stop",
+]
+
+
 chassis_option = click.option(
     "--chassis", default=DEFAULT_CHASSIS, show_default=True,
     help="The chassis config: a shipped name (jetauto) or a TOML file.")

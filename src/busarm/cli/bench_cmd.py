@@ -35,6 +35,23 @@ if TYPE_CHECKING:
     from busarm.bench.transport import TransportBenchReport
     from busarm.bench.vision import VisionBenchReport
 
+__all__ = [
+    "TARGET_CPU_US",
+    "TARGET_RATIO",
+    "TARGET_SCAN_S",
+    "bench",
+    "bench_dashboard",
+    "bench_ik",
+    "bench_line",
+    "bench_locate",
+    "bench_mobile",
+    "bench_pick",
+    "bench_ros",
+    "bench_transport",
+    "bench_vision",
+]
+
+
 TARGET_RATIO = 0.90
 TARGET_SCAN_S = 1.0
 TARGET_CPU_US = 30.0

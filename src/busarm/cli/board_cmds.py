@@ -17,6 +17,15 @@ from busarm.cli.common import RangeType, Settings, pass_settings
 from busarm.protocol.board import ImuSample
 from busarm.units import fixed_number
 
+__all__ = [
+    "COMMANDS",
+    "SAMPLE_S",
+    "beep",
+    "board",
+    "info",
+]
+
+
 SAMPLE_S = 1.0
 """How long `board info` listens to the board's reports (to measure their rate)."""
 

@@ -20,6 +20,15 @@ from busarm.cli.common import (
 from busarm.errors import BusTimeoutError
 from busarm.protocol import MAX_SERVO_ID
 
+__all__ = [
+    "COMMANDS",
+    "SERVO_ADAPTERS",
+    "monitor",
+    "ports",
+    "scan",
+]
+
+
 # USB-serial chips found on LX servo adapters (BusLinker boards, one-wire adapters, HATs).
 SERVO_ADAPTERS: dict[tuple[int, int], str] = {
     (0x1A86, 0x7523): "CH340",

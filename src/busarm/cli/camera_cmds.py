@@ -30,6 +30,15 @@ from busarm.errors import CalibrationError, ConfigError
 if TYPE_CHECKING:
     from busarm.robot.calibration_store import CalibrationStore, MadeFor
 
+__all__ = [
+    "COMMANDS",
+    "INTRINSIC_BOARDS",
+    "calibrate",
+    "camera",
+    "handeye",
+]
+
+
 INTRINSIC_BOARDS = ("chessboard", "charuco")
 
 def _confirm(yes: bool, on_twin: bool) -> Any:

@@ -31,6 +31,17 @@ from busarm.units import (
     pulses_from_deg,
 )
 
+__all__ = [
+    "COMMANDS",
+    "OFFSET",
+    "VOLTAGE",
+    "AlarmsType",
+    "led",
+    "limits",
+    "offset",
+]
+
+
 OFFSET = AngleType(OFFSET_MIN_PULSES * DEG_PER_PULSE, OFFSET_MAX_PULSES * DEG_PER_PULSE)
 VOLTAGE = RangeType("voltage", 4.5, 12.0, "V")
 

@@ -26,6 +26,12 @@ if TYPE_CHECKING:
     from busarm.dashboard.access import Access
     from busarm.dashboard.mobile import MobileSetup
 
+__all__ = [
+    "COMMANDS",
+    "dashboard",
+]
+
+
 @click.command()
 @scene_options
 @click.option("--camera", "camera_src", default=None,

@@ -18,6 +18,17 @@ from busarm.cli.common import Settings, pass_settings, scan_report, scan_with_pr
 from busarm.cli.text import number
 from busarm.protocol import MAX_SERVO_ID
 
+__all__ = [
+    "ABOVE_MM",
+    "COMMANDS",
+    "GRASP_MM",
+    "PICK",
+    "PLACE",
+    "PLACE_MM",
+    "demo",
+]
+
+
 PICK = (200.0, -110.0)
 PLACE = (190.0, 120.0)
 ABOVE_MM = 80.0

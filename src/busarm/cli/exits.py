@@ -12,6 +12,15 @@ from __future__ import annotations
 
 import click
 
+__all__ = [
+    "EXIT_BAD_INPUT",
+    "EXIT_FAILED",
+    "EXIT_INTERRUPTED",
+    "EXIT_OUTPUT_CLOSED",
+    "JobNotDone",
+]
+
+
 EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130

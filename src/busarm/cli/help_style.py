@@ -11,6 +11,17 @@ from collections.abc import Iterator, Sequence
 
 import click
 
+__all__ = [
+    "UNIT_METAVARS",
+    "OneStyleContext",
+    "OneStyleFormatter",
+    "apply",
+    "metavar_from_help",
+    "one_bracket",
+    "unit_metavar",
+]
+
+
 _EXTRAS = re.compile(r"\s*\[((?:env var|default|required|-?[\d.]+<=x|x[<>]=?)[^\[\]]*)\]")
 """A bracket of extras, click's or one written in the help text."""
 _RANGE = re.compile(r"^(-?[\d.]+)<=x<=(-?[\d.]+)$")

@@ -15,6 +15,15 @@ import click
 
 from busarm.cli.common import RangeType, lidar_port_or_default, serve_until_stopped
 
+__all__ = [
+    "COMMANDS",
+    "LIDAR_OPTION",
+    "lidar",
+    "scan",
+    "serve",
+]
+
+
 LIDAR_OPTION = click.option(
     "--lidar", "lidar_port", default=None, envvar="BUSARM_LIDAR",
     help="The Lidar's serial port (e.g. /dev/ttyUSB1, its own, not the servo bus's --port; "

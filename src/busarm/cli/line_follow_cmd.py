@@ -42,6 +42,15 @@ if TYPE_CHECKING:
     from busarm.apps.line_follow import LineFollowReport
     from busarm.robot import Robot
 
+__all__ = [
+    "COMMANDS",
+    "DEFAULT_COLORS",
+    "DEFAULT_REPORT",
+    "line_follow",
+    "parse_clear_colors",
+]
+
+
 DEFAULT_REPORT = "line-follow-report"
 DEFAULT_COLORS = "red,green,blue"
 

@@ -16,6 +16,15 @@ if TYPE_CHECKING:
     from busarm.robot import Robot
     from busarm.robot.calibration_store import CalibrationStore
 
+__all__ = [
+    "DEFAULT_PORT",
+    "Table",
+    "open_live_robot",
+    "realtime_port",
+    "twin_store_port",
+]
+
+
 DEFAULT_PORT = "twin://?realtime=1"
 
 

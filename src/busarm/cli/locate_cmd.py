@@ -21,6 +21,12 @@ from busarm.cli.common import (
 )
 from busarm.cli.text import number
 
+__all__ = [
+    "BLOCK",
+    "locate",
+]
+
+
 BLOCK = RangeType("block size", 10.0, 60.0, "mm")
 
 

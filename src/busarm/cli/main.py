@@ -56,6 +56,15 @@ from busarm.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_INTERRUPTED, EXIT
 from busarm.cli.stopping import new_command, servos_note
 from busarm.errors import BusArmError, ConfigError
 
+__all__ = [
+    "EXIT_BUS_ERROR",
+    "INPUT_ENDED",
+    "BusArmGroup",
+    "cli",
+    "main",
+]
+
+
 EXIT_BUS_ERROR = EXIT_FAILED
 INPUT_ENDED = ("the input ended (end of file) before the question was answered: run it at a "
                "terminal, or with --yes")

@@ -17,6 +17,14 @@ from busarm.cli.common import (
     pass_settings,
 )
 
+__all__ = [
+    "COMMANDS",
+    "build",
+    "map_group",
+    "point",
+    "show",
+]
+
 
 @click.group("map")
 def map_group() -> None:

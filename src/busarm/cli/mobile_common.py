@@ -21,6 +21,14 @@ if TYPE_CHECKING:
     from busarm.robot import Robot
     from busarm.twin.arena import Arena
 
+__all__ = [
+    "MAX_SEED",
+    "arena_from_spec",
+    "mobile_options",
+    "open_mobile_robot",
+]
+
+
 MAX_SEED = 2**32 - 1
 
 

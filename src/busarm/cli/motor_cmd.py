@@ -30,6 +30,14 @@ from busarm.errors import LimitError
 from busarm.protocol import Command
 from busarm.units import MOTOR_SPEED_MAX, check_int_range
 
+__all__ = [
+    "COMMANDS",
+    "POLL_S",
+    "MotorSpeedType",
+    "motor",
+]
+
+
 POLL_S = 0.2
 """While it turns, the servo is asked for its mode this often: one that stops answering
 ends the command (with an error, and the stop)."""

@@ -26,6 +26,19 @@ from click.core import ParameterSource
 
 from busarm.cli.common import ArmContext, Settings, metavar_from_help
 
+__all__ = [
+    "ARM_ENVVAR",
+    "ARM_NAMES",
+    "GLOBAL_NAMES",
+    "Callback",
+    "accept_everywhere",
+    "explain",
+    "log_verbosely",
+    "name_numbers",
+    "walk",
+]
+
+
 GLOBAL_NAMES = ("port", "baudrate", "echo", "timeout_margin_ms", "retries", "verbose")
 """The root options that commands accept after themselves too."""
 ARM_NAMES = ("config", "calibration")

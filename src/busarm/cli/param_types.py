@@ -25,6 +25,27 @@ from busarm.units import (
 if TYPE_CHECKING:
     from busarm.base.odometry import Pose2D
 
+__all__ = [
+    "ANGLE",
+    "ID_LIST",
+    "MOVE_TIME",
+    "NUMBER_ARGS",
+    "POSE",
+    "SERVO_ID",
+    "SPEED",
+    "AngleType",
+    "CheckedType",
+    "IdListType",
+    "PoseType",
+    "RangeType",
+    "ServoIdType",
+    "angle_list",
+    "parse_float_list",
+    "parse_int",
+    "parse_pose",
+]
+
+
 NUMBER_ARGS = {"ignore_unknown_options": True}
 """Context settings that let negative numbers through as arguments (``arm fk 0 -90 0``)."""
 

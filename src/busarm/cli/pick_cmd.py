@@ -38,6 +38,15 @@ if TYPE_CHECKING:
     from busarm.apps.pick_sort import RunReport
     from busarm.robot import Robot
 
+__all__ = [
+    "COMMANDS",
+    "DEFAULT_REPORT",
+    "parse_bins",
+    "parse_survey",
+    "pick_sort",
+]
+
+
 DEFAULT_REPORT = "pick-sort-report"
 
 

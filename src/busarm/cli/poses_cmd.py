@@ -15,6 +15,10 @@ from rich.table import Table
 from busarm.arm.named_poses import delete_pose, list_poses, poses_file
 from busarm.cli.common import ArmContext, pass_arm, robot_folder
 
+__all__ = [
+    "poses",
+]
+
 
 @click.command()
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")

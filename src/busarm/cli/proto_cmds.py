@@ -21,6 +21,15 @@ from busarm.protocol import (
 from busarm.protocol.board import BoardFrameParser
 from busarm.protocol.board.describe import describe_board_frame
 
+__all__ = [
+    "COMMANDS",
+    "decode",
+    "decode_lines",
+    "encode",
+    "parse_hex",
+]
+
+
 _SEPARATORS = re.compile(r"\\x|(?<![0-9a-fA-F])0[xX]|[\s,:;]+")
 
 

@@ -29,6 +29,17 @@ from busarm.errors import ConfigError
 if TYPE_CHECKING:
     import zenoh
 
+__all__ = [
+    "COMMANDS",
+    "DEFAULT_ENDPOINT",
+    "bridge",
+    "echo",
+    "record",
+    "ros",
+    "topics",
+]
+
+
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
 

@@ -10,6 +10,10 @@ from rich.table import Table
 from busarm.arm.action_samples import SAMPLES, read_sample, sample_names
 from busarm.cli.common import ArmContext, pass_arm
 
+__all__ = [
+    "samples_list",
+]
+
 
 @click.command("list")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")

@@ -45,6 +45,20 @@ from busarm.protocol import (
 )
 from busarm.units import pulses_from_deg
 
+__all__ = [
+    "COMMANDS",
+    "DEFAULT_MOVE_TIME_S",
+    "INFO_FIELDS",
+    "WAIT_SLACK_S",
+    "info",
+    "info_rows",
+    "move",
+    "set_id",
+    "stop",
+    "torque",
+]
+
+
 DEFAULT_MOVE_TIME_S = 1.0
 WAIT_SLACK_S = 2.0
 """--wait allows the move's duration plus this before giving up."""

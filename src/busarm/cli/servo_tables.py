@@ -24,6 +24,21 @@ from busarm.bus.id_scan import ScanResult
 from busarm.errors import BusTimeoutError, ProtocolError
 from busarm.protocol import AlarmFlag
 
+__all__ = [
+    "BAD_REPLY",
+    "NOT_HERE",
+    "NO_REPLY",
+    "alarm_names",
+    "fmt",
+    "scan_progress",
+    "scan_report",
+    "scan_with_progress",
+    "state_row",
+    "state_table",
+    "try_read",
+]
+
+
 T = TypeVar("T")
 
 NO_REPLY = "no reply"

@@ -31,6 +31,19 @@ from busarm.bus.transport import board_target
 from busarm.errors import ConfigError
 from busarm.fileio import write_text_atomic
 
+__all__ = [
+    "FORMAT_NAME",
+    "FORMAT_VERSION",
+    "KINDS",
+    "RUNTIME_DIR_ENV",
+    "Session",
+    "announced",
+    "find_session",
+    "running_sessions",
+    "runtime_dir",
+]
+
+
 FORMAT_NAME = "busarm-session"
 FORMAT_VERSION = 1
 KINDS = ("sim", "twin")

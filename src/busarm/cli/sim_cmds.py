@@ -25,6 +25,14 @@ from busarm.units import parse_ids
 if TYPE_CHECKING:
     pass
 
+__all__ = [
+    "COMMANDS",
+    "PROBABILITY",
+    "SimIdsType",
+    "serve",
+    "sim",
+]
+
 
 class SimIdsType(CheckedType):
     """Servo IDs for the simulator; a repeated ID puts two servos on it (a conflict)."""

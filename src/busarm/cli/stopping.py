@@ -18,6 +18,29 @@ from busarm.bus.driver import ServoBus
 from busarm.errors import BusArmError
 from busarm.protocol import ServoMode
 
+__all__ = [
+    "DONE_WITH_THEM",
+    "HOLDING",
+    "LIMP",
+    "NOTHING_WRITTEN",
+    "SILENT",
+    "STOP_SENT",
+    "add_detail",
+    "details",
+    "halt_motor",
+    "id_text",
+    "marking_the_stop",
+    "new_command",
+    "no_servos",
+    "report_line",
+    "servos_note",
+    "stop_and_read_back",
+    "stop_motors",
+    "torque_text",
+    "unwritten_text",
+]
+
+
 NOTHING_WRITTEN = "nothing was written to the servos"
 DONE_WITH_THEM = ("after the command was done with the servos (nothing was sent to them "
                   "since; they do what it left them doing)")

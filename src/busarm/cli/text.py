@@ -12,6 +12,15 @@ from collections.abc import Iterable, Sequence
 from busarm.arm.gripper import GripperState
 from busarm.units import fixed_number, place_text
 
+__all__ = [
+    "gripper",
+    "joints",
+    "number",
+    "place",
+    "pose",
+    "quantity",
+]
+
 
 def number(value: float, digits: int = 1) -> str:
     """``value`` with ``digits`` decimals, never ``-0.0`` (nor ``nan`` as a number): the

@@ -32,6 +32,14 @@ if TYPE_CHECKING:
     from busarm.nav.points import NamedPoints
     from busarm.robot import Robot
 
+__all__ = [
+    "COMMANDS",
+    "DEFAULT_REPORT",
+    "ON_A_ROBOT",
+    "transport",
+]
+
+
 DEFAULT_REPORT = "transport-report"
 ON_A_ROBOT = ("on a robot, give --map MAP.yaml (made by `busarm map build`) and --points FILE "
               "(where to pick and place)")

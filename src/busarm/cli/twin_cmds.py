@@ -31,6 +31,14 @@ if TYPE_CHECKING:
     from busarm.twin.twin import Twin
     from busarm.vision.camera import UInt8Image
 
+__all__ = [
+    "COMMANDS",
+    "scene",
+    "serve",
+    "snapshot",
+    "twin",
+]
+
 
 @click.group()
 def twin() -> None:

@@ -23,6 +23,15 @@ if TYPE_CHECKING:
     from busarm.vision.color_thresholds import ColorThresholds
     from busarm.vision.tags import TagDetection
 
+__all__ = [
+    "AREA",
+    "COMMANDS",
+    "DEFAULT_MIN_AREA_PX",
+    "detect",
+    "vision",
+]
+
+
 DEFAULT_MIN_AREA_PX = 200.0
 """Same as busarm.vision.color.DEFAULT_MIN_AREA_PX (kept here to avoid importing OpenCV)."""
 AREA = RangeType("area", 0.0, 1e9, "px")

@@ -22,6 +22,14 @@ from urllib.parse import urlsplit
 
 from busarm.errors import ConfigError
 
+__all__ = [
+    "COOKIE",
+    "LOOPBACK_NAMES",
+    "Access",
+    "is_loopback",
+]
+
+
 COOKIE = "busarm_token"
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "[::1]", "::1")
 

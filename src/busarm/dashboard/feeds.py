@@ -24,6 +24,19 @@ from busarm.vision.camera import CameraSource
 from busarm.vision.color import ColorDetector, Detection
 from busarm.vision.color_thresholds import default_thresholds
 
+__all__ = [
+    "DEFAULT_FPS",
+    "DETECT_EVERY",
+    "IDLE_STOP_S",
+    "JPEG_QUALITY",
+    "OVERVIEW_FPS",
+    "Feed",
+    "Image",
+    "block_boxes",
+    "robot_feeds",
+]
+
+
 log = logging.getLogger(__name__)
 
 Image = npt.NDArray[np.uint8]

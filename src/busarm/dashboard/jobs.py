@@ -21,6 +21,14 @@ from busarm.dashboard.protocol import PickSort
 from busarm.errors import BusArmError, HaltedError
 from busarm.robot import Robot
 
+__all__ = [
+    "gripper",
+    "move_pose",
+    "pick_sort",
+    "play",
+    "report_folder",
+]
+
 
 def move_pose(arm: Arm, pose: NamedPose) -> str:
     seconds = arm.move_joints(pose.joints_deg)

@@ -17,6 +17,17 @@ from busarm.arm.config import ArmConfig
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import KinematicsError
 
+__all__ = [
+    "EDGE_DEG",
+    "JOINT_JOG_DEG_S",
+    "MAX_LEAD_S",
+    "PITCH_JOG_DEG_S",
+    "TOOL_JOG_MM_S",
+    "JogPlan",
+    "JogStep",
+]
+
+
 JOINT_JOG_DEG_S = 30.0
 """A joint jog's speed at full speed (1.0), capped by the joint's own limit."""
 TOOL_JOG_MM_S = 40.0

@@ -26,6 +26,16 @@ from busarm.nav.grid import OccupancyGrid
 from busarm.nav.map_picture import map_picture
 from busarm.vision.annotate import draw_label, label_size
 
+__all__ = [
+    "EMPTY_PX",
+    "MAP_PERIOD_S",
+    "Image",
+    "MapScene",
+    "MapView",
+    "Point",
+]
+
+
 Image = npt.NDArray[np.uint8]
 Point = tuple[float, float]
 

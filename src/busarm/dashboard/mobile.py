@@ -55,6 +55,17 @@ if TYPE_CHECKING:
     from busarm.apps.nav_sensing import SensedScan
     from busarm.apps.navigator import Navigator
 
+__all__ = [
+    "ARENA_POINTS",
+    "CANVAS_MARGIN_M",
+    "CANVAS_RESOLUTION_M",
+    "EXPLORE_LIMIT_S",
+    "MobileJobs",
+    "MobileSetup",
+    "block_colors",
+]
+
+
 EXPLORE_LIMIT_S = 300.0
 """The longest a transport's exploring of the arena may take (the command line's)."""
 CANVAS_MARGIN_M = 1.0

@@ -49,6 +49,34 @@ from typing import Any
 
 from busarm.errors import ConfigError
 
+__all__ = [
+    "DEFAULT_CLEAR_COLORS",
+    "GRIPPER_ACTIONS",
+    "JOG_AXES",
+    "LAPS_RANGE",
+    "LINE_SPEED_RANGE_M_S",
+    "MAX_MESSAGE_BYTES",
+    "MIN_JOG_SPEED",
+    "NAME_CHARS",
+    "PICK_ORDERS",
+    "RECORD_ACTIONS",
+    "Drive",
+    "Gripper",
+    "Jog",
+    "LineFollow",
+    "Named",
+    "NavTransport",
+    "PickSort",
+    "Record",
+    "Request",
+    "RequestError",
+    "Torque",
+    "message",
+    "parse_request",
+    "request_type",
+]
+
+
 MAX_MESSAGE_BYTES = 4096
 """A request longer than this is refused unread (no request needs more)."""
 JOG_AXES = ("x", "y", "z", "pitch")

@@ -41,6 +41,18 @@ from busarm.dashboard.protocol import message, parse_request, request_type
 from busarm.dashboard.service import RobotService
 from busarm.errors import BusArmError, ConfigError
 
+__all__ = [
+    "OUTBOX",
+    "STATIC",
+    "STATIC_TYPES",
+    "Delivered",
+    "ServerThread",
+    "bind_socket",
+    "make_app",
+    "serve",
+]
+
+
 log = logging.getLogger(__name__)
 
 STATIC = resources.files("busarm.dashboard") / "static"

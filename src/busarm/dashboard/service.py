@@ -58,6 +58,17 @@ from busarm.fileio import robot_folder
 from busarm.robot import Robot
 from busarm.robot.state import StateReader
 
+__all__ = [
+    "CONTROL_PERIOD_S",
+    "JOB_STOP_WAIT_S",
+    "JOG_HOLD_S",
+    "LOG_LINES",
+    "WATCH_PERIOD_S",
+    "Publish",
+    "RobotService",
+]
+
+
 log = logging.getLogger(__name__)
 
 CONTROL_PERIOD_S = 0.04

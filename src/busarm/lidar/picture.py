@@ -14,6 +14,14 @@ from busarm.errors import ConfigError
 from busarm.fileio import write_bytes_atomic
 from busarm.lidar.scan import LaserScan
 
+__all__ = [
+    "SIZE_PX",
+    "Image",
+    "render_scan",
+    "write_scan_png",
+]
+
+
 SIZE_PX = 640
 _MARGIN_PX = 50
 _CAPTION_PX = 46

@@ -111,6 +111,11 @@ class RplidarA1:
             self._set_motor(False)
             raise
 
+    def __repr__(self) -> str:
+        major, minor = self.info.firmware
+        return (f"RplidarA1({self.name}, firmware {major}.{minor:02d}, health "
+                f"{self.health.status.name}{', closed' if self._closed else ''})")
+
     # ------------------------------------------------------------------ public
 
     def read_scan(self, timeout_s: float = 1.0) -> LaserScan:

@@ -20,6 +20,14 @@ from busarm.errors import ConfigError
 if TYPE_CHECKING:
     from busarm.base.config import Mount
 
+__all__ = [
+    "FloatArray",
+    "LaserScan",
+    "LidarSource",
+    "to_points",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 
 
@@ -62,6 +70,11 @@ class LaserScan:
 
     def __len__(self) -> int:
         return len(self.angles_rad)
+
+    def __repr__(self) -> str:
+        rate = "" if math.isnan(self.rate_hz) else f", {self.rate_hz:.1f} Hz"
+        return (f"LaserScan({len(self)} beams, {int(self.valid.sum())} returns, "
+                f"{self.range_min_m:g}..{self.range_max_m:g} m, at {self.stamp_s:.3f} s{rate})")
 
     @property
     def valid(self) -> npt.NDArray[np.bool_]:

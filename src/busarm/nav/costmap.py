@@ -25,6 +25,17 @@ from busarm.nav.grid import GridSpec, OccupancyGrid
 from busarm.nav.map_files import FREE_THRESH
 from busarm.units import check_range
 
+__all__ = [
+    "INFLATION_COST",
+    "INFLATION_M",
+    "ROBOT_RADIUS_M",
+    "BoolArray",
+    "Costmap",
+    "FloatArray",
+    "footprint_kernel",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 

@@ -29,6 +29,18 @@ from busarm.base.odometry import Pose2D, wrap_rad
 from busarm.errors import ConfigError
 from busarm.units import check_range
 
+__all__ = [
+    "CORNER_RAD",
+    "YAW_GAIN_PER_S",
+    "FloatArray",
+    "FollowerSettings",
+    "PathFollower",
+    "Point",
+    "blocked",
+    "sweep_m",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 Point = tuple[float, float]
 

@@ -15,6 +15,19 @@ import numpy.typing as npt
 from busarm.nav.grid import OccupancyGrid
 from busarm.units import check_range
 
+__all__ = [
+    "FREE_LOG_ODDS",
+    "GAP_CELLS",
+    "MIN_FRONTIER_M",
+    "FloatArray",
+    "Frontier",
+    "find_frontiers",
+    "gaps_filled",
+    "known_free",
+    "unknown",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 FREE_LOG_ODDS = -0.2
 """A cell below this is free (one beam through it puts it at -0.4)."""

@@ -23,6 +23,18 @@ from busarm.base.odometry import Pose2D
 from busarm.errors import ConfigError
 from busarm.units import check_range
 
+__all__ = [
+    "CLAMP_LOG_ODDS",
+    "HIT_LOG_ODDS",
+    "MAX_CELLS",
+    "MISS_LOG_ODDS",
+    "FloatArray",
+    "GridSpec",
+    "OccupancyGrid",
+    "cropped",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 
 HIT_LOG_ODDS = 0.85

@@ -34,6 +34,21 @@ from busarm.base.odometry import Pose2D
 from busarm.nav.mapping import transform_points
 from busarm.units import check_range
 
+__all__ = [
+    "FIT_RADIUS_M",
+    "MEMORY_M",
+    "MIN_POINTS",
+    "UNDER_M",
+    "WEIGHT_M",
+    "FloatArray",
+    "LineController",
+    "LineTracker",
+    "LineUnderBase",
+    "in_stop_range",
+    "obstacle_ahead",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 MEMORY_M = 1.0
 """Line points farther than this from the base are forgotten."""

@@ -30,6 +30,22 @@ from busarm.nav.mapping import MIN_MATCHED_SHARE, compose, inverse
 from busarm.nav.scan_match import SIGMA_M, LikelihoodField, match_scan, scan_points
 from busarm.units import check_int_range, check_range
 
+__all__ = [
+    "BROAD_SIGMA_M",
+    "CLUSTER_BIN_M",
+    "CLUSTER_FLOOR",
+    "FIT_SAMPLE",
+    "GOOD_FIT",
+    "INDEPENDENT_BEAMS",
+    "INJECT_MIN",
+    "SHARP_SIGMA_M",
+    "FloatArray",
+    "MotionNoise",
+    "ParticleFilter",
+    "PoseEstimate",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 
 Z_HIT, Z_RAND = 0.95, 0.05
@@ -88,6 +104,12 @@ class PoseEstimate:
     matched_share: float
     """Share of the latest scan's returns within NEAR_M of a mapped surface at ``pose`` (0
     when no scan came since the last start or motion)."""
+
+    def __repr__(self) -> str:
+        sd_m = math.sqrt(max(float(self.covariance[0, 0] + self.covariance[1, 1]), 0.0))
+        sd_deg = math.degrees(math.sqrt(max(float(self.covariance[2, 2]), 0.0)))
+        return (f"PoseEstimate({self.pose!r}, {'converged' if self.converged else 'searching'}, "
+                f"spread {sd_m:.3f} m {sd_deg:.1f} deg, matched {self.matched_share:.2f})")
 
 
 class ParticleFilter:

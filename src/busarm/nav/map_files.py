@@ -22,6 +22,16 @@ from busarm.errors import ConfigError
 from busarm.fileio import atomic_path, write_text_atomic
 from busarm.nav.grid import CLAMP_LOG_ODDS, GridSpec, OccupancyGrid
 
+__all__ = [
+    "FREE_THRESH",
+    "OCCUPIED_THRESH",
+    "grid_pixels",
+    "load_map",
+    "read_pgm",
+    "save_map",
+]
+
+
 OCCUPIED_THRESH = 0.65
 FREE_THRESH = 0.196
 PIXEL_OCCUPIED, PIXEL_FREE, PIXEL_UNKNOWN = 0, 254, 205

@@ -15,6 +15,18 @@ from busarm.base.odometry import Pose2D
 from busarm.nav.grid import OccupancyGrid
 from busarm.nav.map_files import grid_pixels
 
+__all__ = [
+    "AXIS_M",
+    "MIN_SIDE_PX",
+    "PATH_BGR",
+    "PLAN_BGR",
+    "POSE_BGR",
+    "POSE_RADIUS_M",
+    "Point",
+    "map_picture",
+]
+
+
 MIN_SIDE_PX = 600
 AXIS_M = 0.5
 Point = tuple[float, float]

@@ -20,6 +20,19 @@ from busarm.base.odometry import Pose2D, wrap_rad
 from busarm.nav.grid import GridSpec, OccupancyGrid, cropped
 from busarm.nav.scan_match import LikelihoodField, match_scan
 
+__all__ = [
+    "FIELD_MARGIN_M",
+    "INSERT_MOVED_M",
+    "INSERT_TURNED_RAD",
+    "MATCH_SIGMA_M",
+    "MIN_MATCHED_SHARE",
+    "MapBuilder",
+    "compose",
+    "inverse",
+    "transform_points",
+]
+
+
 MIN_MATCHED_SHARE = 0.5
 """A correction is taken only if at least this share of the returns lands on the map."""
 FIELD_MARGIN_M = 0.5

@@ -22,6 +22,18 @@ import numpy.typing as npt
 from busarm.errors import BusArmError, ConfigError
 from busarm.nav.costmap import Costmap, FloatArray
 
+__all__ = [
+    "ESCAPE_COST",
+    "NoPath",
+    "Point",
+    "path_length_m",
+    "plan_path",
+    "segment_cells",
+    "segment_cost",
+    "shortcut",
+]
+
+
 Point = tuple[float, float]
 
 ESCAPE_COST = 10.0

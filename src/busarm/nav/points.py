@@ -32,6 +32,24 @@ from busarm.errors import ConfigError
 from busarm.fileio import write_text_atomic
 from busarm.tomlfile import TomlReader, parse_toml, toml_string
 
+__all__ = [
+    "COORD_LIMIT_M",
+    "FORMAT_NAME",
+    "FORMAT_VERSION",
+    "NAME_RULE",
+    "POINT_KEYS",
+    "SURFACE_M",
+    "WORK_AHEAD_M",
+    "NamedPoint",
+    "NamedPoints",
+    "check_point_name",
+    "load_points",
+    "points_from_toml",
+    "points_to_toml",
+    "save_points",
+]
+
+
 FORMAT_NAME = "busarm.points"
 FORMAT_VERSION = 1
 COORD_LIMIT_M = 1000.0

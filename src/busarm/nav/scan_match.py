@@ -19,6 +19,18 @@ import numpy.typing as npt
 from busarm.base.odometry import Pose2D, wrap_rad
 from busarm.nav.grid import OccupancyGrid
 
+__all__ = [
+    "NEAR_M",
+    "OCCUPIED_P",
+    "SIGMA_M",
+    "FloatArray",
+    "LikelihoodField",
+    "Match",
+    "match_scan",
+    "scan_points",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 
 SIGMA_M = 0.05

@@ -12,6 +12,22 @@ from enum import IntEnum, IntFlag
 
 from busarm.errors import ConfigError
 
+__all__ = [
+    "BROADCAST_ID",
+    "HEADER",
+    "MAX_SERVO_ID",
+    "SAVED_ON_POWER_OFF",
+    "SERVO_TURNAROUND_S",
+    "SPECS",
+    "VALID_LENGTHS",
+    "AlarmFlag",
+    "Command",
+    "CommandSpec",
+    "Field",
+    "ServoMode",
+]
+
+
 BROADCAST_ID = 254
 """Every servo obeys a frame to ID 254; only ID_READ is answered."""
 MAX_SERVO_ID = 253

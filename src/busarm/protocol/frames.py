@@ -24,6 +24,38 @@ from busarm.protocol.commands import (
 )
 from busarm.units import DEG_PER_PULSE, deg_from_pulses
 
+__all__ = [
+    "MIN_LENGTH",
+    "REPLY_TYPES",
+    "AngleLimitReply",
+    "AngleOffsetReply",
+    "Frame",
+    "IdReply",
+    "LedCtrlReply",
+    "LedErrorReply",
+    "LoadReply",
+    "ModeReply",
+    "MoveTimeReply",
+    "MoveTimeWaitReply",
+    "PositionReply",
+    "Reply",
+    "Request",
+    "TempMaxLimitReply",
+    "TempReply",
+    "VinLimitReply",
+    "VinReply",
+    "check_servo_id",
+    "checksum",
+    "decode_frame",
+    "decode_message",
+    "decode_reply",
+    "decode_request",
+    "describe",
+    "encode_reply",
+    "encode_request",
+]
+
+
 MIN_LENGTH = 3
 
 

@@ -11,6 +11,10 @@ from collections.abc import Callable
 from busarm.protocol.commands import BROADCAST_ID, HEADER, VALID_LENGTHS
 from busarm.protocol.frames import Frame, checksum
 
+__all__ = [
+    "FrameParser",
+]
+
 
 class FrameParser:
     """Finds frames in a byte stream fed in chunks of any size.

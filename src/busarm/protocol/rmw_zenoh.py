@@ -27,6 +27,37 @@ import xxhash
 
 from busarm.errors import ConfigError, ProtocolError
 
+__all__ = [
+    "ADMIN_SPACE",
+    "ATTACHMENT_SIZE",
+    "ENTITY_KINDS",
+    "GID_SIZE",
+    "LATCHED",
+    "RELIABLE",
+    "SENSOR_DATA",
+    "TYPE_HASH_NOT_SUPPORTED",
+    "Attachment",
+    "Durability",
+    "Entity",
+    "History",
+    "Qos",
+    "Reliability",
+    "TopicKey",
+    "check_ros_type",
+    "check_topic",
+    "check_type_hash",
+    "dds_type_name",
+    "gid_of",
+    "mangle",
+    "parse_token",
+    "parse_topic_key",
+    "ros_type_name",
+    "topic_key",
+    "topic_key_any_type",
+    "unmangle",
+]
+
+
 ADMIN_SPACE = "@ros2_lv"
 ATTACHMENT_SIZE = 33
 GID_SIZE = 16

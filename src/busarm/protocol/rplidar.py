@@ -26,6 +26,44 @@ from enum import IntEnum
 
 from busarm.errors import ConfigError, ProtocolError
 
+__all__ = [
+    "A1_RANGE_MAX_M",
+    "A1_RANGE_MIN_M",
+    "DESCRIPTOR_SIZE",
+    "HEALTH_DESCRIPTOR",
+    "HEALTH_SIZE",
+    "INFO_DESCRIPTOR",
+    "INFO_SIZE",
+    "MAX_ANGLE_Q6",
+    "MAX_DISTANCE_Q2",
+    "MAX_QUALITY",
+    "NODE_SIZE",
+    "REPLY_SYNC",
+    "RPLIDAR_BAUDRATE",
+    "SCAN_DESCRIPTOR",
+    "SYNC",
+    "Cmd",
+    "DataType",
+    "Descriptor",
+    "DeviceInfo",
+    "Health",
+    "HealthStatus",
+    "Node",
+    "NodeParser",
+    "Request",
+    "RequestParser",
+    "SendMode",
+    "decode_descriptor",
+    "decode_health",
+    "decode_info",
+    "decode_node",
+    "encode_request",
+    "find_descriptor",
+    "is_node",
+    "node_from_si",
+]
+
+
 SYNC = 0xA5
 """First byte of every request and of every reply descriptor."""
 REPLY_SYNC = 0x5A

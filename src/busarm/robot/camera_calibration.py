@@ -46,6 +46,26 @@ from busarm.vision.calibration import (
 )
 from busarm.vision.camera import CameraSource
 
+__all__ = [
+    "GRIPPER_IN_VIEW",
+    "IMAGE_MARGIN_PX",
+    "MAX_HAND_EYE_RMS_PX",
+    "MAX_HAND_EYE_STD_MM",
+    "MAX_INTRINSICS_RMS_PX",
+    "NOMINAL_MOUNT",
+    "SETTLE_S",
+    "CalibrationView",
+    "FloatArray",
+    "calibration_views",
+    "capture_views",
+    "hand_eye_from_views",
+    "intrinsics_from_views",
+    "joints_looking_at",
+    "sees_points",
+    "visible_fraction",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 
 NOMINAL_MOUNT = CameraMount.from_config(load_arm_config().camera)

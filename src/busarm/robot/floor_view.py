@@ -44,6 +44,23 @@ from busarm.vision.localize import camera_to_base
 if TYPE_CHECKING:
     from busarm.robot.robot import Robot
 
+__all__ = [
+    "GRIPPER_MARGIN_PX",
+    "LENS_TRUSTED_SHARE",
+    "LOOK_AHEAD_DEG",
+    "LOOK_AHEAD_SPEED_DEG_S",
+    "LOWER_ARM_LINK",
+    "MAX_LOOK_SPEED_DEG_S",
+    "PALM_HALF_MM",
+    "FloatArray",
+    "FloorCamera",
+    "floor_camera",
+    "floor_camera_at",
+    "floor_rows",
+    "look_ahead",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 
 LOOK_AHEAD_DEG = (0.0, -95.0, 80.0, 0.0, 0.0)

@@ -13,6 +13,11 @@ from busarm.twin.lidar import lidar_for_twin
 from busarm.twin.transport import TwinTransport, is_twin_url, twin_from_url
 from busarm.twin.twin import Twin
 
+__all__ = [
+    "open_any_lidar",
+    "twin_lidar",
+]
+
 
 def twin_lidar(twin: Twin) -> RplidarA1:
     """The twin's simulated A1, read through its bytes by the A1 driver (the twin stays

@@ -35,6 +35,26 @@ from busarm.vision.localize import (
     table_points_from_pixels,
 )
 
+__all__ = [
+    "AREA_RANGE",
+    "BIN_MARGIN_MM",
+    "BIN_WALL_MM",
+    "CAMERA_LINK",
+    "CAMERA_LINK_NAME",
+    "CUT_AREA_FRACTION",
+    "MATCH_RADIUS_MM",
+    "MAX_CAMERA_OFFSET_MM",
+    "MAX_SPLIT",
+    "NOT_BLOCK_COLORS",
+    "SIDES_SHOWN",
+    "SPLIT_MIN_AREA",
+    "BlockLocator",
+    "FloatArray",
+    "Sighting",
+    "link2base",
+]
+
+
 T = TypeVar("T")
 R = TypeVar("R")
 FloatArray = npt.NDArray[np.float64]

@@ -30,6 +30,25 @@ from busarm.errors import VisionError
 from busarm.vision.calibration import CameraIntrinsics
 from busarm.vision.localize import table_points_from_pixels
 
+__all__ = [
+    "ARM_DARK",
+    "BASE_KEEP_OUT_MM",
+    "BLOCK_MARGIN_PX",
+    "BRIGHT",
+    "DARK",
+    "MIN_AREA_PX",
+    "PIECE_GAP_MM",
+    "TABLE_SATURATION",
+    "WHITE_SATURATION",
+    "FloatArray",
+    "Obstacle",
+    "View",
+    "find_obstacles",
+    "near_convex",
+    "refine",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 
 TABLE_SATURATION = 40

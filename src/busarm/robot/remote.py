@@ -45,6 +45,22 @@ if TYPE_CHECKING:
 
     from busarm.robot.robot import Bins, CameraCalibration, Robot
 
+__all__ = [
+    "INFO_TIMEOUT_S",
+    "POSITION_COMMANDS",
+    "RemoteCamera",
+    "RemoteParts",
+    "RobotServer",
+    "ask",
+    "bus_guard",
+    "fetch_info",
+    "remote_parts",
+    "robot_info",
+    "robot_key",
+    "twin_truth",
+]
+
+
 log = logging.getLogger(__name__)
 
 POSITION_COMMANDS = (Command.MOVE_TIME_WRITE, Command.MOVE_TIME_WAIT_WRITE)

@@ -74,6 +74,16 @@ from busarm.vision.camera import CameraSource, open_camera
 from busarm.vision.color import ColorDetector
 from busarm.vision.color_thresholds import ColorThresholds, default_thresholds
 
+__all__ = [
+    "NEEDS",
+    "ZENOH_PREFIX",
+    "Bins",
+    "CameraCalibration",
+    "Robot",
+    "with_board",
+]
+
+
 Bins = dict[str, tuple[float, float]]
 _T = TypeVar("_T")
 ZENOH_PREFIX = "zenoh://"

@@ -22,6 +22,18 @@ import numpy.typing as npt
 from busarm.errors import VisionError
 from busarm.vision.calibration import CameraIntrinsics
 
+__all__ = [
+    "FIT_SLACK_MM",
+    "MAX_BLOCKS",
+    "MIN_COVER",
+    "RESOLUTION_MM",
+    "SIDE_SHARES",
+    "FloatArray",
+    "TopPlane",
+    "top_faces_mm",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 
 RESOLUTION_MM = 0.5

@@ -21,6 +21,15 @@ from busarm.arm.arm import Arm
 from busarm.arm.gripper import gripper_state
 from busarm.errors import BusArmError
 
+__all__ = [
+    "SLOW_VALUES",
+    "TARGET_EVERY",
+    "Reading",
+    "ServoReadings",
+    "StateReader",
+]
+
+
 SLOW_VALUES = ("temp", "vin", "torque")
 TARGET_EVERY = 4
 """Read the gripper's last commanded position every this many periods."""

@@ -33,6 +33,14 @@ from busarm.twin.transport import TwinTransport, scene_from_query
 from busarm.twin.twin import Twin
 from busarm.vision.calibration import load_intrinsics, save_hand_eye, save_intrinsics
 
+__all__ = [
+    "HAND_EYE_VIEWS",
+    "INTRINSICS_VIEWS",
+    "TwinCalibration",
+    "calibrate_twin_camera",
+]
+
+
 INTRINSICS_VIEWS = 12
 HAND_EYE_VIEWS = 10
 

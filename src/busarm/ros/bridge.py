@@ -70,6 +70,15 @@ from busarm.twin.camera import TwinCamera
 if TYPE_CHECKING:
     import zenoh
 
+__all__ = [
+    "BLOCKS_HZ",
+    "DESCRIBE_EVERY_S",
+    "GRIPPER_JOINT",
+    "BridgeSettings",
+    "RosBridge",
+]
+
+
 log = logging.getLogger(__name__)
 
 DESCRIBE_EVERY_S = 2.0

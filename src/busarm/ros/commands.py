@@ -27,6 +27,16 @@ from busarm.base.base import Base
 from busarm.errors import BusArmError, ConfigError, LimitError
 from busarm.ros.messages import Trajectory
 
+__all__ = [
+    "CLOSED_GAP_M",
+    "CMD_VEL_TIMEOUT_S",
+    "CmdVel",
+    "Plan",
+    "TrajectoryRunner",
+    "plan_trajectory",
+]
+
+
 log = logging.getLogger(__name__)
 
 CMD_VEL_TIMEOUT_S = 0.5

@@ -22,6 +22,19 @@ from busarm.base.config import Mount
 from busarm.base.odometry import Pose2D
 from busarm.robot.locate import CAMERA_LINK
 
+__all__ = [
+    "CAMERA_FRAME",
+    "FOOTPRINT_FRAME",
+    "LASER_FRAME",
+    "ODOM_FRAME",
+    "FloatArray",
+    "Frame",
+    "arm_frames",
+    "base_frames",
+    "planar",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 Frame = tuple[str, str, FloatArray]
 """(parent, child, 4 x 4 transform of child in parent, m)."""

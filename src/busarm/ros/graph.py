@@ -25,6 +25,16 @@ from busarm.ros.node import Received, RosNode
 if TYPE_CHECKING:
     import zenoh
 
+__all__ = [
+    "GRAPH_WAIT_S",
+    "Graph",
+    "Topic",
+    "echo_messages",
+    "plain",
+    "read_graph",
+]
+
+
 GRAPH_WAIT_S = 1.0
 """How long to gather tokens (every peer's, through the links this session has)."""
 

@@ -22,6 +22,50 @@ from busarm.errors import ConfigError, ProtocolError
 from busarm.protocol.rmw_zenoh import check_ros_type
 from busarm.rotations import quaternion_wxyz
 
+__all__ = [
+    "CAMERA_INFO",
+    "COMPRESSED_IMAGE",
+    "DIAGNOSTIC_ARRAY",
+    "EMPTY",
+    "FLOAT64",
+    "IMAGE",
+    "JOINT_STATE",
+    "JOINT_TRAJECTORY",
+    "LASER_SCAN",
+    "MARKER_ARRAY",
+    "MAX_TRAJECTORY_POINTS",
+    "MAX_TRAJECTORY_S",
+    "OCCUPANCY_GRID",
+    "ODOMETRY",
+    "ROSOUT_LOG",
+    "STRING",
+    "TF_MESSAGE",
+    "TWIST",
+    "TYPESTORE",
+    "RosType",
+    "Trajectory",
+    "camera_info",
+    "compressed_jpeg",
+    "decode",
+    "encode",
+    "header",
+    "image_array",
+    "image_bgr",
+    "joint_state",
+    "message_class",
+    "parse_trajectory",
+    "parse_twist",
+    "quaternion_xyzw",
+    "ros_type",
+    "stamp",
+    "stamp_s",
+    "string",
+    "tf_message",
+    "transform",
+    "yaw_quaternion",
+]
+
+
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 
 JOINT_STATE = "sensor_msgs/msg/JointState"

@@ -37,6 +37,16 @@ from busarm.ros.messages import decode, encode, ros_type
 if TYPE_CHECKING:
     import zenoh
 
+__all__ = [
+    "DEFAULT_NODE",
+    "Drops",
+    "Received",
+    "RosNode",
+    "RosPublisher",
+    "RosSubscription",
+]
+
+
 log = logging.getLogger(__name__)
 
 DEFAULT_NODE = "busarm"

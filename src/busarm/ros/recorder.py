@@ -24,6 +24,10 @@ from busarm.ros.node import Received, RosNode
 if TYPE_CHECKING:
     import zenoh
 
+__all__ = [
+    "McapRecorder",
+]
+
 
 class McapRecorder:
     """Records ``topics`` (default: every topic with a publisher on the domain, as found

@@ -10,6 +10,10 @@ import time
 from busarm.ros.messages import ROSOUT_LOG, message_class, stamp
 from busarm.ros.node import RosNode, RosPublisher
 
+__all__ = [
+    "RosoutHandler",
+]
+
 
 class RosoutHandler(logging.Handler):
     """Publishes each record of the loggers it is added to (warnings and up, by default)."""

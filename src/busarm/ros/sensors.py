@@ -26,6 +26,17 @@ from busarm.ros.messages import (
     yaw_quaternion,
 )
 
+__all__ = [
+    "BLOCK_COLORS_RGB",
+    "SCAN_BEAMS",
+    "block_markers",
+    "diagnostics",
+    "laser_scan",
+    "occupancy_grid",
+    "odometry",
+]
+
+
 OK, WARN, ERROR = 0, 1, 2
 BLOCK_COLORS_RGB = {"red": (0.9, 0.1, 0.1), "green": (0.1, 0.8, 0.2),
                     "blue": (0.1, 0.3, 0.9), "yellow": (0.95, 0.85, 0.1)}

@@ -52,6 +52,28 @@ from busarm.sim.bus import DUE_EPS_S, SimBus, WireTiming
 from busarm.sim.transport import SimTransport, query_flag, query_float, sim_bus_from_url
 from busarm.units import check_range
 
+__all__ = [
+    "BATTERY_HZ",
+    "BOARD_KEYS",
+    "ENCODER_TICKS_PER_REV",
+    "HALF_SPREAD_M",
+    "IMU_HZ",
+    "OUT_CAP_BYTES",
+    "SERVO_REPLY_WAIT_S",
+    "TX_QUEUE_S",
+    "WHEEL_DIAMETER_M",
+    "WHEEL_MAX_REV_S",
+    "WHEEL_TIME_CONSTANT_S",
+    "BoardFaults",
+    "BoardLog",
+    "SimBoard",
+    "SimWheel",
+    "board_from_query",
+    "open_sim_board_transport",
+    "split_board_keys",
+]
+
+
 SERVO_REPLY_WAIT_S = 0.010
 """How long the simulated firmware waits for a servo's LX reply before answering -1."""
 IMU_HZ = 100.0

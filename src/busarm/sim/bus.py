@@ -39,6 +39,20 @@ from busarm.sim.servo_params import ServoParams
 from busarm.sim.storage import load_state, record_from_servo, save_state, servo_from_record
 from busarm.units import check_range
 
+__all__ = [
+    "ARM_SERVO_IDS",
+    "BLOCK_GRIP_PULSES",
+    "DUE_EPS_S",
+    "GRIPPER_ID",
+    "MAX_SKEW_BITS",
+    "FaultInjection",
+    "SimBus",
+    "SimLine",
+    "WireTiming",
+    "pop_due",
+]
+
+
 ARM_SERVO_IDS = (1, 2, 3, 4, 5, 10)
 """The JetAuto Pro arm: five 35 kg joints and the 20 kg gripper on ID 10."""
 GRIPPER_ID = 10

@@ -19,6 +19,11 @@ from types import TracebackType
 from busarm.errors import ConfigError, TransportError
 from busarm.sim.bus import SimLine
 
+__all__ = [
+    "PtyServer",
+]
+
+
 _SPIN_S = 0.00015  # below this, spin instead of sleeping: select() overshoots by ~50-100 us
 
 

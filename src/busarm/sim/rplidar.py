@@ -47,6 +47,21 @@ from busarm.sim.bus import WireTiming, pop_due
 from busarm.sim.transport import SimTransport, query_flag, query_float
 from busarm.units import check_range, listing
 
+__all__ = [
+    "A1_INFO",
+    "A1_SAMPLE_HZ",
+    "BATCH_NODES",
+    "GOOD_QUALITY",
+    "MAX_BACKLOG_S",
+    "RESET_BANNER",
+    "SimRplidar",
+    "World",
+    "open_sim_lidar_transport",
+    "rectangular_room",
+    "sim_lidar_from_url",
+]
+
+
 World = Callable[[float], float]
 """Bearing (rad, counter-clockwise from the Lidar's forward axis) -> range (m); inf or
 NaN where nothing is in reach. A world that also has ``ranges(bearings) -> ranges`` is

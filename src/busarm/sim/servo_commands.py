@@ -32,6 +32,10 @@ from busarm.protocol import (
 from busarm.sim.servo_physics import ServoPhysics
 from busarm.units import POSITION_MAX_PULSES, POSITION_MIN_PULSES
 
+__all__ = [
+    "ServoCommands",
+]
+
 
 def _clamp_int(value: float, lo: int, hi: int) -> int:
     """Round half up and clamp to a wire field's range."""

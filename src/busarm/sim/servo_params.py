@@ -10,6 +10,14 @@ from dataclasses import dataclass
 from busarm.errors import ConfigError
 from busarm.units import DEG_PER_PULSE
 
+__all__ = [
+    "FULL_TURN_PULSES",
+    "PARAMS_20KG",
+    "PARAMS_35KG",
+    "ServoParams",
+]
+
+
 FULL_TURN_PULSES = round(360.0 / DEG_PER_PULSE)
 """One full turn of the horn in pulses (1500), the period of motor-mode readings."""
 

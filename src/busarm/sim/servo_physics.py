@@ -14,6 +14,11 @@ from busarm.protocol import ServoMode
 from busarm.sim.servo_params import FULL_TURN_PULSES, ServoParams
 from busarm.units import MOTOR_SPEED_MAX
 
+__all__ = [
+    "ServoPhysics",
+]
+
+
 _EPS = 1e-9
 """Pulses within which the horn counts as touching a stop (float noise, not physics)."""
 _INF = math.inf

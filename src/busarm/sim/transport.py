@@ -36,6 +36,15 @@ from busarm.protocol import SERVO_TURNAROUND_S
 from busarm.sim.bus import ARM_SERVO_IDS, FaultInjection, SimBus, SimLine, WireTiming
 from busarm.units import check_range, listing, parse_ids
 
+__all__ = [
+    "SimTransport",
+    "open_sim_transport",
+    "query_flag",
+    "query_float",
+    "sim_bus_from_url",
+]
+
+
 _KNOWN = {"ids", "echo", "timing", "turnaround_ms", "drop", "corrupt", "late", "late_ms", "seed",
           "state", "block", "realtime", "pace"}
 

@@ -27,6 +27,34 @@ from busarm.tomlfile import TomlReader, load_toml, parse_toml, toml_string
 from busarm.twin.footprints import Footprint, overlaps
 from busarm.twin.scene import BLOCK_SIZE_MM, COLORS, DEFAULT_BLOCK_MM
 
+__all__ = [
+    "BLOCK_KEYS",
+    "FORMAT_NAME",
+    "FORMAT_VERSION",
+    "HEIGHT_M",
+    "LINE_COLORS",
+    "LINE_KEYS",
+    "LINE_WIDTH_M",
+    "MAX_THINGS",
+    "ROBOT_RADIUS_M",
+    "ROOM_M",
+    "SOLID_KEYS",
+    "WALL_HEIGHT_M",
+    "WALL_THICKNESS_M",
+    "Arena",
+    "ArenaBlock",
+    "FloorLine",
+    "Room",
+    "Solid",
+    "StartPose",
+    "arena_from_toml",
+    "arena_to_toml",
+    "check_arena",
+    "load_arena",
+    "save_arena",
+]
+
+
 FORMAT_NAME = "busarm.arena"
 FORMAT_VERSION = 1
 ROBOT_RADIUS_M = 0.2

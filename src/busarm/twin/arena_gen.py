@@ -29,6 +29,21 @@ from busarm.twin.footprints import Footprint, overlaps
 from busarm.twin.scene import COLORS
 from busarm.units import check_int_range, listing
 
+__all__ = [
+    "LINE_STEP_M",
+    "LOOP_MARGIN_M",
+    "MIN_CURVE_RADIUS_M",
+    "SOLID_TAPE_CLEAR_M",
+    "TABLE_HEIGHT_M",
+    "TAPE_CLEAR_M",
+    "TRIES",
+    "distance_to_line_m",
+    "loop_points",
+    "min_curve_radius_m",
+    "random_arena",
+]
+
+
 MIN_CURVE_RADIUS_M = 0.35
 LINE_STEP_M = 0.02
 LOOP_MARGIN_M = 0.65

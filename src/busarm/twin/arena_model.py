@@ -37,6 +37,25 @@ from busarm.twin.model import (
 )
 from busarm.twin.scene import Scene
 
+__all__ = [
+    "BASE_FORCE_N",
+    "BASE_KV",
+    "BASE_TORQUE_NM",
+    "BLOCK_HIT",
+    "BOX_HIT",
+    "CHASSIS_CLEARANCE_M",
+    "CHASSIS_MASS_KG",
+    "CHASSIS_SIZE_M",
+    "FLOOR_MAX_PX",
+    "FLOOR_M_PER_PX",
+    "FLOOR_RGB",
+    "HIT",
+    "arena_view_extent_m",
+    "build_arena_mjcf",
+    "floor_texture",
+]
+
+
 CHASSIS_MASS_KG = 4.5
 CHASSIS_SIZE_M = (0.30, 0.22, 0.10)
 """The JetAuto's body (without its wheels): length, width, height."""

@@ -21,6 +21,18 @@ from busarm.twin.arena_model import CHASSIS_SIZE_M, arena_view_extent_m
 from busarm.twin.twin import Twin
 from busarm.vision.annotate import draw_label, label_size
 
+__all__ = [
+    "LIDAR_BGR",
+    "ODOMETRY_BGR",
+    "ROBOT_BGR",
+    "TRUE_BGR",
+    "ArenaView",
+    "FloatArray",
+    "Image",
+    "arena_picture",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 Image = npt.NDArray[np.uint8]
 

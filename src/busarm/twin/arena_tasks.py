@@ -27,6 +27,22 @@ if TYPE_CHECKING:
     from busarm.base.base import Base
     from busarm.twin.twin import Twin
 
+__all__ = [
+    "CLEAR_M",
+    "DIRECTIONS",
+    "MIN_TRIP_M",
+    "STANDOFF_M",
+    "FloatArray",
+    "free_pose",
+    "start_pose",
+    "transport_arena",
+    "transport_points",
+    "true_map_surfaces",
+    "twin_map_origin",
+    "twin_transport_points",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 STANDOFF_M = WORK_AHEAD_M
 """A pick or place stand is this far behind the block's spot (the arm reaches ahead)."""

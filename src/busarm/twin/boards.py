@@ -26,6 +26,20 @@ from busarm.vision.calibration.boards import (
     board_image_frame,
 )
 
+__all__ = [
+    "BOARD_SPECS",
+    "CALIBRATION_BOARD_CENTRE_MM",
+    "PX_PER_MM",
+    "FloatArray",
+    "board2base",
+    "board_spec",
+    "board_texture",
+    "calibration_board",
+    "check_boards_fit",
+    "scene_textures",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 
 BOARD_SPECS: dict[str, BoardSpec] = {

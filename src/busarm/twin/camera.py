@@ -34,6 +34,17 @@ from busarm.twin.twin import Twin
 from busarm.units import listing
 from busarm.vision.camera import CameraBase
 
+__all__ = [
+    "LOOPBACK",
+    "SOCKET_TIMEOUT_S",
+    "CameraServer",
+    "RemoteTwinCamera",
+    "TwinCamera",
+    "TwinOptics",
+    "open_twin_camera",
+]
+
+
 _HEADER = struct.Struct("<4sIId")
 _MAGIC = b"BATF"
 _OPTICS_HEADER = struct.Struct("<4sI")

@@ -24,6 +24,13 @@ import numpy.typing as npt
 from busarm.errors import CameraError
 from busarm.twin.twin import Twin
 
+__all__ = [
+    "BACKLOG",
+    "CameraStream",
+    "StreamFrame",
+]
+
+
 BACKLOG = 4
 
 

@@ -34,6 +34,24 @@ from busarm.twin.scene import (
 )
 from busarm.units import check_int_range, check_range
 
+__all__ = [
+    "BIN_CLEARANCE_MM",
+    "CLUTTER_BLOCK_MM",
+    "CLUTTER_DEFAULT_BLOCKS",
+    "CLUTTER_DISTRACTOR_COLORS",
+    "CLUTTER_LIGHTING",
+    "CLUTTER_MAX_BLOCKS",
+    "DISTRACTOR_GAP_MM",
+    "EDGE_BAND_MM",
+    "MAX_DISTRACTORS",
+    "MAX_GROUP_GAP_MM",
+    "TOUCH_GAP_MM",
+    "Offsets",
+    "clutter_lighting",
+    "clutter_scene",
+]
+
+
 CLUTTER_MAX_BLOCKS = 12
 CLUTTER_DEFAULT_BLOCKS = 8
 CLUTTER_BLOCK_MM = (25.0, 40.0)

@@ -11,6 +11,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+__all__ = [
+    "TOUCH_TOLERANCE_MM",
+    "Footprint",
+    "overlaps",
+    "penetration_mm",
+]
+
+
 TOUCH_TOLERANCE_MM = 0.01
 """Interpenetration still counted as touching: rounding in a scene file, not an overlap."""
 

@@ -19,6 +19,16 @@ import numpy.typing as npt
 from busarm.errors import ConfigError
 from busarm.units import check_int_range
 
+__all__ = [
+    "LENSES",
+    "VENDOR_DISTORTION",
+    "WIDE_ANGLE_DISTORTION",
+    "FloatArray",
+    "LensSpec",
+    "lens_by_name",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 
 WIDE_ANGLE_DISTORTION = (-0.30, 0.12, 0.0008, -0.0006, -0.02)

@@ -32,6 +32,15 @@ from busarm.twin.model import ROBOT_GROUP
 if TYPE_CHECKING:
     from busarm.twin.twin import Twin
 
+__all__ = [
+    "TWIN_LIDAR_HZ",
+    "FloatArray",
+    "LidarNoise",
+    "TwinLidarWorld",
+    "lidar_for_twin",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 
 TWIN_LIDAR_HZ = 10.0

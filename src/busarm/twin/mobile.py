@@ -26,6 +26,15 @@ from busarm.base.odometry import Pose2D, wrap_rad
 from busarm.sim.board import SimBoard
 from busarm.twin.arena import StartPose
 
+__all__ = [
+    "MAX_PATH_POINTS",
+    "PATH_PERIOD_S",
+    "MobileBase",
+    "Motors",
+    "SlipModel",
+]
+
+
 Motors = tuple[float, float, float, float]
 """The board's four motor speeds (rev/s, as mounted)."""
 PATH_PERIOD_S = 0.05

@@ -43,6 +43,38 @@ from busarm.arm.config import ArmConfig
 from busarm.rotations import quaternion_wxyz
 from busarm.twin.scene import COLORS, DISTRACTOR_COLORS, Distractor, Lighting, Scene
 
+__all__ = [
+    "ARM_RGBA",
+    "AS_BUILT_MOUNT_ERROR",
+    "FINGER_PAD_MM",
+    "GRIPPER_TORQUE_NM",
+    "JOINT_ARMATURE",
+    "JOINT_DAMPING",
+    "JOINT_TORQUE_NM",
+    "LINK_MASS_KG",
+    "MJ_FROM_CV",
+    "M_PER_MM",
+    "NEUTRAL_TEMP_K",
+    "NO_LOAD_SPEED_DEG_S",
+    "OBJECT_FRICTION",
+    "PAD_FRICTION",
+    "ROBOT_GROUP",
+    "ROOM_LIGHT",
+    "SERVO_KP_NM_PER_RAD",
+    "SERVO_KV_NM_S_PER_RAD",
+    "TABLE_RGB",
+    "TABLE_THICKNESS_MM",
+    "TIMESTEP_S",
+    "FloatArray",
+    "TwinModelSpec",
+    "arm_actuators",
+    "arm_bodies",
+    "build_mjcf",
+    "light_tint",
+    "quat_from_matrix",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 
 M_PER_MM = 0.001

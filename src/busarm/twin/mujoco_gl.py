@@ -11,6 +11,13 @@ from typing import Any
 
 from busarm.errors import TwinError
 
+__all__ = [
+    "GL_PACKAGES",
+    "Renderers",
+    "import_mujoco",
+]
+
+
 GL_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri (or libosmesa6 for MUJOCO_GL=osmesa)"
 
 

@@ -26,6 +26,42 @@ from busarm.fileio import write_text_atomic
 from busarm.twin.footprints import TOUCH_TOLERANCE_MM, Footprint, penetration_mm
 from busarm.units import check_int_range, check_range, listing
 
+__all__ = [
+    "BASE_CLEARANCE_MM",
+    "BLOCK_SIZE_MM",
+    "BOARD_KINDS",
+    "COLORS",
+    "DEFAULT_BINS",
+    "DEFAULT_BLOCK_MM",
+    "DISTRACTOR_COLORS",
+    "DISTRACTOR_SIZES_MM",
+    "LIGHTING_RANGES",
+    "MAX_BLOCKS",
+    "MIN_GAP_MM",
+    "PLACE_BEARING_DEG",
+    "PLACE_RADIUS_MM",
+    "REACH_RADIUS_MM",
+    "SCENE_FORMAT",
+    "SCENE_VERSION",
+    "SCENE_WRITERS",
+    "Bin",
+    "Block",
+    "Board",
+    "Distractor",
+    "Lighting",
+    "Scene",
+    "Table",
+    "check_scene",
+    "load_scene",
+    "random_scene",
+    "save_scene",
+    "scene_from_json",
+    "scene_from_toml",
+    "scene_to_json",
+    "scene_to_toml",
+]
+
+
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - exercised on Python 3.10 only

@@ -63,6 +63,21 @@ from busarm.twin.scene import COLORS, MAX_BLOCKS, Scene, load_scene, random_scen
 from busarm.twin.twin import CONTROL_PERIOD_S, Twin
 from busarm.units import listing
 
+__all__ = [
+    "FAMILIES",
+    "TwinTransport",
+    "arena_from_query",
+    "is_arena_query",
+    "is_twin_url",
+    "open_twin_board_transport",
+    "open_twin_transport",
+    "scene_from_query",
+    "twin_behind_board",
+    "twin_from_url",
+    "twin_query",
+]
+
+
 _KNOWN = {"family", "seed", "blocks", "colors", "scene", "config", "echo", "timing", "board",
           "lens", "pace", "realtime", "arena", "chassis", "slip", "lidar_noise"}
 _ARENA_KEYS = {"arena", "chassis", "slip", "lidar_noise"}

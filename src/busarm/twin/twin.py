@@ -65,6 +65,18 @@ from busarm.twin.model import (
 from busarm.twin.mujoco_gl import Renderers, import_mujoco
 from busarm.twin.scene import Block, Scene, random_scene
 
+__all__ = [
+    "CONTROL_PERIOD_S",
+    "EFFORT_STEP",
+    "MAX_CATCH_UP_S",
+    "SETTLE_S",
+    "BlockState",
+    "FloatArray",
+    "ImageArray",
+    "Twin",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 ImageArray = npt.NDArray[np.uint8]
 

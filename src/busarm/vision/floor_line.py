@@ -47,6 +47,30 @@ from busarm.vision.calibration.core import as_transform, invert_transform
 from busarm.vision.camera import check_bgr_image
 from busarm.vision.color_thresholds import ColorRange, default_thresholds
 
+__all__ = [
+    "CHROMA_MAX",
+    "CURVATURE_WINDOW_M",
+    "DARK_MIN",
+    "EXTRAPOLATE_M",
+    "MAX_GAP_M",
+    "MAX_RANGE_M",
+    "MIN_LENGTH_M",
+    "MIN_PIECE_PX",
+    "NEAR_ARC_M",
+    "POSITION_WINDOW_M",
+    "SEED_RADIUS_M",
+    "SEED_SAMPLES",
+    "STEP_M",
+    "TAPE_WIDTH_M",
+    "UNDISTORT_TOL_PX",
+    "WIDTH_TOLERANCE",
+    "BoolArray",
+    "FloatArray",
+    "FloorLineSighting",
+    "find_floor_line",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 

@@ -27,6 +27,10 @@ from busarm.protocol.board.messages import (
     decode_request,
 )
 
+__all__ = [
+    "describe_board_frame",
+]
+
 
 def describe_board_frame(frame: BoardFrame) -> str:
     """What ``frame`` says, as a request to the board or a report from it."""

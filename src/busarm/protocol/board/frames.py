@@ -14,6 +14,21 @@ from dataclasses import dataclass
 
 from busarm.errors import ChecksumError, ProtocolError
 
+__all__ = [
+    "BOARD_BAUDRATE",
+    "BOARD_HEADER",
+    "FRAME_OVERHEAD",
+    "FUNC_LIMIT",
+    "MAX_DATA_LEN",
+    "BoardFrame",
+    "BoardFrameParser",
+    "Func",
+    "crc8_maxim",
+    "decode_frame",
+    "encode_frame",
+]
+
+
 BOARD_HEADER = b"\xaa\x55"
 BOARD_BAUDRATE = 1_000_000
 """The board's fixed USB serial rate."""

@@ -24,6 +24,43 @@ from busarm.errors import ConfigError, ProtocolError
 from busarm.protocol.board.frames import BoardFrame, Func, encode_frame
 from busarm.protocol.commands import Command
 
+__all__ = [
+    "BROADCAST_SERVO_ID",
+    "FLOAT32_MAX",
+    "LX_COMMANDS",
+    "MOTOR_COUNT",
+    "MOTOR_ENCODERS",
+    "MOTOR_SET_SPEEDS",
+    "PWM_SERVO_MOVE",
+    "READ_FORMATS",
+    "STANDARD_GRAVITY",
+    "SYS_BATTERY",
+    "WRITE_FORMATS",
+    "Battery",
+    "BoardReport",
+    "BoardRequest",
+    "BuzzerBeep",
+    "GamepadState",
+    "ImuSample",
+    "KeyEvent",
+    "KeyEventKind",
+    "LedBlink",
+    "MotorEncoders",
+    "MotorSpeeds",
+    "OledText",
+    "PwmServoMove",
+    "SbusState",
+    "ServoMove",
+    "ServoRead",
+    "ServoReply",
+    "ServoStop",
+    "ServoSub",
+    "ServoWrite",
+    "decode_report",
+    "decode_request",
+]
+
+
 STANDARD_GRAVITY = 9.80665
 SYS_BATTERY = 0x04
 """SYS report sub-code: the battery voltage."""

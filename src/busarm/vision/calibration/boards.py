@@ -14,6 +14,16 @@ from busarm.errors import ConfigError
 from busarm.units import check_int_range, check_range
 from busarm.vision.calibration.core import FloatArray, UInt8Array
 
+__all__ = [
+    "TAG_DICTIONARY",
+    "BoardSpec",
+    "CharucoSpec",
+    "ChessboardSpec",
+    "TagBoardSpec",
+    "board_image_frame",
+]
+
+
 TAG_DICTIONARY = "DICT_APRILTAG_36h11"
 """The tag family of ``TagBoardSpec`` (the vendor's AprilTags are 36h11 as well)."""
 

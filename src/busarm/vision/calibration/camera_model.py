@@ -14,6 +14,15 @@ from busarm.errors import ConfigError, VisionError
 from busarm.units import check_int_range, fixed_number
 from busarm.vision.calibration.core import FloatArray, _array, _points, _readonly
 
+__all__ = [
+    "DISTORTION_NAMES",
+    "MODELS",
+    "UNDISTORT_TOL_PX",
+    "CameraIntrinsics",
+    "distortion_text",
+]
+
+
 MODELS = ("pinhole", "fisheye")
 
 UNDISTORT_TOL_PX = 0.01

@@ -10,6 +10,16 @@ from scipy.spatial.transform import Rotation
 
 from busarm.errors import ConfigError
 
+__all__ = [
+    "RIGID_TOL",
+    "FloatArray",
+    "IntArray",
+    "UInt8Array",
+    "as_transform",
+    "invert_transform",
+]
+
+
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 UInt8Array = npt.NDArray[np.uint8]

@@ -25,6 +25,13 @@ from busarm.vision.calibration.boards import (
 )
 from busarm.vision.calibration.core import FloatArray, IntArray, _points, _readonly
 
+__all__ = [
+    "TAG_MIN_CELL_PX",
+    "BoardObservation",
+    "default_min_points",
+    "find_board",
+]
+
 
 @functools.lru_cache(maxsize=16)
 def _charuco_detector(spec: CharucoSpec) -> cv2.aruco.CharucoDetector:

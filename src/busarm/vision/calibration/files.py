@@ -17,6 +17,17 @@ from busarm.vision.calibration.core import FloatArray, _now, as_transform
 from busarm.vision.calibration.handeye import HandEyeResult
 from busarm.vision.calibration.intrinsics import IntrinsicsResult
 
+__all__ = [
+    "FORMAT_VERSION",
+    "HAND_EYE_FORMAT",
+    "INTRINSICS_FORMAT",
+    "load_hand_eye",
+    "load_intrinsics",
+    "save_hand_eye",
+    "save_intrinsics",
+]
+
+
 INTRINSICS_FORMAT = "busarm.camera_intrinsics"
 HAND_EYE_FORMAT = "busarm.hand_eye"
 FORMAT_VERSION = 1

@@ -27,6 +27,13 @@ from busarm.vision.calibration.core import (
 from busarm.vision.calibration.detection import BoardObservation, _found_views
 from busarm.vision.calibration.pose import OUTLIER_VIEW_PX, _rms, board_pose
 
+__all__ = [
+    "MIN_HAND_EYE_VIEWS",
+    "HandEyeResult",
+    "calibrate_hand_eye",
+]
+
+
 MIN_HAND_EYE_VIEWS = 3
 
 _MIN_MOTION_DEG = 3.0

@@ -17,6 +17,13 @@ from busarm.vision.calibration.core import _rotvec_matrix
 from busarm.vision.calibration.detection import BoardObservation, _found_views
 from busarm.vision.calibration.pose import OUTLIER_VIEW_PX
 
+__all__ = [
+    "MIN_INTRINSIC_VIEWS",
+    "IntrinsicsResult",
+    "calibrate_intrinsics",
+]
+
+
 MIN_INTRINSIC_VIEWS = 6
 
 

@@ -11,6 +11,12 @@ from busarm.vision.calibration.camera_model import CameraIntrinsics
 from busarm.vision.calibration.core import FloatArray, _rotvec_matrix, _transform
 from busarm.vision.calibration.detection import BoardObservation, _collinear
 
+__all__ = [
+    "OUTLIER_VIEW_PX",
+    "board_pose",
+]
+
+
 OUTLIER_VIEW_PX = 1.0
 """A view is an outlier if its rms exceeds 3x the median and this."""
 

@@ -11,6 +11,10 @@ from busarm.vision.calibration.boards import BoardSpec, _image_frame
 from busarm.vision.calibration.camera_model import CameraIntrinsics
 from busarm.vision.calibration.core import UInt8Array, as_transform
 
+__all__ = [
+    "render_board_view",
+]
+
 
 def render_board_view(
     spec: BoardSpec,
