@@ -23,13 +23,13 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from busarm.lazy import lazy_exports
-
-__version__ = "0.1.0"
+from busarm.version import __version__ as __version__
 
 if TYPE_CHECKING:  # the same names, eagerly, for mypy and the API reference
     from busarm.apps.explore import MapRun, build_map
     from busarm.apps.line_follow import LineFollowJob, LineFollowReport
     from busarm.apps.navigator import Navigator, NavSettings, Trip
+    from busarm.apps.pick_sort import PickSorter
     from busarm.apps.transport import TransportJob, TransportReport
     from busarm.arm import Arm, ArmConfig, ArmKinematics, Pose, load_arm_config
     from busarm.base.base import Base
@@ -103,6 +103,7 @@ _SOURCES: dict[str, str] = {
     "NavSettings": "busarm.apps.navigator",
     "Trip": "busarm.apps.navigator",
     # jobs
+    "PickSorter": "busarm.apps.pick_sort",
     "TransportJob": "busarm.apps.transport",
     "TransportReport": "busarm.apps.transport",
     "LineFollowJob": "busarm.apps.line_follow",
@@ -155,6 +156,7 @@ __all__ = [
     "NavigationError",
     "Navigator",
     "OccupancyGrid",
+    "PickSorter",
     "Pose",
     "Pose2D",
     "ProtocolError",

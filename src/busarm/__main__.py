@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import os
 import signal
 import sys
@@ -33,7 +35,19 @@ def main() -> None:
         _interrupted_loading()
     if came:  # raised where Python drops it (a weakref callback of the import system)
         _interrupted_loading()
-    run()
+    try:
+        run()
+    except SystemExit as exc:
+        if exc.code != EXIT_INTERRUPTED:
+            raise
+        # The command said so and closed what it opened; but a Ctrl+C inside an extension
+        # module's start-up code (a lazy import) leaves the interpreter set to end by SIGINT
+        # itself at exit (status -2): 130, as said.
+        logging.shutdown()
+        with contextlib.suppress(OSError, ValueError):
+            sys.stdout.flush()
+            sys.stderr.flush()
+        os._exit(EXIT_INTERRUPTED)
 
 
 def _note_ctrl_c(came: list[bool]) -> Callable[[], None]:

@@ -172,11 +172,13 @@ __all__ = [
     "ConfigError",
     "ContactError",
     "EchoMismatchError",
+    "HaltedError",
     "KinematicsError",
     "LidarFaultError",
     "LimitError",
     "MotionError",
     "MotionTimeoutError",
+    "NavigationError",
     "NotALidarError",
     "ProtocolError",
     "ServoFaultError",
@@ -184,6 +186,7 @@ __all__ = [
     "TwinError",
     "UnreachableError",
     "UnreliableLineError",
+    "UnsupportedError",
     "VisionError",
 ]
 

@@ -90,7 +90,15 @@ def _fsync_directory(directory: Path) -> None:
         os.close(fd)
 
 
-__all__ = ["atomic_path", "read_versioned_json", "write_bytes_atomic", "write_text_atomic"]
+__all__ = [
+    "atomic_path",
+    "config_home",
+    "read_versioned_json",
+    "robot_folder",
+    "robot_key",
+    "write_bytes_atomic",
+    "write_text_atomic",
+]
 
 
 def read_versioned_json(path: Path | str, what: str, fmt: str, version: int,

@@ -277,4 +277,14 @@ def _mdh(alpha: float, a: float, theta: float, d: float) -> FloatArray:
     ])
 
 
-__all__ = ["AXIS_EPS_MM", "ArmChain", "FloatArray", "Joints", "Pose", "wrap_deg"]
+__all__ = [
+    "AXIS_EPS_MM",
+    "ArmChain",
+    "FloatArray",
+    "Joints",
+    "Pose",
+    "check_number",
+    "float_array",
+    "wrap_deg",
+    "wrap_rad",
+]

@@ -503,9 +503,11 @@ __all__ = [
     "JOINT_COUNT",
     "SHIPPED",
     "ArmConfig",
+    "CameraConfig",
     "Geometry",
     "GripperConfig",
     "JointConfig",
     "arm_config_from_toml",
+    "deck_mounted",
     "load_arm_config",
 ]

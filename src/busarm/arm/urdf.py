@@ -19,10 +19,10 @@ import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from busarm import __version__
 from busarm.arm.config import ArmConfig, Geometry, JointConfig
 from busarm.errors import ConfigError
 from busarm.fileio import write_text_atomic
+from busarm.version import __version__
 
 KG_CM_TO_NM = 9.80665 / 100.0
 SERVO_TORQUE_KG_CM = 35.0

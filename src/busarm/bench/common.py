@@ -27,6 +27,8 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CalibrationSummary",
+    "HandEyeFit",
+    "IntrinsicsFit",
     "Progress",
     "SeededBenchReport",
     "Verdict",
@@ -34,6 +36,7 @@ __all__ = [
     "machine_info",
     "machine_line",
     "quiet",
+    "run_seeded",
     "run_seeded_bench",
     "short_machine_info",
 ]

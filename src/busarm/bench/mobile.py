@@ -244,4 +244,14 @@ def run_mobile_bench(*, squares: int = 3, scans: int = 20, seconds: float = 20.0
     return report
 
 
-__all__ = ["MobileBenchReport", "run_mobile_bench"]
+__all__ = [
+    "LidarAccuracy",
+    "MobileBenchReport",
+    "RealTimeRun",
+    "SquareRun",
+    "run_lidar_accuracy",
+    "run_mobile_bench",
+    "run_realtime",
+    "run_square",
+    "square_arena",
+]

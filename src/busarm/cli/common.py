@@ -103,9 +103,29 @@ SIM_NOTE = ("note: no --port given: using a simulated arm that lives for this on
 """What a command without --port says when no `busarm sim serve`/`twin serve` runs."""
 # Names commands import from here that live elsewhere (mypy: explicit re-exports).
 # What the stop says (busarm.cli.stopping).
-__all__ = ["add_detail", "halt_motor", "marking_the_stop", "no_servos", "report_line",
-           "stop_and_read_back",
-           "stop_motors", "torque_text", "unwritten_text"]
+__all__ = [
+    "ArmContext",
+    "Settings",
+    "add_detail",
+    "arm_options",
+    "calibration_store",
+    "check_writable",
+    "halt_motor",
+    "hold_where_it_stands",
+    "interrupt_on_signals",
+    "lidar_port_or_default",
+    "make_console",
+    "make_scene",
+    "marking_the_stop",
+    "no_servos",
+    "report_line",
+    "scene_options",
+    "serve_until_stopped",
+    "stop_and_read_back",
+    "stop_motors",
+    "torque_text",
+    "unwritten_text",
+]
 # What the arm commands take (busarm.cli.arm_inputs).
 __all__ += ["check_gap_mm", "gap_report", "joints_in", "joints_to_move",
             "parse_gripper_target", "robot_folder", "target_in"]

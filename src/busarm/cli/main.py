@@ -19,7 +19,6 @@ from typing import Any, NoReturn, TextIO
 
 import click
 
-from busarm import __version__
 from busarm.bus.driver import DEFAULT_RETRIES, DEFAULT_TIMEOUT_MARGIN_S
 from busarm.bus.transport import DEFAULT_BAUDRATE
 from busarm.cli import (
@@ -55,6 +54,7 @@ from busarm.cli.common import Settings, report_line, unwritten_text
 from busarm.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OUTPUT_CLOSED
 from busarm.cli.stopping import new_command, servos_note
 from busarm.errors import BusArmError, ConfigError
+from busarm.version import __version__
 
 __all__ = [
     "EXIT_BUS_ERROR",
