@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from hypothesis import settings
+from hypothesis import HealthCheck, settings
 
 from busarm.bus.board_bus import BoardServoBus
 from busarm.bus.driver import ServoBus
@@ -45,11 +45,14 @@ from busarm.sim.bus import ARM_SERVO_IDS, SimBus, WireTiming
 from busarm.sim.pty import PtyServer
 from busarm.sim.transport import SimTransport
 
+# Hypothesis's own wall-clock checks (an example's deadline, data generation "too slow")
+# fail on a busy computer for no fault of the code: off for every test.
+settings.register_profile("busy", deadline=None, suppress_health_check=[HealthCheck.too_slow])
 # CI explores the same examples every run (a red CI is then a real regression, reproduced
 # by the next run); developers' runs keep drawing new ones.
-settings.register_profile("ci", derandomize=True, print_blob=True)
-if os.environ.get("CI"):
-    settings.load_profile("ci")
+settings.register_profile("ci", parent=settings.get_profile("busy"), derandomize=True,
+                          print_blob=True)
+settings.load_profile("ci" if os.environ.get("CI") else "busy")
 
 
 PTY_MARGIN_S = 0.3
