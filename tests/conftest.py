@@ -26,6 +26,7 @@ import shutil
 import signal
 import subprocess
 import threading
+import traceback
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -33,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from click.testing import Result
 from hypothesis import HealthCheck, settings
 
 from busarm.bus.board_bus import BoardServoBus
@@ -353,3 +355,18 @@ def in_process_port(monkeypatch: pytest.MonkeyPatch, sim: SimBus) -> str:
                         sim if url == IN_PROCESS_PORT else made(url, baudrate))
     return IN_PROCESS_PORT
 
+
+def process_env(env: dict[str, str | None]) -> dict[str, str]:
+    """``env`` (None: unset) as the whole environment of a process: this one's, with
+    ``env`` over it."""
+    base = {k: v for k, v in os.environ.items() if k not in env}
+    return {**base, **{k: v for k, v in env.items() if v is not None},
+            "PYTHONUNBUFFERED": "1"}
+
+
+def not_crashed(result: Result) -> None:
+    """No exception but the exit's (click's runner keeps the traceback a process would
+    print)."""
+    assert result.exception is None or isinstance(result.exception, SystemExit), (
+        "".join(traceback.format_exception(*result.exc_info)) if result.exc_info else "")
+    assert "Traceback" not in result.stdout + result.stderr

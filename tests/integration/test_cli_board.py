@@ -12,12 +12,10 @@ developer runs.
 from __future__ import annotations
 
 import json
-import os
 import re
 import signal
 import subprocess
 import sys
-import traceback
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -25,7 +23,7 @@ import pytest
 from click.testing import CliRunner, Result
 
 from busarm.cli.main import cli
-from conftest import sigint_and_wait
+from conftest import not_crashed, process_env, sigint_and_wait
 
 SERVED = pytest.mark.wallclock("commands in this process at a board served on a pty by "
                                "another process")
@@ -53,11 +51,6 @@ def env(tmp_path: Path) -> Env:
             "BUSARM_TIMEOUT_MARGIN_MS": "200"}
 
 
-def process_env(env: Env) -> dict[str, str]:
-    """``env`` as the whole environment of a process: this one's, with ``env`` over it."""
-    base = {k: v for k, v in os.environ.items() if k not in env}
-    return {**base, **{k: v for k, v in env.items() if v is not None},
-            "PYTHONUNBUFFERED": "1"}
 
 
 def busarm(*args: str, env: Env) -> Result:
@@ -65,11 +58,6 @@ def busarm(*args: str, env: Env) -> Result:
     return CliRunner(mix_stderr=False).invoke(cli, list(args), env=env, prog_name="busarm")
 
 
-def not_crashed(result: Result) -> None:
-    """No exception but the exit's (a runner keeps the traceback a process would print)."""
-    assert result.exception is None or isinstance(result.exception, SystemExit), (
-        "".join(traceback.format_exception(*result.exc_info)) if result.exc_info else "")
-    assert "Traceback" not in result.stderr
 
 
 def ok(result: Result) -> str:

@@ -19,7 +19,6 @@ import os
 import signal
 import subprocess
 import sys
-import traceback
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -32,7 +31,7 @@ from busarm.cli.common import SIM_NOTE, Settings
 from busarm.cli.main import cli
 from busarm.cli.option_places import walk
 from busarm.sim.bus import SimBus, WireTiming
-from conftest import in_process_port, wait_for
+from conftest import in_process_port, not_crashed, process_env, wait_for
 
 STRAIGHT_UP_Z_MM = 629.4
 """The tool height of the simulator's power-on pose (every servo at 500 pulses)."""
@@ -56,11 +55,6 @@ def env(tmp_path: Path) -> Env:
             "BUSARM_RUNTIME_DIR": str(tmp_path / "run"), "COLUMNS": "200"}
 
 
-def process_env(env: Env) -> dict[str, str]:
-    """``env`` as the whole environment of a process: this one's, with ``env`` over it."""
-    base = {k: v for k, v in os.environ.items() if k not in env}
-    return {**base, **{k: v for k, v in env.items() if v is not None},
-            "PYTHONUNBUFFERED": "1"}
 
 
 def in_process(*args: str, env: Env) -> subprocess.CompletedProcess[str]:
@@ -88,11 +82,6 @@ def as_process(*args: str, env: Env, timeout_s: float = 120.0
                           timeout=timeout_s)
 
 
-def not_crashed(result: Result) -> None:
-    """No exception but the exit's (a runner keeps the traceback a process would print)."""
-    assert result.exception is None or isinstance(result.exception, SystemExit), (
-        "".join(traceback.format_exception(*result.exc_info)) if result.exc_info else "")
-    assert "Traceback" not in result.stderr
 
 
 class Server:

@@ -23,12 +23,10 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import re
 import signal
 import subprocess
 import sys
-import traceback
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -43,7 +41,7 @@ from busarm.cli.main import cli
 from busarm.errors import UnreachableError
 from busarm.protocol import Command
 from busarm.sim.bus import WireTiming
-from conftest import ListeningSim, in_process_port, wait_for
+from conftest import ListeningSim, in_process_port, not_crashed, process_env, wait_for
 
 CONFIG = load_arm_config()
 GRIPPER_ID = CONFIG.gripper.servo_id
@@ -88,11 +86,6 @@ def run(*args: str, port: str, input: str | None = None) -> Result:
     return busarm("--port", port, *args, input=input)
 
 
-def not_crashed(result: Result) -> None:
-    """No exception but the exit's (a runner keeps the traceback a process would print)."""
-    assert result.exception is None or isinstance(result.exception, SystemExit), (
-        "".join(traceback.format_exception(*result.exc_info)) if result.exc_info else "")
-    assert "Traceback" not in result.stdout + result.stderr
 
 
 def ok(result: Result) -> str:
@@ -299,11 +292,6 @@ TWIN_REASON = ("`busarm twin serve` as its own process (wall-clock time), found 
                "run in this process without --port")
 
 
-def process_env(env: Env) -> dict[str, str]:
-    """``env`` as the whole environment of a process: this one's, with ``env`` over it."""
-    base = {k: v for k, v in os.environ.items() if k not in env}
-    return {**base, **{k: v for k, v in env.items() if v is not None},
-            "PYTHONUNBUFFERED": "1"}
 
 
 class TwinServe:
