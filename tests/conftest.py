@@ -39,7 +39,7 @@ from hypothesis import HealthCheck, settings
 
 from busarm.bus.board_bus import BoardServoBus
 from busarm.bus.driver import ServoBus
-from busarm.bus.transport import BOARD_PREFIX
+from busarm.bus.ports import SerialPort
 from busarm.clock import WALL_CLOCK, Clock
 from busarm.protocol import SPECS, Command, FrameParser
 from busarm.sim.board import SimBoard
@@ -125,7 +125,7 @@ def open_board_bus(sim: SimBus, **bus_kwargs: object
     board = SimBoard(sim)
     server = PtyServer(board)
     try:
-        bus = ServoBus.open(BOARD_PREFIX + server.start(), **bus_kwargs)  # type: ignore[arg-type]
+        bus = ServoBus.open(SerialPort(server.start(), board=True), **bus_kwargs)  # type: ignore[arg-type]
     except BaseException:
         server.stop()
         raise
@@ -270,7 +270,7 @@ def no_gc_pauses() -> Iterator[None]:
 def twin_calibration(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """The twin's camera calibration files (intrinsics, hand-eye), made once per test run
     by our own flows (a few seconds), for the tests that need a calibrated twin."""
-    from busarm.robot import Robot
+    from busarm.robot import CameraSpec, Robot, RobotConfig
 
     if os.environ.get("PYTEST_XDIST_WORKER") is None:
         folder = tmp_path_factory.mktemp("twin-calibration")
@@ -281,7 +281,7 @@ def twin_calibration(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Pa
     with open(folder / ".lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
         if not all(f.exists() for f in files):
-            with Robot.open("twin", calibration_dir=folder):
+            with Robot.open(RobotConfig(camera=CameraSpec(folder=folder))):
                 pass
     return files
 
@@ -291,9 +291,9 @@ def keep_twin_calibration(config_home: Path, files: tuple[Path, Path]) -> Path:
     ``config_home``, where a twin's ``pick-sort`` would keep the calibration it made
     (busarm.robot.calibration_store), so the commands run there do not make it again.
     Making and keeping it is test_cli_calibrations'. The robot's folder is returned."""
-    from busarm.fileio import robot_key
+    from busarm.twin.spec import TwinSpec
 
-    folder = config_home / "busarm" / robot_key("twin")
+    folder = config_home / "busarm" / TwinSpec().robot_key
     folder.mkdir(parents=True, exist_ok=True)
     for file in files:
         shutil.copy2(file, folder / file.name)
@@ -348,11 +348,11 @@ def in_process_port(monkeypatch: pytest.MonkeyPatch, sim: SimBus) -> str:
     """The port by which commands run in this process (click's runner) open ``sim``, the
     test's own simulated servos, kept from one command to the next as a served arm is
     (and on its clock: simulated unless it was made on another)."""
-    import busarm.sim.transport as transport
+    from busarm.sim.spec import SimSpec
 
-    made = transport.sim_bus_from_url
-    monkeypatch.setattr(transport, "sim_bus_from_url", lambda url, baudrate=115200:
-                        sim if url == IN_PROCESS_PORT else made(url, baudrate))
+    made = SimSpec.build
+    monkeypatch.setattr(SimSpec, "build", lambda spec, baudrate=115200:
+                        sim if spec.seed == 31337 else made(spec, baudrate))
     return IN_PROCESS_PORT
 
 

@@ -2,7 +2,8 @@
 a 2D Lidar), real or simulated, from Python.
 
 Start with a robot: ``Robot.open("twin")`` is the simulated robot (the MuJoCo twin),
-``Robot.open("/dev/ttyUSB0")`` the real arm::
+``Robot.open("/dev/ttyUSB0")`` the real arm; ``Robot.open(RobotConfig(...))`` a robot
+described in full (its world, arm, base, Lidar, camera: ``RobotConfig``)::
 
     from busarm import Robot
 
@@ -37,7 +38,9 @@ if TYPE_CHECKING:  # the same names, eagerly, for mypy and the API reference
     from busarm.base.kinematics import Twist
     from busarm.base.odometry import Pose2D
     from busarm.bus.driver import ServoBus
-    from busarm.clock import WALL_CLOCK, Clock, SimClock
+    from busarm.bus.ports import SerialPort
+    from busarm.bus.zenoh_link import ZenohPort
+    from busarm.clock import WALL_CLOCK, Clock, FrozenClockWarning, SimClock
     from busarm.errors import (
         BusArmError,
         BusTimeoutError,
@@ -61,8 +64,21 @@ if TYPE_CHECKING:  # the same names, eagerly, for mypy and the API reference
     from busarm.nav.grid import OccupancyGrid
     from busarm.nav.map_files import load_map, save_map
     from busarm.nav.points import NamedPoint, NamedPoints, load_points, save_points
-    from busarm.robot import CameraCalibration, Robot
+    from busarm.robot import (
+        ArmSpec,
+        BaseSpec,
+        CameraCalibration,
+        CameraSpec,
+        LidarSpec,
+        Robot,
+        RobotConfig,
+        ServoLine,
+    )
+    from busarm.robot.observation import Action, Observation
+    from busarm.robot.robot_file import load_robot_file, save_robot_file
     from busarm.sim.bus import SimBus
+    from busarm.sim.spec import BoardSettings, SimLidarSpec, SimSpec
+    from busarm.twin.spec import TwinSpec
     from busarm.twin.twin import Twin
     from busarm.vision.camera import CameraFrame, CameraSource
 
@@ -70,6 +86,19 @@ _SOURCES: dict[str, str] = {
     # the robot
     "Robot": "busarm.robot",
     "CameraCalibration": "busarm.robot",
+    # the robot's description: where it is (its world) and what it has
+    **dict.fromkeys(("RobotConfig", "ArmSpec", "BaseSpec", "CameraSpec", "LidarSpec",
+                     "ServoLine"), "busarm.robot"),
+    "load_robot_file": "busarm.robot.robot_file",
+    "save_robot_file": "busarm.robot.robot_file",
+    "SerialPort": "busarm.bus.ports",
+    "ZenohPort": "busarm.bus.zenoh_link",
+    "SimSpec": "busarm.sim.spec",
+    "BoardSettings": "busarm.sim.spec",
+    "SimLidarSpec": "busarm.sim.spec",
+    "TwinSpec": "busarm.twin.spec",
+    "Observation": "busarm.robot.observation",
+    "Action": "busarm.robot.observation",
     # the arm
     "Arm": "busarm.arm",
     "ArmConfig": "busarm.arm",
@@ -115,6 +144,7 @@ _SOURCES: dict[str, str] = {
     "Clock": "busarm.clock",
     "SimClock": "busarm.clock",
     "WALL_CLOCK": "busarm.clock",
+    "FrozenClockWarning": "busarm.clock",
     # errors (all are BusArmError)
     **dict.fromkeys((
         "BusArmError", "BusTimeoutError", "CalibrationError", "CameraError", "ConfigError",
@@ -126,10 +156,14 @@ _SOURCES: dict[str, str] = {
 
 __all__ = [
     "WALL_CLOCK",
+    "Action",
     "Arm",
     "ArmConfig",
     "ArmKinematics",
+    "ArmSpec",
     "Base",
+    "BaseSpec",
+    "BoardSettings",
     "BusArmError",
     "BusTimeoutError",
     "CalibrationError",
@@ -137,13 +171,16 @@ __all__ = [
     "CameraError",
     "CameraFrame",
     "CameraSource",
+    "CameraSpec",
     "ChassisConfig",
     "Clock",
     "ConfigError",
+    "FrozenClockWarning",
     "HaltedError",
     "KinematicsError",
     "LaserScan",
     "LidarSource",
+    "LidarSpec",
     "LimitError",
     "LineFollowJob",
     "LineFollowReport",
@@ -155,33 +192,43 @@ __all__ = [
     "NavSettings",
     "NavigationError",
     "Navigator",
+    "Observation",
     "OccupancyGrid",
     "PickSorter",
     "Pose",
     "Pose2D",
     "ProtocolError",
     "Robot",
+    "RobotConfig",
     "RplidarA1",
+    "SerialPort",
     "ServoBus",
+    "ServoLine",
     "SimBus",
     "SimClock",
+    "SimLidarSpec",
+    "SimSpec",
     "TransportError",
     "TransportJob",
     "TransportReport",
     "Trip",
     "Twin",
     "TwinError",
+    "TwinSpec",
     "Twist",
     "UnreachableError",
     "VisionError",
+    "ZenohPort",
     "build_map",
     "load_arm_config",
     "load_chassis_config",
     "load_map",
     "load_points",
+    "load_robot_file",
     "open_lidar",
     "save_map",
     "save_points",
+    "save_robot_file",
 ]
 
 

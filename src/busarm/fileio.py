@@ -18,7 +18,6 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
-from urllib.parse import urlsplit
 
 from busarm.errors import ConfigError
 
@@ -91,11 +90,13 @@ def _fsync_directory(directory: Path) -> None:
 
 
 __all__ = [
+    "RUNTIME_DIR_ENV",
     "atomic_path",
     "config_home",
     "read_versioned_json",
     "robot_folder",
     "robot_key",
+    "runtime_dir",
     "write_bytes_atomic",
     "write_text_atomic",
 ]
@@ -152,23 +153,38 @@ def _by_id_name(device: Path) -> str | None:
     return None
 
 
-def robot_key(port: str) -> str:
-    """The folder name of the robot on ``port`` for its kept files (calibrations, poses):
-    ``twin``, ``sim`` whatever their options; a serial device's /dev/serial/by-id name if
-    it has one (the same whichever ttyUSBn it got), else its path under /dev (``pts-7``)."""
-    if port == "twin" or (port.startswith("twin://") and not urlsplit(port).netloc):
-        return "twin"  # a twin in this process, whatever its table
-    if port == "sim" or port.startswith("sim://"):
-        return "sim"
-    if "://" in port:
-        return _safe(port)
-    path = Path(port)
+def robot_key(device: str) -> str:
+    """The folder name of the robot on the serial ``device`` for its kept files
+    (calibrations, poses): its /dev/serial/by-id name if it has one (the same whichever
+    ttyUSBn it got), else its path under /dev (``pts-7``); a pyserial URL, made safe."""
+    path = Path(device)
+    if not path.is_absolute():
+        return _safe(device)
     name = _by_id_name(path) or (str(path)[len("/dev/"):] if str(path).startswith("/dev/")
                                  else path.name)
     return _safe(name.replace("/", "-"))
 
 
-def robot_folder(port: str) -> Path:
-    """The folder of the robot on ``port`` for its kept files (calibrations, saved poses,
-    recorded action groups): ``$XDG_CONFIG_HOME/busarm/ROBOT`` (``robot_key``)."""
-    return config_home() / "busarm" / robot_key(port)
+def robot_folder(key: str) -> Path:
+    """The folder of the robot ``key`` (a port's ``robot_key``: ``twin``, ``sim``, a
+    device's name) for its kept files (calibrations, saved poses, recorded action
+    groups): ``$XDG_CONFIG_HOME/busarm/KEY``."""
+    return config_home() / "busarm" / _safe(key)
+
+
+RUNTIME_DIR_ENV = "BUSARM_RUNTIME_DIR"
+"""Where this user's running busarm programs meet (servers' files, device locks)."""
+
+
+def runtime_dir() -> Path:
+    """The folder of this user's runtime files: running servers, device locks (it may not
+    exist yet): ``$BUSARM_RUNTIME_DIR``, else ``$XDG_RUNTIME_DIR/busarm``, else a folder
+    of this user's in the temporary folder."""
+    given = os.environ.get(RUNTIME_DIR_ENV)
+    if given:
+        return Path(given)
+    xdg = os.environ.get("XDG_RUNTIME_DIR")
+    if xdg and Path(xdg).is_dir():
+        return Path(xdg) / "busarm"
+    user = os.getuid() if hasattr(os, "getuid") else os.environ.get("USERNAME", "user")
+    return Path(tempfile.gettempdir()) / f"busarm-{user}"

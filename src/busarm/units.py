@@ -1,62 +1,36 @@
-"""Conversions between the servo's wire units and the user's units.
+"""Unit conversions and the value checks and wording every layer shares.
 
-Wire: positions in pulses (0..1000 over 0..240 deg, 500 = mid-point), offsets in
-pulses too (-125..125 = -30..30 deg), times in ms, voltages in mV.
-User: degrees from the mid-point, seconds, volts, deg C.
+Volts and millivolts; range checks (``check_range``, ``check_int_range``) and how a
+value, a range or a list is written in a message. A servo family's own wire units
+(the LX servos' pulses, 0.24 deg each) live with its protocol:
+``busarm.protocol.lx_units``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import numbers
 from collections.abc import Iterable
 from decimal import Decimal
+from typing import Any
 
 from busarm.errors import ConfigError
 
 __all__ = [
-    "CENTER_PULSES",
-    "DEG_PER_PULSE",
-    "MOTOR_SPEED_MAX",
-    "MOVE_TIME_MAX_MS",
-    "OFFSET_MAX_PULSES",
-    "OFFSET_MIN_PULSES",
-    "POSITION_MAX_DEG",
-    "POSITION_MAX_PULSES",
-    "POSITION_MIN_DEG",
-    "POSITION_MIN_PULSES",
     "check_int_range",
     "check_range",
-    "deg_from_pulses",
     "fixed_number",
     "listing",
-    "ms_from_s",
     "mv_from_v",
-    "offset_deg_from_pulses",
-    "offset_pulses_from_deg",
     "parse_ids",
     "place_text",
     "plain_number",
-    "pulses_from_deg",
     "range_text",
+    "short_repr",
     "shown",
     "v_from_mv",
 ]
-
-
-DEG_PER_PULSE = 0.24
-"""One position pulse is 0.24 deg (1000 pulses = 240 deg)."""
-CENTER_PULSES = 500
-"""The servo's mid-point, which busarm calls 0 deg."""
-POSITION_MIN_PULSES = 0
-POSITION_MAX_PULSES = 1000
-POSITION_MIN_DEG = (POSITION_MIN_PULSES - CENTER_PULSES) * DEG_PER_PULSE  # -120
-POSITION_MAX_DEG = (POSITION_MAX_PULSES - CENTER_PULSES) * DEG_PER_PULSE  # +120
-OFFSET_MIN_PULSES = -125
-OFFSET_MAX_PULSES = 125
-MOVE_TIME_MAX_MS = 30000
-MOTOR_SPEED_MAX = 1000
-"""Motor-mode speed is a unitless duty value, -1000..1000, as on the wire."""
 
 
 def check_range(
@@ -155,40 +129,6 @@ def listing(items: Iterable[object]) -> str:
     return ", ".join(i if isinstance(i, str) else shown(i) for i in items)
 
 
-def deg_from_pulses(position_pulses: float) -> float:
-    """Degrees from the mid-point for a position in pulses (500 -> 0.0)."""
-    return (position_pulses - CENTER_PULSES) * DEG_PER_PULSE
-
-
-def pulses_from_deg(angle_deg: float) -> int:
-    """Nearest position in pulses for an angle in degrees from the mid-point.
-
-    Raises ConfigError if the angle is outside the servo's -120..120 deg.
-    """
-    check_range("angle_deg", angle_deg, POSITION_MIN_DEG, POSITION_MAX_DEG, "deg")
-    return round(angle_deg / DEG_PER_PULSE) + CENTER_PULSES
-
-
-def offset_deg_from_pulses(offset_pulses: int) -> float:
-    """Degrees for an angle offset in pulses (125 -> 30 deg)."""
-    return offset_pulses * DEG_PER_PULSE
-
-
-def offset_pulses_from_deg(offset_deg: float) -> int:
-    """Nearest offset in pulses for degrees, within the servo's -30..30 deg."""
-    check_range(
-        "offset_deg", offset_deg, OFFSET_MIN_PULSES * DEG_PER_PULSE,
-        OFFSET_MAX_PULSES * DEG_PER_PULSE, "deg",
-    )
-    return round(offset_deg / DEG_PER_PULSE)
-
-
-def ms_from_s(duration_s: float) -> int:
-    """Whole milliseconds for seconds, within the wire's 0..30 s."""
-    check_range("duration_s", duration_s, 0.0, MOVE_TIME_MAX_MS / 1000.0, "s")
-    return round(duration_s * 1000.0)
-
-
 def v_from_mv(vin_mv: int) -> float:
     return vin_mv / 1000.0
 
@@ -224,3 +164,23 @@ def parse_ids(text: str) -> list[int]:
     if not ids:
         raise ConfigError(f"servo IDs {text!r}: no ID given")
     return ids
+
+
+def short_repr(obj: Any) -> str:
+    """``Name(key=value, ...)`` of a dataclass, with only the fields that differ from their
+    defaults (and not ``label``): a description's repr a person can read. A long value (a
+    scene, an arm config) is shown by its name or kind."""
+    parts = []
+    for f in dataclasses.fields(obj):
+        value = getattr(obj, f.name)
+        default = (f.default if f.default is not dataclasses.MISSING else
+                   f.default_factory() if f.default_factory is not dataclasses.MISSING
+                   else dataclasses.MISSING)
+        if f.name == "label" or value == default:
+            continue
+        text = repr(value)
+        if len(text) > 60:
+            name = getattr(value, "name", None) or getattr(value, "source", None)
+            text = f"<{type(value).__name__}{f' {name!r}' if name else ''}>"
+        parts.append(f"{f.name}={text}")
+    return f"{type(obj).__name__}({', '.join(parts)})"

@@ -41,11 +41,11 @@ from busarm.errors import (
     UnreachableError,
 )
 from busarm.protocol import BROADCAST_ID, Command, Request
+from busarm.protocol.lx_units import DEG_PER_PULSE
 from busarm.sim.board import SimBoard
 from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.pty import PtyServer
 from busarm.sim.transport import SimTransport
-from busarm.units import DEG_PER_PULSE
 from conftest import BOARD_WAY, open_board_bus, sim_bus_on, wait_for
 
 VENDOR = Path(__file__).resolve().parents[1] / "data" / "vendor"

@@ -16,7 +16,7 @@ from busarm.base.base import Base
 from busarm.base.config import load_chassis_config
 from busarm.base.kinematics import MecanumKinematics, Twist
 from busarm.bus.board import BoardLink
-from busarm.bus.transport import BOARD_PREFIX, open_transport
+from busarm.bus.ports import SerialPort, open_transport
 from busarm.cli.main import cli
 from busarm.clock import WALL_CLOCK, SimClock
 from busarm.errors import ConfigError
@@ -122,7 +122,7 @@ def test_an_exception_leaves_the_wheels_stopped() -> None:
 def test_through_a_pty_on_the_wall_clock_the_watchdog_thread_stops_the_wheels() -> None:
     board = SimBoard(SimBus.with_ids([1], clock=WALL_CLOCK))
     server = PtyServer(board)
-    port = BOARD_PREFIX + server.start()
+    port = SerialPort(server.start(), board=True)
     link = BoardLink(open_transport(port), timeout_margin_s=PTY_MARGIN_S)
     try:
         with Base(link, CONFIG) as base:

@@ -1,5 +1,6 @@
 """The controller board's link on a real pseudo-terminal: a simulated board (SimBoard)
-served by PtyServer, opened as ``board:///dev/pts/N`` like the real one.
+served by PtyServer, opened as ``SerialPort("/dev/pts/N", board=True)`` (the command
+line's ``board:///dev/pts/N``) like the real one.
 
 Through the pty the board answers in wall-clock time (those tests are marked
 ``wallclock``), and the link there has a generous margin (``PTY_LINK_MARGIN_S``) in
@@ -34,7 +35,7 @@ import pytest
 from busarm.bus.board import BoardLink
 from busarm.bus.board_bus import BoardServoBus
 from busarm.bus.driver import ServoBus
-from busarm.bus.transport import BOARD_PREFIX, open_transport
+from busarm.bus.ports import SerialPort, open_transport
 from busarm.clock import WALL_CLOCK
 from busarm.errors import (
     BusArmError,
@@ -116,12 +117,12 @@ class ListeningBoard(SimBoard):
 
 @dataclass
 class Served:
-    """A simulated board: the servos behind it, the board, its port (on a pty; "" in
+    """A simulated board: the servos behind it, the board, its port (on a pty; None in
     this process)."""
 
     sim: SimBus
     board: ListeningBoard
-    port: str
+    port: SerialPort | None
 
     def position_pulses(self, servo_id: int) -> float:
         """Where the simulated servo is now."""
@@ -148,13 +149,13 @@ def served(faults: BoardFaults | None = None, way: str = "pty", **board_kwargs: 
     or (``way`` "inproc") in this process on a simulated clock."""
     if way == "inproc":
         sim = SimBus.with_ids(list(TRUE_PULSES), timing=WireTiming())
-        yield Served(sim, board_on(sim, faults, **board_kwargs), "")
+        yield Served(sim, board_on(sim, faults, **board_kwargs), None)
         return
     sim = SimBus.with_ids(list(TRUE_PULSES), timing=WireTiming(), clock=WALL_CLOCK)
     board = board_on(sim, faults, **board_kwargs)
     server = PtyServer(board)
     try:
-        yield Served(sim, board, BOARD_PREFIX + server.start())
+        yield Served(sim, board, SerialPort(server.start(), board=True))
     finally:
         server.stop()
 
@@ -163,9 +164,10 @@ def served(faults: BoardFaults | None = None, way: str = "pty", **board_kwargs: 
 def link_to(s: Served, **options: Any) -> Iterator[BoardLink]:
     """A link to the board ``s``: on its pty (with ``PTY_LINK_MARGIN_S`` unless given),
     or in this process."""
-    if s.port:
+    if s.port is not None:
         options.setdefault("timeout_margin_s", PTY_LINK_MARGIN_S)
-    link = BoardLink(open_transport(s.port) if s.port else SimTransport(s.board), **options)
+    link = BoardLink(open_transport(s.port) if s.port is not None else SimTransport(s.board),
+                     **options)
     try:
         yield link
     finally:

@@ -19,9 +19,13 @@ from typing import Any
 import pytest
 from click.testing import CliRunner
 
+from busarm.bus.ports import SerialPort
 from busarm.cli.main import cli
-from busarm.fileio import config_home
-from busarm.robot.calibration_store import CalibrationStore, robot_key
+from busarm.fileio import config_home, robot_key
+from busarm.robot.calibration_store import CalibrationStore
+from busarm.robot.port_url import parse_port
+from busarm.sim.spec import SimSpec
+from busarm.twin.spec import TwinSpec
 
 pytestmark = pytest.mark.slow  # the twin's calibration flows, made again and again
 
@@ -64,12 +68,21 @@ def first_run(tmp_path_factory: pytest.TempPathFactory
 
 def test_robot_keys_and_the_config_folder(monkeypatch: pytest.MonkeyPatch,
                                           tmp_path: Path) -> None:
-    assert robot_key("twin") == robot_key("twin://?seed=3&lens=vendor") == "twin"
-    assert robot_key("sim") == robot_key("sim://?ids=1,2") == "sim"
+    def key(port: str) -> str:  # the key of the robot the command line's port names
+        return parse_port(port).robot_key
+
+    assert key("twin") == key("twin://?seed=3&lens=vendor") == "twin"
+    assert TwinSpec().robot_key == TwinSpec(seed=3, lens="vendor").robot_key == "twin"
+    assert key("sim") == key("sim://?ids=1,2") == "sim"
+    assert SimSpec().robot_key == SimSpec(ids=(1, 2)).robot_key == "sim"
     assert robot_key("/dev/ttyUSB0") == "ttyUSB0" and robot_key("/dev/pts/7") == "pts-7"
+    assert key("/dev/ttyUSB0") == SerialPort("/dev/ttyUSB0").robot_key == "ttyUSB0"
+    assert key("/dev/pts/7") == SerialPort("/dev/pts/7").robot_key == "pts-7"
     assert robot_key("socket://10.0.0.2:4000") == "socket-10.0.0.2-4000"
+    assert key("socket://10.0.0.2:4000") == "socket-10.0.0.2-4000"
     monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path))
-    assert CalibrationStore.for_port("/dev/ttyUSB0").folder == tmp_path / "busarm" / "ttyUSB0"
+    assert CalibrationStore.for_port(SerialPort("/dev/ttyUSB0")).folder == \
+        tmp_path / "busarm" / "ttyUSB0"
     monkeypatch.setenv("XDG_CONFIG_HOME", "relative/ignored")  # the XDG rule: absolute only
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
     assert config_home() == tmp_path / "home" / ".config"

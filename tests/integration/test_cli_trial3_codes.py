@@ -41,6 +41,7 @@ from busarm.clock import WALL_CLOCK
 from busarm.protocol import Command, ServoMode
 from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.pty import PtyServer
+from busarm.sim.spec import SimSpec
 from busarm.sim.transport import SimTransport
 from conftest import (
     PTY_MARGIN_S,
@@ -382,7 +383,7 @@ def test_a_servo_that_is_not_there_is_still_said_so() -> None:
 def test_garbled_replies_are_said_damaged_by_the_driver() -> None:
     said: list[str] = []
     answered = False
-    with ServoBus.open("sim://?corrupt=0.2&seed=5", retries=2) as bus:
+    with ServoBus.open(SimSpec(corrupt=0.2, seed=5), retries=2) as bus:
         for _ in range(40):
             try:
                 bus.read_position_deg(1)

@@ -133,9 +133,9 @@ def test_pick_sort_says_a_place_near_y_0_without_minus(
 @pytest.mark.parametrize(("args", "said"), [
     (["--port", "sim://?foo=1&bar=2", "scan"],
      "error: sim URL: unknown parameter(s) bar, foo; known: block, corrupt, drop, echo, ids"),
-    (["--port", "sim://?drop=2", "scan"], "error: sim URL: drop = 2.0 is out of range 0..1"),
+    (["--port", "sim://?drop=2", "scan"], "error: sim: drop = 2.0 is out of range 0..1"),
     (["--port", "sim://?late_ms=-5", "scan"],
-     "error: sim URL: late_ms = -5.0 ms is out of range 0..10000 ms"),
+     "error: sim: late_ms = -5.0 ms is out of range 0..10000 ms"),
     (["arm", "move-to", "200", "0", "40", "--speed", "30", "--time", "2"],
      "error: give --time or --speed, not both"),
     (["arm", "move-joints", "--pose", "home", "--speed", "30", "--time", "2"],

@@ -36,6 +36,7 @@ from busarm.errors import ConfigError, MotionTimeoutError
 from busarm.protocol import Command
 from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.pty import PtyServer
+from busarm.sim.spec import SimSpec
 from busarm.sim.transport import SimTransport
 from conftest import PTY_MARGIN_S, ListeningSim, in_process_port, sigint_and_wait, wait_for
 
@@ -371,7 +372,7 @@ def test_a_stop_after_the_servos_were_let_go_does_not_say_nothing_was_written(
     monkeypatch.setattr(stopping, "_wrote_before", [])
     monkeypatch.setattr(stopping, "_without_servos", [])
     assert stopping.unwritten_text() == "nothing was written to the servos"
-    bus = ServoBus.open("sim")
+    bus = ServoBus.open(SimSpec())
     with stopping.marking_the_stop(bus, bus):
         bus.set_torque(1, True)
     assert stopping.unwritten_text().startswith("after the command was done with the servos")

@@ -21,13 +21,15 @@ from typing import Any
 import pytest
 from websockets.sync.client import ClientConnection, connect
 
-from busarm.cli.common import realtime_port
+from busarm.cli.robot_options import with_realtime
 from busarm.dashboard.access import Access
 from busarm.dashboard.server import ServerThread
 from busarm.dashboard.service import RobotService
 from busarm.errors import HaltedError
-from busarm.robot import Robot
+from busarm.robot import BaseSpec, Robot, RobotConfig
+from busarm.robot.port_url import parse_port
 from busarm.sim.board import SimBoard
+from busarm.sim.spec import BoardSettings, SimSpec
 from busarm.sim.transport import SimTransport
 
 LIVE = pytest.mark.wallclock(
@@ -38,13 +40,15 @@ LIVE = pytest.mark.wallclock(
 def board_robot() -> Iterator[Robot]:
     # Live, as `busarm dashboard` opens it: on a simulated clock the page's watchdogs and
     # the base's would race through time the moment anything waits.
-    with Robot.open("board://sim?realtime=1", chassis="jetauto") as robot:
+    with Robot.open(RobotConfig(SimSpec(realtime=True, controller=BoardSettings()),
+                                base=BaseSpec("jetauto"))) as robot:
         yield robot
 
 
 @pytest.fixture
 def plain_robot() -> Iterator[Robot]:
-    with Robot.open("sim://?realtime=1") as robot:  # live, as `busarm dashboard` opens it
+    # Live, as `busarm dashboard` opens it.
+    with Robot.open(RobotConfig(SimSpec(realtime=True))) as robot:
         yield robot
 
 
@@ -148,7 +152,7 @@ ARENA = "board://twin?family=arena&seed=3"
 ])
 def test_the_dashboard_runs_a_twin_behind_a_board_in_real_time(port: str,
                                                                realtime: str) -> None:
-    assert realtime_port(port) == realtime
+    assert with_realtime(parse_port(port)) == parse_port(realtime)
 
 
 @pytest.mark.parametrize(("args", "said"), [

@@ -29,9 +29,9 @@ from busarm.dashboard.feeds import Feed
 from busarm.dashboard.server import ServerThread
 from busarm.dashboard.service import JOG_HOLD_S, RobotService
 from busarm.protocol import Command, Request
+from busarm.protocol.lx_units import DEG_PER_PULSE
 from busarm.robot import Robot
 from busarm.sim.transport import SimTransport
-from busarm.units import DEG_PER_PULSE
 from busarm.vision.camera import CameraBase
 
 pytestmark = pytest.mark.wallclock(

@@ -1,6 +1,6 @@
 """The RPLIDAR A1 driver against the simulated A1 on a pty (bytes through a real
 pseudo-terminal, in wall-clock time: those tests are marked ``wallclock``) and in this
-process (``lidar://sim``, simulated time); ``busarm lidar`` in this process, and once as
+process (``SimLidarSpec``, simulated time); ``busarm lidar`` in this process, and once as
 real programs (``lidar serve`` and a ``lidar scan`` of it)."""
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ from busarm.protocol.rplidar import Cmd
 from busarm.sim.bus import SimBus
 from busarm.sim.pty import PtyServer
 from busarm.sim.rplidar import SimRplidar, rectangular_room
+from busarm.sim.spec import SimLidarSpec
 from conftest import wait_for
 
 PTY_LIDAR = "a simulated A1 served on a real pty by a thread, scanning in wall-clock time"
@@ -163,11 +164,11 @@ def test_a_servo_port_is_not_a_lidar() -> None:
 
 def test_a_lidar_in_error_says_so() -> None:
     with pytest.raises(LidarFaultError, match="health ERROR .*0x8001"):
-        open_lidar("lidar://sim?health=2")
+        open_lidar(SimLidarSpec(health=2).open())
 
 
 def test_the_in_process_sim_scans_a_room() -> None:
-    with open_lidar("lidar://sim?hz=10") as opened:
+    with open_lidar(SimLidarSpec(hz=10).open()) as opened:
         scans = [opened.read_scan(1.0) for _ in range(3)]
     room = rectangular_room()
     scan = scans[-1]

@@ -5,10 +5,10 @@ file, as a servo powers on from its EEPROM. The last test kills ``busarm sim ser
 with SIGKILL while the driver keeps writing stored settings: the file must still load,
 holding for each servo either the settings before or after the write in flight.
 
-The ``sim://`` URL is on a simulated clock; a pty, and ``busarm sim serve`` in its own
-process, serve in wall-clock time, and there every stored write makes the simulator save
-its file (two fsyncs, tens of ms, more on a busy disk) before it answers the next
-request: the buses there wait for replies with a generous margin.
+The simulator in this process (``SimSpec``) is on a simulated clock; a pty, and ``busarm
+sim serve`` in its own process, serve in wall-clock time, and there every stored write
+makes the simulator save its file (two fsyncs, tens of ms, more on a busy disk) before
+it answers the next request: the buses there wait for replies with a generous margin.
 """
 
 from __future__ import annotations
@@ -20,7 +20,6 @@ import sys
 import threading
 from collections.abc import Iterator
 from pathlib import Path
-from urllib.parse import quote
 
 import pytest
 
@@ -30,6 +29,7 @@ from busarm.errors import BusTimeoutError, ProtocolError, TransportError
 from busarm.protocol import AlarmFlag, ServoMode
 from busarm.sim.bus import SimBus, WireTiming
 from busarm.sim.pty import PtyServer
+from busarm.sim.spec import SimSpec
 from busarm.sim.storage import load_state
 from conftest import PTY_MARGIN_S
 
@@ -46,9 +46,9 @@ PTY = pytest.param("pty", marks=pytest.mark.wallclock(
 
 @contextlib.contextmanager
 def arm_from_state(kind: str, state: Path) -> Iterator[ServoBus]:
-    """The arm powered on from ``state``: the in-process ``sim://`` URL, or a pty."""
-    if kind == "url":
-        bus = ServoBus.open(f"sim://?state={quote(str(state))}")
+    """The arm powered on from ``state``: the simulator in this process, or a pty."""
+    if kind == "inproc":
+        bus = ServoBus.open(SimSpec(state=state))
         try:
             yield bus
         finally:
@@ -63,7 +63,7 @@ def arm_from_state(kind: str, state: Path) -> Iterator[ServoBus]:
             bus.close()
 
 
-@pytest.mark.parametrize("kind", ["url", PTY])
+@pytest.mark.parametrize("kind", ["inproc", PTY])
 def test_stored_settings_survive_a_restart_and_volatile_ones_do_not(
     kind: str, tmp_path: Path
 ) -> None:
@@ -118,10 +118,10 @@ def test_stored_settings_survive_a_restart_and_volatile_ones_do_not(
 
 def test_unsaved_offset_is_lost_even_after_other_stored_writes(tmp_path: Path) -> None:
     state = tmp_path / "servos.json"
-    with arm_from_state("url", state) as bus:
+    with arm_from_state("inproc", state) as bus:
         bus.adjust_offset_deg(2, 12.0)
         bus.set_led(2, False)  # a stored write: the file is rewritten, the offset not saved
-    with arm_from_state("url", state) as bus:
+    with arm_from_state("inproc", state) as bus:
         assert bus.read_offset_deg(2) == 0.0
         assert bus.read_led(2) is False
 
@@ -203,7 +203,7 @@ def test_sigkill_during_stored_writes_leaves_old_or_new(
         pair = (int(record["min_pulses"]), int(record["max_pulses"]))
         assert pair in PULSES, f"servo {sid}: limits {pair} are neither old nor new"
     # And the simulator powers on from it.
-    with arm_from_state("url", state) as bus:
+    with arm_from_state("inproc", state) as bus:
         for sid in (1, 2):
             pair = (int(by_id[sid]["min_pulses"]), int(by_id[sid]["max_pulses"]))
             assert bus.read_angle_limits_deg(sid) == pytest.approx(PULSES[pair])

@@ -9,7 +9,19 @@ from pathlib import Path
 import pytest
 
 README = Path(__file__).resolve().parents[2] / "README.md"
-BLOCKS = re.findall(r"```python\n(.*?)```", README.read_text(), re.DOTALL)
+
+
+def python_blocks(path: Path) -> list[str]:
+    """The ```python blocks of a Markdown file, as written."""
+    return re.findall(r"```python\n(.*?)```", path.read_text(), re.DOTALL)
+
+
+def run_block(block: str, where: str) -> None:
+    """Run one block as written, in a fresh namespace (in the current folder)."""
+    exec(compile(block, where, "exec"), {})
+
+
+BLOCKS = python_blocks(README)
 
 
 def test_the_readme_has_python_examples() -> None:
@@ -23,5 +35,5 @@ def test_a_readme_python_block_runs_as_written(number: int, tmp_path: Path,
                                                monkeypatch: pytest.MonkeyPatch,
                                                capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.chdir(tmp_path)
-    exec(compile(BLOCKS[number], f"README.md python block {number + 1}", "exec"), {})
+    run_block(BLOCKS[number], f"README.md python block {number + 1}")
     assert capsys.readouterr().out.strip(), "it printed nothing"

@@ -3,7 +3,7 @@ faults named in motion timeouts, and the simulator's power-off state.
 
 Scans and broadcast reads on a noisy or shared LX line are the LX wire's own; the tests
 of the bus's calls also run behind the simulated controller board on a pty (``way``).
-In-process (``sim://`` URLs included) the servos are on a simulated clock, so a long move
+In-process (``SimSpec`` included) the servos are on a simulated clock, so a long move
 waited for costs only CPU; behind the board on a pty they are on the wall clock."""
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from busarm.bus.driver import ServoBus
 from busarm.clock import WALL_CLOCK
 from busarm.errors import BusConflictError, ConfigError, MotionTimeoutError
 from busarm.sim.bus import ARM_SERVO_IDS, SimBus, WireTiming
+from busarm.sim.spec import SimSpec
 from conftest import BOARD_WAY, sim_bus_on
 
 
@@ -34,7 +35,7 @@ def sim_for(way: str, ids: list[int], **kwargs: object) -> SimBus:
 
 @pytest.mark.parametrize("seed", [1, 2, 3, 4, 5])
 def test_noisy_line_is_not_reported_as_duplicate_ids(seed: int) -> None:
-    bus = ServoBus.open(f"sim://?corrupt=0.05&seed={seed}")
+    bus = ServoBus.open(SimSpec(corrupt=0.05, seed=seed))
     result = bus.scan()
     assert result.conflicts == []
     assert set(result.found) <= set(ARM_SERVO_IDS)
@@ -42,24 +43,24 @@ def test_noisy_line_is_not_reported_as_duplicate_ids(seed: int) -> None:
 
 
 def test_real_duplicates_are_still_reported() -> None:
-    bus = ServoBus.open("sim://?ids=1,3,3,5")
+    bus = ServoBus.open(SimSpec(ids=(1, 3, 3, 5)))
     result = bus.scan()
     assert result.found == [1, 5]
     assert result.conflicts == [3]
 
 
 def test_broadcast_id_read_with_several_servos_is_a_conflict() -> None:
-    bus = ServoBus.open("sim")
+    bus = ServoBus.open(SimSpec())
     with pytest.raises(BusConflictError, match="more than one servo"):
         bus.read_id()
-    assert ServoBus.open("sim://?ids=7").read_id() == 7
+    assert ServoBus.open(SimSpec(ids=(7,))).read_id() == 7
 
 
 def test_default_wait_covers_the_whole_commanded_move() -> None:
     # Longer than any fixed default would allow: the wait follows the move. (In-process
     # only, on the simulated clock: the bookkeeping is ServoBus's, the same behind the
     # board, where a second run would cost another 5.5 s of wall-clock time.)
-    bus = ServoBus.open("sim://?ids=3")
+    bus = ServoBus.open(SimSpec(ids=(3,)))
     t0 = bus.clock.now()
     bus.move_deg(3, 20.0, 5.5)
     positions = bus.wait_until_reached({3: 20.0})

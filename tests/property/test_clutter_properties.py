@@ -6,12 +6,15 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from pathlib import Path
+from typing import Any
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from busarm.errors import ConfigError
+from busarm.robot.port_url import parse_port
 from busarm.twin.clutter import (
     BIN_CLEARANCE_MM,
     CLUTTER_DISTRACTOR_COLORS,
@@ -32,7 +35,7 @@ from busarm.twin.scene import (
     scene_from_toml,
     scene_to_toml,
 )
-from busarm.twin.transport import scene_from_query, twin_query
+from busarm.twin.spec import TwinSpec
 
 SEEDS = range(201)
 
@@ -143,25 +146,46 @@ def test_bad_requests_are_refused_with_what_is_allowed(kwargs: dict[str, object]
         clutter_scene(1, **kwargs)
 
 
+def _twin_scene(url: str) -> Scene:
+    """The scene on the table of the twin the port ``url`` names."""
+    twin = parse_port(url)
+    assert isinstance(twin, TwinSpec)
+    return twin.make_scene()
+
+
 def test_the_twin_url_asks_for_a_clutter_scene() -> None:
-    q = twin_query("twin://?family=clutter&seed=3&blocks=12")
-    assert scene_from_query(q) == clutter_scene(3, 12)
-    assert scene_from_query(twin_query("twin://?family=clutter")) == clutter_scene(0, 8)
-    assert scene_from_query(twin_query("twin://?family=clutter&seed=5&colors=red,blue")) == \
+    assert _twin_scene("twin://?family=clutter&seed=3&blocks=12") == clutter_scene(3, 12)
+    assert _twin_scene("twin://?family=clutter") == clutter_scene(0, 8)
+    assert _twin_scene("twin://?family=clutter&seed=5&colors=red,blue") == \
         clutter_scene(5, 8, ["red", "blue"])
     # The random family is as it was, named or not.
-    assert scene_from_query(twin_query("twin://?family=random&seed=3")) == \
-        scene_from_query(twin_query("twin://?seed=3"))
+    assert _twin_scene("twin://?family=random&seed=3") == _twin_scene("twin://?seed=3")
+    # The typed twin, as a library user gives it, is the same table.
+    assert TwinSpec(family="clutter", seed=3, blocks=12).make_scene() == clutter_scene(3, 12)
+    assert TwinSpec(family="clutter", seed=5, colors=("red", "blue")).make_scene() == \
+        clutter_scene(5, 8, ["red", "blue"])
+    assert TwinSpec(family="random", seed=3).make_scene() == TwinSpec(seed=3).make_scene()
 
 
-@pytest.mark.parametrize(("url", "message"), [
-    ("twin://?family=clutter&blocks=13", r"blocks='13' must be a whole number 0\.\.12 "
-                                         r"\(family=clutter\)"),
-    ("twin://?blocks=9", r"blocks='9' must be a whole number 0\.\.8 \(family=random\)"),
-    ("twin://?family=messy", r"family='messy'; allowed: random, clutter"),
-    ("twin://?family=clutter&board=tags", r"board= is for family=random"),
-    ("twin://?family=clutter&scene=x.toml", r"either scene= or family="),
-])
+BAD_TWINS = [
+    ("twin://?family=clutter&blocks=13", {"family": "clutter", "blocks": 13},
+     r"blocks \(family clutter\) = 13 is out of range 0\.\.12"),
+    ("twin://?blocks=9", {"blocks": 9}, r"blocks \(family random\) = 9 is out of range 0\.\.8"),
+    ("twin://?family=messy", {"family": "messy"}, r"family = 'messy'; allowed: random, clutter"),
+    ("twin://?family=clutter&board=tags", {"family": "clutter", "board": "tags"},
+     r"board is for family random"),
+    ("twin://?family=clutter&scene=x.toml", {"family": "clutter", "scene": Path("x.toml")},
+     r"either scene or family"),
+]
+
+
+@pytest.mark.parametrize(("url", "message"), [(url, m) for url, _kw, m in BAD_TWINS])
 def test_bad_twin_urls_are_refused_clearly(url: str, message: str) -> None:
     with pytest.raises(ConfigError, match=message):
-        scene_from_query(twin_query(url))
+        _twin_scene(url)
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [(kw, m) for _url, kw, m in BAD_TWINS])
+def test_bad_twins_are_refused_clearly(kwargs: dict[str, Any], message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        TwinSpec(**kwargs).make_scene()

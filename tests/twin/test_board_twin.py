@@ -10,16 +10,19 @@ from pathlib import Path
 from busarm.apps.pick_sort import IN_BIN_MM, PickSorter
 from busarm.bus.board_bus import BoardServoBus
 from busarm.protocol import Command, Request
-from busarm.robot import Robot
+from busarm.robot import CameraSpec, Robot, RobotConfig
 from busarm.sim.board import SimBoard
+from busarm.sim.spec import BoardSettings
+from busarm.twin.spec import TwinSpec
 from busarm.twin.transport import TwinTransport
 
 
 def test_pick_sort_through_the_board_sorts_a_seeded_table(
         twin_calibration: tuple[Path, Path]) -> None:
     intrinsics, hand_eye = twin_calibration
-    with Robot.open("board://twin?seed=3&blocks=3", intrinsics=intrinsics,
-                    hand_eye=hand_eye) as robot:
+    with Robot.open(RobotConfig(TwinSpec(seed=3, blocks=3, controller=BoardSettings()),
+                                camera=CameraSpec(intrinsics=intrinsics,
+                                                  hand_eye=hand_eye))) as robot:
         bus, twin = robot.arm.bus, robot.twin
         assert isinstance(bus, BoardServoBus) and twin is not None
         assert isinstance(bus.transport, TwinTransport)

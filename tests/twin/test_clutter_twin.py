@@ -19,7 +19,7 @@ from busarm.twin.scene import (
     Lighting,
     Scene,
 )
-from busarm.twin.transport import twin_from_url
+from busarm.twin.spec import TwinSpec
 from busarm.twin.twin import Twin
 
 
@@ -156,8 +156,8 @@ def test_the_usual_light_is_the_twins_light_from_before() -> None:
         np.testing.assert_allclose(tw.model.vis.headlight.diffuse, 0.1)
 
 
-def test_a_twin_url_builds_a_clutter_table() -> None:
-    with twin_from_url("twin://?family=clutter&seed=3&blocks=8") as tw:
+def test_a_twin_of_the_clutter_family_builds_a_clutter_table() -> None:
+    with TwinSpec(family="clutter", seed=3, blocks=8).build() as tw:
         assert tw.scene == clutter_scene(3, 8)
         assert len(tw.blocks()) == len(tw.scene.blocks)
         for i in range(len(tw.scene.distractors)):

@@ -13,7 +13,8 @@ import pytest
 
 from busarm.apps.pick_sort import PickSortSettings
 from busarm.errors import ConfigError, ContactError
-from busarm.robot import Robot
+from busarm.robot import CameraSpec, Robot, RobotConfig
+from busarm.twin.spec import TwinSpec
 from busarm.twin.twin import Twin
 
 PICK_SORT_MM_S = PickSortSettings().line_speed_mm_s
@@ -27,7 +28,8 @@ MAX_DELAY_S = 0.15
 
 @pytest.fixture(scope="module")
 def robot() -> Iterator[Robot]:
-    with Robot.open("twin://?seed=3&blocks=1", calibrate=False) as r:
+    with Robot.open(RobotConfig(TwinSpec(seed=3, blocks=1),
+                                camera=CameraSpec(calibrate=False))) as r:
         yield r
 
 

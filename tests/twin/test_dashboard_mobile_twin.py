@@ -23,7 +23,9 @@ from websockets.sync.client import ClientConnection, connect
 from busarm.dashboard.access import Access
 from busarm.dashboard.server import ServerThread
 from busarm.dashboard.service import RobotService
-from busarm.robot import Robot
+from busarm.robot import CameraSpec, Robot, RobotConfig
+from busarm.sim.spec import BoardSettings
+from busarm.twin.spec import TwinSpec
 from busarm.twin.twin import Twin
 
 pytestmark = [pytest.mark.slow, pytest.mark.wallclock(
@@ -71,8 +73,9 @@ def map_picture(url: str) -> np.ndarray:
 def served(twin_calibration: tuple[Path, Path], tmp_path: Path
            ) -> Iterator[tuple[str, Robot, Twin]]:
     intrinsics, hand_eye = twin_calibration
-    with Robot.open(f"board://twin?family=arena&seed={SEED}&realtime=1",
-                    intrinsics=intrinsics, hand_eye=hand_eye) as robot:
+    world = TwinSpec(family="arena", seed=SEED, realtime=True, controller=BoardSettings())
+    with Robot.open(RobotConfig(world, camera=CameraSpec(intrinsics=intrinsics,
+                                                         hand_eye=hand_eye))) as robot:
         assert robot.twin is not None and robot.base is not None
         service = RobotService(robot, folder=tmp_path / "robot",
                                reports=tmp_path / "reports").start()

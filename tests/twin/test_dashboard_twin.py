@@ -16,7 +16,8 @@ from busarm.dashboard.feeds import robot_feeds
 from busarm.dashboard.server import ServerThread
 from busarm.dashboard.service import RobotService
 from busarm.protocol import Command
-from busarm.robot import Robot
+from busarm.robot import CameraSpec, Robot, RobotConfig
+from busarm.twin.spec import TwinSpec
 
 
 @pytest.mark.slow
@@ -24,8 +25,9 @@ from busarm.robot import Robot
 def test_estop_halts_a_running_pick_sort(twin_calibration: tuple[Path, Path],
                                          tmp_path: Path) -> None:
     intrinsics, hand_eye = twin_calibration
-    with Robot.open("twin://?realtime=1&seed=3&blocks=3", intrinsics=intrinsics,
-                    hand_eye=hand_eye) as robot:
+    with Robot.open(RobotConfig(TwinSpec(realtime=True, seed=3, blocks=3),
+                                camera=CameraSpec(intrinsics=intrinsics,
+                                                  hand_eye=hand_eye))) as robot:
         twin = robot.twin
         assert twin is not None
         stops: list[float] = []

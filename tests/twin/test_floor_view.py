@@ -1,6 +1,7 @@
 """The floor line through the wrist camera on the arena twin's real renders.
 
-The robot opens on ``board://twin?family=arena&seed=N`` with the twin's camera
+The robot opens on the arena twin behind its board (``TwinSpec(family="arena", seed=N,
+controller=BoardSettings())``) with the twin's camera
 calibration made by our own flows (the session's ``twin_calibration``), poses the arm to
 look ahead (``look_ahead``), and finds the tape in a captured frame through
 ``floor_camera``; neither reads the twin's truth. The test then compares with the truth:
@@ -24,6 +25,7 @@ import pytest
 from busarm.base.config import load_chassis_config
 from busarm.base.odometry import Pose2D
 from busarm.errors import ConfigError
+from busarm.robot import CameraSpec, RobotConfig
 from busarm.robot.floor_view import (
     LOOK_AHEAD_DEG,
     FloorCamera,
@@ -31,7 +33,9 @@ from busarm.robot.floor_view import (
     look_ahead,
 )
 from busarm.robot.robot import Robot
+from busarm.sim.spec import BoardSettings
 from busarm.twin.arena import Arena, Room, StartPose
+from busarm.twin.spec import TwinSpec
 from busarm.twin.twin import Twin
 
 Points = npt.NDArray[np.float64]
@@ -44,10 +48,10 @@ LOOK_X_M = 0.25
 
 
 @contextmanager
-def robot_on(port: str, calibration: tuple[Path, Path], arena: Arena | None = None
-             ) -> Iterator[tuple[Robot, Twin]]:
+def robot_on(world: TwinSpec, calibration: tuple[Path, Path]) -> Iterator[tuple[Robot, Twin]]:
     intrinsics, hand_eye = calibration
-    with Robot.open(port, intrinsics=intrinsics, hand_eye=hand_eye, arena=arena) as robot:
+    with Robot.open(RobotConfig(world, camera=CameraSpec(intrinsics=intrinsics,
+                                                         hand_eye=hand_eye))) as robot:
         assert robot.twin is not None
         yield robot, robot.twin
 
@@ -118,7 +122,8 @@ def grey(image: npt.NDArray[np.uint8]) -> Points:
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_the_tape_where_it_truly_is(seed: int, twin_calibration: tuple[Path, Path]) -> None:
-    with robot_on(f"board://twin?family=arena&seed={seed}", twin_calibration) as (robot, twin):
+    world = TwinSpec(family="arena", seed=seed, controller=BoardSettings())
+    with robot_on(world, twin_calibration) as (robot, twin):
         joints = look_ahead(robot)
         assert joints == pytest.approx(LOOK_AHEAD_DEG, abs=0.5)
         camera = floor_camera(robot)
@@ -151,7 +156,8 @@ def test_the_look_ahead_view_shows_floor_and_no_robot(twin_calibration: tuple[Pa
     gripper is in it; the gripper begins just below ``floor_rows``."""
     arena = Arena(room=Room(-1.5, 1.5, -1.5, 1.5), start=StartPose(0.0, 0.0, 0.0),
                   name="bare floor")
-    with robot_on("board://twin", twin_calibration, arena) as (robot, _twin):
+    world = TwinSpec(arena=arena, controller=BoardSettings())
+    with robot_on(world, twin_calibration) as (robot, _twin):
         look_ahead(robot)
         camera = floor_camera(robot)
         image = robot.camera.read().image
@@ -168,10 +174,11 @@ def test_the_look_ahead_view_shows_floor_and_no_robot(twin_calibration: tuple[Pa
 
 def test_the_floor_camera_needs_a_calibration_and_a_chassis(
         twin_calibration: tuple[Path, Path]) -> None:
-    with Robot.open("board://twin?family=arena&seed=1", calibrate=False) as robot, \
+    with Robot.open(RobotConfig(TwinSpec(family="arena", seed=1, controller=BoardSettings()),
+                                camera=CameraSpec(calibrate=False))) as robot, \
             pytest.raises(ConfigError, match="camera's calibration"):
         floor_camera(robot)
-    with robot_on("twin", twin_calibration) as (robot, _twin):  # an arm on a table
+    with robot_on(TwinSpec(), twin_calibration) as (robot, _twin):  # an arm on a table
         with pytest.raises(ConfigError, match="where the arm sits above the floor"):
             floor_camera(robot)
         assert isinstance(floor_camera(robot, chassis=load_chassis_config("jetauto")),

@@ -1,9 +1,10 @@
-"""Line following with obstacle clearing (busarm.apps.line_follow, ``busarm line-follow``)
-on the arena twin, through the real path: ``Robot.open("board://twin", arena=...)``
-drives the chassis through the simulated controller board, reads the simulated Lidar's
-bytes and the wrist camera's renders (calibrated by our own flows). The truth (the
-chassis's pose, the tape, the block and box bodies, what touched the chassis) is read
-only here, by the tests and their step callbacks (a person stepping in).
+"""Line following with obstacle clearing (busarm.apps.line_follow,
+``busarm line-follow``) on the arena twin, through the real path:
+``Robot.open(RobotConfig(TwinSpec(arena=..., controller=BoardSettings())))`` drives the
+chassis through the simulated controller board, reads the simulated Lidar's bytes and
+the wrist camera's renders (calibrated by our own flows). The truth (the chassis's pose,
+the tape, the block and box bodies, what touched the chassis) is read only here, by the
+tests and their step callbacks (a person stepping in).
 
 The loop is a small ellipse (1.6 x 1.1 m, 4.3 m round, its tightest bend 0.38 m) so
 that a lap takes seconds; the robot starts on its left end heading down it.
@@ -29,9 +30,11 @@ from busarm.apps.line_follow import LineFollowJob
 from busarm.base.odometry import Pose2D
 from busarm.cli.main import cli
 from busarm.errors import NavigationError
-from busarm.robot import Robot
+from busarm.robot import CameraSpec, Robot, RobotConfig
+from busarm.sim.spec import BoardSettings
 from busarm.twin.arena import Arena, ArenaBlock, FloorLine, Room, Solid, StartPose
 from busarm.twin.arena_gen import distance_to_line_m, loop_points
+from busarm.twin.spec import TwinSpec
 from busarm.twin.twin import Twin
 from busarm.vision.floor_line import _smooth
 
@@ -68,8 +71,9 @@ def ellipse_arena(*, box: bool = False, block_at_m: float | None = None,
 
 @contextmanager
 def robot_in(arena: Arena, calibration: tuple[Path, Path]) -> Iterator[tuple[Robot, Twin]]:
-    with Robot.open("board://twin", arena=arena, intrinsics=calibration[0],
-                    hand_eye=calibration[1]) as robot:
+    with Robot.open(RobotConfig(TwinSpec(arena=arena, controller=BoardSettings()),
+                                camera=CameraSpec(intrinsics=calibration[0],
+                                                  hand_eye=calibration[1]))) as robot:
         assert robot.twin is not None
         yield robot, robot.twin
 

@@ -1,8 +1,9 @@
 """Pick and place with the arm on the mobile base (busarm.apps.mobile_pick) on the arena
-twin, through the real path: ``Robot.open("board://twin", arena=...)`` drives the chassis
-through the simulated controller board, the arm through its servos' bytes, and sees with
-the wrist camera (calibrated by our own flows). The truth (the chassis's pose, the block
-bodies, the fingers, what touched the chassis) is read only here.
+twin, through the real path: ``Robot.open(RobotConfig(TwinSpec(arena=...,
+controller=BoardSettings())))`` drives the chassis through the simulated controller
+board, the arm through its servos' bytes, and sees with the wrist camera (calibrated by
+our own flows). The truth (the chassis's pose, the block bodies, the fingers, what
+touched the chassis) is read only here.
 
 The table arm's shoulder stops at horizontal (0 deg, the vendor's IK limit), so from the
 JetAuto's deck its fingertips would go down to 105 mm below the arm's base, 40 mm above
@@ -41,9 +42,11 @@ from busarm.arm.config import ArmConfig, deck_mounted, load_arm_config
 from busarm.arm.kinematics import ArmKinematics
 from busarm.base.odometry import Pose2D
 from busarm.errors import ConfigError, UnreachableError
-from busarm.robot import Robot
+from busarm.robot import ArmSpec, CameraSpec, Robot, RobotConfig
+from busarm.sim.spec import BoardSettings
 from busarm.twin.arena import Arena, Room, Solid, StartPose, arena_from_toml
 from busarm.twin.arena_gen import random_arena
+from busarm.twin.spec import TwinSpec
 from busarm.twin.twin import Twin
 
 pytestmark = pytest.mark.slow  # whole mobile picks on the twin
@@ -65,8 +68,10 @@ def calibration(twin_calibration: tuple[Path, Path]) -> tuple[Path, Path]:
 @contextmanager
 def robot_in(arena: Arena, calibration: tuple[Path, Path], config: ArmConfig | None = None
              ) -> Iterator[tuple[Robot, Twin]]:
-    with Robot.open("board://twin", arena=arena, config=config, intrinsics=calibration[0],
-                    hand_eye=calibration[1]) as robot:
+    with Robot.open(RobotConfig(TwinSpec(arena=arena, controller=BoardSettings()),
+                                ArmSpec(config=config),
+                                camera=CameraSpec(intrinsics=calibration[0],
+                                                  hand_eye=calibration[1]))) as robot:
         assert robot.twin is not None
         yield robot, robot.twin
 

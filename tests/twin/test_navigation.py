@@ -1,12 +1,13 @@
 """The navigation stack on the arena twin, through the real path, and its faults.
 
-``Robot.open("board://twin", arena=...)`` drives the chassis through the simulated
-controller board and reads the simulated A1's bytes; the map is the robot's own
-(``build_map``, once for the module), then ``Navigator`` localises on it, plans and
-follows (busarm.apps.navigator), and ``TransportJob`` fetches a block
-(busarm.apps.transport). The truth (the chassis's pose and speed, the arena's geometry,
-what touched the chassis) is read only here, by the tests and their scan hooks (a person
-carrying the robot, stepping in the way, unplugging the Lidar, a servo browning out).
+``Robot.open(RobotConfig(TwinSpec(arena=..., controller=BoardSettings())))`` drives the
+chassis through the simulated controller board and reads the simulated A1's bytes; the
+map is the robot's own (``build_map``, once for the module), then ``Navigator``
+localises on it, plans and follows (busarm.apps.navigator), and ``TransportJob`` fetches
+a block (busarm.apps.transport). The truth (the chassis's pose and speed, the arena's
+geometry, what touched the chassis) is read only here, by the tests and their scan hooks
+(a person carrying the robot, stepping in the way, unplugging the Lidar, a servo
+browning out).
 
 The arena is two small rooms: a partition from the south wall leaves one 0.8 m gap to
 the east; a box waits in the east room's corner, to be moved into the way.
@@ -36,12 +37,14 @@ from busarm.lidar.rplidar import RplidarA1
 from busarm.nav.map_files import OCCUPIED_THRESH
 from busarm.nav.mapping import compose, inverse
 from busarm.protocol import Request
-from busarm.robot import Robot
+from busarm.robot import CameraSpec, Robot, RobotConfig
 from busarm.sim.rplidar import SimRplidar
+from busarm.sim.spec import BoardSettings
 from busarm.sim.transport import SimTransport
 from busarm.twin.arena import WALL_THICKNESS_M, Arena, ArenaBlock, Room, Solid, StartPose
 from busarm.twin.arena_tasks import transport_points
 from busarm.twin.mobile import MobileBase
+from busarm.twin.spec import TwinSpec
 from busarm.twin.twin import Twin
 
 pytestmark = pytest.mark.slow  # the mobile robot mapping and driving an arena
@@ -147,7 +150,8 @@ def exposed_face_points(arena: Arena, step_m: float = 0.05) -> FloatArray:
 @pytest.fixture(scope="module")
 def mapped() -> Mapped:
     """ARENA explored and mapped by the robot itself from its start (about 8 s)."""
-    with Robot.open("board://twin", arena=ARENA, calibrate=False) as robot:
+    with Robot.open(RobotConfig(TwinSpec(arena=ARENA, controller=BoardSettings()),
+                                camera=CameraSpec(calibrate=False))) as robot:
         twin = twin_of(robot)
         run = build_map(robot, time_limit_s=120.0)
         contacts = list(mobile(twin).contacts)
@@ -226,8 +230,9 @@ def robot_at(start: Pose2D | None = None, arena: Arena = ARENA,
     if start is not None:
         arena = replace(arena, start=StartPose(start.x_m, start.y_m, start.yaw_deg))
     intrinsics, hand_eye = calibration if calibration is not None else (None, None)
-    with Robot.open("board://twin", arena=arena, calibrate=False, intrinsics=intrinsics,
-                    hand_eye=hand_eye) as robot:
+    camera = CameraSpec(intrinsics=intrinsics, hand_eye=hand_eye, calibrate=False)
+    with Robot.open(RobotConfig(TwinSpec(arena=arena, controller=BoardSettings()),
+                                camera=camera)) as robot:
         yield robot
 
 

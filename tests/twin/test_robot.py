@@ -8,15 +8,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from busarm.bus.ports import SerialPort
 from busarm.errors import CameraError, ConfigError
-from busarm.robot import Robot
+from busarm.robot import ArmSpec, CameraSpec, Robot, RobotConfig
+from busarm.sim.spec import SimSpec
 from busarm.twin.scene import Block, Scene
+from busarm.twin.spec import TwinSpec
 
 
 def test_a_twin_robot_has_its_camera_bins_clock_and_a_calibration_made_in_it(
         tmp_path: Path) -> None:
     wall = time.monotonic()
-    with Robot.open("twin://?seed=4&blocks=2", calibration_dir=tmp_path) as robot:
+    with Robot.open(RobotConfig(TwinSpec(seed=4, blocks=2),
+                                camera=CameraSpec(folder=tmp_path))) as robot:
         assert robot.is_twin and robot.twin is not None
         assert robot.clock is robot.twin.clock and robot.clock.is_simulated
         assert sorted(robot.cameras) == ["overview", "wrist"]
@@ -43,11 +47,12 @@ def test_a_twin_robot_has_its_camera_bins_clock_and_a_calibration_made_in_it(
 
 def test_the_same_calibration_files_give_the_same_robot_on_another_scene(
         twin_calibration: tuple[Path, Path]) -> None:
-    # The files a twin robot's calibration wrote (calibration_dir: the session's, made as
-    # the test above makes its own), on a twin with another table.
+    # The files a twin robot's calibration wrote (the camera's folder: the session's, made
+    # as the test above makes its own), on a twin with another table.
     scene = Scene(blocks=(Block("red", 200.0, 30.0, 0.0),))
-    with Robot.open("twin", scene=scene, intrinsics=twin_calibration[0],
-                    hand_eye=twin_calibration[1]) as robot:
+    with Robot.open(RobotConfig(TwinSpec(scene=scene),
+                                camera=CameraSpec(intrinsics=twin_calibration[0],
+                                                  hand_eye=twin_calibration[1]))) as robot:
         cal = robot.require_camera_calibration()
         assert cal.twin_run is None and "camera.json" in cal.source
         seen = robot.locator().locate_averaged([(robot.camera.read().image,
@@ -57,26 +62,28 @@ def test_the_same_calibration_files_give_the_same_robot_on_another_scene(
 
 
 def test_missing_parts_are_refused_before_the_port_is_opened() -> None:
-    port = "socket://127.0.0.1:9"  # nothing listens: opening it would fail
+    port = SerialPort("socket://127.0.0.1:9")  # nothing listens: opening it would fail
     with pytest.raises(ConfigError, match=r"on socket://127.0.0.1:9 this job needs the wrist "
                                           r"camera \(--camera\); the camera's calibration"):
-        Robot.open(port, needs=("camera", "camera_calibration"))
+        Robot.open(RobotConfig(port), needs=("camera", "camera_calibration"))
     with pytest.raises(ConfigError, match="where the bins are"):
-        Robot.open(port, camera="/dev/video9", needs=("bins",))
+        Robot.open(RobotConfig(port, camera=CameraSpec("/dev/video9")), needs=("bins",))
     with pytest.raises(ConfigError, match="needs wings; allowed: camera"):
-        Robot.open(port, needs=("wings",))
-    with pytest.raises(ConfigError, match="a scene is for the twin; sim is not one"):
-        Robot.open("sim", scene=Scene())
+        Robot.open(RobotConfig(port), needs=("wings",))
+    # A scene is the twin's alone: the simulator's description has no place for one.
+    with pytest.raises(TypeError, match="scene"):
+        SimSpec(scene=Scene())  # type: ignore[call-arg]
     with pytest.raises(ConfigError, match="give both camera calibration files"):
-        Robot.open("sim", intrinsics=Path("camera.json"))
+        Robot.open(RobotConfig(SimSpec(), camera=CameraSpec(intrinsics=Path("camera.json"))))
     with pytest.raises(ConfigError, match="needs the intrinsics it was made with"):
-        Robot.open("twin", hand_eye=Path("hand_eye.json"))
+        Robot.open(RobotConfig(camera=CameraSpec(hand_eye=Path("hand_eye.json"))))
 
 
 def test_a_robot_without_a_camera_says_what_is_missing() -> None:
-    with Robot.open("sim://?realtime=1") as robot:
+    with Robot.open(RobotConfig(SimSpec(realtime=True))) as robot:
         assert not robot.clock.is_simulated
-    with Robot.open("sim") as robot:  # the simulator in this process: simulated time
+    # The simulator in this process: simulated time.
+    with Robot.open(RobotConfig(SimSpec())) as robot:
         assert not robot.is_twin and robot.clock.is_simulated
         assert not robot.has_camera and robot.bins == {}
         with pytest.raises(ConfigError, match="needs the wrist camera"):
@@ -87,12 +94,13 @@ def test_a_robot_without_a_camera_says_what_is_missing() -> None:
 
 def test_a_camera_that_cannot_open_closes_the_twin_it_made() -> None:
     with pytest.raises(CameraError):
-        Robot.open("twin://?blocks=0", camera="/nonexistent/folder", calibrate=False)
+        Robot.open(RobotConfig(TwinSpec(blocks=0),
+                               camera=CameraSpec("/nonexistent/folder", calibrate=False)))
 
 
 def test_an_exception_in_the_job_stops_and_holds_the_arm() -> None:
     with pytest.raises(RuntimeError, match="job failed"), Robot.open(
-            "twin://?blocks=0", calibrate=False) as robot:
+            RobotConfig(TwinSpec(blocks=0), camera=CameraSpec(calibrate=False))) as robot:
         robot.arm.move_joints(robot.config.pose("home"), wait=False)
         robot.clock.sleep(0.2)  # mid-move
         twin = robot.twin
@@ -112,17 +120,20 @@ def test_an_exception_in_the_job_stops_and_holds_the_arm() -> None:
     assert abs(twin.servos[1].position_pulses - home_pulses) > 5
 
 
-def test_the_twins_arm_is_the_one_given_in_its_url_or_by_the_program() -> None:
+def test_the_twins_arm_is_the_one_given_to_the_twin_or_by_the_program() -> None:
     from busarm.arm.config import load_arm_config
 
     armpi = str(Path(__file__).parents[1] / "data" / "armpi_style.toml")
-    with Robot.open(f"twin://?config={armpi}&blocks=0", calibrate=False) as robot:
+    no_calibration = CameraSpec(calibrate=False)
+    with Robot.open(RobotConfig(TwinSpec(config=armpi, blocks=0),
+                                camera=no_calibration)) as robot:
         assert robot.config.name == "ArmPi-style test arm" == robot.twin.config.name  # type: ignore[union-attr]
-    with Robot.open("twin://?blocks=0", config=armpi, calibrate=False) as robot:
+    with Robot.open(RobotConfig(TwinSpec(blocks=0), ArmSpec(config=armpi),
+                                camera=no_calibration)) as robot:
         assert robot.config.name == "ArmPi-style test arm"
     with pytest.raises(ConfigError, match="is not the arm config given"):
-        Robot.open(f"twin://?config={armpi}&blocks=0", config=load_arm_config(),
-                   calibrate=False)
+        Robot.open(RobotConfig(TwinSpec(config=armpi, blocks=0),
+                               ArmSpec(config=load_arm_config()), camera=no_calibration))
 
 
 def test_an_action_group_plays_on_the_twins_clock() -> None:
@@ -130,7 +141,8 @@ def test_an_action_group_plays_on_the_twins_clock() -> None:
 
     group = read_d6a(Path(__file__).parents[1] / "data" / "vendor" /
                      "arm_calibration_pose.d6a")
-    with Robot.open("twin://?blocks=0", calibrate=False) as robot:
+    with Robot.open(RobotConfig(TwinSpec(blocks=0),
+                                camera=CameraSpec(calibrate=False))) as robot:
         start = robot.clock.now()
         assert robot.arm.play(group) == len(group.frames)
         # Each frame's time passed on the twin (not on the wall), and the arm got there.

@@ -15,7 +15,7 @@ from itertools import pairwise
 import pytest
 
 from busarm.bus.board import BoardLink
-from busarm.bus.transport import open_transport
+from busarm.bus.ports import open_transport
 from busarm.clock import SimClock
 from busarm.protocol.board import (
     FRAME_OVERHEAD,
@@ -26,6 +26,7 @@ from busarm.protocol.board import (
 )
 from busarm.sim.board import SimBoard
 from busarm.sim.bus import SimBus
+from busarm.sim.spec import BoardSettings, SimSpec
 from busarm.sim.transport import SimTransport
 
 BURST = 400
@@ -100,7 +101,8 @@ def test_a_burst_during_a_servo_read_reaches_the_listener_in_order(
 def test_every_report_of_the_board_reaches_the_listener_through_reads_and_polls() -> None:
     """On the wall clock, through ``open_transport``: the board's own IMU, encoder and
     battery stream, read partly by servo reads and partly by polls."""
-    link = BoardLink(open_transport("board://sim?ids=1&imu_hz=200&battery_hz=20"))
+    link = BoardLink(open_transport(SimSpec(ids=(1,), controller=BoardSettings(
+        imu_hz=200, battery_hz=20))))
     heard: Heard = []
     try:
         link.add_listener(lambda report, at_s: heard.append((report, at_s)))

@@ -15,7 +15,8 @@ from busarm.dashboard.jog import JogPlan, JogStep
 from busarm.dashboard.protocol import parse_request
 from busarm.dashboard.service import RobotService
 from busarm.protocol import Command, Request
-from busarm.robot import Robot
+from busarm.robot import Robot, RobotConfig
+from busarm.sim.spec import SimSpec
 from busarm.sim.transport import SimTransport
 
 MOVES = {Command.MOVE_TIME_WRITE, Command.MOVE_TIME_WAIT_WRITE, Command.MOVE_START}
@@ -23,7 +24,7 @@ MOVES = {Command.MOVE_TIME_WRITE, Command.MOVE_TIME_WAIT_WRITE, Command.MOVE_STA
 
 def test_a_release_during_a_jog_step_sends_no_target_after_the_stop(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    robot = Robot.open("sim://")
+    robot = Robot.open(RobotConfig(SimSpec()))
     service = RobotService(robot, folder=tmp_path / "robot")
     transport = robot.arm.bus.transport
     assert isinstance(transport, SimTransport)

@@ -134,7 +134,9 @@ def test_reprs_are_short_and_say_what_a_thing_is() -> None:
 
 
 def test_an_arm_moves_to_a_named_pose_and_a_wrong_name_lists_them() -> None:
-    with busarm.Arm.open("sim") as arm:
+    from busarm.sim.spec import SimSpec
+
+    with busarm.Arm.open(SimSpec()) as arm:
         arm.move_to_pose("home")
         reached = arm.read_joints_deg()
         assert all(abs(a - b) < 1.5 for a, b in zip(reached, arm.config.pose("home"),

@@ -7,8 +7,10 @@ from pathlib import Path
 
 import pytest
 
-from busarm.bus.transport import adapter_latency_s, open_transport, usb_latency_timer_ms
+from busarm.bus.ports import open_transport
+from busarm.bus.transport import adapter_latency_s, usb_latency_timer_ms
 from busarm.errors import ConfigError, TransportError
+from busarm.robot.port_url import parse_port
 
 
 def _sysfs(tmp_path: Path, name: str, value: str) -> Path:
@@ -44,8 +46,12 @@ def test_unreadable_latency_timer_counts_as_unknown(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("port", ["", "   ", None, 3])
 def test_bad_port_is_a_config_error(port: object) -> None:
-    with pytest.raises(ConfigError, match="port must be"):
+    # Typed, below the edge: a device path or a PortSpec, and it says which it wanted.
+    with pytest.raises(ConfigError, match=r"port: a .*(device path|PortSpec).*, got "):
         open_transport(port)  # type: ignore[arg-type]
+    # At the edge, the command line's port string.
+    with pytest.raises(ConfigError, match="port must be"):
+        parse_port(port)  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize("baud", [0, 1199, 4_000_001, 9600.5, True])

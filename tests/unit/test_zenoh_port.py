@@ -9,12 +9,14 @@ import pytest
 
 from busarm.arm.arm import Arm
 from busarm.bench.ros import stop_time_ms
-from busarm.bus.zenoh_link import parse_zenoh_port
+from busarm.bus.zenoh_link import ZenohPort
 from busarm.bus.zenoh_session import endpoint_host, is_loopback, session_config
 from busarm.errors import ConfigError, HaltedError, LimitError, ProtocolError
 from busarm.protocol import Command
 from busarm.protocol.frames import encode_request
+from busarm.robot.port_url import parse_port
 from busarm.robot.remote import bus_guard
+from busarm.sim.spec import SimSpec
 
 
 @pytest.mark.parametrize(("port", "endpoint", "robot"), [
@@ -24,7 +26,9 @@ from busarm.robot.remote import bus_guard
 ])
 def test_a_zenoh_port_names_the_endpoint_and_the_robot(port: str, endpoint: str,
                                                        robot: str) -> None:
-    assert parse_zenoh_port(port) == (endpoint, robot)
+    parsed = parse_port(port)
+    assert isinstance(parsed, ZenohPort)
+    assert (parsed.endpoint, parsed.robot) == (endpoint, robot)
 
 
 @pytest.mark.parametrize(("port", "says"), [
@@ -33,7 +37,7 @@ def test_a_zenoh_port_names_the_endpoint_and_the_robot(port: str, endpoint: str,
 ])
 def test_a_bad_zenoh_port_is_refused(port: str, says: str) -> None:
     with pytest.raises(ConfigError, match=re.escape(says)):
-        parse_zenoh_port(port)
+        parse_port(port)
 
 
 def test_only_loopback_listens_without_a_token() -> None:
@@ -49,7 +53,7 @@ def test_only_loopback_listens_without_a_token() -> None:
 
 
 def test_the_guard_lets_through_what_the_arm_may_do_and_nothing_else() -> None:
-    with Arm.open("sim") as arm:
+    with Arm.open(SimSpec()) as arm:
         check = bus_guard(arm)
         lo, hi = arm.pulse_limits[2]
         check(encode_request(2, Command.MOVE_TIME_WRITE, lo, 500))

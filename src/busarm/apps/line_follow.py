@@ -478,7 +478,7 @@ class LineFollowJob:
         turning_m = math.hypot(*half_size_m(self.base.config)) + TURN_CLEAR_M
         if len(returns) and float(np.min(np.hypot(returns[:, 0], returns[:, 1]))) < turning_m:
             return block
-        turned = self.base.move_by(0.0, 0.0, math.degrees(bearing))
+        turned = self.base.move_by(0.0, 0.0, bearing)
         seen = Pose2D(block.x_m, block.y_m, math.radians(block.yaw_deg)).relative_to(turned)
         return replace(block, x_m=seen.x_m, y_m=seen.y_m,
                        yaw_deg=(seen.yaw_deg + 45.0) % 90.0 - 45.0)

@@ -281,7 +281,7 @@ class Navigator:
                     f"{self._where(Trip(goal))}: standing {math.hypot(left.x_m, left.y_m):.2f}"
                     f" m off the goal after arriving (more than {SETTLE_MAX_M:g} m, which "
                     "is not closed blind); the base is stopped")
-            self.base.move_by(left.x_m, left.y_m, left.yaw_deg)
+            self.base.move_by(left.x_m, left.y_m, left.yaw_rad)
         return left
 
     def _plan(self, trip: Trip, world: FloatArray) -> list[Point] | None:

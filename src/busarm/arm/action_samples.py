@@ -19,7 +19,7 @@ from pathlib import Path
 from busarm.arm.actions import ActionFrame, ActionGroup, read_d6a, write_d6a
 from busarm.arm.config import ArmConfig, load_arm_config
 from busarm.errors import ConfigError
-from busarm.units import POSITION_MAX_PULSES, POSITION_MIN_PULSES
+from busarm.protocol.lx_units import POSITION_MAX_PULSES, POSITION_MIN_PULSES
 
 SAMPLES_FOLDER = "samples"
 SUFFIX = ".d6a"

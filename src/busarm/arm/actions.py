@@ -33,13 +33,8 @@ from pathlib import Path
 from busarm.errors import ConfigError
 from busarm.fileio import atomic_path
 from busarm.protocol import check_servo_id
-from busarm.units import (
-    MOVE_TIME_MAX_MS,
-    POSITION_MAX_PULSES,
-    POSITION_MIN_PULSES,
-    check_int_range,
-    listing,
-)
+from busarm.protocol.lx_units import MOVE_TIME_MAX_MS, POSITION_MAX_PULSES, POSITION_MIN_PULSES
+from busarm.units import check_int_range, listing
 
 TABLE_NAME = "ActionGroup"
 """The vendor's table of frames."""

@@ -1,7 +1,8 @@
-"""The arm: a config, its kinematics and calibration, and a ServoBus.
+"""The arm: a config, its kinematics and calibration, and a ServoPort.
 
 ``Arm`` moves it: joint moves, straight tool lines (planned by ``busarm.arm.line_plan``),
-the gripper and action groups, on the servos of ``busarm.arm.arm_servos.ArmServos``.
+the gripper and action groups, on the servos of ``busarm.arm.arm_servos.ArmServos``: a
+``ServoPort`` (busarm.bus.servo_port), whichever backend carries it.
 
 Every motion is checked in full before the first byte goes out (joint limits, the
 servos' own limits, speed limits, reachability of every waypoint), so a bad request
@@ -35,13 +36,10 @@ from busarm.arm.line_plan import (
 from busarm.arm.motion import check_line_request
 from busarm.bus.driver import ServoBus
 from busarm.errors import ConfigError, LimitError
-from busarm.units import (
-    MOVE_TIME_MAX_MS,
-    POSITION_MAX_PULSES,
-    POSITION_MIN_PULSES,
-    check_range,
-    listing,
-)
+
+# Action frames are the vendor's files: LX servo positions, whatever the port.
+from busarm.protocol.lx_units import POSITION_MAX_PULSES, POSITION_MIN_PULSES
+from busarm.units import check_range, listing
 
 DEFAULT_SPEED_DEG_S = 60.0
 """Joint speed of moves that give neither a duration nor a speed."""
@@ -150,7 +148,7 @@ class Arm(ArmServos):
                 for d, j in zip(deltas, self.config.joints, strict=True)
             )
             duration_s = math.ceil(duration_s * 1000.0) / 1000.0  # whole ms, never faster
-        check_range("duration_s", duration_s, 0.0, MOVE_TIME_MAX_MS / 1000.0, "s")
+        check_range("duration_s", duration_s, 0.0, self.model.max_move_s, "s")
         for d, j in zip(deltas, self.config.joints, strict=True):
             if d > 1e-9 and (duration_s <= 0 or d / duration_s > j.max_speed_deg_s * (1 + 1e-9)):
                 need = d / j.max_speed_deg_s
@@ -292,8 +290,8 @@ class Arm(ArmServos):
         steps = [b - a for a, b in zip([0.0, *times[:-1]], times, strict=True)]
         if min(steps) <= 0:
             raise ConfigError("waypoint times must increase")
-        if max(steps) > MOVE_TIME_MAX_MS / 1000.0:
-            raise ConfigError("waypoints must be at most 30 s apart")
+        if max(steps) > self.model.max_move_s:
+            raise ConfigError(f"waypoints must be at most {self.model.max_move_s:g} s apart")
         result = MotionRecord(duration_s=times[-1])
 
         def run() -> None:
@@ -325,7 +323,7 @@ class Arm(ArmServos):
     def _gripper_move(self, position_pulses: int, duration_s: float) -> None:
         g = self.config.gripper
         g.check_pulses(position_pulses)
-        self.bus.move_pulses(g.servo_id, position_pulses, round(duration_s * 1000))
+        self.bus.move_deg(g.servo_id, self.model.deg_from_pulses(position_pulses), duration_s)
 
     def open_gripper(self, *, wait: bool = True, gap_mm: float | None = None) -> int:
         """Open the gripper fully, or until the fingers are ``gap_mm`` apart (no wider than

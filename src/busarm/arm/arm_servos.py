@@ -1,5 +1,9 @@
 """The arm's servos in joint terms: the base of ``busarm.arm.arm.Arm``.
 
+The servos are a ``ServoPort`` (busarm.bus.servo_port: the LX line, the controller
+board, a robot served over Zenoh, or any other family's backend); their pulses are the
+port's ``model``'s, so nothing here assumes a servo family's scale.
+
 At connect each servo is checked (it answers; its stored offset is the calibration's)
 and its pulse range is the joint's limits mapped through the calibration, rounded
 inward, and narrowed to the servo's own stored angle limits. Then joint angles and
@@ -19,7 +23,7 @@ from busarm.arm.chain import Joints, Pose
 from busarm.arm.config import ArmConfig, JointConfig
 from busarm.arm.gripper import GripperState, gripper_state
 from busarm.arm.kinematics import ArmKinematics
-from busarm.bus.driver import ServoBus
+from busarm.bus.servo_port import ServoModel, ServoPort
 from busarm.clock import Clock
 from busarm.errors import (
     BusTimeoutError,
@@ -27,35 +31,30 @@ from busarm.errors import (
     LimitError,
     UnreliableLineError,
 )
-from busarm.units import (
-    CENTER_PULSES,
-    DEG_PER_PULSE,
-    MOVE_TIME_MAX_MS,
-    POSITION_MAX_PULSES,
-    POSITION_MIN_PULSES,
-    check_range,
-)
+from busarm.units import check_range
 
 SETTLE_TIMEOUT_S = 1.0
 """How long settled_joints_deg waits for the servos to stand still after a move's end."""
 SETTLE_POLL_S = 0.1
 DEFAULT_TOLERANCE_DEG = 1.5
-"""Position feedback is whole pulses (0.24 deg), and a loaded servo settles a pulse or two
+"""Position feedback is whole pulses (0.24 deg on LX servos), and a loaded servo settles a pulse or two
 short; a wait within this counts as arrived."""
 
 
 class ArmServos:
-    """An arm config's servos on a ServoBus, commanded and read in joint degrees."""
+    """An arm config's servos on a ServoPort, commanded and read in joint degrees."""
 
     def __init__(
         self,
-        bus: ServoBus,
+        bus: ServoPort,
         config: ArmConfig,
         calibration: Calibration | None = None,
         *,
         check: bool = True,
     ) -> None:
         self.bus = bus
+        self.model: ServoModel = bus.model
+        """The servos' position scale (the port's): what the arm's pulses are."""
         self.clock: Clock = bus.clock
         """Every wait of the arm's is on its bus's clock (simulated time on a twin)."""
         self.config = config
@@ -74,9 +73,8 @@ class ArmServos:
         if check:
             self._check_servos()
         for sid, (lo, hi) in self._pulse_limits.items():
-            bus.set_limits_deg(
-                sid, (lo - CENTER_PULSES) * DEG_PER_PULSE, (hi - CENTER_PULSES) * DEG_PER_PULSE
-            )
+            bus.set_limits_deg(sid, self.model.deg_from_pulses(lo),
+                               self.model.deg_from_pulses(hi))
 
     # ------------------------------------------------------------------ checks
 
@@ -84,7 +82,7 @@ class ArmServos:
         a = self.pulses_exact(j, j.min_deg)
         b = self.pulses_exact(j, j.max_deg)
         lo, hi = math.ceil(min(a, b) - 1e-9), math.floor(max(a, b) + 1e-9)
-        lo, hi = max(lo, POSITION_MIN_PULSES), min(hi, POSITION_MAX_PULSES)
+        lo, hi = max(lo, self.model.min_pulses), min(hi, self.model.max_pulses)
         if lo >= hi:
             raise CalibrationError(
                 f"{j.name}: with its calibration the joint range maps outside the servo"
@@ -128,8 +126,9 @@ class ArmServos:
 
     def _narrow(self, servo_id: int, lo_deg: float, hi_deg: float) -> None:
         lo, hi = self._pulse_limits[servo_id]
-        slo = round(lo_deg / DEG_PER_PULSE) + CENTER_PULSES
-        shi = round(hi_deg / DEG_PER_PULSE) + CENTER_PULSES
+        m = self.model
+        slo = round(lo_deg / m.deg_per_pulse) + m.center_pulses
+        shi = round(hi_deg / m.deg_per_pulse) + m.center_pulses
         nlo, nhi = max(lo, slo), min(hi, shi)
         if nlo >= nhi:
             raise LimitError(
@@ -148,7 +147,7 @@ class ArmServos:
     def pulses_exact(self, joint: JointConfig, angle_deg: float) -> float:
         """The (fractional) servo position for a joint angle, with the calibration."""
         servo_deg = joint.servo_deg_from_angle_deg(angle_deg) + self._sw[joint.servo_id]
-        return CENTER_PULSES + servo_deg / DEG_PER_PULSE
+        return self.model.pulses_exact(servo_deg)
 
     def joint_deg_from_servo_deg(self, joint: JointConfig, servo_deg: float) -> float:
         return joint.angle_deg_from_servo_deg(servo_deg - self._sw[joint.servo_id])
@@ -174,7 +173,7 @@ class ArmServos:
     def joints_from_pulses(self, pulses: Mapping[int, float]) -> Joints:
         """Joint angles for servo positions (calibrated)."""
         a = [
-            self.joint_deg_from_servo_deg(j, (pulses[j.servo_id] - CENTER_PULSES) * DEG_PER_PULSE)
+            self.joint_deg_from_servo_deg(j, self.model.deg_from_pulses(pulses[j.servo_id]))
             for j in self.config.joints
         ]
         return (a[0], a[1], a[2], a[3], a[4])
@@ -210,11 +209,11 @@ class ArmServos:
         """Send joint targets to arrive in ``duration_s``, reading nothing and not waiting
         (a caller that streams small steps and knows where the arm is: a jog). Joint
         limits are checked; the caller keeps each step within the joints' speeds."""
-        check_range("duration_s", duration_s, 0.0, MOVE_TIME_MAX_MS / 1000.0, "s")
+        check_range("duration_s", duration_s, 0.0, self.model.max_move_s, "s")
         self._send_pulses(self.servo_pulses(joints_deg), duration_s)
 
     def _send_pulses(self, pulses: Mapping[int, int], duration_s: float) -> None:
-        targets = {sid: (p - CENTER_PULSES) * DEG_PER_PULSE for sid, p in pulses.items()}
+        targets = {sid: self.model.deg_from_pulses(p) for sid, p in pulses.items()}
         self.bus.sync_move_deg(targets, duration_s)
 
     def wait(
@@ -231,7 +230,7 @@ class ArmServos:
         """
         target = self.config.check_joints(joints_deg)
         servo_targets = {
-            j.servo_id: (self.pulses_exact(j, a) - CENTER_PULSES) * DEG_PER_PULSE
+            j.servo_id: self.model.deg_from_pulses(self.pulses_exact(j, a))
             for j, a in zip(self.config.joints, target, strict=True)
         }
         # Joint and servo degrees differ only by sign and offset: the tolerance carries over.
@@ -239,7 +238,8 @@ class ArmServos:
             servo_targets, tolerance_deg=tolerance_deg, timeout_s=timeout_s
         )
         return self.joints_from_pulses(
-            {sid: deg / DEG_PER_PULSE + CENTER_PULSES for sid, deg in positions.items()}
+            {sid: deg / self.model.deg_per_pulse + self.model.center_pulses
+             for sid, deg in positions.items()}
         )
 
     def settled_joints_deg(self, *, timeout_s: float = SETTLE_TIMEOUT_S) -> Joints:
@@ -254,7 +254,7 @@ class ArmServos:
         while self.clock.now() < deadline:
             self.clock.sleep(SETTLE_POLL_S)
             now = self.read_joints_deg()
-            if max(abs(a - b) for a, b in zip(now, last, strict=True)) <= DEG_PER_PULSE:
+            if max(abs(a - b) for a, b in zip(now, last, strict=True)) <= self.model.deg_per_pulse:
                 return now
             last = now
         return last
@@ -272,7 +272,7 @@ class ArmServos:
             position = self.bus.read_position_pulses(sid)
             lo, hi = self._pulse_limits[sid]
             if lo <= position <= hi:
-                self.bus.move_pulses(sid, position, 0)
+                self.bus.move_deg(sid, self.model.deg_from_pulses(position), 0.0)
             else:
                 limp.append(sid)
         return limp

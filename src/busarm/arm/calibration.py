@@ -31,13 +31,8 @@ from typing import TypeGuard
 from busarm.arm.config import ArmConfig
 from busarm.errors import CalibrationError
 from busarm.fileio import read_versioned_json, write_text_atomic
-from busarm.units import (
-    DEG_PER_PULSE,
-    OFFSET_MAX_PULSES,
-    OFFSET_MIN_PULSES,
-    check_int_range,
-    check_range,
-)
+from busarm.protocol.lx_units import DEG_PER_PULSE, OFFSET_MAX_PULSES, OFFSET_MIN_PULSES
+from busarm.units import check_int_range, check_range
 
 FORMAT_NAME = "busarm.calibration"
 FORMAT_VERSION = 1

@@ -40,6 +40,7 @@ import numpy.typing as npt
 
 from busarm.arm.config import Geometry
 from busarm.errors import ConfigError
+from busarm.units import fixed_number
 
 TAU = 2.0 * math.pi
 HALF_PI = 0.5 * math.pi
@@ -67,6 +68,11 @@ class Pose(NamedTuple):
     z_mm: float
     pitch_deg: float
     roll_deg: float
+
+    def __repr__(self) -> str:
+        return (f"Pose(x_mm={fixed_number(self.x_mm)}, y_mm={fixed_number(self.y_mm)}, "
+                f"z_mm={fixed_number(self.z_mm)}, pitch_deg={fixed_number(self.pitch_deg)}, "
+                f"roll_deg={fixed_number(self.roll_deg)})")
 
 
 def wrap_deg(angle_deg: float) -> float:

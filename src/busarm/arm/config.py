@@ -18,8 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from busarm.errors import ConfigError, LimitError
-from busarm.tomlfile import TomlReader, load_toml, parse_toml
-from busarm.units import (
+from busarm.protocol.lx_units import (
     CENTER_PULSES,
     DEG_PER_PULSE,
     MOVE_TIME_MAX_MS,
@@ -27,10 +26,9 @@ from busarm.units import (
     POSITION_MAX_PULSES,
     POSITION_MIN_DEG,
     POSITION_MIN_PULSES,
-    plain_number,
-    range_text,
-    shown,
 )
+from busarm.tomlfile import TomlReader, load_toml, parse_toml
+from busarm.units import plain_number, range_text, shown
 
 FORMAT_NAME = "busarm.arm"
 FORMAT_VERSION = 1

@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING
 
 from busarm.arm.chain import Joints, Pose
 from busarm.errors import ConfigError, ContactError, MotionTimeoutError
-from busarm.units import CENTER_PULSES, DEG_PER_PULSE, check_int_range, check_range
+from busarm.units import check_int_range, check_range
 
 if TYPE_CHECKING:
     from busarm.arm.arm import Arm
@@ -279,7 +279,7 @@ class LineGuard:
             p = arm.bus.read_position_pulses(j.servo_id)
             # The servo answered somewhere within the transaction: its middle.
             q, speed = commanded.at(0.5 * (before + clock.now()))
-            a = arm.joint_deg_from_servo_deg(j, (p - CENTER_PULSES) * DEG_PER_PULSE)
+            a = arm.joint_deg_from_servo_deg(j, arm.model.deg_from_pulses(p))
             measured.append(a)
             lags.append(abs(q[k] - a))
             # Once settled a free servo is within tolerance: anything more is stopped short.

@@ -54,7 +54,7 @@ __all__ = [
     "MAX_PENDING_REPORTS",
     "MAX_STEP_S",
     "MEASURE_S",
-    "MOVE_MAX_DEG",
+    "MOVE_MAX_RAD",
     "MOVE_MAX_M",
     "ODOMETRY_PERIOD_S",
     "PROFILE_MARGIN",
@@ -100,7 +100,7 @@ MAX_PENDING_REPORTS = 20_000
 HISTORY_SAMPLES = 300
 """``pose_at`` looks back this many odometry updates (3 s of encoder reports)."""
 MOVE_MAX_M = 100.0
-MOVE_MAX_DEG = 3600.0
+MOVE_MAX_RAD = 20 * math.pi
 _INT32 = 2**32
 
 
@@ -214,16 +214,16 @@ class Base:
             self._send(Twist(), self.clock.now())
             self._deadline_s = math.inf
 
-    def move_by(self, dx_m: float, dy_m: float, dyaw_deg: float) -> Pose2D:
-        """Move by (dx forward, dy left) metres and turn by ``dyaw_deg`` counter-clockwise,
+    def move_by(self, dx_m: float, dy_m: float, dyaw_rad: float) -> Pose2D:
+        """Move by (dx forward, dy left) metres and turn by ``dyaw_rad`` counter-clockwise,
         all in the frame the base has now, on a smooth (minimum-jerk) profile within the
         limits, closed on the odometry; returns where the odometry says it ended
         (relative to the start), stopped. Waits on the robot's clock."""
         check_range("dx", dx_m, -MOVE_MAX_M, MOVE_MAX_M, "m")
         check_range("dy", dy_m, -MOVE_MAX_M, MOVE_MAX_M, "m")
-        check_range("dyaw", dyaw_deg, -MOVE_MAX_DEG, MOVE_MAX_DEG, "deg")
+        check_range("dyaw", dyaw_rad, -MOVE_MAX_RAD, MOVE_MAX_RAD, "rad")
         self._check_open()
-        dyaw = math.radians(dyaw_deg)
+        dyaw = dyaw_rad
         duration_s = self._profile_s(math.hypot(dx_m, dy_m), abs(dyaw))
         start = self._update().pose
         t0 = self.clock.now()

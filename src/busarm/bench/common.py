@@ -17,6 +17,8 @@ from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 from busarm.errors import ConfigError
 from busarm.progress import Progress, quiet
+from busarm.robot.description import CameraSpec, RobotConfig
+from busarm.twin.spec import TwinSpec
 from busarm.units import check_int_range
 
 R = TypeVar("R")
@@ -135,7 +137,7 @@ def run_seeded(task: Callable[[int, Path, Path], R], seeds: Sequence[int], worke
     with tempfile.TemporaryDirectory() as tmp:
         from busarm.robot import Robot
 
-        with Robot.open("twin://?blocks=0", calibration_dir=Path(tmp),
+        with Robot.open(RobotConfig(TwinSpec(blocks=0), camera=CameraSpec(folder=Path(tmp))),
                         progress=progress) as robot:
             robot.require_camera_calibration()
         intrinsics, hand_eye = Path(tmp) / "camera.json", Path(tmp) / "hand_eye.json"

@@ -33,6 +33,8 @@ from busarm.progress import Progress, quiet
 from busarm.protocol import Command, Request
 from busarm.robot import Robot
 from busarm.robot.calibration_store import CalibrationStore
+from busarm.robot.description import CameraSpec, RobotConfig
+from busarm.twin.spec import TwinSpec
 
 __all__ = [
     "CHROMIUM_FLAGS",
@@ -213,8 +215,8 @@ def run_dashboard_bench(*, seconds: float = 10.0, tries: int = 50,
     """The benchmark (see the module docstring) on a real-time twin."""
     report = DashboardBenchReport(machine_info(), seconds, tries=tries)
     progress("opening the twin (real time)...")
-    with Robot.open("twin://?realtime=1", calibration_store=CalibrationStore.for_port("twin"),
-                    progress=progress) as robot:
+    with Robot.open(RobotConfig(TwinSpec(realtime=True), camera=CameraSpec(
+            store=CalibrationStore.for_port(TwinSpec()))), progress=progress) as robot:
         assert robot.twin is not None
         seen: list[tuple[float, Request]] = []
         robot.twin.bus.taps.append(  # the stops only: the list is scanned while it grows

@@ -33,7 +33,10 @@ from busarm.bench.common import (
 )
 from busarm.errors import BusArmError
 from busarm.robot import Robot
+from busarm.robot.description import CameraSpec, RobotConfig
+from busarm.sim.spec import BoardSettings
 from busarm.twin.arena_gen import distance_to_line_m, random_arena
+from busarm.twin.spec import TwinSpec
 
 __all__ = [
     "CLEARED_M",
@@ -149,8 +152,9 @@ def run_layout(seed: int, intrinsics: Path, hand_eye: Path) -> LayoutRun:
     out = LayoutRun(seed, blocks=rng.randint(0, 3), obstacles=rng.randint(0, 2))
     arena = random_arena(seed, floor_blocks=out.blocks)
     out.obstacles = min(out.obstacles, len(arena.boxes))
-    with Robot.open("board://twin", arena=arena, intrinsics=intrinsics,
-                    hand_eye=hand_eye) as robot:
+    with Robot.open(RobotConfig(
+            TwinSpec(arena=arena, controller=BoardSettings()),
+            camera=CameraSpec(intrinsics=intrinsics, hand_eye=hand_eye))) as robot:
         twin = robot.twin
         assert twin is not None and twin.mobile is not None
         mobile, line = twin.mobile, arena.lines[0]

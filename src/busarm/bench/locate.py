@@ -33,10 +33,12 @@ from busarm.bench.common import (
 from busarm.errors import ConfigError, UnreachableError
 from busarm.robot import Robot
 from busarm.robot.camera_calibration import sees_points
+from busarm.robot.description import CameraSpec, RobotConfig
 from busarm.robot.locate import Sighting
 from busarm.robot.twin_calibration import calibrate_twin_camera
 from busarm.twin.lens import LensSpec
 from busarm.twin.scene import COLORS, random_scene
+from busarm.twin.spec import TwinSpec
 from busarm.twin.twin import BlockState
 from busarm.vision.calibration import (
     CameraIntrinsics,
@@ -182,7 +184,8 @@ def localisation_accuracy(
     rng = np.random.default_rng(seed)
     report = AccuracyReport()
     start = time.monotonic()
-    with Robot.open("twin", scene=scene, intrinsics=intrinsics, hand_eye=hand_eye) as robot:
+    with Robot.open(RobotConfig(TwinSpec(scene=scene), camera=CameraSpec(
+            intrinsics=intrinsics, hand_eye=hand_eye))) as robot:
         arm, twin, camera, locator = robot.arm, robot.twin, robot.camera, robot.locator()
         assert twin is not None
         cal = robot.require_camera_calibration()
@@ -225,7 +228,8 @@ def run_locate_bench(*, placements: int = 200, seed: int = 0, work_dir: Path | N
     """Calibrate in the twin with our flows, then measure localisation accuracy."""
     with tempfile.TemporaryDirectory() as tmp:
         out = work_dir or Path(tmp)
-        with Robot.open("twin://?blocks=0", calibrate=False) as robot:
+        with Robot.open(RobotConfig(TwinSpec(blocks=0),
+                                          camera=CameraSpec(calibrate=False))) as robot:
             assert robot.twin is not None
             run = calibrate_twin_camera(robot.twin, out, intrinsics_views=intrinsics_views,
                                         hand_eye_views=hand_eye_views, seed=seed,

@@ -36,9 +36,12 @@ from busarm.bench.common import machine_info
 from busarm.nav.mapping import compose
 from busarm.progress import Progress, quiet
 from busarm.robot import Robot
+from busarm.robot.description import CameraSpec, RobotConfig
+from busarm.sim.spec import BoardSettings
 from busarm.twin.arena import Arena, Room, StartPose
 from busarm.twin.camera_stream import CameraStream
 from busarm.twin.lidar import LidarNoise, TwinLidarWorld
+from busarm.twin.spec import TwinSpec
 
 SIDE_M = 2.0
 STILL_S = 1.0
@@ -123,7 +126,8 @@ def square_arena(seed: int) -> Arena:
 
 def run_square(seed: int, picture: Path | None = None) -> SquareRun:
     """One 2 m square with the slip model on; its end by odometry and by the twin."""
-    with Robot.open("board://twin", arena=square_arena(seed), calibrate=False) as robot:
+    with Robot.open(RobotConfig(TwinSpec(arena=square_arena(seed), controller=BoardSettings()),
+                                camera=CameraSpec(calibrate=False))) as robot:
         base, twin = robot.base, robot.twin
         assert base is not None and twin is not None and twin.mobile is not None
         robot.clock.sleep(STILL_S)
@@ -132,7 +136,7 @@ def run_square(seed: int, picture: Path | None = None) -> SquareRun:
         worst = 0.0
         for side in range(4):
             base.move_by(SIDE_M, 0.0, 0.0)
-            base.move_by(0.0, 0.0, 90.0)
+            base.move_by(0.0, 0.0, math.pi / 2)
             believed = compose(start, base.odometry().pose)
             corners.append((believed.x_m, believed.y_m))
             truth = twin.mobile.pose(twin.data)
@@ -160,8 +164,9 @@ def run_lidar_accuracy(seed: int, scans: int) -> LidarAccuracy:
     normalised: list[float] = []
     dropped = total = 0
     for noisy in (False, True):
-        url = "board://twin?family=arena&seed=" + str(seed) + ("" if noisy else "&lidar_noise=0")
-        with Robot.open(url, calibrate=False) as robot:
+        world = TwinSpec(family="arena", seed=seed, lidar_noise=None if noisy else False,
+                         controller=BoardSettings())
+        with Robot.open(RobotConfig(world, camera=CameraSpec(calibrate=False))) as robot:
             assert robot.lidar is not None and robot.twin is not None
             truth = TwinLidarWorld(robot.twin, LidarNoise.none())
             model = robot.twin.lidar_noise
@@ -192,7 +197,9 @@ def run_realtime(seed: int, seconds: float, *, live: bool = True) -> RealTimeRun
     last frame is drawn. ``live``: frames drawn as a stream is (a line follower's, the
     dashboard's: no antialiasing); else as vision's pictures are."""
     out = RealTimeRun(live=live)
-    with Robot.open(f"board://twin?family=arena&seed={seed}", calibrate=False) as robot:
+    with Robot.open(RobotConfig(
+            TwinSpec(family="arena", seed=seed, controller=BoardSettings()),
+            camera=CameraSpec(calibrate=False))) as robot:
         base, lidar, arm, twin = robot.base, robot.lidar, robot.arm, robot.twin
         assert base is not None and lidar is not None and twin is not None
         poses = [arm.config.pose("look"), arm.config.pose("home")]

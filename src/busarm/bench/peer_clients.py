@@ -150,7 +150,9 @@ class BusarmClient(Client):
 
     def open(self, path: str, timeout_s: float, ids: Sequence[int]) -> None:
         # busarm's defaults: echo detected at open, baud-derived timeouts, 2 retries.
-        self.bus = ServoBus.open(path, baudrate=BAUD, turnaround_s=TURNAROUND_MS / 1000)
+        bus = ServoBus.open(path, baudrate=BAUD, turnaround_s=TURNAROUND_MS / 1000)
+        assert isinstance(bus, ServoBus)  # the simulator's pty: the LX line itself
+        self.bus = bus
         self.read_pulses = self.bus.read_position_pulses  # type: ignore[method-assign]
 
     def close(self) -> None:

@@ -68,11 +68,11 @@ from busarm.bench.peers_report import (
     print_summary,
 )
 from busarm.clock import WALL_CLOCK
+from busarm.protocol.lx_units import CENTER_PULSES
 from busarm.sim.bus import ARM_SERVO_IDS, GRIPPER_ID, SimBus, WireTiming
 from busarm.sim.pty import PtyServer
 from busarm.sim.servo import SimServo
 from busarm.sim.servo_params import ServoParams
-from busarm.units import CENTER_PULSES
 
 __all__ = [
     "ABORT_AFTER_ERRORS",

@@ -30,8 +30,10 @@ import numpy as np
 from busarm.bench.common import CalibrationSummary, Progress, quiet, short_machine_info
 from busarm.errors import BusArmError, ConfigError
 from busarm.robot import Robot
+from busarm.robot.description import CameraSpec, RobotConfig
 from busarm.twin.clutter import clutter_scene
 from busarm.twin.scene import REACH_RADIUS_MM, random_scene
+from busarm.twin.spec import TwinSpec
 from busarm.twin.twin import BlockState
 from busarm.units import check_int_range
 
@@ -189,9 +191,8 @@ def run_scene(task: SceneTask) -> SceneResult:
     else:
         scene = random_scene(task.scene_seed, task.blocks, list(task.colors),
                              radius_mm=REACH_RADIUS_MM)
-    port = "twin://?realtime=1" if task.realtime else "twin"
-    with Robot.open(port, scene=scene, intrinsics=task.intrinsics,
-                    hand_eye=task.hand_eye) as robot:
+    with Robot.open(RobotConfig(TwinSpec(scene=scene, realtime=task.realtime), camera=CameraSpec(
+            intrinsics=task.intrinsics, hand_eye=task.hand_eye))) as robot:
         twin = robot.twin
         assert twin is not None
         distractors_before = twin.distractor_positions_mm()
@@ -284,7 +285,7 @@ def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] |
     start = time.monotonic()
     with tempfile.TemporaryDirectory() as tmp:
         folder = work_dir or Path(tmp)
-        with Robot.open("twin://?blocks=0", calibration_dir=folder,
+        with Robot.open(RobotConfig(TwinSpec(blocks=0), camera=CameraSpec(folder=folder)),
                         progress=progress) as robot:
             made = robot.require_camera_calibration()
             calibration = CalibrationSummary.of(made.twin_run, made.intrinsics)

@@ -37,10 +37,12 @@ from typing import TYPE_CHECKING, Any
 
 from busarm.bench.common import latency_percentiles_ms, machine_info
 from busarm.bench.ros_sender import one_point_trajectory
+from busarm.bus.zenoh_link import ZenohPort
 from busarm.bus.zenoh_session import open_session
 from busarm.errors import BusArmError
 from busarm.progress import Progress, quiet
 from busarm.protocol.rmw_zenoh import Attachment, topic_key
+from busarm.robot.port_url import port_text
 from busarm.robot.remote import ask
 from busarm.ros import messages as m
 from busarm.ros.node import Received, RosNode
@@ -339,7 +341,8 @@ def dropped_client(endpoint: str, truth: Truth) -> tuple[float, float]:
     joints = truth.now()["joints_deg"]
     target = joints[0] + 60.0 if joints[0] < 0 else joints[0] - 60.0
     proxy = FrozenLink(int(endpoint.rsplit(":", 1)[1]))
-    mover = subprocess.Popen([BUSARM, "--port", f"zenoh://127.0.0.1:{proxy.port}", "arm",
+    mover = subprocess.Popen([BUSARM, "--port", port_text(ZenohPort("127.0.0.1", proxy.port)),
+                              "arm",
                               "move-joints", f"{target:.2f}",
                               *(f"{q:.2f}" for q in joints[1:]), "--time", "4"],
                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -484,7 +487,9 @@ def run_ros_bench(*, seconds: float = 10.0, drops: int = 3, flood: int = 1000, s
             progress("pick-sort over zenoh:// while recording an MCAP file...")
             recorder = McapRecorder(session, folder / "pick-sort.mcap")
             bins = ask(session, "busarm", "info")["bins"]
-            report.pick_remote = pick_sort(["--port", f"zenoh://{endpoint[4:]}"], seed,
+            host, tcp_port = endpoint[4:].rsplit(":", 1)
+            report.pick_remote = pick_sort(["--port", port_text(ZenohPort(host, int(tcp_port)))],
+                                           seed,
                                            blocks, folder / "remote")
             report.pick_remote["in_bins_truth"] = in_bins(truth.now(), bins)
             recorder.close()

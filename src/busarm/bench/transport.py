@@ -41,6 +41,8 @@ from busarm.nav.grid import OccupancyGrid
 from busarm.nav.mapping import compose, inverse
 from busarm.nav.points import WORK_AHEAD_M, NamedPoints
 from busarm.robot import Robot
+from busarm.robot.description import CameraSpec, RobotConfig
+from busarm.sim.spec import BoardSettings
 from busarm.twin.arena_tasks import (
     free_pose,
     start_pose,
@@ -48,6 +50,7 @@ from busarm.twin.arena_tasks import (
     transport_points,
     true_map_surfaces,
 )
+from busarm.twin.spec import TwinSpec
 
 __all__ = [
     "DELIVERED_M",
@@ -135,8 +138,9 @@ def run_arena(seed: int, intrinsics: Path, hand_eye: Path) -> ArenaRun:
     origin = start_pose(arena)
     stands, index, _ = transport_points(arena, Pose2D(), seed)  # in the arena's frame
     want = compose(stands.get("place").pose, Pose2D(WORK_AHEAD_M, 0.0, 0.0))
-    with Robot.open("board://twin", arena=arena, intrinsics=intrinsics,
-                    hand_eye=hand_eye) as robot:
+    with Robot.open(RobotConfig(
+            TwinSpec(arena=arena, controller=BoardSettings()),
+            camera=CameraSpec(intrinsics=intrinsics, hand_eye=hand_eye))) as robot:
         twin = robot.twin
         assert twin is not None and twin.mobile is not None
         mobile = twin.mobile

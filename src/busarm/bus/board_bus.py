@@ -1,9 +1,12 @@
-"""The servos behind the vendor's controller board, with the ``ServoBus`` API.
+"""The servos behind the vendor's controller board: the ``board`` servo port.
 
-``BoardServoBus`` is a ``ServoBus`` whose wire is a ``BoardLink``: every call in the
-user's units (moves, reads, limits, torque, offsets, IDs, scan, the halt and the
-emergency stop) works as on a plain LX adapter, so ``Arm``, ``Robot`` and every command
-take ``--port board://...`` unchanged. Differences, by the board's design:
+``BoardServoBus`` is a peer of ``ServoBus`` (the LX line), not its subclass: both are
+``LxServoPort``s (busarm.bus.lx_port) sharing the LX calls in the user's units (moves,
+reads, limits, torque, offsets, the halt) over the carrier seam
+(busarm.bus.servo_wire.ServoWire), which this one implements on a ``BoardLink``
+(``send``, ``query``, ``read_values``, ``send_moves``, ``emergency_stop``). So ``Arm``,
+``Robot`` and every command take ``--port board://...`` unchanged. Differences, by the
+board's design:
 
 - A synchronised move is one multi-servo move frame (sub-command 0x01); the board sends
   each servo its move at once, so there is no queued MOVE_TIME_WAIT_WRITE/MOVE_START.
@@ -26,8 +29,9 @@ from types import TracebackType
 from typing import Any
 
 from busarm.bus.board import BoardLink
-from busarm.bus.driver import EchoMode, ServoBus
+from busarm.bus.driver import EchoMode
 from busarm.bus.id_scan import ScanResult
+from busarm.bus.lx_port import LxServoPort
 from busarm.bus.transport import Transport
 from busarm.errors import (
     BusConflictError,
@@ -107,13 +111,13 @@ def unsupported(command: Command) -> UnsupportedError:
                             "bus adapter for this)")
 
 
-class BoardServoBus(ServoBus):
+class BoardServoBus(LxServoPort):
     """LX bus servos behind a controller board. Thread-safe; a context manager."""
 
     def __init__(self, link: BoardLink, *,
                  limits_deg: Mapping[int, tuple[float, float]] | None = None) -> None:
-        # Not ServoBus.__init__: no LX line here (no echo, no LX timing); the shared state
-        # (limits, halt, what was written) is the same.
+        # No LX line here (no echo, no LX timing); the shared state (limits, halt, what
+        # was written) is every LX-family port's.
         self.link = link
         self.transport = link.transport
         self.echo = False
@@ -148,7 +152,7 @@ class BoardServoBus(ServoBus):
         self.link.close()
 
     def halt(self, why: str = "e-stop") -> None:
-        """As ``ServoBus.halt``, and the wheels too: a speed other than 0 is refused
+        """As every LX port's ``halt``, and the wheels too: a speed other than 0 is refused
         (HaltedError) until ``rearm()``, whichever thread drives the base."""
         self.link.wheels_halted = why  # first: a drive racing the stop is refused or precedes it
         super().halt(why)
@@ -178,7 +182,16 @@ class BoardServoBus(ServoBus):
             log.warning("emergency stop (wheels): %s", exc)
         self.stop_sent, self._unstopped = True, False
 
-    def _encode_write(self, servo_id: int, command: Command, args: tuple[int, ...]) -> bytes:
+    def send(self, servo_id: int, command: Command, *args: int) -> None:
+        """A write command in LX terms (``Command``), as the board's sub-command for it;
+        UnsupportedError, sending nothing, for one it has none for."""
+        self.check_write(servo_id, command, args)
+        request = self._encode(servo_id, command, args)
+        self._mark_written((servo_id,))
+        self._write(request)
+
+    def _encode(self, servo_id: int, command: Command, args: tuple[int, ...]) -> bytes:
+        """The board's frame for an LX write command (checked: nothing is sent)."""
         if command is Command.MOVE_TIME_WRITE:
             request = ServoMove(args[1], ((servo_id, args[0]),)).encode()
             self._targets[servo_id] = args[0]
@@ -193,17 +206,18 @@ class BoardServoBus(ServoBus):
             raise unsupported(command)
         return ServoWrite(sub_for, servo_id, args).encode()
 
-    def _send(self, request: bytes, *, await_echo: bool = True) -> None:
+    def _write(self, request: bytes) -> None:
         with self._lock:
             self.transport.write(request)
 
-    def _send_moves(self, pulses: Mapping[int, int], time_ms: int, *, use_start: bool) -> None:
-        # One frame moves them all: the board sends each servo its move at once.
+    def send_moves(self, pulses: Mapping[int, int], time_ms: int, *, use_start: bool) -> None:
+        """One frame moves them all: the board sends each servo its move at once (so
+        ``use_start`` changes nothing: there is no queued move to start)."""
         self.check_not_halted(Command.MOVE_TIME_WRITE, ())
         request = ServoMove(time_ms, tuple(pulses.items())).encode()
         self._targets.update(pulses)
         self._mark_written(pulses)
-        self._send(request)
+        self._write(request)
 
     def query(self, servo_id: int, command: Command) -> Reply:
         """A read in LX terms (``Command``): the board's answer as the LX reply type."""
@@ -212,7 +226,7 @@ class BoardServoBus(ServoBus):
         self._answered.add(servo_id)
         return decode_reply(Frame(servo_id, int(command), reply.value_bytes))
 
-    def _values(self, servo_id: int, command: Command) -> tuple[int, ...]:
+    def read_values(self, servo_id: int, command: Command) -> tuple[int, ...]:
         reply = self.link.servo_read(self._sub(servo_id, command), servo_id)
         self._answered.add(servo_id)
         return reply.values

@@ -1,29 +1,28 @@
-"""The servo bus's transaction core: one locked request/reply transaction at a time.
+"""The LX serial line as a carrier of LX commands: one locked request/reply transaction
+at a time.
 
 ``BusCore`` derives every timeout from the baud rate and packet lengths, handles
 adapters that echo what they send, retries reads a bounded number of times, and accepts
 a reply only if its header, ID, command, length and checksum are those expected: a
 stray frame, a late reply from another servo or line noise is never taken as the
-answer. ``ServoBus`` (busarm.bus.driver) builds the user's calls on it.
+answer. It implements the carrier seam (``busarm.bus.servo_wire.ServoWire``) on which
+``ServoBus`` (busarm.bus.driver) builds the user's calls.
 """
 
 from __future__ import annotations
 
-import threading
 import warnings
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TypeVar
 
 from busarm.bus.no_reply import LineSighting, final_error, unexplained_error
+from busarm.bus.servo_wire import ServoWire
 from busarm.bus.transport import Transport
-from busarm.clock import Clock
 from busarm.errors import (
     BusTimeoutError,
     ChecksumError,
     ConfigError,
     EchoMismatchError,
-    HaltedError,
     ProtocolError,
 )
 from busarm.protocol import (
@@ -50,7 +49,6 @@ STALE_REPLY_S = 1.0
 NO_ECHO_HINT = "the replies look like the adapter does not echo: try --echo off (or auto)"
 
 _HEADER = b"\x55\x55"
-_R = TypeVar("_R", bound=Reply)
 
 
 @dataclass(frozen=True)
@@ -62,14 +60,13 @@ class _ReadPlan:
     unpack_from: Callable[[bytes | bytearray, int], tuple[int, ...]]
 
 
-class BusCore:
-    """Timing, raw writes and validated reads of a servo bus (the base of ``ServoBus``).
+class BusCore(ServoWire):
+    """Timing, raw writes and validated reads on the LX line (the carrier of ``ServoBus``).
 
-    The state is set by ``ServoBus.__init__`` (the LX line) and ``ServoBus._init_state``
-    (what every servo bus keeps, whatever its wire); it is declared here, where it is used.
+    The line's state is set by ``ServoBus.__init__``; what every LX-family port keeps,
+    by ``ServoWire._init_state``.
     """
 
-    # The LX line.
     transport: Transport
     turnaround_s: float
     timeout_margin_s: float
@@ -80,25 +77,6 @@ class BusCore:
     _late: dict[tuple[int, int], float]
     _trouble: LineSighting | None
     _echo_warned: bool
-    # Every servo bus.
-    clock: Clock
-    _now: Callable[[], float]
-    retries: int
-    _lock: threading.RLock
-    _answered: set[int]
-    wrote: bool
-    written_ids: set[int]
-    _unstopped: bool
-    _halted: str | None
-    stats: dict[str, int]
-
-    def check_not_halted(self, command: Command, args: tuple[int, ...]) -> None:
-        """HaltedError if the bus is halted and ``command`` is not a stop."""
-        if self._halted is None or command is Command.MOVE_STOP or (
-                command is Command.OR_MOTOR_MODE_WRITE and args[-1:] == (0,)):
-            return
-        raise HaltedError(f"{command.name} refused: the robot is halted ({self._halted}); "
-                          "re-arm it first")
 
     # ------------------------------------------------------------------ timing
 
@@ -129,25 +107,22 @@ class BusCore:
 
     def send(self, servo_id: int, command: Command, *args: int) -> None:
         """Send a write command (no reply expected). ``servo_id`` may be 254 (broadcast)."""
-        if SPECS[command].is_read:
-            raise ConfigError(f"{command.name} is a read command: use query()")
-        if command is Command.ID_WRITE and servo_id == BROADCAST_ID:
-            raise ConfigError(
-                "refusing to broadcast ID_WRITE: it would renumber every servo on the bus"
-            )
-        self.check_not_halted(command, args)
-        request = self._encode_write(servo_id, command, args)
+        self.check_write(servo_id, command, args)
+        request = encode_request(servo_id, command, *args)
         self._mark_written((servo_id,))
         self._send(request)
 
-    def _encode_write(self, servo_id: int, command: Command, args: tuple[int, ...]) -> bytes:
-        """The bytes of a write command on this bus's wire (checked: nothing is sent)."""
-        return encode_request(servo_id, command, *args)
-
-    def _mark_written(self, servo_ids: Iterable[int]) -> None:
-        # Marked before sending: a write that fails half-way may have reached the servo.
-        self.wrote = self._unstopped = True
-        self.written_ids.update(sid for sid in servo_ids if sid != BROADCAST_ID)
+    def send_moves(self, pulses: Mapping[int, int], time_ms: int, *, use_start: bool) -> None:
+        """Every servo to its target (pulses) in ``time_ms``: MOVE_TIME_WAIT_WRITE to each,
+        then one broadcast MOVE_START (``use_start``); or MOVE_TIME_WRITE to each."""
+        with self._lock:
+            if not use_start:
+                for sid, p in pulses.items():
+                    self.send(sid, Command.MOVE_TIME_WRITE, p, time_ms)
+            else:
+                for sid, p in pulses.items():
+                    self.send(sid, Command.MOVE_TIME_WAIT_WRITE, p, time_ms)
+                self.send(BROADCAST_ID, Command.MOVE_START)
 
     def query(self, servo_id: int, command: Command) -> Reply:
         """Send a read command and return the validated, typed reply (with retries)."""
@@ -156,12 +131,7 @@ class BusCore:
         params = bytes(buf[at : at + plan.reply_bytes - 6])
         return decode_reply(Frame(servo_id, int(command), params))
 
-    def _read(self, servo_id: int, command: Command, kind: type[_R]) -> _R:
-        reply = self.query(servo_id, command)
-        assert isinstance(reply, kind)
-        return reply
-
-    def _values(self, servo_id: int, command: Command) -> tuple[int, ...]:
+    def read_values(self, servo_id: int, command: Command) -> tuple[int, ...]:
         # The hot path of the unit-level reads: wire values straight from the buffer.
         # After every wait for a reply the CPU caches are cold, so fewer objects and
         # calls here is what keeps the client's CPU time per transaction low.

@@ -9,23 +9,23 @@ are those expected: a stray frame, a late reply from another servo or line noise
 never taken as the answer.
 
 This module opens, stops and closes the bus; its calls come from its parts: the
-transaction core (``busarm.bus.bus_core``), the servo's registers
+transaction core on the line (``busarm.bus.bus_core``), the servo's registers
 (``busarm.bus.servo_registers``), moves and motor mode (``busarm.bus.servo_motion``),
-and the ID scan and renumbering (``busarm.bus.id_scan``).
+and the ID scan and renumbering (``busarm.bus.id_scan``). It is the ``lx`` backend of
+``busarm.bus.servo_port`` (a ``ServoPort``), and an ``LxServoPort`` (busarm.bus.lx_port)
+beside its peer behind the controller board (``BoardServoBus``).
 """
 
 from __future__ import annotations
 
 import enum
 import logging
-import threading
 from collections.abc import Mapping
-from types import TracebackType
 
 from busarm.bus.id_scan import IdScan
-from busarm.bus.servo_motion import ServoMotion
-from busarm.bus.transport import DEFAULT_BAUDRATE, Transport, open_transport
-from busarm.clock import Clock
+from busarm.bus.lx_port import LxServoPort
+from busarm.bus.ports import PortSpec, open_transport
+from busarm.bus.transport import DEFAULT_BAUDRATE, Transport
 from busarm.errors import ConfigError
 from busarm.protocol import (
     BROADCAST_ID,
@@ -61,7 +61,7 @@ class EchoMode(str, enum.Enum):
     AUTO = "auto"
 
 
-class ServoBus(IdScan, ServoMotion):
+class ServoBus(IdScan, LxServoPort):
     """LX bus servos on one serial line. Thread-safe; use as a context manager.
 
     Leaving the ``with`` block because of an exception (Ctrl+C included) sends
@@ -102,29 +102,6 @@ class ServoBus(IdScan, ServoMotion):
         if echo_mode is EchoMode.AUTO:
             self.echo = self._detect_echo()
 
-    def _init_state(self, clock: Clock, retries: int,
-                    limits_deg: Mapping[int, tuple[float, float]] | None) -> None:
-        """What every servo bus keeps, whatever its wire."""
-        self.clock = clock
-        self._now = clock.now  # the hot path's one clock read, bound once
-        self.retries = retries
-        self._lock = threading.RLock()
-        self._limits = {}
-        self._spinning = set()  # servos this bus set turning in motor mode
-        self._answered = set()  # servos that gave a valid reply on this bus
-        self._move_ends = {}  # servo ID -> when its last move should end
-        self.wrote = False
-        """Whether a write command (one that can move or change a servo) has gone out."""
-        self.written_ids = set()
-        """The servos written to by ID (broadcast writes are not counted here)."""
-        self.stop_sent = False
-        """Whether the emergency stop has been sent."""
-        self._unstopped = False  # written since the last emergency stop
-        self._halted = None  # why the bus is halted (``halt``), until ``rearm``
-        for sid, (lo, hi) in (limits_deg or {}).items():
-            self.set_limits_deg(sid, lo, hi)
-        self.stats = {"retries": 0, "timeouts": 0, "bad_replies": 0}
-
     def _detect_echo(self) -> bool:
         # A read to the broadcast ID that no servo answers (only ID_READ is answered):
         # whatever comes back is our own bytes.
@@ -147,9 +124,11 @@ class ServoBus(IdScan, ServoMotion):
     # ------------------------------------------------------------------ lifecycle
 
     @classmethod
-    def open(cls, port: str, *, baudrate: int = DEFAULT_BAUDRATE, **kwargs: object) -> ServoBus:
-        """Open ``port`` (device path, pyserial URL, ``sim``, ``twin`` or ``board://...``)
-        and return a bus on it: the servos behind a controller board for ``board://``."""
+    def open(cls, port: PortSpec | str, *, baudrate: int = DEFAULT_BAUDRATE,
+             **kwargs: object) -> LxServoPort:
+        """Open ``port`` (a ``PortSpec``, or a serial device's path or pyserial URL)
+        and return a bus on it: the servos behind a controller board (its peer,
+        ``BoardServoBus``) for ``board://``."""
         transport = open_transport(port, baudrate=baudrate)
         try:
             if transport.framing == "board":
@@ -161,19 +140,6 @@ class ServoBus(IdScan, ServoMotion):
 
     def close(self) -> None:
         self.transport.close()
-
-    def __enter__(self) -> ServoBus:
-        return self
-
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        try:
-            if exc_type is not None and self._unstopped:
-                self.emergency_stop()
-        finally:
-            self.close()
 
     def emergency_stop(self) -> None:
         """Stop everything and hold; never raises.
@@ -195,43 +161,17 @@ class ServoBus(IdScan, ServoMotion):
                 log.warning("emergency stop: %s", exc)
         self.stop_sent, self._unstopped = True, False
 
-    def halt(self, why: str = "e-stop") -> None:
-        """Latch an emergency stop: MOVE_STOP now (``emergency_stop``), and every later
-        write but a stop raises HaltedError, from any thread, until ``rearm()``.
 
-        A move being sent by another thread is cut short: its remaining writes (and the
-        MOVE_START of a synchronised move) are refused, and a wait for a move to arrive
-        ends with HaltedError. Reads go on (a halted robot can still be watched).
-        """
-        self._halted = why  # first: a write racing the stop below is refused, or precedes it
-        self.emergency_stop()
-
-    def rearm(self) -> None:
-        """Allow writes again after ``halt`` (the servos still hold where they stopped)."""
-        self._halted = None
-
-    @property
-    def halted(self) -> str | None:
-        """Why the bus is halted (what ``halt`` was given), or None."""
-        return self._halted
-
-    @property
-    def lock(self) -> threading.RLock:
-        """Held for each transaction: whoever else moves bytes on this bus's transport (a
-        remote client's requests, busarm.bus.zenoh_link) holds it too."""
-        return self._lock
-
-
-def servo_bus_on(transport: Transport, **kwargs: object) -> ServoBus:
+def servo_bus_on(transport: Transport, **kwargs: object) -> LxServoPort:
     """The servo bus on an open ``transport``: the LX driver, or for a controller board's
     link (``transport.framing == "board"``) the servos behind the board."""
     if transport.framing == "board":
-        from busarm.bus.board_bus import BoardServoBus  # it builds on this module
+        from busarm.bus.board_bus import BoardServoBus  # its module imports this one
 
         return BoardServoBus.on(transport, **kwargs)  # type: ignore[arg-type]
     return ServoBus(transport, **kwargs)  # type: ignore[arg-type]
 
 
-def open_bus(port: str, **kwargs: object) -> ServoBus:
+def open_bus(port: str, **kwargs: object) -> LxServoPort:
     """Open a ServoBus on a device path, a pyserial URL or ``sim``: see ServoBus.open."""
     return ServoBus.open(port, **kwargs)  # type: ignore[arg-type]

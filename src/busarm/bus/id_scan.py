@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
-from busarm.bus.bus_core import NO_ECHO_HINT
+from busarm.bus.bus_core import NO_ECHO_HINT, BusCore
 from busarm.bus.servo_registers import ServoRegisters
 from busarm.errors import (
     BusConflictError,
@@ -41,8 +41,8 @@ class ScanResult:
     duration_s: float = 0.0
 
 
-class IdScan(ServoRegisters):
-    """The ID scan and renumbering (a part of ``ServoBus``)."""
+class IdScan(BusCore, ServoRegisters):
+    """The ID scan and renumbering on the LX line (a part of ``ServoBus``)."""
 
     def scan(
         self,

@@ -16,15 +16,14 @@ from busarm.errors import (
     ProtocolError,
 )
 from busarm.protocol import BROADCAST_ID, Command, ModeReply, ServoMode, check_servo_id
-from busarm.units import (
+from busarm.protocol.lx_units import (
     MOTOR_SPEED_MAX,
     MOVE_TIME_MAX_MS,
-    check_int_range,
-    check_range,
     deg_from_pulses,
     ms_from_s,
     pulses_from_deg,
 )
+from busarm.units import check_int_range, check_range
 
 __all__ = [
     "WAIT_SLACK_S",
@@ -37,11 +36,8 @@ WAIT_SLACK_S = 2.0
 
 
 class ServoMotion(ServoRegisters):
-    """Moves and their limits, the wait for them, and motor mode (a part of ``ServoBus``)."""
-
-    _limits: dict[int, tuple[float, float]]
-    _spinning: set[int]  # servos this bus set turning in motor mode
-    _move_ends: dict[int, float]  # servo ID -> when its last move should end
+    """Moves and their limits, the wait for them, and motor mode, on any carrier of LX
+    commands (a part of ``ServoBus`` and ``BoardServoBus``)."""
 
     # ------------------------------------------------------------------ limits
 
@@ -119,21 +115,9 @@ class ServoMotion(ServoRegisters):
                 )
         assert duration_s is not None
         time_ms = ms_from_s(duration_s)
-        self._send_moves(pulses, time_ms, use_start=use_start)
+        self.send_moves(pulses, time_ms, use_start=use_start)
         self._moving_until(pulses, time_ms / 1000.0)
         return time_ms / 1000.0
-
-    def _send_moves(self, pulses: Mapping[int, int], time_ms: int, *, use_start: bool) -> None:
-        """Every servo to its target (pulses) in ``time_ms``: queued, then one MOVE_START
-        (``use_start``), or each at once."""
-        with self._lock:
-            if not use_start:
-                for sid, p in pulses.items():
-                    self.send(sid, Command.MOVE_TIME_WRITE, p, time_ms)
-            else:
-                for sid, p in pulses.items():
-                    self.send(sid, Command.MOVE_TIME_WAIT_WRITE, p, time_ms)
-                self.send(BROADCAST_ID, Command.MOVE_START)
 
     def stop(self, servo_ids: Iterable[int] | None = None) -> None:
         """MOVE_STOP: stop moving and hold position (all servos if none given)."""

@@ -7,9 +7,9 @@ from the servo's mid-point, volts, deg C), with raw-pulse variants named so.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass
 
-from busarm.bus.bus_core import BusCore
+from busarm.bus.servo_port import ServoState
+from busarm.bus.servo_wire import ServoWire
 from busarm.errors import BusConflictError, ConfigError, ProtocolError
 from busarm.protocol import (
     BROADCAST_ID,
@@ -27,15 +27,13 @@ from busarm.protocol import (
     VinLimitReply,
     check_servo_id,
 )
-from busarm.units import (
+from busarm.protocol.lx_units import (
     CENTER_PULSES,
     DEG_PER_PULSE,
-    check_int_range,
-    check_range,
-    mv_from_v,
     offset_pulses_from_deg,
     pulses_from_deg,
 )
+from busarm.units import check_int_range, check_range, mv_from_v
 
 __all__ = [
     "ServoRegisters",
@@ -43,36 +41,27 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
-class ServoState:
-    """One servo's live readings."""
-
-    servo_id: int
-    position_deg: float
-    temp_c: int
-    vin_v: float
-
-
-class ServoRegisters(BusCore):
-    """Typed reads and writes of one servo's registers (a part of ``ServoBus``)."""
+class ServoRegisters(ServoWire):
+    """Typed reads and writes of one servo's registers, on any carrier of LX commands
+    (a part of ``ServoBus`` and ``BoardServoBus``)."""
 
     # ------------------------------------------------------------------ readings
 
     def read_position_pulses(self, servo_id: int) -> int:
         """Current position in pulses (signed: may read below 0 near the end stop)."""
-        return self._values(servo_id, Command.POS_READ)[0]
+        return self.read_values(servo_id, Command.POS_READ)[0]
 
     def read_position_deg(self, servo_id: int) -> float:
-        return (self._values(servo_id, Command.POS_READ)[0] - CENTER_PULSES) * DEG_PER_PULSE
+        return (self.read_values(servo_id, Command.POS_READ)[0] - CENTER_PULSES) * DEG_PER_PULSE
 
     def read_positions_deg(self, servo_ids: Iterable[int]) -> dict[int, float]:
         return {sid: self.read_position_deg(sid) for sid in servo_ids}
 
     def read_temp_c(self, servo_id: int) -> int:
-        return self._values(servo_id, Command.TEMP_READ)[0]
+        return self.read_values(servo_id, Command.TEMP_READ)[0]
 
     def read_vin_v(self, servo_id: int) -> float:
-        return self._values(servo_id, Command.VIN_READ)[0] / 1000.0
+        return self.read_values(servo_id, Command.VIN_READ)[0] / 1000.0
 
     def read_state(self, servo_id: int) -> ServoState:
         """Position, temperature and voltage of one servo (three transactions)."""

@@ -1,24 +1,20 @@
-"""Byte transports under the servo bus: serial devices, pyserial URLs, the simulator.
+"""Byte transports under the servo bus: serial devices and pyserial URLs.
 
 A transport moves bytes and nothing else; framing, echo and timeouts belong to the
-driver. ``open_transport`` picks one from a port string:
+driver. ``open_serial`` opens a serial device given by its name (``busarm.bus.ports``
+opens any kind of port):
 
 - ``/dev/ttyUSB0``, ``COM3``: a serial device (pyserial, with a direct file-descriptor
   fast path on POSIX);
-- ``socket://``, ``rfc2217://``, ``loop://``, ``spy://`` ...: any pyserial URL;
-- ``sim`` or ``sim://?ids=1,2,3``: the in-process simulator, and ``twin`` or
-  ``twin://?seed=3``: the digital twin, each imported lazily by name so that this layer
-  never imports them;
-- ``board:///dev/ttyACM0``: the servos behind the vendor's controller board (its own
-  frames at 1,000,000 baud), and ``board://sim?...``, ``board://twin?...``: the simulated
-  board in front of the simulator or the twin. A transport's ``framing`` says which
-  protocol its bytes are: ``lx`` (the servos' own) or ``board``.
+- ``socket://``, ``rfc2217://``, ``loop://``, ``spy://`` ...: any pyserial URL.
+
+A transport's ``framing`` says which protocol its bytes are: ``lx`` (the servos' own)
+or ``board`` (the controller board's frames at 1,000,000 baud).
 """
 
 from __future__ import annotations
 
 import errno
-import importlib
 import os
 import select
 import stat
@@ -27,22 +23,21 @@ import warnings
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
+from busarm.bus.device_lock import DeviceLock, lock_device
 from busarm.clock import WALL_CLOCK, Clock
 from busarm.errors import ConfigError, TransportError
 
 __all__ = [
     "BOARD_BAUDRATE",
-    "BOARD_PREFIX",
-    "BOARD_SCHEMES",
     "DEFAULT_BAUDRATE",
     "SYSFS",
-    "TRANSPORT_SCHEMES",
     "SerialTransport",
     "Transport",
     "adapter_latency_s",
-    "board_target",
+    "check_baudrate",
     "check_device",
-    "open_transport",
+    "is_pyserial_url",
+    "open_serial",
     "usb_latency_timer_ms",
 ]
 
@@ -51,37 +46,6 @@ DEFAULT_BAUDRATE = 115200
 
 BOARD_BAUDRATE = 1_000_000
 """The controller board's fixed USB serial rate."""
-BOARD_PREFIX = "board://"
-
-# Scheme -> "module:callable(url, baudrate) -> Transport", imported only when used.
-TRANSPORT_SCHEMES: dict[str, str] = {
-    "sim": "busarm.sim.transport:open_sim_transport",
-    "twin": "busarm.twin.transport:open_twin_transport",
-    "zenoh": "busarm.bus.zenoh_link:open_zenoh_transport",
-}
-BOARD_SCHEMES: dict[str, str] = {
-    "sim": "busarm.sim.board:open_sim_board_transport",
-    "twin": "busarm.twin.transport:open_twin_board_transport",
-}
-"""The simulated controller board in front of these (``board://sim?...``)."""
-
-
-def board_target(port: str) -> str | None:
-    """What a ``board://`` port names behind the board: a device path or pyserial URL,
-    or ``sim://?...``/``twin://?...`` for a simulated board; None if not a board port."""
-    if not port.startswith(BOARD_PREFIX):
-        return None
-    inner = port[len(BOARD_PREFIX):]
-    for scheme in BOARD_SCHEMES:
-        if inner == scheme or inner.startswith((scheme + "?", scheme + "://")):
-            query = inner.split("?", 1)[1] if "?" in inner else ""
-            return f"{scheme}://?{query}" if query else scheme
-    if not inner:
-        raise ConfigError(f"{port!r}: give the board's device after board://, e.g. "
-                          "board:///dev/ttyACM0 (or board://sim, board://twin)")
-    return inner
-
-
 @runtime_checkable
 class Transport(Protocol):
     """What the driver needs from a byte pipe."""
@@ -247,11 +211,19 @@ class SerialTransport:
             return False
         return True
 
+    device_lock: DeviceLock | None = None
+    """This program's lock on the device (``busarm.bus.device_lock``), let go on close."""
+
     def close(self) -> None:
-        self._port.close()
+        try:
+            self._port.close()
+        finally:  # after the port: the next program never finds the device still open
+            if self.device_lock is not None:
+                self.device_lock.release()
 
 
-def _check_baudrate(baudrate: object) -> int:
+def check_baudrate(baudrate: object) -> int:
+    """``baudrate``, checked: an integer 1200..4000000 (ConfigError otherwise)."""
     if not isinstance(baudrate, int) or isinstance(baudrate, bool):
         raise ConfigError(f"baudrate must be an integer 1200..4000000, got {baudrate!r}")
     if not 1200 <= baudrate <= 4_000_000:
@@ -301,62 +273,64 @@ def _device_problem(path: str) -> str | None:
     return f"it is {kind}, not a serial device"
 
 
-def check_device(port: str) -> None:
-    """TransportError if ``port`` is a device path that cannot be a serial port (missing,
-    not a device, no permission), without opening it; URLs and ``sim`` pass."""
-    port = board_target(port) or port
-    scheme = port.split("://", 1)[0] if "://" in port else port
-    if "://" in port or scheme in TRANSPORT_SCHEMES or os.name != "posix":
+def is_pyserial_url(device: str) -> bool:
+    """Whether ``device`` is a pyserial URL (``socket://...``), not a device path: pyserial
+    reads those itself."""
+    return "://" in device
+
+
+def check_device(device: str) -> None:
+    """TransportError if ``device`` is a path that cannot be a serial port (missing, not
+    a device), without opening it; pyserial URLs pass."""
+    if is_pyserial_url(device) or os.name != "posix":
         return
-    problem = _device_problem(port)
+    problem = _device_problem(device)
     if problem is not None:
-        raise TransportError(f"cannot open {port!r}: {problem}; `busarm ports` lists the "
+        raise TransportError(f"cannot open {device!r}: {problem}; `busarm ports` lists the "
                              "serial ports of this computer")
 
 
-def open_transport(port: str, *, baudrate: int = DEFAULT_BAUDRATE) -> Transport:
-    """Open ``port``: a device path, a pyserial URL, ``sim``/``sim://...``,
-    ``twin``/``twin://...`` or ``board://...`` (``baudrate`` is the servo bus's; a
-    controller board's link is always 1,000,000 baud)."""
-    if not isinstance(port, str) or not port.strip():
-        raise ConfigError(f"port must be a device path, a URL or 'sim', got {port!r}")
-    baudrate = _check_baudrate(baudrate)
-    target = board_target(port)
-    if target is not None:
-        scheme = target.split("://", 1)[0]
-        if scheme in BOARD_SCHEMES:
-            return _factory(BOARD_SCHEMES[scheme])(target, baudrate, port)  # type: ignore[no-any-return]
-        return _open_serial(target, BOARD_BAUDRATE, name=port, framing="board")
-    scheme = port.split("://", 1)[0] if "://" in port else port
-    if scheme in TRANSPORT_SCHEMES:
-        return _factory(TRANSPORT_SCHEMES[scheme])(port, baudrate)  # type: ignore[no-any-return]
-    return _open_serial(port, baudrate, name=port, framing="lx")
-
-
-def _factory(target: str) -> Any:
-    module_name, func_name = target.split(":")
-    return getattr(importlib.import_module(module_name), func_name)
+def open_serial(device: str, baudrate: int, *, name: str, framing: str) -> SerialTransport:
+    """Open the serial device (path or pyserial URL) ``device``, its bytes ``framing``."""
+    return _open_serial(device, baudrate, name=name, framing=framing)
 
 
 def _open_serial(port: str, baudrate: int, *, name: str, framing: str) -> SerialTransport:
     import serial  # pyserial; imported here so the protocol-only user never pays for it
 
     check_device(port)
+    # One driver per device: refused before anything (a line setting too) reaches it. A
+    # pyserial URL names no device of this computer: nothing to lock.
+    lock = None if "://" in port else lock_device(port)
+    ser = None
     try:
         if "://" in port:
             ser = serial.serial_for_url(port, baudrate=baudrate, timeout=0, write_timeout=1.0,
                                         do_not_open=True)
         else:
-            ser = serial.Serial(None, baudrate=baudrate, timeout=0, write_timeout=1.0)
+            # The device's own flock as well: a program locking elsewhere (another user's,
+            # another $BUSARM_RUNTIME_DIR) is kept out too, if not named.
+            ser = serial.Serial(None, baudrate=baudrate, timeout=0, write_timeout=1.0,
+                                exclusive=True)
             ser.port = port
         if framing == "board":  # the vendor's board wants RTS and DTR low before it opens
             ser.rts = False
             ser.dtr = False
         ser.open()
-    except ValueError as exc:
-        raise ConfigError(f"cannot open {port!r}: {exc}") from exc
-    except (serial.SerialException, OSError) as exc:
-        why = _OPEN_ERRORS.get(_os_errno(exc), str(exc))
-        raise TransportError(f"cannot open {port!r}: {why}") from exc
-    return SerialTransport(ser, name, use_fd="://" not in port and os.name == "posix",
-                           framing=framing)
+        transport = SerialTransport(ser, name, use_fd="://" not in port and os.name == "posix",
+                                    framing=framing)
+    except BaseException as exc:
+        if ser is not None:
+            ser.close()  # nothing if it did not open
+        if lock is not None:
+            lock.release()
+        if isinstance(exc, ValueError):
+            raise ConfigError(f"cannot open {port!r}: {exc}") from exc
+        if isinstance(exc, serial.SerialException | OSError):
+            number = _os_errno(exc)
+            why = ("it is in use: another program holds its lock" if number == errno.EWOULDBLOCK
+                   else _OPEN_ERRORS.get(number, str(exc)))
+            raise TransportError(f"cannot open {port!r}: {why}") from exc
+        raise
+    transport.device_lock = lock
+    return transport

@@ -27,13 +27,14 @@ import struct
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
-from urllib.parse import parse_qs, urlsplit
 
 from busarm.bus.transport import Transport
 from busarm.bus.zenoh_session import DEFAULT_PORT, open_session
 from busarm.clock import WALL_CLOCK, Clock
 from busarm.errors import BusArmError, ConfigError, TransportError
+from busarm.units import check_int_range, short_repr
 
 if TYPE_CHECKING:
     import zenoh
@@ -41,18 +42,15 @@ if TYPE_CHECKING:
 __all__ = [
     "DEFAULT_ROBOT",
     "LINK_MARGIN_S",
-    "SCHEME",
     "BusServer",
     "Check",
+    "ZenohPort",
     "ZenohTransport",
     "bus_key",
     "client_key",
-    "open_zenoh_transport",
-    "parse_zenoh_port",
 ]
 
 
-SCHEME = "zenoh://"
 DEFAULT_ROBOT = "busarm"
 _TIMED = struct.Struct("<d")
 _READ = struct.Struct("<Id")
@@ -71,23 +69,54 @@ def client_key(robot: str, client: str) -> str:
     return f"busarm/{robot}/clients/{client}"
 
 
-def parse_zenoh_port(port: str) -> tuple[str, str]:
-    """(Zenoh endpoint, robot name) of ``zenoh://HOST[:PORT][?robot=NAME]``."""
-    parts = urlsplit(port)
-    if parts.scheme != "zenoh" or not parts.hostname:
-        raise ConfigError(f"{port!r}: give zenoh://HOST[:PORT][?robot=NAME], e.g. "
-                          "zenoh://127.0.0.1")
-    query = parse_qs(parts.query)
-    unknown = set(query) - {"robot"}
-    if unknown:
-        raise ConfigError(f"{port!r}: unknown key(s) {', '.join(sorted(unknown))}; "
-                          "allowed: robot")
-    try:
-        tcp_port = parts.port or DEFAULT_PORT
-    except ValueError as exc:
-        raise ConfigError(f"{port!r}: the port must be 1..65535") from exc
-    host = f"[{parts.hostname}]" if ":" in parts.hostname else parts.hostname
-    return f"tcp/{host}:{tcp_port}", query.get("robot", [DEFAULT_ROBOT])[-1]
+@dataclass(frozen=True)
+class ZenohPort:
+    """A robot served on another computer (``busarm ros bridge`` there): the Zenoh
+    endpoint ``host``:``port`` (TCP) and the robot's name there."""
+
+    __repr__ = short_repr
+
+    host: str
+    port: int = DEFAULT_PORT
+    robot: str = DEFAULT_ROBOT
+    label: str = field(default="", compare=False)
+    """The port in the user's own words (for messages), if given that way."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.host, str) or not self.host.strip():
+            raise ConfigError(f"zenoh: host must be a host name or address, got {self.host!r}")
+        check_int_range("zenoh: port", self.port, 1, 65535)
+        if not isinstance(self.robot, str) or not self.robot.strip() or "/" in self.robot:
+            raise ConfigError(f"zenoh: robot must be a name without '/', got {self.robot!r}")
+
+    @property
+    def endpoint(self) -> str:
+        """The Zenoh endpoint to connect to (``tcp/HOST:PORT``)."""
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"tcp/{host}:{self.port}"
+
+    @property
+    def name(self) -> str:
+        return self.label or f"the robot {self.robot!r} on Zenoh at {self.endpoint}"
+
+    @property
+    def robot_key(self) -> str:
+        return f"zenoh-{self.host}-{self.port}-{self.robot}"
+
+    @property
+    def through_board(self) -> bool:
+        return False  # whatever it is, the served robot relays LX bytes
+
+    def check(self) -> None:
+        """Nothing to check before opening: the link says when the robot is not there."""
+
+    def open(self, baudrate: int = 115200) -> ZenohTransport:
+        session = open_session(connect=[self.endpoint])
+        try:
+            return ZenohTransport(session, self.robot, self.name, baudrate=baudrate)
+        except BaseException:
+            session.close()
+            raise
 
 
 class ZenohTransport:
@@ -146,17 +175,6 @@ class ZenohTransport:
         self._token.undeclare()
         if self._owns:
             self.session.close()
-
-
-def open_zenoh_transport(port: str, baudrate: int = 115200) -> ZenohTransport:
-    """Entry point used by ``busarm.bus.transport.open_transport`` for ``zenoh://``."""
-    endpoint, robot = parse_zenoh_port(port)
-    session = open_session(connect=[endpoint])
-    try:
-        return ZenohTransport(session, robot, port, baudrate=baudrate)
-    except BaseException:
-        session.close()
-        raise
 
 
 Check = Callable[[bytes], None]

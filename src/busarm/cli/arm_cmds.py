@@ -50,7 +50,7 @@ from busarm.cli.common import (
     torque_text,
 )
 from busarm.errors import CalibrationError, ConfigError
-from busarm.units import DEG_PER_PULSE
+from busarm.protocol.lx_units import DEG_PER_PULSE
 
 __all__ = [
     "COMMANDS",
@@ -315,7 +315,7 @@ def pose(ac: ArmContext, as_json: bool, save_name: str | None) -> None:
         p = a.kin.fk(q)
         grip = a.read_gripper_state()
     if save_name is not None:
-        folder = robot_folder(ac.settings.robot_port())
+        folder = robot_folder(ac.settings.robot_key())
         replaced = save_pose(folder, ac.config, save_name, q)
         ac.settings.err.print(f"{'replaced' if replaced else 'saved'} pose {save_name!r} in "
                               f"{poses_file(folder)}", highlight=False, markup=False,
@@ -388,7 +388,7 @@ def move_joints(ac: ArmContext, joints: tuple[float, ...], pose_name: str | None
     """Move to five joint angles (deg), a named pose or JSON joints; all joints start and
     arrive together. Everything is checked before anything moves."""
     _check_pace(speed, duration)
-    joints = joints_to_move(ac.config, ac.settings.robot_port(), joints, pose_name, json_source)
+    joints = joints_to_move(ac.config, ac.settings.robot_key(), joints, pose_name, json_source)
     with ac.open() as a:
         took = a.move_joints(joints, speed_deg_s=speed, duration_s=duration)
         q = a.settled_joints_deg()

@@ -36,17 +36,17 @@ __all__ = [
 ]
 
 
-def joints_to_move(config: ArmConfig, port: str, joints: tuple[float, ...],
+def joints_to_move(config: ArmConfig, robot_key: str, joints: tuple[float, ...],
                    pose_name: str | None, json_source: str | None) -> tuple[float, ...]:
     """The joints ``arm move-joints`` was given: five angles, a named pose (of the robot
-    on ``port``) or JSON; checked against the joint limits."""
+    whose kept files are ``robot_key``) or JSON; checked against the joint limits."""
     if sum((bool(joints), pose_name is not None, json_source is not None)) != 1:
         raise ConfigError("give five joint angles in deg, --pose NAME or --json FILE (one of "
                           f"them); got {len(joints)} angle(s)"
                           + (" and --pose" if pose_name is not None else "")
                           + (" and --json" if json_source is not None else ""))
     if pose_name is not None:
-        joints = find_pose(robot_folder(port), config, pose_name).joints_deg
+        joints = find_pose(robot_folder(robot_key), config, pose_name).joints_deg
     elif json_source is not None:
         joints = joints_from_json(json_source, config)
     return config.check_joints(joints)

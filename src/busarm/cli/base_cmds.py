@@ -97,7 +97,7 @@ def move_by(settings: Settings, dx: float, dy: float, dyaw_deg: float, chassis: 
     """Move DX m forward, DY m left and turn DYAW_DEG deg counter-clockwise on a smooth
     profile, closed on the odometry; ends stopped."""
     with _open_base(settings, chassis) as the_base:
-        pose = the_base.move_by(dx, dy, dyaw_deg)
+        pose = the_base.move_by(dx, dy, math.radians(dyaw_deg))
         source = the_base.odometry_source
     settings.out.print(f"moved to x {pose.x_m:+.3f} m, y {pose.y_m:+.3f} m, yaw "
                        f"{pose.yaw_deg:+.1f} deg from the start (odometry from {source}); "

@@ -23,6 +23,7 @@ from busarm.cli.common import (
     no_servos,
     pass_settings,
 )
+from busarm.sim.spec import SimSpec
 from busarm.units import listing
 
 if TYPE_CHECKING:
@@ -93,14 +94,15 @@ def bench(
                   turnaround_ms=turnaround_ms, echo=settings.echo,
                   timeout_margin_s=settings.timeout_margin_ms / 1000.0,
                   progress=lambda text: settings.err.print(f"bench {text}", highlight=False))
-    if settings.port in ("sim", "board://sim"):
+    world = settings.world(settings.port)
+    if isinstance(world, SimSpec):  # the simulator in its own process, on a pty
         ids = ",".join(map(str, servo_ids))
-        board = settings.port == "board://sim"
+        board = world.through_board
         with sim_pty_server(turnaround_ms, ids, echo=sim_echo, board=board) as path:
-            report = run_bench(path, **kwargs)  # type: ignore[arg-type]
+            report = run_bench(settings.world(path), **kwargs)  # type: ignore[arg-type]
         report.port = f"{settings.port} (own process, pty {path.removeprefix('board://')})"
     else:
-        report = run_bench(settings.port, **kwargs)  # type: ignore[arg-type]
+        report = run_bench(world, **kwargs)  # type: ignore[arg-type]
     if as_json:
         click.echo(json.dumps(report.to_dict(), indent=2))
     else:

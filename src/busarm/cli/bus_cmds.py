@@ -6,7 +6,7 @@ import click
 from rich.live import Live
 from rich.table import Table
 
-from busarm.bus.driver import ServoBus
+from busarm.bus.lx_port import LxServoPort
 from busarm.bus.transport import usb_latency_timer_ms
 from busarm.cli.common import (
     ID_LIST,
@@ -123,7 +123,7 @@ def monitor(
 
 
 def _monitor_loop(
-    settings: Settings, bus: ServoBus, ids: list[int], interval: float, count: int | None,
+    settings: Settings, bus: LxServoPort, ids: list[int], interval: float, count: int | None,
 ) -> None:
     out = settings.out
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 import signal
 import threading
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Collection, Iterable, Iterator
 from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,7 +25,9 @@ from busarm.arm.config import ArmConfig, load_arm_config
 from busarm.arm.kinematics import ArmKinematics
 from busarm.bus.board import BoardLink
 from busarm.bus.driver import DEFAULT_RETRIES, DEFAULT_TIMEOUT_MARGIN_S, ServoBus
-from busarm.bus.transport import DEFAULT_BAUDRATE, open_transport
+from busarm.bus.lx_port import LxServoPort
+from busarm.bus.ports import PortSpec, open_transport
+from busarm.bus.transport import DEFAULT_BAUDRATE
 from busarm.cli.arm_inputs import (
     check_gap_mm,
     gap_report,
@@ -36,7 +38,7 @@ from busarm.cli.arm_inputs import (
 )
 from busarm.cli.exits import JobNotDone
 from busarm.cli.help_style import metavar_from_help, unit_metavar
-from busarm.cli.live_robot import open_live_robot, realtime_port, twin_store_port
+from busarm.cli.live_robot import open_live_robot
 from busarm.cli.mobile_common import arena_from_spec, mobile_options, open_mobile_robot
 from busarm.cli.param_types import (
     ANGLE,
@@ -57,6 +59,7 @@ from busarm.cli.param_types import (
     parse_int,
     parse_pose,
 )
+from busarm.cli.robot_options import describe_robot, from_robot_file
 from busarm.cli.servo_tables import (
     BAD_REPLY,
     NO_REPLY,
@@ -90,11 +93,14 @@ from busarm.errors import (
     UnreliableLineError,
 )
 from busarm.fileio import robot_folder
+from busarm.progress import Progress, quiet
+from busarm.robot.port_url import parse_port
 from busarm.twin.scene import MAX_BLOCKS, Scene
 
 if TYPE_CHECKING:
     from busarm.robot import Robot
     from busarm.robot.calibration_store import CalibrationStore
+    from busarm.robot.description import RobotConfig, ServoLine
     from busarm.sim.pty import PtyServer
 
 SIM_NOTE = ("note: no --port given: using a simulated arm that lives for this one command "
@@ -131,7 +137,7 @@ __all__ += ["check_gap_mm", "gap_report", "joints_in", "joints_to_move",
             "parse_gripper_target", "robot_folder", "target_in"]
 __all__ += ["announced", "find_session"]  # running `sim serve`/`twin serve` (cli.sessions)
 __all__ += ["arena_from_spec", "mobile_options", "open_mobile_robot"]  # cli.mobile_common
-__all__ += ["open_live_robot", "realtime_port", "twin_store_port"]  # cli.live_robot
+__all__ += ["open_live_robot"]  # cli.live_robot
 __all__ += ["JobNotDone", "metavar_from_help",  # exit codes, help style (cli.exits, help_style)
             "unit_metavar"]
 # Values checked while argv is parsed (busarm.cli.param_types).
@@ -174,6 +180,8 @@ class Settings:
     """False when neither --port nor BUSARM_PORT was given (the default simulator)."""
     port_from_env: bool = False
     """True when the port is $BUSARM_PORT's (said with an error opening it)."""
+    robot_file: Path | None = None
+    """--robot FILE: the robot described by a robot file (busarm.robot.robot_file)."""
     session: Session | None = field(default=None, init=False, repr=False)
     """The running `sim serve`/`twin serve` the default port is (after default_port())."""
     _default_resolved: bool = field(default=False, init=False, repr=False)
@@ -195,19 +203,44 @@ class Settings:
             self.err.print(note, highlight=False, markup=False, soft_wrap=True)
         return self.session.port if self.session is not None else self.port
 
-    def robot_port(self) -> str:
-        """The port the robot's kept files (poses, calibrations) are named after: a
-        running `sim serve`/`twin serve` is its kind (``sim``, ``twin``) whether it is
-        reached by default or by its pty, so that both find the same files."""
+    def robot_key(self) -> str:
+        """The name of the robot's kept files (poses, calibrations): a running `sim
+        serve`/`twin serve` is its kind (``sim``, ``twin``) whether it is reached by
+        default or by its pty, so that both find the same files."""
         port = self.port if self.port_given else self.default_port(say=False)
         served = next((s for s in running_sessions() if s.port == port), None)
-        return served.kind if served is not None else port
+        return served.kind if served is not None else parse_port(port).robot_key
+
+    def world(self, port: str | None = None) -> PortSpec:
+        """``port`` (default: --port, else the default port) read into a typed port: the
+        one place the command line's port string is parsed."""
+        if port is None:
+            if self.robot_file is not None and not self.port_given:
+                return self.robot_description().world
+            port = self.port if self.port_given else self.default_port()
+        with self._port_named():
+            return parse_port(port)
+
+    def robot_description(self) -> RobotConfig:
+        """The robot of --robot FILE."""
+        from busarm.robot.robot_file import load_robot_file
+
+        if self.robot_file is None:
+            raise ConfigError("no --robot FILE was given")
+        return load_robot_file(self.robot_file)[0]
+
+    def line(self) -> ServoLine:
+        """How the arm's servo line is driven (--baudrate, --echo, --retries...)."""
+        from busarm.robot.description import ServoLine
+
+        return ServoLine(self.baudrate, self.echo, self.retries,
+                         self.timeout_margin_ms / 1000.0)
 
     @contextmanager
     def open_bus(
         self, port: str | None = None, check_ids: Iterable[int] = (),
-        check: Callable[[ServoBus, int], object] | None = None,
-    ) -> Iterator[ServoBus]:
+        check: Callable[[LxServoPort, int], object] | None = None,
+    ) -> Iterator[LxServoPort]:
         """Open the bus on ``port`` (default: ``--port``): ``with settings.open_bus() as bus``.
 
         Each of ``check_ids`` must answer ``check(bus, sid)`` (default: ID_READ) before
@@ -216,10 +249,9 @@ class Settings:
         and carries their torque, read back, for the message (``marking_the_stop``).
         """
         check_ids = list(check_ids)
-        if port is None:
-            port = self.port if self.port_given else self.default_port()
+        world = self.world(port)
         with self._port_named():
-            bus = ServoBus.open(port, baudrate=self.baudrate, echo=self.echo,
+            bus = ServoBus.open(world, baudrate=self.baudrate, echo=self.echo,
                                 timeout_margin_s=self.timeout_margin_ms / 1000.0,
                                 retries=self.retries)
         try:
@@ -234,9 +266,9 @@ class Settings:
     def open_board(self) -> Iterator[BoardLink]:
         """The controller board on ``--port`` (a ``board://`` port): its link, closed after
         the body, which stops its wheel motors on the way out by an exception."""
-        port = self.port if self.port_given else self.default_port()
+        world = self.world()
         with self._port_named():
-            transport = open_transport(port, baudrate=self.baudrate)
+            transport = open_transport(world, baudrate=self.baudrate)
         try:
             link = BoardLink(transport, timeout_margin_s=self.timeout_margin_ms / 1000.0,
                              retries=self.retries)
@@ -254,22 +286,33 @@ class Settings:
             link.close()
 
     @contextmanager
-    def open_robot(self, *, default: str = "sim", **options: Any) -> Iterator[Robot]:
-        """The robot on ``--port`` (``default`` when none was given; for ``sim``, the
-        running server of default_port(), with a twin's camera): ``Robot.open`` with
-        the bus settings and ``options``. An exception leaving the body after a write stops
-        the arm and carries each servo's torque, read back, for the message."""
+    def open_robot(self, *, default: str = "sim", needs: Collection[str] = (),
+                   progress: Progress = quiet, world: PortSpec | None = None,
+                   **options: Any) -> Iterator[Robot]:
+        """The robot on ``world`` (default: --port, else ``default``; for ``sim``, the
+        running server of default_port(), with a twin's camera), described by the bus
+        settings and ``options`` (busarm.cli.robot_options.describe_robot). An exception
+        leaving the body after a write stops the arm and carries each servo's torque,
+        read back, for the message."""
         from busarm.robot import Robot  # MuJoCo and OpenCV load only for commands that use it
 
-        port = self.port
-        if not self.port_given:  # the default "sim" is a running server if there is one
-            port = self.default_port() if default == "sim" else default
-            if self.session is not None and options.get("camera") is None:
-                options["camera"] = self.session.camera
+        if self.robot_file is not None and world is None and not self.port_given:
+            description = from_robot_file(self.robot_description(), options)
+            with self._port_named():
+                robot = Robot.open(description, needs=needs, progress=progress)
+            with marking_the_stop(robot, robot.arm.bus, robot.config.servo_ids):
+                yield robot
+            return
+        if world is None:
+            port = self.port
+            if not self.port_given:  # the default "sim" is a running server if there is one
+                port = self.default_port() if default == "sim" else default
+                if self.session is not None and options.get("camera") is None:
+                    options["camera"] = self.session.camera
+            world = self.world(port)
+        description = describe_robot(world, self.line(), **options)
         with self._port_named():
-            robot = Robot.open(port, baudrate=self.baudrate, echo=self.echo,
-                               timeout_margin_s=self.timeout_margin_ms / 1000.0,
-                               retries=self.retries, **options)
+            robot = Robot.open(description, needs=needs, progress=progress)
         with marking_the_stop(robot, robot.arm.bus, robot.config.servo_ids):
             yield robot
 
@@ -284,12 +327,12 @@ class Settings:
             raise
 
 
-def _ping(bus: ServoBus, sid: int) -> None:
+def _ping(bus: LxServoPort, sid: int) -> None:
     bus.read_id(sid)
 
 
-def _check_answering(bus: ServoBus, ids: list[int],
-                     check: Callable[[ServoBus, int], object]) -> None:
+def _check_answering(bus: LxServoPort, ids: list[int],
+                     check: Callable[[LxServoPort, int], object]) -> None:
     """Each of ``ids`` answers ``check``. One that is silent is asked again once the
     others after it have been: if their replies came late or damaged, the driver's error
     then says the line is unreliable, rather than "no servo answers" of a servo that may
@@ -385,8 +428,11 @@ def calibration_store(settings: Settings, default: str = "sim") -> CalibrationSt
     camera calibration (busarm.robot.calibration_store)."""
     from busarm.robot.calibration_store import CalibrationStore
 
-    port = settings.robot_port() if settings.port_given or default == "sim" else default
-    return CalibrationStore.for_port(port)
+    if settings.port_given or default == "sim":
+        key = settings.robot_key()
+        return CalibrationStore(key, robot_folder(key), settings.port if settings.port_given
+                                else settings.default_port(say=False))
+    return CalibrationStore.for_port(parse_port(default))
 
 
 def check_writable(path: Path) -> None:
@@ -432,7 +478,7 @@ def lidar_port_or_default(given: str | None) -> str:
     """--lidar if given, else the Lidar of a running ``twin serve --arena``, else the
     simulated A1 in this process."""
     from busarm.cli.sessions import running_sessions
-    from busarm.lidar.rplidar import SIM_LIDAR
+    from busarm.robot.port_url import SIM_LIDAR
 
     if given:
         return given

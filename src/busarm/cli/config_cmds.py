@@ -7,7 +7,7 @@ from functools import partial
 import click
 from rich.table import Table
 
-from busarm.bus.driver import ServoBus
+from busarm.bus.lx_port import LxServoPort
 from busarm.cli.common import (
     ANGLE,
     NUMBER_ARGS,
@@ -23,13 +23,13 @@ from busarm.cli.common import (
 )
 from busarm.errors import ConfigError
 from busarm.protocol import AlarmFlag
-from busarm.units import (
+from busarm.protocol.lx_units import (
     DEG_PER_PULSE,
     OFFSET_MAX_PULSES,
     OFFSET_MIN_PULSES,
-    mv_from_v,
     pulses_from_deg,
 )
+from busarm.units import mv_from_v
 
 __all__ = [
     "COMMANDS",
@@ -122,7 +122,7 @@ def limits(
         raise click.BadParameter(f"min {vin[0]:g} must be below max {vin[1]:g} V",
                                  param_hint="'--vin'")
 
-    def check(bus: ServoBus, sid: int) -> None:
+    def check(bus: LxServoPort, sid: int) -> None:
         if vin is None:
             bus.read_id(sid)
             return
@@ -144,7 +144,7 @@ def limits(
         settings.out.print(_limits_table(bus, servo_id))
 
 
-def _limits_table(bus: ServoBus, sid: int) -> Table:
+def _limits_table(bus: LxServoPort, sid: int) -> Table:
     table = Table(title=f"servo {sid} limits", title_justify="left")
     table.add_column("limit")
     table.add_column("min", justify="right")

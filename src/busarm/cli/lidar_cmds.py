@@ -48,10 +48,11 @@ def lidar() -> None:
 def scan(lidar_port: str, png: Path | None, as_json: bool, timeout_s: float) -> None:
     """Read one 360-degree scan: how many returns, the rate, the nearest return and its
     bearing (degrees counter-clockwise from the Lidar's forward axis)."""
-    from busarm.robot.lidar_port import open_any_lidar
+    from busarm.robot.lidar_port import open_lidar_port
+    from busarm.robot.port_url import parse_lidar_port
 
     lidar_port = lidar_port_or_default(lidar_port)
-    with open_any_lidar(lidar_port) as device:
+    with open_lidar_port(parse_lidar_port(lidar_port)) as device:
         one = device.read_scan(timeout_s)
         info, health = device.info, device.health
     returns = int(one.valid.sum())

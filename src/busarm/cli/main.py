@@ -15,6 +15,7 @@ import os
 import sys
 import warnings
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any, NoReturn, TextIO
 
 import click
@@ -41,6 +42,7 @@ from busarm.cli import (
     pick_cmd,
     poses_cmd,
     proto_cmds,
+    robot_cmds,
     ros_cmds,
     samples_cmd,
     servo_cmds,
@@ -211,11 +213,17 @@ class BusArmGroup(click.Group):
     "--retries", type=click.IntRange(0, 10), default=DEFAULT_RETRIES, show_default=True,
     help="How many times a read is retried after a timeout or a garbled reply.",
 )
+@click.option(
+    "--robot", "robot_file", envvar="BUSARM_ROBOT", show_envvar=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="A robot file (`busarm robot init` writes one): the whole robot, its port, arm, "
+         "base, Lidar, camera and bins, instead of --port and the part options.",
+)
 @click.option("-v", "--verbose", is_flag=True, help="Log bus details (echo detection) to stderr.")
 @click.pass_context
 def cli(
     ctx: click.Context, port: str, baudrate: int, echo: str, timeout_margin_ms: float,
-    retries: int, verbose: bool,
+    retries: int, robot_file: Path | None, verbose: bool,
 ) -> None:
     """Drive a JetAuto Pro style arm of LX-protocol bus servos (IDs 1-5 and 10), on
     hardware, the simulator or the digital twin.
@@ -231,13 +239,14 @@ def cli(
         retries=retries,
         port_given=ctx.get_parameter_source("port") is not click.core.ParameterSource.DEFAULT,
         port_from_env=ctx.get_parameter_source("port") is click.core.ParameterSource.ENVIRONMENT,
+        robot_file=robot_file,
     )
 
 
 for _module in (
     bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, actions_cmds, twin_cmds,
     camera_cmds, vision_cmds, pick_cmd, demo, motor_cmd, dashboard_cmd, board_cmds, base_cmds,
-    lidar_cmds, map_cmds, line_follow_cmd, transport_cmd, ros_cmds,
+    lidar_cmds, map_cmds, line_follow_cmd, transport_cmd, ros_cmds, robot_cmds,
 ):
     for _command in _module.COMMANDS:
         cli.add_command(_command)

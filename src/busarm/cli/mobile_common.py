@@ -67,32 +67,37 @@ def open_mobile_robot(settings: Settings, arena_spec: str, chassis: str | None,
     ``Robot.open`` (``config``, ``calibration_store``...). An exception leaving the body
     after a write to the arm stops it and says what its servos do (as ``open_robot``)."""
     from busarm.cli.common import marking_the_stop  # common re-exports this module
+    from busarm.cli.robot_options import describe_robot
     from busarm.robot import Robot
+    from busarm.sim.spec import BoardSettings
+    from busarm.twin.spec import TwinSpec
 
     if not settings.port_given:
         if chassis is not None or lidar_port is not None:
             raise ConfigError("--chassis and --lidar are for a robot on --port; the twin "
                               "has its own (--arena chooses its world)")
-        robot = Robot.open("board://twin", arena=arena_from_spec(arena_spec),
-                           calibrate=camera, **robot_options)
+        twin = TwinSpec(arena=arena_from_spec(arena_spec), controller=BoardSettings())
+        robot = Robot.open(describe_robot(twin, settings.line(), calibrate=camera,
+                                          **robot_options))
         with marking_the_stop(robot, robot.arm.bus, robot.config.servo_ids):
             yield robot
         return
-    if not settings.port.startswith("board://"):
+    world = settings.world()
+    if not world.through_board:
         raise ConfigError(f"--port {settings.port}: a mobile job drives the base through the "
                           "controller board: give a board:// port (e.g. board:///dev/rrc)")
     options: dict[str, Any] = dict(robot_options)
-    if not settings.port.startswith("board://twin") or lidar_port is not None:
+    if not isinstance(world, TwinSpec) or lidar_port is not None:
         options["lidar"] = _lidar_port(lidar_port)
     if chassis is not None:
         options["chassis"] = chassis
-    with settings.open_robot(**options) as robot:
+    with settings.open_robot(world=world, **options) as robot:
         yield robot
 
 
 def _lidar_port(given: str | None) -> str:
     from busarm.cli.common import lidar_port_or_default  # common re-exports this module
-    from busarm.lidar.rplidar import SIM_LIDAR
+    from busarm.robot.port_url import SIM_LIDAR
 
     port = lidar_port_or_default(given)
     if port == SIM_LIDAR and given is None:

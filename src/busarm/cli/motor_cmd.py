@@ -14,8 +14,7 @@ import click
 
 from busarm.arm.config import DEFAULT_ARM, load_arm_config
 from busarm.bus.board_bus import unsupported
-from busarm.bus.driver import ServoBus
-from busarm.bus.transport import board_target
+from busarm.bus.lx_port import LxServoPort
 from busarm.cli.common import (
     NUMBER_ARGS,
     SERVO_ID,
@@ -28,7 +27,8 @@ from busarm.cli.common import (
 )
 from busarm.errors import LimitError
 from busarm.protocol import Command
-from busarm.units import MOTOR_SPEED_MAX, check_int_range
+from busarm.protocol.lx_units import MOTOR_SPEED_MAX
+from busarm.units import check_int_range
 
 __all__ = [
     "COMMANDS",
@@ -86,7 +86,7 @@ def motor(settings: Settings, servo_id: int, speed: int | str, duration_s: float
     if keep_turning and duration_s is not None:
         raise click.UsageError("give --time or --keep-turning, not both")
     port = settings.port if settings.port_given else settings.default_port(say=False)
-    if board_target(port) is not None:  # first: --arm-servo would not make it possible
+    if settings.world(port).through_board:  # first: --arm-servo would not make it possible
         raise unsupported(Command.OR_MOTOR_MODE_WRITE)
     part = load_arm_config(config_name).servo_range_deg(servo_id)
     if isinstance(speed, int) and part is not None and not arm_servo:
@@ -117,7 +117,7 @@ def motor(settings: Settings, servo_id: int, speed: int | str, duration_s: float
         settings.out.print(_stop(bus, servo_id), highlight=False, soft_wrap=True)
 
 
-def _turn(bus: ServoBus, servo_id: int, duration_s: float | None) -> None:
+def _turn(bus: LxServoPort, servo_id: int, duration_s: float | None) -> None:
     """Wait while the motor turns (``duration_s``, or for ever), checking the servo."""
     clock = bus.clock
     end = None if duration_s is None else clock.now() + duration_s
@@ -126,7 +126,7 @@ def _turn(bus: ServoBus, servo_id: int, duration_s: float | None) -> None:
         bus.read_mode(servo_id)
 
 
-def _stop(bus: ServoBus, servo_id: int) -> str:
+def _stop(bus: LxServoPort, servo_id: int) -> str:
     """Out of motor mode (a limp servo is not energised: ``halt_motor``); what is true now,
     read back: where it is, whether it holds, and whether that is outside its limits."""
     halt_motor(bus, servo_id)
@@ -142,7 +142,7 @@ def _stop(bus: ServoBus, servo_id: int) -> str:
     return said
 
 
-def _try_stop(bus: ServoBus, servo_id: int) -> None:
+def _try_stop(bus: LxServoPort, servo_id: int) -> None:
     # The bus may be what failed: the error that did is the one raised.
     with contextlib.suppress(Exception):
         bus.stop_motor(servo_id)

@@ -13,14 +13,8 @@ import click
 
 from busarm.errors import ConfigError
 from busarm.protocol import MAX_SERVO_ID, check_servo_id
-from busarm.units import (
-    MOVE_TIME_MAX_MS,
-    POSITION_MAX_DEG,
-    POSITION_MIN_DEG,
-    check_range,
-    parse_ids,
-    range_text,
-)
+from busarm.protocol.lx_units import MOVE_TIME_MAX_MS, POSITION_MAX_DEG, POSITION_MIN_DEG
+from busarm.units import check_range, parse_ids, range_text
 
 if TYPE_CHECKING:
     from busarm.base.odometry import Pose2D

@@ -31,7 +31,7 @@ def poses(ac: ArmContext, as_json: bool, delete_name: str | None) -> None:
     `busarm arm move-joints --pose NAME`. Saved poses are kept per robot (per --port) in
     $XDG_CONFIG_HOME/busarm/ROBOT/poses.json. No bus needed.
     """
-    folder = robot_folder(ac.settings.robot_port())
+    folder = robot_folder(ac.settings.robot_key())
     if delete_name is not None:
         delete_pose(folder, ac.config, delete_name)
         ac.settings.err.print(f"deleted pose {delete_name!r} from {poses_file(folder)}",

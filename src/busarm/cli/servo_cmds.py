@@ -9,7 +9,7 @@ import click
 from rich.table import Table
 
 from busarm.arm.config import DEFAULT_ARM, ArmConfig, load_arm_config
-from busarm.bus.driver import ServoBus
+from busarm.bus.lx_port import LxServoPort
 from busarm.cli.common import (
     ANGLE,
     BAD_REPLY,
@@ -43,7 +43,7 @@ from busarm.protocol import (
     Command,
     ServoMode,
 )
-from busarm.units import pulses_from_deg
+from busarm.protocol.lx_units import pulses_from_deg
 
 __all__ = [
     "COMMANDS",
@@ -92,7 +92,7 @@ INFO_FIELDS: list[tuple[str, Command, Callable[[Any], str]]] = [
 
 
 def info_rows(
-    bus: ServoBus, sid: int, errors: list[BusTimeoutError | ProtocolError] | None = None,
+    bus: LxServoPort, sid: int, errors: list[BusTimeoutError | ProtocolError] | None = None,
 ) -> list[tuple[str, str]]:
     """Every readable field of servo ``sid``, as (name, value) text; "no reply" (or "bad
     reply") per field that could not be read, whose error goes to ``errors`` if given."""
@@ -194,7 +194,7 @@ def move(
         _check_arm_limits(pose, load_arm_config(config_name))
     targets_by_id = pose
 
-    def within_limits(bus: ServoBus, sid: int) -> None:
+    def within_limits(bus: LxServoPort, sid: int) -> None:
         lo, hi = bus.read_angle_limits_deg(sid)  # doubles as the presence check
         target = targets_by_id[sid]
         if not pulses_from_deg(lo) <= pulses_from_deg(target) <= pulses_from_deg(hi):

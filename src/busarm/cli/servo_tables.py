@@ -19,8 +19,8 @@ from rich.progress import (
 )
 from rich.table import Table
 
-from busarm.bus.driver import ServoBus
 from busarm.bus.id_scan import ScanResult
+from busarm.bus.lx_port import LxServoPort
 from busarm.errors import BusTimeoutError, ProtocolError
 from busarm.protocol import AlarmFlag
 
@@ -64,7 +64,7 @@ def fmt(value: object, spec: str = "", unit: str = "") -> str:
     return f"{text} {unit}" if unit else text
 
 
-def state_row(bus: ServoBus, sid: int, *, torque: bool = False) -> list[str]:
+def state_row(bus: LxServoPort, sid: int, *, torque: bool = False) -> list[str]:
     """ID, position, temperature and voltage of one servo (and torque); "no reply" per field."""
     row = [
         str(sid),
@@ -79,7 +79,7 @@ def state_row(bus: ServoBus, sid: int, *, torque: bool = False) -> list[str]:
 
 
 def state_table(
-    bus: ServoBus, ids: Iterable[int], *, title: str | None = None, torque: bool = False,
+    bus: LxServoPort, ids: Iterable[int], *, title: str | None = None, torque: bool = False,
     targets: dict[int, float] | None = None,
 ) -> Table:
     """A table of live readings, one row per servo (optionally with each target)."""
@@ -101,7 +101,7 @@ def state_table(
     return table
 
 
-def scan_with_progress(bus: ServoBus, ids: Sequence[int], console: Console) -> ScanResult:
+def scan_with_progress(bus: LxServoPort, ids: Sequence[int], console: Console) -> ScanResult:
     """``bus.scan(ids)`` behind a progress bar (shown on ``console``, then removed)."""
     with scan_progress(console, len(ids)) as advance:
         return bus.scan(ids, progress=lambda _sid: advance())
@@ -123,7 +123,7 @@ def scan_progress(console: Console, total: int) -> Iterator[Callable[[], None]]:
         yield lambda: progress.advance(task, 1)
 
 
-def scan_report(bus: ServoBus, result: ScanResult, console: Console, asked: int) -> None:
+def scan_report(bus: LxServoPort, result: ScanResult, console: Console, asked: int) -> None:
     """Print the servos a scan found (with readings) and any conflicts, in red."""
     console.print(
         f"scanned {asked} ID(s) in {result.duration_s:.2f} s: "

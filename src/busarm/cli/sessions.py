@@ -20,16 +20,15 @@ from __future__ import annotations
 import json
 import os
 import stat
-import tempfile
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
 
-from busarm.bus.transport import board_target
+from busarm.bus.ports import PortSpec, SerialPort
 from busarm.errors import ConfigError
-from busarm.fileio import write_text_atomic
+from busarm.fileio import RUNTIME_DIR_ENV, runtime_dir, write_text_atomic
 
 __all__ = [
     "FORMAT_NAME",
@@ -47,7 +46,6 @@ __all__ = [
 FORMAT_NAME = "busarm-session"
 FORMAT_VERSION = 1
 KINDS = ("sim", "twin")
-RUNTIME_DIR_ENV = "BUSARM_RUNTIME_DIR"
 
 
 @dataclass(frozen=True)
@@ -72,18 +70,6 @@ class Session:
         a twin with an arena: it has a base and a Lidar too)."""
         what = "robot" if self.lidar else "arm"
         return f"the {what} of `busarm {self.kind} serve` (pid {self.pid}) on {self.port}"
-
-
-def runtime_dir() -> Path:
-    """The folder of the runtime files (it may not exist yet)."""
-    given = os.environ.get(RUNTIME_DIR_ENV)
-    if given:
-        return Path(given)
-    xdg = os.environ.get("XDG_RUNTIME_DIR")
-    if xdg and Path(xdg).is_dir():
-        return Path(xdg) / "busarm"
-    user = os.getuid() if hasattr(os, "getuid") else os.environ.get("USERNAME", "user")
-    return Path(tempfile.gettempdir()) / f"busarm-{user}"
 
 
 def _own_dir(folder: Path, create: bool) -> bool:
@@ -172,7 +158,8 @@ def running_sessions() -> list[Session]:
         session = _read(path)
         if session is None:
             continue  # not ours to judge or remove
-        device = board_target(session.port) or session.port
+        world = _world(session.port)
+        device = world.device if isinstance(world, SerialPort) else session.port
         if not _alive(session.pid) or not Path(device).exists():
             with suppress(OSError):
                 path.unlink()
@@ -185,3 +172,13 @@ def find_session() -> Session | None:
     """The newest running server, or None."""
     sessions = running_sessions()
     return sessions[0] if sessions else None
+
+
+def _world(port: str) -> PortSpec | None:
+    """A session's port, read (None if it is not one: a file from another version)."""
+    from busarm.robot.port_url import parse_port
+
+    try:
+        return parse_port(port)
+    except ConfigError:
+        return None

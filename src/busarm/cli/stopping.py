@@ -1,6 +1,6 @@
 """What a command that ends early says about the servos: only what is true, read back.
 
-A bus that wrote nothing leaves the servos as they were (``ServoBus`` then sends no
+A bus that wrote nothing leaves the servos as they were (a ``ServoPort`` then sends no
 stop on its way out), so the message says nothing about stopping. A bus that wrote
 something is stopped (MOVE_STOP), then each servo's torque is read back: with torque on
 it holds its position, with torque off it is limp (it was never holding), and one that
@@ -14,7 +14,8 @@ from collections.abc import Callable, Iterable, Iterator
 from contextlib import AbstractContextManager, contextmanager
 from typing import Any, TypeVar, cast
 
-from busarm.bus.driver import ServoBus
+from busarm.bus.lx_port import LxServoPort
+from busarm.bus.servo_port import ServoPort
 from busarm.errors import BusArmError
 from busarm.protocol import ServoMode
 
@@ -98,7 +99,7 @@ def id_text(ids: Iterable[int]) -> str:
     return ("servo " if len(ordered) == 1 else "servos ") + ", ".join(parts)
 
 
-def torque_text(bus: ServoBus, ids: Iterable[int]) -> str:
+def torque_text(bus: ServoPort, ids: Iterable[int]) -> str:
     """The torque of each servo as read back now, grouped: ``servos 1-4 holding position
     (torque on); servo 10 limp (torque off)``."""
     groups: dict[str, list[int]] = {}
@@ -111,7 +112,7 @@ def torque_text(bus: ServoBus, ids: Iterable[int]) -> str:
     return "; ".join(f"{id_text(group)} {state}" for state, group in groups.items())
 
 
-def halt_motor(bus: ServoBus, sid: int) -> None:
+def halt_motor(bus: LxServoPort, sid: int) -> None:
     """Take servo ``sid`` out of motor mode, holding where it is, without energising one
     that is limp: with torque on, speed 0 then position mode; with torque off, only
     position mode (which also sets speed 0), as a motor-mode write would load the motor."""
@@ -120,9 +121,12 @@ def halt_motor(bus: ServoBus, sid: int) -> None:
     bus.set_position_mode(sid)
 
 
-def stop_motors(bus: ServoBus, ids: Iterable[int]) -> str:
+def stop_motors(bus: ServoPort, ids: Iterable[int]) -> str:
     """Stop each of ``ids`` found turning in motor mode (MOVE_STOP does not:
-    ``halt_motor``); what was done, or "" if none was turning."""
+    ``halt_motor``); what was done, or "" if none was turning (or the port has no motor
+    mode: it is the LX servos')."""
+    if not isinstance(bus, LxServoPort):
+        return ""
     turning = []
     for sid in sorted(set(ids)):
         try:
@@ -135,7 +139,7 @@ def stop_motors(bus: ServoBus, ids: Iterable[int]) -> str:
             if turning else "")
 
 
-def stop_and_read_back(bus: ServoBus, ids: Iterable[int]) -> str:
+def stop_and_read_back(bus: ServoPort, ids: Iterable[int]) -> str:
     """Send the emergency stop (and stop any motor turning), then say what the servos
     ``ids`` (and any this bus wrote to) do now."""
     bus.emergency_stop()
@@ -147,7 +151,7 @@ def stop_and_read_back(bus: ServoBus, ids: Iterable[int]) -> str:
 
 
 @contextmanager
-def marking_the_stop(owner: AbstractContextManager[object], bus: ServoBus,
+def marking_the_stop(owner: AbstractContextManager[object], bus: ServoPort,
                      ids: Iterable[int] = ()) -> Iterator[None]:
     """``with owner`` (the bus, or the robot holding it); an exception that leaves is
     marked with what the servos were left doing (``servos_note``), read back before the

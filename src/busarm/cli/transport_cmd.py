@@ -104,10 +104,11 @@ def transport(settings: Settings, pick: str, place: str, points_file: Path | Non
     it is there. Without --port: a twin of its own in --arena."""
     from busarm.apps.transport import TransportJob
     from busarm.apps.transport_report import write_transport_report
+    from busarm.twin.spec import TwinSpec
 
     start = parse_pose(start_text, "--start") if start_text is not None else None
     if (points_file is None and settings.port_given
-            and not settings.port.startswith("board://twin")):
+            and not isinstance(settings.world(), TwinSpec)):
         raise ConfigError(ON_A_ROBOT)  # before anything is opened: only a twin has an arena
     check_writable(report_dir / "report.json" if report_dir.is_dir() else report_dir)
     with open_mobile_robot(settings, arena_spec, chassis, lidar_port, camera=True) as robot:

@@ -136,8 +136,9 @@ def detect(
     min_area_px: float, find_tags: bool, as_json: bool, save_dir: str | None,
 ) -> None:
     """Find colour blocks in camera frames: colour, centroid (px), yaw (deg), area (px)."""
+    from busarm.cli.robot_options import camera_from_text
     from busarm.vision.annotate import annotate, save_image
-    from busarm.vision.camera import EndOfFrames, open_camera
+    from busarm.vision.camera import EndOfFrames
     from busarm.vision.color import ColorDetector
     from busarm.vision.color_thresholds import parse_color_names
     from busarm.vision.tags import detect_tags
@@ -152,7 +153,7 @@ def detect(
             out_dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise ConfigError(f"--save {out_dir}: cannot create the folder: {exc}") from None
-    with open_camera(camera) as source:
+    with camera_from_text(camera) as source:
         index = 0
         while frame_count == 0 or index < frame_count:
             try:

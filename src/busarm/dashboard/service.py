@@ -104,7 +104,7 @@ class RobotService:
                  reports: Path = Path("dashboard-reports"),
                  period_s: float = CONTROL_PERIOD_S, mobile: MobileSetup | None = None) -> None:
         self.robot, self.arm = robot, robot.arm
-        self.folder = folder if folder is not None else robot_folder(robot.port)
+        self.folder = folder if folder is not None else robot_folder(robot.robot_key)
         self.reports = reports
         self.mobile = MobileJobs(robot, mobile, reports)
         self.period_s = period_s

@@ -21,7 +21,7 @@ from typing import TypeVar
 
 import numpy as np
 
-from busarm.bus.transport import Transport, open_transport
+from busarm.bus.transport import Transport, open_serial
 from busarm.errors import BusTimeoutError, ConfigError, LidarFaultError, NotALidarError
 from busarm.errors import TransportError as _TransportError
 from busarm.lidar.scan import LaserScan
@@ -46,35 +46,26 @@ from busarm.protocol.rplidar import (
     find_descriptor,
 )
 
-SIM_LIDAR = "lidar://sim"
-"""The simulated A1 in this process."""
 IDENTIFY_TIMEOUT_S = 0.5
 """How long the A1 may take to answer GET_HEALTH or GET_INFO (it answers in ~1 ms)."""
 STOP_SETTLE_S = 0.01
 """After STOP, how long bytes already on their way may still arrive (then discarded)."""
 _READ_CHUNK_S = 0.05
-_NOT_LIDAR_PORTS = ("sim", "twin", "board://")
 
 T = TypeVar("T")
 
 
-def open_lidar(port: str = SIM_LIDAR, *, timeout_s: float = IDENTIFY_TIMEOUT_S) -> RplidarA1:
-    """Open the A1 on ``port`` (a device path, a pyserial URL, or ``lidar://sim?...``)."""
-    if not isinstance(port, str) or not port.strip():
-        raise ConfigError(f"Lidar port must be a device path, a URL or {SIM_LIDAR}, got {port!r}")
-    if port.startswith("lidar://"):
-        if not port.startswith(SIM_LIDAR):
-            raise ConfigError(f"Lidar port {port!r}: the only lidar:// port is {SIM_LIDAR}"
-                              "[?hz=...]")
-        from busarm.sim.rplidar import open_sim_lidar_transport
-
-        transport: Transport = open_sim_lidar_transport(port)
+def open_lidar(port: str | Transport, *,
+               timeout_s: float = IDENTIFY_TIMEOUT_S) -> RplidarA1:
+    """The A1 on ``port``: a serial device's path or pyserial URL, or an open transport
+    (the simulated A1's: ``SimLidarSpec().open()``), closed if it does not answer."""
+    if isinstance(port, str):
+        if not port.strip():
+            raise ConfigError(f"Lidar port must be a device path or a pyserial URL, got "
+                              f"{port!r}")
+        transport: Transport = open_serial(port, RPLIDAR_BAUDRATE, name=port, framing="rplidar")
     else:
-        scheme = port.split("://", 1)[0] if "://" in port else port
-        if scheme in _NOT_LIDAR_PORTS or port.startswith("board://"):
-            raise ConfigError(f"Lidar port {port!r} is the servo simulator, twin or controller "
-                              f"board, not a Lidar; give the Lidar's device or {SIM_LIDAR}")
-        transport = open_transport(port, baudrate=RPLIDAR_BAUDRATE)
+        transport = port
     try:
         return RplidarA1(transport, timeout_s=timeout_s)
     except BaseException:
@@ -261,4 +252,4 @@ def _scan(nodes: list[Node], stamp_s: float, scan_time_s: float) -> LaserScan:
                      scan_time_s=scan_time_s if scan_time_s > 0 else math.nan)
 
 
-__all__ = ["SIM_LIDAR", "Health", "RplidarA1", "open_lidar"]
+__all__ = ["Health", "RplidarA1", "open_lidar"]

@@ -99,6 +99,12 @@ class OccupancyGrid:
         if self.log_odds.shape != shape:
             raise ConfigError(f"log-odds of shape {self.log_odds.shape}; the grid is {shape}")
 
+    def __repr__(self) -> str:
+        g = self.spec
+        return (f"OccupancyGrid({g.width} x {g.height} cells of {g.resolution_m * 100:g} cm, "
+                f"{g.width * g.resolution_m:.1f} x {g.height * g.resolution_m:.1f} m from "
+                f"({g.origin_x_m:.2f}, {g.origin_y_m:.2f}) m)")
+
     @property
     def probability(self) -> FloatArray:
         """Each cell's probability of being occupied (0.5: unknown)."""

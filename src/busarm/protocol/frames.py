@@ -22,7 +22,7 @@ from busarm.protocol.commands import (
     Field,
     ServoMode,
 )
-from busarm.units import DEG_PER_PULSE, deg_from_pulses
+from busarm.protocol.lx_units import DEG_PER_PULSE, deg_from_pulses
 
 __all__ = [
     "MIN_LENGTH",

@@ -7,7 +7,7 @@ is not set), holding ``camera.json`` (the intrinsics, ``busarm camera calibrate`
 ``vision locate`` and the camera commands use them when no file is given; on a twin,
 ``pick-sort`` makes them when they are missing or stale.
 
-The robot's key (:func:`robot_key`) is what tells robots apart: ``twin`` for a twin in
+The robot's key (its port's ``robot_key``) is what tells robots apart: ``twin`` for a twin in
 this process (whatever stands on its table), ``sim`` for the servo simulator, and for a
 serial device its stable name under ``/dev/serial/by-id`` if the system has one (the
 USB adapter's own name, the same whichever ``ttyUSBn`` it got), else its path under
@@ -28,14 +28,18 @@ import json
 import shlex
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from busarm.arm.config import ArmConfig
+from busarm.bus.ports import PortSpec
 from busarm.errors import CalibrationError, ConfigError
-from busarm.fileio import read_versioned_json, robot_folder, robot_key
+from busarm.fileio import read_versioned_json, robot_folder
 from busarm.twin.camera import RemoteTwinCamera, TwinOptics
 from busarm.twin.lens import LENSES, LensSpec
 from busarm.twin.twin import Twin
+
+if TYPE_CHECKING:
+    from busarm.robot.twin_calibration import TwinCalibration
 from busarm.vision.calibration import (
     FORMAT_VERSION,
     HAND_EYE_FORMAT,
@@ -168,6 +172,18 @@ def _difference(found: dict[str, Any], wanted: dict[str, Any]) -> str | None:
     return None
 
 
+@dataclass(frozen=True)
+class CameraCalibration:
+    """The wrist camera's lens (intrinsics) and where it sits on the arm (hand-eye)."""
+
+    intrinsics: CameraIntrinsics
+    hand_eye: HandEyeResult
+    source: str
+    """Where it came from: the files given, "kept in FOLDER", or "calibrated in the twin"."""
+    twin_run: TwinCalibration | None = None
+    """When it was made in the twin: what that found (errors against the twin's truth)."""
+
+
 class CalibrationStore:
     """A robot's folder of kept camera calibrations (see the module docstring)."""
 
@@ -178,10 +194,9 @@ class CalibrationStore:
         """The ``--port`` the remaking commands are given in messages."""
 
     @classmethod
-    def for_port(cls, port: str) -> CalibrationStore:
+    def for_port(cls, port: PortSpec) -> CalibrationStore:
         """The store of the robot on ``port``, in the user's configuration directory."""
-        key = robot_key(port)
-        return cls(key, robot_folder(port), port)
+        return cls(port.robot_key, robot_folder(port.robot_key), port.name)
 
     @property
     def intrinsics_path(self) -> Path:
@@ -266,5 +281,5 @@ class CalibrationStore:
             raise self._stale(str(exc), True) from None
 
 
-__all__ = ["HAND_EYE_FILE", "INTRINSICS_FILE", "STORE_VERSION", "CalibrationStore", "MadeFor",
-           "StaleCalibration", "robot_key"]
+__all__ = ["HAND_EYE_FILE", "INTRINSICS_FILE", "STORE_VERSION", "CalibrationStore",
+           "CameraCalibration", "MadeFor", "StaleCalibration"]

@@ -33,6 +33,7 @@ import numpy as np
 
 from busarm.arm.arm import Arm
 from busarm.arm.config import ArmConfig, arm_config_from_toml, load_arm_config
+from busarm.bus.driver import ServoBus
 from busarm.bus.zenoh_link import BusServer, Check, ZenohTransport
 from busarm.errors import CameraError, ConfigError, LimitError, ProtocolError
 from busarm.protocol import BROADCAST_ID, Command, FrameParser
@@ -57,6 +58,7 @@ __all__ = [
     "remote_parts",
     "robot_info",
     "robot_key",
+    "served_bus",
     "twin_truth",
 ]
 
@@ -73,9 +75,19 @@ def robot_key(robot: str, what: str) -> str:
     return f"busarm/{robot}/{what}"
 
 
+def served_bus(arm: Arm) -> ServoBus:
+    """The arm's LX line, whose bytes a served robot relays; ConfigError for another
+    servo port (behind a controller board, another family: its frames are not relayed)."""
+    if not isinstance(arm.bus, ServoBus):
+        raise ConfigError(f"only servos on an LX line can be served over Zenoh; this arm's "
+                          f"are on {arm.bus.name}")
+    return arm.bus
+
+
 def bus_guard(arm: Arm) -> Check:
     """The check each request from a remote client passes before it reaches the line."""
     limits = arm.pulse_limits
+    bus = served_bus(arm)
 
     def check(request: bytes) -> None:
         parser = FrameParser()
@@ -84,7 +96,7 @@ def bus_guard(arm: Arm) -> Check:
             raise ProtocolError(f"not whole LX request frames: {request.hex(' ')}")
         for frame in frames:
             req = decode_request(frame)
-            arm.bus.check_not_halted(req.command, req.args)
+            bus.check_not_halted(req.command, req.args)
             if req.command not in POSITION_COMMANDS:
                 continue
             if req.servo_id == BROADCAST_ID or req.servo_id not in limits:
@@ -140,7 +152,7 @@ class RobotServer:
 
     def __init__(self, session: zenoh.Session, robot: Robot, name: str, *,
                  camera: bool = True) -> None:
-        bus = robot.arm.bus
+        bus = served_bus(robot.arm)
         self.robot = robot
         self.name = name
         self.lost: list[str] = []

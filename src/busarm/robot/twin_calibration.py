@@ -29,7 +29,8 @@ from busarm.robot.camera_calibration import (
 )
 from busarm.twin.boards import BOARD_SPECS
 from busarm.twin.camera import TwinCamera
-from busarm.twin.transport import TwinTransport, scene_from_query
+from busarm.twin.spec import TwinSpec
+from busarm.twin.transport import TwinTransport
 from busarm.twin.twin import Twin
 from busarm.vision.calibration import load_intrinsics, save_hand_eye, save_intrinsics
 
@@ -68,7 +69,7 @@ class TwinCalibration:
 
 def _board_twin(job: Twin, board: str) -> Twin:
     """A twin like ``job`` (arm, lens, camera mount) with only ``board`` on its table."""
-    return Twin(job.config, scene_from_query({"board": board}), lens=job.lens,
+    return Twin(job.config, TwinSpec(board=board).make_scene(), lens=job.lens,
                 mount=job.mount, realtime=False)
 
 

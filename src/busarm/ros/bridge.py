@@ -40,6 +40,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from busarm.arm.urdf import urdf_from_config
+from busarm.bus.driver import ServoBus
 from busarm.errors import BusArmError, ConfigError, HaltedError
 from busarm.nav.grid import OccupancyGrid
 from busarm.protocol.rmw_zenoh import LATCHED, SENSOR_DATA, gid_of
@@ -138,7 +139,7 @@ class RosBridge:
             self.pub_info = pub("/wrist_camera/camera_info", m.CAMERA_INFO, SENSOR_DATA)
             self.pub_blocks = pub("/blocks", m.MARKER_ARRAY)
         self.server = (RobotServer(node.session, robot, serve_as, camera=self.camera)
-                       if serve_as is not None and robot.arm.bus.transport.framing == "lx"
+                       if serve_as is not None and isinstance(robot.arm.bus, ServoBus)
                        else None)
         """The robot served to other busarm processes (``--port zenoh://HOST``); not one
         on a controller board (its frames are not tunnelled yet)."""

@@ -20,7 +20,6 @@ import struct
 import threading
 from collections import deque
 from dataclasses import dataclass, field
-from urllib.parse import parse_qsl, urlencode, urlsplit
 
 from busarm.clock import Clock
 from busarm.errors import ConfigError, ProtocolError
@@ -49,12 +48,9 @@ from busarm.protocol.board import (
 )
 from busarm.protocol.commands import SPECS
 from busarm.sim.bus import DUE_EPS_S, SimBus, WireTiming
-from busarm.sim.transport import SimTransport, query_flag, query_float, sim_bus_from_url
-from busarm.units import check_range
 
 __all__ = [
     "BATTERY_HZ",
-    "BOARD_KEYS",
     "ENCODER_TICKS_PER_REV",
     "HALF_SPREAD_M",
     "IMU_HZ",
@@ -68,9 +64,6 @@ __all__ = [
     "BoardLog",
     "SimBoard",
     "SimWheel",
-    "board_from_query",
-    "open_sim_board_transport",
-    "split_board_keys",
 ]
 
 
@@ -412,50 +405,6 @@ class SimBoard:
             backlog -= len(self._out.pop(oldest)[1])
 
 
-
 def _int32(ticks: int) -> int:
     """An encoder count as a 32-bit counter holds it (it wraps)."""
     return (ticks + 2**31) % 2**32 - 2**31
-
-
-BOARD_KEYS = {"imu_hz", "battery_hz", "battery_v", "silent", "board_corrupt", "wrong_id",
-              "board_seed", "encoders"}
-"""URL keys for the simulated board itself (``board://sim?ids=1,2&imu_hz=200``)."""
-
-
-def split_board_keys(url: str) -> tuple[str, dict[str, str]]:
-    """``url`` without the board's own keys, and those keys."""
-    parts = urlsplit(url)
-    pairs = parse_qsl(parts.query, keep_blank_values=True)
-    mine = {k: v for k, v in pairs if k in BOARD_KEYS}
-    rest = urlencode([(k, v) for k, v in pairs if k not in BOARD_KEYS], safe=",/")
-    if "://" not in url:
-        return url, mine
-    # Not urlunsplit: with no host it drops the "//", and "sim:?ids=7" reads as no query.
-    return (f"{parts.scheme}://?{rest}" if rest else url.split("://", 1)[0]), mine
-
-
-def board_from_query(servos: SimBus, q: dict[str, str]) -> SimBoard:
-    """A simulated board in front of ``servos``, configured by its URL keys."""
-    def number(key: str, default: float, lo: float, hi: float, unit: str = "") -> float:
-        return check_range(f"board URL: {key}", query_float(q, key, default, "board URL"),
-                           lo, hi, unit)
-
-    faults = BoardFaults(
-        silent=query_flag(q, "silent", False, "board URL"),
-        corrupt_rate=number("board_corrupt", 0.0, 0.0, 1.0),
-        wrong_id_rate=number("wrong_id", 0.0, 0.0, 1.0),
-        seed=int(number("board_seed", 0, 0, 2**32 - 1)),
-    )
-    return SimBoard(servos, imu_hz=number("imu_hz", IMU_HZ, 0.0, 5000.0, "Hz"),
-                    battery_hz=number("battery_hz", BATTERY_HZ, 0.0, 100.0, "Hz"),
-                    battery_v=number("battery_v", 12.3, 0.0, 30.0, "V"), faults=faults,
-                    seed=faults.seed, encoders=query_flag(q, "encoders", True, "board URL"))
-
-
-def open_sim_board_transport(url: str, baudrate: int = 115200, name: str = "") -> SimTransport:
-    """Entry point of ``open_transport`` for ``board://sim?...`` (``url`` is the
-    ``sim://?...`` behind the board; ``baudrate`` the servos' line)."""
-    inner, keys = split_board_keys(url)
-    board = board_from_query(sim_bus_from_url(inner, baudrate), keys)
-    return SimTransport(board, name=name or url)

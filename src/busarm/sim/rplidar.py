@@ -1,7 +1,7 @@
 """A simulated Slamtec RPLIDAR A1 on its serial line: requests in, replies and scans out.
 
 ``SimRplidar`` is a line like ``SimBus`` (``busarm.sim.bus.SimLine``): serve it on a pty
-(``PtyServer``) or in this process (``lidar://sim?...``, ``open_sim_lidar_transport``).
+(``PtyServer``) or in this process (``busarm.sim.spec.SimLidarSpec``).
 It answers GET_INFO (as an A1M8 would) and GET_HEALTH, and after SCAN streams
 measurement nodes of a 2D world (a callable: bearing, counter-clockwise in the Lidar's
 frame, in rad -> range in m) at ``sample_hz`` nodes a second, ``scan_hz`` revolutions a
@@ -11,9 +11,7 @@ Like the real unit its wire angles run clockwise; the first node of each revolut
 carries S = 1. Not modelled: the motor's spin-up, angle jitter between revolutions,
 intensity beyond a fixed quality, and the express scan modes.
 
-URL keys of ``lidar://sim?...``: ``hz`` (revolutions/s, 2..10, default 5.5), ``silent``
-(1 = answers nothing), ``garbage`` (probability per node of 1-6 random bytes before it),
-``seed`` (of the garbage), ``health`` (0 good, 1 warning, 2 error).
+Its settings (the command line's ``lidar://sim?hz=10``): ``SimLidarSpec``.
 """
 
 from __future__ import annotations
@@ -22,7 +20,6 @@ import math
 import random
 import threading
 from collections.abc import Callable
-from urllib.parse import parse_qs, urlsplit
 
 from busarm.clock import Clock, SimClock
 from busarm.errors import ConfigError
@@ -44,8 +41,7 @@ from busarm.protocol.rplidar import (
     node_from_si,
 )
 from busarm.sim.bus import WireTiming, pop_due
-from busarm.sim.transport import SimTransport, query_flag, query_float
-from busarm.units import check_range, listing
+from busarm.units import check_range
 
 __all__ = [
     "A1_INFO",
@@ -56,9 +52,7 @@ __all__ = [
     "RESET_BANNER",
     "SimRplidar",
     "World",
-    "open_sim_lidar_transport",
     "rectangular_room",
-    "sim_lidar_from_url",
 ]
 
 
@@ -259,35 +253,3 @@ class SimRplidar:
     def _schedule(self, when: float, data: bytes) -> None:
         self._out.append((when, data))
         self._out.sort(key=lambda item: item[0])
-
-
-_KNOWN = {"hz", "silent", "garbage", "seed", "health"}
-
-
-def sim_lidar_from_url(url: str, clock: Clock | None = None) -> SimRplidar:
-    """A SimRplidar configured by a ``lidar://sim?...`` URL (keys in the module's doc)."""
-    raw = parse_qs(urlsplit(url).query, keep_blank_values=True)
-    unknown = set(raw) - _KNOWN
-    if unknown:
-        raise ConfigError(f"lidar URL: unknown parameter(s) {listing(sorted(unknown))}; "
-                          f"known: {listing(sorted(_KNOWN))}")
-    q = {k: v[-1] for k, v in raw.items()}
-    what = "lidar URL"
-    status = check_range("lidar URL: health", query_float(q, "health", 0.0, what), 0, 2)
-    if status != int(status):
-        raise ConfigError(f"lidar URL: health={q['health']!r}; allowed: 0, 1 or 2")
-    return SimRplidar(
-        scan_hz=check_range("lidar URL: hz", query_float(q, "hz", 5.5, what), 2.0, 10.0, "Hz"),
-        garbage_rate=check_range("lidar URL: garbage", query_float(q, "garbage", 0.0, what),
-                                 0.0, 1.0),
-        seed=int(query_float(q, "seed", 0.0, what)),
-        silent=query_flag(q, "silent", False, what),
-        health=Health(HealthStatus(int(status)), 0 if status == 0 else 0x8001),
-        clock=clock,
-    )
-
-
-def open_sim_lidar_transport(url: str) -> SimTransport:
-    """The simulated A1 in this process, on its own simulated clock (scans take no wall
-    time): ``lidar://sim`` or ``lidar://sim?hz=10``."""
-    return SimTransport(sim_lidar_from_url(url), name=url)

@@ -93,9 +93,9 @@ from collections.abc import Mapping
 
 from busarm.errors import ConfigError
 from busarm.protocol import AlarmFlag, ServoMode, check_servo_id
+from busarm.protocol.lx_units import POSITION_MAX_PULSES, POSITION_MIN_PULSES
 from busarm.sim.servo_commands import ServoCommands
 from busarm.sim.servo_params import ServoParams
-from busarm.units import POSITION_MAX_PULSES, POSITION_MIN_PULSES
 
 # Power-on values of the saved settings, from the manual (Table 4 and points 7-28).
 DEFAULT_SERVO_ID = 1

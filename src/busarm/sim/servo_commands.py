@@ -29,8 +29,8 @@ from busarm.protocol import (
     VinLimitReply,
     VinReply,
 )
+from busarm.protocol.lx_units import POSITION_MAX_PULSES, POSITION_MIN_PULSES
 from busarm.sim.servo_physics import ServoPhysics
-from busarm.units import POSITION_MAX_PULSES, POSITION_MIN_PULSES
 
 __all__ = [
     "ServoCommands",

@@ -8,7 +8,7 @@ import math
 from dataclasses import dataclass
 
 from busarm.errors import ConfigError
-from busarm.units import DEG_PER_PULSE
+from busarm.protocol.lx_units import DEG_PER_PULSE
 
 __all__ = [
     "FULL_TURN_PULSES",

@@ -11,8 +11,8 @@ import math
 
 from busarm.errors import ConfigError
 from busarm.protocol import ServoMode
+from busarm.protocol.lx_units import MOTOR_SPEED_MAX
 from busarm.sim.servo_params import FULL_TURN_PULSES, ServoParams
-from busarm.units import MOTOR_SPEED_MAX
 
 __all__ = [
     "ServoPhysics",

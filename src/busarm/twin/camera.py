@@ -1,8 +1,8 @@
 """The twin's arm camera as a vision camera source, in this process or over loopback.
 
-- ``twin``: a new twin of its own (``twin://?seed=3&blocks=5`` picks its scene, as for the
-  port); the camera of a twin the program already has is ``TwinCamera(twin)`` (a
-  ``busarm.robot.Robot`` on a twin hands out its own as ``robot.camera``);
+- ``twin``: a new twin of its own (the default table); the camera of a twin the program
+  already has is ``TwinCamera(twin)`` (a ``busarm.robot.Robot`` on a twin hands out its
+  own as ``robot.camera``);
 - ``twin://127.0.0.1:PORT``: the camera of a ``busarm twin serve`` in another process.
 
 The wire format of the loopback camera is one request byte ``F`` per frame, answered by
@@ -202,9 +202,14 @@ def open_twin_camera(spec: str, **options: object) -> TwinCamera | RemoteTwinCam
             raise ConfigError(f"twin camera {spec!r}: expected twin://127.0.0.1:PORT with "
                               "PORT 1..65535 (the address `busarm twin serve` prints)")
         return RemoteTwinCamera(parts.hostname, port)
-    from busarm.twin.transport import twin_from_url
+    if spec != "twin":
+        raise ConfigError(f"twin camera {spec!r}: give twin (a twin of its own) or "
+                          "twin://127.0.0.1:PORT (the address `busarm twin serve` prints); "
+                          "for another table, open the robot on that twin (--port "
+                          "twin://?...) and use its camera")
+    from busarm.twin.spec import TwinSpec
 
-    return TwinCamera(twin_from_url(spec), view=view, owns_twin=True)
+    return TwinCamera(TwinSpec().build(), view=view, owns_twin=True)
 
 
 class CameraServer:

@@ -20,7 +20,8 @@ tests) it is a ``SimClock``: physics steps whenever anyone waits on that clock (
 driver for a reply, the arm for a move), as fast as the CPU allows, and every time the
 programs above report is in simulated seconds. Blocks
 settle for ``SETTLE_S`` of simulated time before the clock starts, so a seeded scene
-looks the same every time.
+looks the same every time. Such a twin does not see ``time.sleep``: a program that waits
+so, then reads it, is warned once (``busarm.clock.FrozenClockWarning``).
 """
 
 from __future__ import annotations
@@ -260,6 +261,9 @@ class Twin:
         self._stop = threading.Event()
         if isinstance(self.clock, SimClock):
             self.clock.attach(self._tick)
+            # A program that waits with time.sleep finds the twin where it left it: told
+            # once (busarm.clock.FrozenClockWarning), not left to wonder.
+            self.clock.warn_when_frozen("the twin")
         else:
             self._thread = threading.Thread(target=self._run, name="busarm-twin", daemon=True)
             self._thread.start()

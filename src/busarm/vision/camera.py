@@ -1,7 +1,7 @@
 """Camera sources behind one interface: USB cameras, video files, image folders, plugins.
 
-Every source gives :class:`CameraFrame` objects (a BGR ``uint8`` image, the
-``time.monotonic()`` at capture, a per-source sequence number) from ``read()``, which
+Every source gives :class:`CameraFrame` objects (a BGR ``uint8`` image, the time of
+capture on the robot's clock, a per-source sequence number) from ``read()``, which
 raises :class:`~busarm.errors.CameraError` when no frame comes (end of a video, a read
 timeout, an unreadable file) and never waits without bound. ``open_camera`` picks a
 source from one string:
@@ -102,9 +102,11 @@ def _as_bgr(image: npt.NDArray[Any]) -> UInt8Image:
 class CameraFrame:
     """One image from a source.
 
-    ``image`` is H x W x 3 ``uint8`` BGR (read-only), ``timestamp_s`` the
-    ``time.monotonic()`` when it was captured (for a USB camera: when the driver handed
-    it over), ``sequence`` counts from 0 per source, ``source`` is the source's name.
+    ``image`` is H x W x 3 ``uint8`` BGR (read-only), ``timestamp_s`` when it was
+    captured on the robot's clock: ``time.monotonic()`` for a real camera (a USB camera:
+    when the driver handed it over), the simulated seconds of a twin in this process
+    (``robot.clock``), so a frame lines up with the robot's other readings. ``sequence``
+    counts from 0 per source, ``source`` is the source's name.
     """
 
     image: UInt8Image = field(compare=False, repr=False)
@@ -186,7 +188,7 @@ class CameraBase:
         return self._closed
 
     def read(self) -> CameraFrame:
-        """The next frame, stamped with ``time.monotonic()`` when it arrived."""
+        """The next frame, stamped when it arrived (``_timestamp``: the robot's clock)."""
         with self._read_lock:
             return self._read()
 

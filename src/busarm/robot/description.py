@@ -1,0 +1,209 @@
+"""A robot described once, typed and checked: ``RobotConfig``, opened by ``Robot.open``.
+
+A ``RobotConfig`` says where the robot is (``world``: its hardware port, the simulator,
+the twin with its table or arena, a robot served on another computer), its arm (config,
+joint calibration, how its servo line is driven), its base and Lidar (or none), its wrist
+camera and that camera's calibration, and where the bins are. Each part checks its own
+values when made; the whole checks how they fit. It comes from Python, from a robot file
+(``busarm.robot.robot_file``: ``busarm robot init`` writes one, ``--robot FILE`` reads it)
+or from the command line's ``--port`` (``RobotConfig.from_port``, read once by
+``busarm.robot.port_url``); nothing below reads a port string again.
+
+    RobotConfig()                                        # the twin: an arm on a table
+    RobotConfig(TwinSpec(family="arena", seed=3, controller=BoardSettings()))
+    RobotConfig(SerialPort("/dev/ttyUSB0"), camera=CameraSpec("/dev/video0", ...))
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from busarm.arm.calibration import Calibration
+from busarm.arm.config import ArmConfig
+from busarm.base.config import ChassisConfig
+from busarm.bus.driver import DEFAULT_RETRIES, DEFAULT_TIMEOUT_MARGIN_S, EchoMode
+from busarm.bus.ports import PortSpec, SerialPort
+from busarm.bus.transport import DEFAULT_BAUDRATE, check_baudrate
+from busarm.bus.zenoh_link import ZenohPort
+from busarm.errors import ConfigError
+from busarm.sim.spec import SimLidarSpec, check_flag
+from busarm.twin.spec import TwinSpec
+from busarm.units import check_int_range, check_range, short_repr
+
+if TYPE_CHECKING:
+    from busarm.robot.calibration_store import CalibrationStore
+
+__all__ = [
+    "ArmSpec",
+    "BaseSpec",
+    "Bins",
+    "CameraSpec",
+    "LidarPort",
+    "LidarSpec",
+    "RobotConfig",
+    "ServoLine",
+]
+
+Bins = dict[str, tuple[float, float]]
+"""Where each colour's bin is on the table: colour -> (x_mm, y_mm) in the arm's frame."""
+
+LidarPort = SerialPort | SimLidarSpec | TwinSpec
+"""Where a Lidar is: its serial device, the simulated A1, or an arena twin's own."""
+
+LIDAR_MODELS = ("rplidar-a1",)
+
+
+@dataclass(frozen=True)
+class ServoLine:
+    """How the arm's servo line is driven: its baud rate (a controller board's link is
+    always 1,000,000), the adapter's echo (``auto`` finds out), retries of a failed
+    exchange, and the margin added to every reply's deadline."""
+
+    __repr__ = short_repr
+
+    baudrate: int = DEFAULT_BAUDRATE
+    echo: str = "auto"
+    retries: int = DEFAULT_RETRIES
+    timeout_margin_s: float = DEFAULT_TIMEOUT_MARGIN_S
+
+    def __post_init__(self) -> None:
+        check_baudrate(self.baudrate)
+        if self.echo not in {m.value for m in EchoMode}:
+            raise ConfigError(f"arm line: echo = {self.echo!r}; allowed: "
+                              f"{', '.join(m.value for m in EchoMode)}")
+        check_int_range("arm line: retries", self.retries, 0, 10)
+        check_range("arm line: timeout_margin_s", self.timeout_margin_s, 0.0, 5.0, "s")
+
+    def options(self) -> dict[str, Any]:
+        """The servo driver's keywords."""
+        return {"echo": self.echo, "retries": self.retries,
+                "timeout_margin_s": self.timeout_margin_s}
+
+
+@dataclass(frozen=True)
+class ArmSpec:
+    """The arm: its config (an ArmConfig, a shipped name or a file; default: the world's,
+    else the JetAuto Pro), its joint calibration (or none), and its servo line."""
+
+    __repr__ = short_repr
+
+    config: ArmConfig | str | Path | None = None
+    calibration: Calibration | str | Path | None = None
+    line: ServoLine = field(default_factory=ServoLine)
+
+
+@dataclass(frozen=True)
+class BaseSpec:
+    """The mobile base on the controller board's wheels: its chassis config (a
+    ChassisConfig, a shipped name or a file)."""
+
+    __repr__ = short_repr
+
+    chassis: ChassisConfig | str | Path = "jetauto"
+
+
+@dataclass(frozen=True)
+class LidarSpec:
+    """The 2D Lidar: its model and where it is."""
+
+    __repr__ = short_repr
+
+    port: LidarPort
+    model: str = "rplidar-a1"
+
+    def __post_init__(self) -> None:
+        if self.model not in LIDAR_MODELS:
+            raise ConfigError(f"lidar: model = {self.model!r}; allowed: "
+                              f"{', '.join(LIDAR_MODELS)}")
+        if isinstance(self.port, TwinSpec) and not self.port.mobile:
+            raise ConfigError("lidar: this twin is an arm on a table, with no Lidar; give a "
+                              "twin with an arena (family arena, or an arena file)")
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """The wrist camera and its calibration.
+
+    ``source``: a camera (``/dev/video0``, an index, a stream URL; ``busarm.vision.camera``);
+    on a twin, None or ``twin`` is the twin's own. ``intrinsics``/``hand_eye``: calibration
+    files; else the calibration kept in ``store`` (refused if stale); on a twin a missing
+    one is made there (``calibrate``), into ``store`` or ``folder`` if given."""
+
+    __repr__ = short_repr
+
+    source: str | None = None
+    intrinsics: Path | None = None
+    hand_eye: Path | None = None
+    calibrate: bool = True
+    store: CalibrationStore | None = None
+    folder: Path | None = None
+
+    def __post_init__(self) -> None:
+        check_flag("camera: calibrate", self.calibrate)
+        if self.store is not None and self.folder is not None:
+            raise ConfigError("camera: give a calibration store or a folder, not both")
+        if self.hand_eye is not None and self.intrinsics is None:  # solved with those
+            raise ConfigError("a hand-eye calibration needs the intrinsics it was made with: "
+                              "give --intrinsics too")
+
+    @property
+    def files_given(self) -> bool:
+        return self.intrinsics is not None or self.hand_eye is not None
+
+
+@dataclass(frozen=True)
+class RobotConfig:
+    """The whole robot (see the module docstring); checked when made."""
+
+    __repr__ = short_repr
+
+    world: PortSpec = field(default_factory=TwinSpec)
+    """Where the robot is: a ``SerialPort`` (hardware, alone or behind the controller
+    board), a ``SimSpec``, a ``TwinSpec``, or a ``ZenohPort`` (served elsewhere)."""
+    arm: ArmSpec = field(default_factory=ArmSpec)
+    base: BaseSpec | None = None
+    """The base, on hardware; a twin with an arena behind a board has its own."""
+    lidar: LidarSpec | None = None
+    """The Lidar, on hardware (or the simulated A1); a twin with an arena has its own."""
+    camera: CameraSpec = field(default_factory=CameraSpec)
+    bins: Mapping[str, tuple[float, float]] | None = None
+    """Where the bins are (colour -> x_mm, y_mm); a twin's are its trays."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.world, PortSpec):
+            raise ConfigError(f"world: a SerialPort, SimSpec, TwinSpec or ZenohPort, got "
+                              f"{self.world!r}")
+        if isinstance(self.world, ZenohPort) and (self.base or self.lidar):
+            raise ConfigError(f"{self.world.name}: a robot served on Zenoh has what it has "
+                              "where it is served (its base and Lidar are chosen there)")
+        if self.base is not None and not self.world.through_board:
+            raise ConfigError(f"a base drives its wheels through the controller board: open "
+                              f"the robot on a board:// port (e.g. board:///dev/ttyACM0, or "
+                              f"board://twin?family=arena), not {self.world.name}")
+        if self.base is not None and isinstance(self.world, TwinSpec):
+            raise ConfigError("a twin's base is its own: give its chassis in the twin "
+                              "(chassis=) rather than a base")
+        if (self.camera.intrinsics is not None and self.camera.hand_eye is None
+                and not self.is_twin):
+            raise ConfigError("give both camera calibration files: --intrinsics and "
+                              "--hand-eye (only a twin can make the hand-eye one itself)")
+
+    @property
+    def is_twin(self) -> bool:
+        """Whether the robot is a twin in this process."""
+        return isinstance(self.world, TwinSpec)
+
+    @classmethod
+    def from_port(cls, port: str, **parts: Any) -> RobotConfig:
+        """The robot on the command line's ``port`` string (``busarm.robot.port_url``),
+        with ``parts`` (this class's other fields) beside it."""
+        from busarm.robot.port_url import parse_port  # the one place a port is read
+
+        return cls(parse_port(port), **parts)
+
+    def with_world(self, world: PortSpec) -> RobotConfig:
+        """The same robot in another world (e.g. a twin with a board on its table)."""
+        return replace(self, world=world)
