@@ -22,6 +22,7 @@ from busarm.cli.main import cli
 from busarm.errors import ConfigError
 from busarm.protocol import Command
 from busarm.sim.bus import SimBus, WireTiming
+from busarm.sim.spec import SimSpec
 from conftest import in_process_port
 
 SIM = "sim://?timing=0"
@@ -133,7 +134,7 @@ def test_a_port_that_is_no_serial_device_says_what_it_is(tmp_path: Path) -> None
 
 
 def test_read_state_of_a_string_id_is_a_type_error_naming_it() -> None:
-    with ServoBus.open(SIM) as bus, pytest.raises(ConfigError) as caught:
+    with ServoBus.open(SimSpec(timing=False)) as bus, pytest.raises(ConfigError) as caught:
         bus.read_state("1")  # type: ignore[arg-type]
     assert str(caught.value) == "servo ID must be an integer 0..253, got '1' (a str)"
 

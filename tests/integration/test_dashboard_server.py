@@ -30,7 +30,8 @@ from busarm.dashboard.server import ServerThread
 from busarm.dashboard.service import JOG_HOLD_S, RobotService
 from busarm.protocol import Command, Request
 from busarm.protocol.lx_units import DEG_PER_PULSE
-from busarm.robot import Robot
+from busarm.robot import Robot, RobotConfig
+from busarm.sim.spec import SimSpec
 from busarm.sim.transport import SimTransport
 from busarm.vision.camera import CameraBase
 
@@ -38,6 +39,8 @@ pytestmark = pytest.mark.wallclock(
     "a live dashboard server: a real-time robot, its page's heartbeats and watchdogs")
 
 TOKEN = "a-token-of-thirty-two-characters"
+LIVE_SIM = RobotConfig(SimSpec(realtime=True))
+"""The simulated arm, live (on the wall clock), as `busarm dashboard` opens it."""
 
 
 @dataclass
@@ -63,7 +66,7 @@ class Server:
 
 
 def _serve(tmp_path: Path, access: Access) -> Iterator[Server]:
-    robot = Robot.open("sim://?realtime=1")  # live, as `busarm dashboard` opens it
+    robot = Robot.open(LIVE_SIM)
     service = RobotService(robot, folder=tmp_path / "robot", reports=tmp_path / "reports")
     transport = robot.arm.bus.transport
     assert isinstance(transport, SimTransport)
@@ -333,7 +336,7 @@ class SlowCamera(CameraBase):
 
 
 def test_a_camera_streams_as_mjpeg_even_when_its_first_frame_is_slow(tmp_path: Path) -> None:
-    robot = Robot.open("sim://?realtime=1")  # live, as `busarm dashboard` opens it
+    robot = Robot.open(LIVE_SIM)
     service = RobotService(robot, folder=tmp_path / "robot").start()
     feed = Feed("wrist", SlowCamera(), fps=20)
     http = ServerThread(service, Access.for_bind("127.0.0.1"), {"wrist": feed}).start()

@@ -20,7 +20,6 @@ from __future__ import annotations
 import random
 from collections import Counter
 from pathlib import Path
-from urllib.parse import quote
 
 import pytest
 
@@ -29,6 +28,7 @@ from busarm.bus.driver import ServoBus
 from busarm.errors import BusTimeoutError, ProtocolError
 from busarm.protocol import Command
 from busarm.sim.servo import SimServo
+from busarm.sim.spec import SimSpec
 from busarm.sim.storage import record_from_servo, save_state
 
 POSITIONS = {1: 137, 2: 268, 3: 409, 4: 555, 5: 702, 10: 861}
@@ -53,9 +53,9 @@ def servos_at_rest(tmp_path: Path) -> Path:
 
 
 def soak_in_process(tmp_path: Path, reads: int, *, echo: bool, seed: int) -> None:
-    state = quote(str(servos_at_rest(tmp_path)))
-    url = f"sim://?state={state}&drop=0.01&corrupt=0.01&seed={seed}&echo={int(echo)}"
-    with ServoBus.open(url, echo="on" if echo else "off") as bus:
+    sim = SimSpec(state=servos_at_rest(tmp_path), drop=0.01, corrupt=0.01, seed=seed,
+                  echo=echo)
+    with ServoBus.open(sim, echo="on" if echo else "off") as bus:
         assert bus.clock.is_simulated
         _soak(bus, reads, random.Random(seed), slack_s=0.0)
 

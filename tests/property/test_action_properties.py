@@ -11,11 +11,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from busarm import Action, Arm, ConfigError, Robot, Twist
+from busarm import Action, Arm, CameraSpec, ConfigError, Robot, RobotConfig, Twist
 from busarm.arm.config import load_arm_config
 from busarm.base.config import load_chassis_config
 from busarm.base.kinematics import MecanumKinematics
-from busarm.robot.description import CameraSpec, RobotConfig
 from busarm.robot.observation import BASE_KEYS, check_action
 
 ARM = load_arm_config()

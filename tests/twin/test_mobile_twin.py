@@ -1,4 +1,5 @@
-"""The mobile twin through the real path: ``Robot.open("board://twin?family=arena...")``
+"""The mobile twin through the real path:
+``Robot.open(RobotConfig(TwinSpec(family="arena", ..., controller=BoardSettings())))``
 drives the twin's chassis with the Base on the simulated controller board, and reads the
 twin's ray-cast Lidar through the simulated A1's bytes. The twin's truth (the chassis's
 pose, its path, noise-free ranges, the arena's geometry) is read only here, in the tests.
@@ -12,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import replace
 from itertools import pairwise
 
 import numpy as np
@@ -22,14 +24,17 @@ from busarm.errors import ConfigError
 from busarm.lidar.scan import LaserScan
 from busarm.protocol.board import BoardReport
 from busarm.protocol.rplidar import A1_RANGE_MAX_M, A1_RANGE_MIN_M
+from busarm.robot import BaseSpec, CameraSpec, RobotConfig
 from busarm.robot.robot import Robot
+from busarm.sim.spec import BoardSettings, SimSpec
 from busarm.twin.arena import Arena, Room, Solid, StartPose
 from busarm.twin.arena_model import CHASSIS_SIZE_M
 from busarm.twin.lidar import LidarNoise, TwinLidarWorld
 from busarm.twin.mobile import PATH_PERIOD_S
+from busarm.twin.spec import TwinSpec
 from busarm.twin.twin import Twin
 
-ARENA_1 = "board://twin?family=arena&seed=1"
+ARENA_1 = TwinSpec(family="arena", seed=1, controller=BoardSettings())
 HALF_LENGTH_M = CHASSIS_SIZE_M[0] / 2
 Q2_M = 0.00025
 """The A1's range quantum on the wire (a quarter millimetre)."""
@@ -38,9 +43,9 @@ BEAM_RAD = 2 * math.pi / 200
 
 
 @contextmanager
-def robot_on(port: str, arena: Arena | None = None) -> Iterator[tuple[Robot, Twin]]:
-    """The robot on ``port`` (no camera calibration) and its twin, for the truth."""
-    with Robot.open(port, calibrate=False, arena=arena) as robot:
+def robot_on(world: TwinSpec) -> Iterator[tuple[Robot, Twin]]:
+    """The robot in ``world`` (no camera calibration) and its twin, for the truth."""
+    with Robot.open(RobotConfig(world, camera=CameraSpec(calibrate=False))) as robot:
         assert robot.twin is not None
         yield robot, robot.twin
 
@@ -96,7 +101,7 @@ def stop_and_settle(robot: Robot) -> None:
 
 @pytest.mark.parametrize("slip", [True, False], ids=["slip", "no-slip"])
 def test_move_by_moves_the_chassis_along_its_heading(slip: bool) -> None:
-    with robot_on(ARENA_1 + ("" if slip else "&slip=0")) as (robot, twin):
+    with robot_on(replace(ARENA_1, slip=slip)) as (robot, twin):
         assert robot.base is not None and robot.lidar is not None
         assert robot.base.odometry_source == "encoders"
         start = true_pose(twin)
@@ -121,7 +126,7 @@ def test_move_by_moves_the_chassis_along_its_heading(slip: bool) -> None:
 def test_a_wall_stops_the_base_while_its_wheels_spin_on() -> None:
     room = Room(-0.6, 0.6, -0.6, 0.6)  # the +x wall's face at x = 0.6 m
     arena = Arena(room=room, start=StartPose(0.0, 0.0, 0.0), name="wall ahead")
-    with robot_on("board://twin", arena) as (robot, twin):
+    with robot_on(TwinSpec(arena=arena, controller=BoardSettings())) as (robot, twin):
         assert robot.base is not None
         front_m = []
         end = robot.clock.now() + 3.0  # 0.45 m to the wall; the drive asks for about 0.9
@@ -139,16 +144,17 @@ def test_a_wall_stops_the_base_while_its_wheels_spin_on() -> None:
 
 
 def test_twin_without_a_board_has_a_lidar_but_no_base() -> None:
-    with robot_on("twin://?family=arena&seed=1") as (robot, _twin):
+    with robot_on(TwinSpec(family="arena", seed=1)) as (robot, _twin):
         assert robot.base is None
         assert robot.lidar is not None
         assert np.count_nonzero(scans(robot, 1)[0].valid) > 100
     with pytest.raises(ConfigError, match="board://"):
-        Robot.open("sim", chassis="jetauto", calibrate=False)
+        Robot.open(RobotConfig(SimSpec(), base=BaseSpec("jetauto"),
+                               camera=CameraSpec(calibrate=False)))
 
 
 def test_odometry_sees_every_report_while_servo_reads_take_them() -> None:
-    with robot_on(ARENA_1 + "&slip=0") as (robot, twin):
+    with robot_on(replace(ARENA_1, slip=False)) as (robot, twin):
         base = robot.base
         assert base is not None
         in_reads: list[int] = [0]
@@ -175,7 +181,7 @@ def test_odometry_sees_every_report_while_servo_reads_take_them() -> None:
 
 
 def test_the_true_path_follows_the_chassis() -> None:
-    with robot_on(ARENA_1 + "&slip=0") as (robot, twin):
+    with robot_on(replace(ARENA_1, slip=False)) as (robot, twin):
         assert twin.mobile is not None
         path = twin.mobile.path
         start = true_pose(twin)
@@ -208,7 +214,7 @@ def test_the_true_path_follows_the_chassis() -> None:
 
 
 def test_lidar_without_noise_measures_the_true_ranges() -> None:
-    with robot_on("twin://?family=arena&seed=1&lidar_noise=0") as (robot, twin):
+    with robot_on(TwinSpec(family="arena", seed=1, lidar_noise=False)) as (robot, twin):
         truth_world = TwinLidarWorld(twin, LidarNoise.none())
         for scan in scans(robot, 3):
             true = truth_world.true_ranges(scan.angles_rad)
@@ -220,7 +226,7 @@ def test_lidar_without_noise_measures_the_true_ranges() -> None:
 
 def test_lidar_noise_is_unbiased_with_its_dropouts() -> None:
     noise = LidarNoise()
-    with robot_on("twin://?family=arena&seed=1") as (robot, twin):
+    with robot_on(TwinSpec(family="arena", seed=1)) as (robot, twin):
         truth_world = TwinLidarWorld(twin, LidarNoise.none())
         # The same rays, whose only loss is at grazing incidence: random dropouts are the
         # returns lost among these.
@@ -263,7 +269,7 @@ def test_the_nearest_return_is_the_nearest_thing(room: Room, start: StartPose,
                                                  boxes: tuple[Solid, ...],
                                                  bearing_deg: float) -> None:
     arena = Arena(room=room, boxes=boxes, start=start, name="bare room")
-    with robot_on("twin://?lidar_noise=0", arena) as (robot, twin):
+    with robot_on(TwinSpec(arena=arena, lidar_noise=False)) as (robot, twin):
         x, y, _heading = lidar_origin(twin)
         expected_m = _nearest_m(x, y, room, boxes)
         for scan in scans(robot, 2):
@@ -275,7 +281,7 @@ def test_the_nearest_return_is_the_nearest_thing(room: Room, start: StartPose,
 
 
 def test_a_box_moved_into_view_appears_in_the_scan() -> None:
-    with robot_on("twin://?family=arena&seed=1&lidar_noise=0") as (robot, twin):
+    with robot_on(TwinSpec(family="arena", seed=1, lidar_noise=False)) as (robot, twin):
         before = scans(robot, 1)[0]
         distance_m = 0.6  # to the box's near face, straight ahead
         assert range_at(before, 0.0) > distance_m + 0.3  # nothing there yet

@@ -9,10 +9,9 @@ from collections.abc import Callable, Iterator
 import numpy as np
 import pytest
 
-from busarm import Action, ConfigError, Observation, Robot, Twist
+from busarm import Action, CameraSpec, ConfigError, Observation, Robot, RobotConfig, Twist
 from busarm.base.odometry import Pose2D
 from busarm.protocol import Command
-from busarm.robot.description import CameraSpec, RobotConfig
 
 ARENA = "board://twin?family=arena&seed=3"
 TABLE = "twin://?blocks=0"

@@ -16,10 +16,11 @@ import numpy as np
 import numpy.typing as npt
 import pytest
 
-from busarm.robot import Robot
+from busarm.robot import CameraSpec, Robot, RobotConfig
 from busarm.robot.obstacles import Obstacle
 from busarm.twin.clutter import clutter_scene
 from busarm.twin.scene import Distractor, Scene
+from busarm.twin.spec import TwinSpec
 
 COLORS = ("red", "green", "blue")
 SEEDS = (2, 30, 45)
@@ -78,8 +79,9 @@ def look(calibration: tuple[Path, Path]) -> Callable[[int, int | None], Look]:
 
 
 def _look(calibration: tuple[Path, Path], scene: Scene) -> Look:
-    with Robot.open("twin", scene=scene, intrinsics=calibration[0],
-                    hand_eye=calibration[1]) as robot:
+    with Robot.open(RobotConfig(TwinSpec(scene=scene),
+                                camera=CameraSpec(intrinsics=calibration[0],
+                                                  hand_eye=calibration[1]))) as robot:
         robot.arm.move_joints(robot.arm.config.pose("look"))
         robot.clock.sleep(0.3)
         image: npt.NDArray[np.uint8] = robot.camera.read().image

@@ -14,7 +14,8 @@ from click.testing import CliRunner
 from busarm.apps.pick_sort import IN_BIN_MM, PickSorter, PickSortSettings
 from busarm.cli.main import cli
 from busarm.errors import ConfigError, UnreachableError
-from busarm.robot import Robot
+from busarm.robot import CameraSpec, Robot, RobotConfig
+from busarm.twin.spec import TwinSpec
 from busarm.twin.twin import Twin
 
 pytestmark = pytest.mark.slow  # whole pick-sort runs on the twin
@@ -27,8 +28,9 @@ def calibration(twin_calibration: tuple[Path, Path]) -> tuple[Path, Path]:
     return twin_calibration
 
 
-def _robot(calibration: tuple[Path, Path], port: str) -> Robot:
-    return Robot.open(port, intrinsics=calibration[0], hand_eye=calibration[1])
+def _robot(calibration: tuple[Path, Path], world: TwinSpec) -> Robot:
+    return Robot.open(RobotConfig(world, camera=CameraSpec(intrinsics=calibration[0],
+                                                           hand_eye=calibration[1])))
 
 
 def _twin(robot: Robot) -> Twin:
@@ -37,7 +39,7 @@ def _twin(robot: Robot) -> Twin:
 
 
 def test_every_block_ends_in_its_colours_bin(calibration: tuple[Path, Path]) -> None:
-    with _robot(calibration, "twin://?seed=5&blocks=4") as robot:
+    with _robot(calibration, TwinSpec(seed=5, blocks=4)) as robot:
         bins = robot.bins
         report = PickSorter(robot).run()
         truth = _twin(robot).blocks()
@@ -108,7 +110,7 @@ def _assert_in_their_bins(truth: Any, bins: dict[str, tuple[float, float]]) -> N
 
 def test_a_block_that_slips_out_during_the_carry_is_picked_again(
         calibration: tuple[Path, Path]) -> None:
-    with _robot(calibration, "twin://?seed=5&blocks=2") as robot:
+    with _robot(calibration, TwinSpec(seed=5, blocks=2)) as robot:
         twin = _twin(robot)
         slipped: list[int] = []
 
@@ -130,7 +132,7 @@ def test_a_block_that_slips_out_during_the_carry_is_picked_again(
 
 def test_a_block_moved_while_the_arm_approaches_is_found_again(
         calibration: tuple[Path, Path]) -> None:
-    with _robot(calibration, "twin://?seed=5&blocks=2") as robot:
+    with _robot(calibration, TwinSpec(seed=5, blocks=2)) as robot:
         twin, arm = _twin(robot), robot.arm
         moved: list[int] = []
 
@@ -155,7 +157,7 @@ def test_a_servo_that_stops_answering_stops_the_run_cleanly(
         calibration: tuple[Path, Path]) -> None:
     from busarm.errors import BusTimeoutError
 
-    with _robot(calibration, "twin://?seed=5&blocks=2") as robot:
+    with _robot(calibration, TwinSpec(seed=5, blocks=2)) as robot:
         twin = _twin(robot)
 
         def brown_out(step: str) -> None:
@@ -188,8 +190,7 @@ def test_far_and_near_blocks_are_taken_tilted_and_edge_ones_looked_at_again(
     far, near = Block("red", 250.0, -150.0, 20.0), Block("green", 106.0, 25.0, -10.0)
     edge = Block("blue", 193.0, -215.0, 15.0)  # cut by the survey picture's edge
     scene = replace(random_scene(0, 0), blocks=(far, near, edge))
-    with Robot.open("twin", scene=scene, intrinsics=calibration[0],
-                    hand_eye=calibration[1]) as robot:
+    with _robot(calibration, TwinSpec(scene=scene)) as robot:
         arm, twin = robot.arm, _twin(robot)
         for block in (far, near):  # neither can be taken straight down
             with pytest.raises(UnreachableError):

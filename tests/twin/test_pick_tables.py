@@ -9,9 +9,10 @@ from pathlib import Path
 import pytest
 
 from busarm.apps.pick_sort import BIN_SLOTS_MM, IN_BIN_MM, PickSorter, RunReport
-from busarm.robot import Robot
+from busarm.robot import CameraSpec, Robot, RobotConfig
 from busarm.twin.clutter import clutter_scene
 from busarm.twin.scene import DEFAULT_BINS, Block, Distractor, Scene
+from busarm.twin.spec import TwinSpec
 from busarm.twin.twin import BlockState
 
 pytestmark = pytest.mark.slow  # whole pick-sort runs on the twin
@@ -23,14 +24,20 @@ def calibration(twin_calibration: tuple[Path, Path]) -> tuple[Path, Path]:
     return twin_calibration
 
 
+def _robot(calibration: tuple[Path, Path], scene: Scene) -> Robot:
+    """The twin with ``scene`` on its table, its camera calibrated by ``calibration``."""
+    return Robot.open(RobotConfig(TwinSpec(scene=scene),
+                                  camera=CameraSpec(intrinsics=calibration[0],
+                                                    hand_eye=calibration[1])))
+
+
 def test_a_colour_with_more_blocks_than_a_layer_is_stacked_in_its_bin(
         calibration: tuple[Path, Path]) -> None:
     spots = [(150.0, -90.0), (150.0, -30.0), (150.0, 30.0), (150.0, 90.0),
              (215.0, -60.0), (215.0, 0.0)]
     scene = Scene(blocks=tuple(Block("red", x, y, 10.0 * i) for i, (x, y) in enumerate(spots)),
                   bins=DEFAULT_BINS[:1])
-    with Robot.open("twin", scene=scene, intrinsics=calibration[0],
-                    hand_eye=calibration[1]) as robot:
+    with _robot(calibration, scene) as robot:
         report = PickSorter(robot, colors=["red"]).run()
         assert robot.twin is not None
         truth = robot.twin.blocks()
@@ -51,8 +58,7 @@ def test_a_full_bin_leaves_the_rest_on_the_table_with_a_reason(
     spots = [(x, y) for x in (135.0, 185.0, 235.0) for y in (-75.0, -20.0, 35.0)]
     scene = Scene(blocks=tuple(Block("red", x, y, 0.0) for x, y in spots),
                   bins=DEFAULT_BINS[:1])
-    with Robot.open("twin", scene=scene, intrinsics=calibration[0],
-                    hand_eye=calibration[1]) as robot:
+    with _robot(calibration, scene) as robot:
         sorter = PickSorter(robot, colors=["red"])
         report = sorter.run()
         assert robot.twin is not None
@@ -78,8 +84,7 @@ def test_a_block_set_down_to_be_taken_again_is_carried_over_a_cup(
     cup = Distractor("cylinder", "white", 205.0, -95.0, 40.0, 40.0, 70.0, 0.0, 80.0)
     scene = Scene(blocks=tuple(Block("red", x, y, 0.0) for x, y in spots),
                   bins=DEFAULT_BINS[:1], distractors=(cup,))
-    with Robot.open("twin", scene=scene, intrinsics=calibration[0],
-                    hand_eye=calibration[1]) as robot:
+    with _robot(calibration, scene) as robot:
         assert robot.twin is not None
         before = robot.twin.distractor_positions_mm()[0]
         said: list[str] = []
@@ -100,8 +105,7 @@ def test_blocks_the_survey_cannot_make_out_are_looked_for_facing_them(
     # are seen one by one. Seven fit the bin, the eighth is left with "bin full".
     scene = clutter_scene(1008, 9, ("red", "green", "blue"))
     assert [b.color for b in scene.blocks].count("green") == 8
-    with Robot.open("twin", scene=scene, intrinsics=calibration[0],
-                    hand_eye=calibration[1]) as robot:
+    with _robot(calibration, scene) as robot:
         report = PickSorter(robot, colors=["red", "green", "blue"]).run()
     outcomes = [(b.outcome, b.reason) for b in report.blocks]
     assert [o for o, _ in outcomes].count("sorted") == 7, outcomes
@@ -121,8 +125,7 @@ def _touching(calibration: tuple[Path, Path], colors: list[str],
                                                                          strict=False)),
                   bins=tuple(b for b in DEFAULT_BINS if b.color in colors))
     a = math.radians(yaw_deg)
-    with Robot.open("twin", scene=scene, intrinsics=calibration[0],
-                    hand_eye=calibration[1]) as robot:
+    with _robot(calibration, scene) as robot:
         assert robot.twin is not None
         robot.twin.place_blocks({  # touching: closer than a scene file may put them
             k: (190.0 + 30.0 * (u * math.cos(a) - v * math.sin(a)),
@@ -163,8 +166,7 @@ def test_a_descent_onto_an_unseen_obstacle_backs_off_and_the_run_goes_on(
     scene = Scene(blocks=(Block("red", 190.0, -40.0, 10.0),
                           *(Block("yellow", x, y) for x, y in parked)),
                   bins=DEFAULT_BINS[:1])
-    with Robot.open("twin", scene=scene, intrinsics=calibration[0],
-                    hand_eye=calibration[1]) as robot:
+    with _robot(calibration, scene) as robot:
         twin = robot.twin
         assert twin is not None
         events: list[str] = []

@@ -13,8 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from busarm.robot import Robot
+from busarm.robot import CameraSpec, Robot, RobotConfig
 from busarm.twin.scene import DEFAULT_BINS, Block, Lighting, Scene
+from busarm.twin.spec import TwinSpec
 
 SIDE_MM = 30.0
 TOUCH_GAP_MM = 0.03
@@ -113,8 +114,9 @@ def test_touching_blocks_are_located_one_by_one(calibration: tuple[Path, Path], 
                   bins=DEFAULT_BINS[:3], lighting=light)
     cx = sum(x for x, _ in points) / len(points)
     cy = sum(y for _, y in points) / len(points)
-    with Robot.open("twin", scene=scene, intrinsics=calibration[0],
-                    hand_eye=calibration[1]) as robot:
+    with Robot.open(RobotConfig(TwinSpec(scene=scene),
+                                camera=CameraSpec(intrinsics=calibration[0],
+                                                  hand_eye=calibration[1]))) as robot:
         look = robot.arm.config.pose("look")
         facing = robot.arm.config.check_joints((math.degrees(math.atan2(cy, cx)), *look[1:]))
         robot.arm.move_joints(facing)

@@ -10,8 +10,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from busarm import FrozenClockWarning, Robot
-from busarm.robot.description import CameraSpec, RobotConfig
+from busarm import CameraSpec, FrozenClockWarning, Robot, RobotConfig
 
 ARENA = "board://twin?family=arena&seed=3"
 

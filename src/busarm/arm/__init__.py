@@ -1,7 +1,8 @@
 """The arm: configuration, kinematics, motion, calibration, action groups.
 
-``Arm.open("sim")`` gives the simulated JetAuto Pro arm; ``ArmKinematics`` is the pure
-model (no bus); ``load_arm_config`` reads an arm description.
+``Arm.open(SimSpec())`` gives the simulated JetAuto Pro arm (``Arm.open("/dev/ttyUSB0")``
+the real one); ``ArmKinematics`` is the pure model (no bus); ``load_arm_config`` reads
+an arm description.
 
 The names below are loaded on first use, so ``import busarm.arm.kinematics`` (or
 ``busarm.arm.config``) loads neither the bus driver nor the rest of the arm:

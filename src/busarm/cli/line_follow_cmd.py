@@ -186,14 +186,14 @@ def _picture(report: LineFollowReport, robot: Robot) -> npt.NDArray[np.uint8]:
     from busarm.nav.mapping import compose
 
     title = f"line-follow: {report.laps_done:.2f} lap(s), {report.travelled_m:.2f} m"
-    twin = robot.twin
-    if twin is not None and twin.arena is not None and twin.mobile is not None:
+    sim = robot.sim
+    if sim is not None and sim.arena is not None and sim.base_pose() is not None:
         from busarm.twin.arena_picture import arena_picture
 
-        s = twin.arena.start
+        s = sim.arena.start
         start = Pose2D(s.x_m, s.y_m, math.radians(s.yaw_deg))
         path = [compose(start, p) for p in report.path]
-        return arena_picture(twin, odometry_path=[(p.x_m, p.y_m) for p in path],
+        return arena_picture(sim.twin, odometry_path=[(p.x_m, p.y_m) for p in path],
                              title=title)
     return _odometry_picture(report)
 

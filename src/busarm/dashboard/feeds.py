@@ -179,15 +179,13 @@ def robot_feeds(robot: Robot, fps: float) -> dict[str, Feed]:
     a CPU, which is what lets the page have 15 frames a second); the pictures vision and
     jobs work on keep them.
     """
-    from busarm.twin.camera import TwinCamera
-
-    twin = robot.twin
+    sim = robot.sim
     sources: dict[str, CameraSource] = dict(robot.cameras)
-    if twin is not None:
-        sources = {name: TwinCamera(twin, view="arm" if name == "wrist" else "overview",
-                                    live=True) for name in sources}
+    if sim is not None:
+        sources = {name: sim.live_camera("arm" if name == "wrist" else "overview")
+                   for name in sources}
     boxes = block_boxes(["red", "green", "blue", "yellow"])
     return {name: Feed(name, source, fps=fps if name == "wrist" else min(fps, OVERVIEW_FPS),
                        draw=boxes if name == "wrist" else None,
-                       on_thread_end=twin.release_renderers if twin is not None else None)
+                       on_thread_end=sim.release_renderers if sim is not None else None)
             for name, source in sources.items()}

@@ -150,8 +150,8 @@ class MobileJobs:
         return self.robot.base is not None and self.robot.lidar is not None
 
     def _arena(self) -> Arena | None:
-        twin = self.robot.twin
-        return None if twin is None else twin.arena
+        sim = self.robot.sim
+        return None if sim is None else sim.arena
 
     def point_names(self) -> list[str]:
         if self._points is not None:
@@ -240,11 +240,11 @@ class MobileJobs:
         from busarm.nav.points import save_points
         from busarm.twin.arena_tasks import twin_transport_points
 
-        twin = self.robot.twin
-        assert twin is not None
+        sim = self.robot.sim
+        assert sim is not None
         # The set-up, as a person measuring the room for the points file (in the frame
         # of the map about to be built: taken before exploring).
-        points = twin_transport_points(twin, self._base())
+        points = twin_transport_points(sim.twin, self._base())
         progress("no map yet: exploring the arena to map it")
         run = build_map(self.robot, time_limit_s=EXPLORE_LIMIT_S,
                         on_scan=self._explore_hook(cancel, progress))

@@ -491,8 +491,8 @@ class RobotService:
             # A twin renders in the thread that asks (pick-sort's camera): free this
             # thread's GL contexts here, or they are freed at exit from another thread,
             # which EGL refuses (EGL_BAD_ACCESS, a traceback on Ctrl+C).
-            if self.robot.twin is not None:
-                self.robot.twin.release_renderers()
+            if self.robot.sim is not None:
+                self.robot.sim.release_renderers()
 
     def _end_job(self, job: _Job, state: str, text: str) -> None:
         with self._lock:

@@ -48,6 +48,7 @@ from busarm.robot.opening import (
     given_calibration,
     open_parts,
 )
+from busarm.robot.sim_handle import SimHandle
 from busarm.twin.camera import TwinCamera
 from busarm.twin.twin import Twin
 from busarm.units import listing
@@ -77,6 +78,9 @@ class Robot:
                  lidar: LidarSource | None = None) -> None:
         self.arm = arm
         self.twin = twin
+        """The twin, when the robot is one (its truth, for benchmarks and tests), else None."""
+        self.sim = SimHandle(twin) if twin is not None else None
+        """What only a simulated robot has (busarm.robot.sim_handle), else None."""
         self.base = base
         """The mobile base (on a controller board with a chassis config), else None."""
         self.lidar = lidar

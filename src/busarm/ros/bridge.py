@@ -66,7 +66,6 @@ from busarm.ros.sensors import (
     occupancy_grid,
     odometry,
 )
-from busarm.twin.camera import TwinCamera
 
 if TYPE_CHECKING:
     import zenoh
@@ -261,8 +260,8 @@ class RosBridge:
         # dashboard's is, without shadows or antialiasing: 15 ms a frame, not 40, and
         # the renderer holds the GIL (every other loop here waits on it). A busarm on
         # zenoh:// gets the pictures the twin's vision works on, while it listens.
-        twin = self.robot.twin
-        watched = TwinCamera(twin, view="arm", live=True) if twin is not None else camera
+        sim = self.robot.sim
+        watched = sim.live_camera("arm") if sim is not None else camera
         tick = self._every(1.0 / self.settings.camera_fps)
         while tick():
             served = self.server is not None and self.server.camera_wanted
@@ -284,8 +283,8 @@ class RosBridge:
                 self.pub_info.publish(m.camera_info(t, CAMERA_FRAME, i.width_px, i.height_px,
                                                     i.camera_matrix, list(i.distortion),
                                                     i.model))
-        if self.robot.twin is not None:
-            self.robot.twin.release_renderers()  # this thread's, made for its pictures
+        if sim is not None:
+            sim.release_renderers()  # this thread's, made for its pictures
 
     def _blocks_loop(self) -> None:
         """The blocks in the latest frame, BLOCKS_HZ times a second (in a thread of its
