@@ -81,7 +81,7 @@ def test_move_by_ends_near_the_target_by_the_wheels_turns(
         sim: tuple[SimClock, SimBoard, Base], dx: float, dy: float, dyaw: float) -> None:
     clock, board, base = sim
     before = turns(board)
-    pose = base.move_by(dx, dy, dyaw)
+    pose = base.move_by(dx, dy, math.radians(dyaw))
     truth = moved(board, before)
     assert truth.vx_m_s == pytest.approx(dx, abs=0.01)
     assert truth.vy_m_s == pytest.approx(dy, abs=0.01)

@@ -17,7 +17,7 @@ import click
 from click.testing import CliRunner
 
 from busarm.cli.main import cli
-from busarm.sim import transport
+from busarm.robot import port_url
 
 README = Path(__file__).resolve().parents[2] / "README.md"
 UNIT = re.compile(r"\b(mm|deg|deg/s|mm/s|m|m/s|s|ms|V|C|Hz|bit/s|pixels|px|cm2|%|0\.\.1"
@@ -86,7 +86,7 @@ def test_the_top_level_help_names_the_main_job() -> None:
 def test_the_readme_documents_every_simulator_url_parameter() -> None:
     text = README.read_text(encoding="utf-8")
     assert "busarm.sim.transport" not in text  # the user reads the README, not the source
-    for name in transport._KNOWN:
+    for name in port_url._SIM_KEYS:  # the keys a sim:// port takes
         assert re.search(rf"\| `{name}`|`{name}` \|| `{name}`,|, `{name}`", text), name
 
 

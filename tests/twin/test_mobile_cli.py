@@ -257,8 +257,8 @@ def test_snapshot_of_an_arena_with_overlapping_boxes_is_refused(tmp_path: Path) 
      ["--arena", "--view"]),
     (["lidar", "scan", "--lidar", "twin://?seed=1"], ["twin://?seed=1", "family=arena"]),
     (["base", "odom", "--port", "board://twin?family=arena&blocks=3"],
-     ["family=arena", "blocks="]),
-    (["scan", "--port", "twin://?slip=0"], ["slip", "family=arena"]),
+     ["family arena", "blocks"]),
+    (["scan", "--port", "twin://?slip=0"], ["slip", "family arena"]),
     (["base", "odom", "--port", "board://twin?arena=missing.toml"], ["missing.toml"]),
 ], ids=["serve-seed", "serve-echo", "serve-missing-file", "snapshot-view",
         "lidar-table-twin", "url-arena-blocks", "url-slip-without-arena", "url-missing-file"])

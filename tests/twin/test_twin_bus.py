@@ -1,6 +1,7 @@
-"""The twin through the real path: the Arm and ServoBus on ``twin://`` and on the
-pseudo-terminal of ``busarm twin serve``. Physics answers POS_READ: a gripper closing
-on a block stalls short of closed, a held block stays held, effort heats the servos."""
+"""The twin through the real path: the Arm and ServoBus on the twin in this process
+(``TwinSpec``) and on the pseudo-terminal of ``busarm twin serve``. Physics answers
+POS_READ: a gripper closing on a block stalls short of closed, a held block stays held,
+effort heats the servos."""
 
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ import pytest
 
 from busarm.arm import Arm
 from busarm.bus.driver import ServoBus
-from busarm.robot import Robot
+from busarm.robot import CameraSpec, Robot, RobotConfig
+from busarm.twin.spec import TwinSpec
 from busarm.twin.twin import Twin
 
 
@@ -31,7 +33,8 @@ def _roll_for_block(arm: Arm, x_mm: float, y_mm: float, z_mm: float, yaw_deg: fl
 
 @pytest.fixture
 def twin_arm() -> Iterator[tuple[Arm, Twin]]:
-    with Robot.open("twin://?seed=3&blocks=1&colors=red", calibrate=False) as robot:
+    with Robot.open(RobotConfig(TwinSpec(seed=3, blocks=1, colors=("red",)),
+                                camera=CameraSpec(calibrate=False))) as robot:
         tw = robot.twin
         assert tw is not None
         assert robot.clock is tw.clock and robot.clock.is_simulated

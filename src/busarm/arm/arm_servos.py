@@ -37,8 +37,8 @@ SETTLE_TIMEOUT_S = 1.0
 """How long settled_joints_deg waits for the servos to stand still after a move's end."""
 SETTLE_POLL_S = 0.1
 DEFAULT_TOLERANCE_DEG = 1.5
-"""Position feedback is whole pulses (0.24 deg on LX servos), and a loaded servo settles a pulse or two
-short; a wait within this counts as arrived."""
+"""Position feedback is whole pulses (0.24 deg on LX servos), and a loaded servo settles
+a pulse or two short; a wait within this counts as arrived."""
 
 
 class ArmServos:

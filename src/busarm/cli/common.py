@@ -59,7 +59,12 @@ from busarm.cli.param_types import (
     parse_int,
     parse_pose,
 )
-from busarm.cli.robot_options import describe_robot, from_robot_file
+from busarm.cli.robot_options import (
+    camera_from_text,
+    describe_robot,
+    from_robot_file,
+    with_realtime,
+)
 from busarm.cli.servo_tables import (
     BAD_REPLY,
     NO_REPLY,
@@ -138,6 +143,8 @@ __all__ += ["check_gap_mm", "gap_report", "joints_in", "joints_to_move",
 __all__ += ["announced", "find_session"]  # running `sim serve`/`twin serve` (cli.sessions)
 __all__ += ["arena_from_spec", "mobile_options", "open_mobile_robot"]  # cli.mobile_common
 __all__ += ["open_live_robot"]  # cli.live_robot
+__all__ += ["camera_from_text", "describe_robot", "from_robot_file",  # cli.robot_options
+            "with_realtime"]
 __all__ += ["JobNotDone", "metavar_from_help",  # exit codes, help style (cli.exits, help_style)
             "unit_metavar"]
 # Values checked while argv is parsed (busarm.cli.param_types).

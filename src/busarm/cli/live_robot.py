@@ -37,8 +37,7 @@ def open_live_robot(settings: Settings, table: Table, **options: Any
     is given, or the arm of a running ``sim serve``/``twin serve`` when there is one and
     no table was asked for; with the calibration store its poses and calibration live in.
     ``options`` go to ``Robot.open``."""
-    from busarm.cli.common import calibration_store, find_session, make_scene
-    from busarm.cli.robot_options import with_realtime
+    from busarm.cli.common import calibration_store, find_session, make_scene, with_realtime
     from busarm.robot.calibration_store import CalibrationStore
     from busarm.twin.spec import TwinSpec
 

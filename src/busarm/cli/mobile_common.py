@@ -66,8 +66,11 @@ def open_mobile_robot(settings: Settings, arena_spec: str, chassis: str | None,
     --port a twin of its own in ``arena_spec``'s arena; ``robot_options`` go to
     ``Robot.open`` (``config``, ``calibration_store``...). An exception leaving the body
     after a write to the arm stops it and says what its servos do (as ``open_robot``)."""
-    from busarm.cli.common import marking_the_stop  # common re-exports this module
-    from busarm.cli.robot_options import describe_robot
+    from busarm.cli.common import (
+        describe_robot,
+        marking_the_stop,  # common re-exports this module
+    )
+    from busarm.progress import quiet
     from busarm.robot import Robot
     from busarm.sim.spec import BoardSettings
     from busarm.twin.spec import TwinSpec
@@ -77,8 +80,10 @@ def open_mobile_robot(settings: Settings, arena_spec: str, chassis: str | None,
             raise ConfigError("--chassis and --lidar are for a robot on --port; the twin "
                               "has its own (--arena chooses its world)")
         twin = TwinSpec(arena=arena_from_spec(arena_spec), controller=BoardSettings())
+        needs = robot_options.pop("needs", ())
+        progress = robot_options.pop("progress", quiet)
         robot = Robot.open(describe_robot(twin, settings.line(), calibrate=camera,
-                                          **robot_options))
+                                          **robot_options), needs=needs, progress=progress)
         with marking_the_stop(robot, robot.arm.bus, robot.config.servo_ids):
             yield robot
         return

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from busarm.cli.common import Settings, pass_settings
+from busarm.cli.common import Settings, arm_options, pass_settings
 from busarm.errors import ConfigError
 
 __all__ = [
@@ -27,10 +27,7 @@ def robot() -> None:
 @robot.command()
 @click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--name", default="my robot", show_default=True, help="The robot's name.")
-@click.option("--config", "arm_config", default=None,
-              help="The arm's config: a shipped name (jetauto_pro) or a TOML file.")
-@click.option("--calibration", "arm_calibration", default=None,
-              help="The arm's joint calibration file (busarm arm calibrate).")
+@arm_options
 @click.option("--chassis", default=None,
               help="The base's chassis config (jetauto, or a TOML file): a board:// port only.")
 @click.option("--lidar", "lidar_port", default=None,
@@ -42,20 +39,21 @@ def robot() -> None:
               help="The camera's hand-eye file (busarm camera handeye).")
 @click.option("--force", is_flag=True, help="Replace FILE if it exists.")
 @pass_settings
-def init(settings: Settings, file: Path, name: str, arm_config: str | None,
-         arm_calibration: str | None, chassis: str | None, lidar_port: str | None,
+def init(settings: Settings, file: Path, name: str, config: str,
+         calibration: str | None, chassis: str | None, lidar_port: str | None,
          camera: str | None, intrinsics: Path | None, hand_eye: Path | None,
          force: bool) -> None:
     """Write FILE, a robot file for the robot on --port (and the options here), checked
     as every command will read it; `busarm --robot FILE ...` then opens that robot."""
-    from busarm.cli.robot_options import describe_robot
+    from busarm.cli.common import describe_robot
     from busarm.robot.robot_file import load_robot_file, save_robot_file
 
     if file.exists() and not force:
         raise ConfigError(f"{file} exists: give --force to replace it")
     world = settings.world(settings.port)  # as given (default: sim), not a running server
-    description = describe_robot(world, settings.line(), config=arm_config,
-                                 arm_calibration=arm_calibration, chassis=chassis,
+    description = describe_robot(world, settings.line(),
+                                 config=None if config == "jetauto_pro" else config,
+                                 arm_calibration=calibration, chassis=chassis,
                                  lidar=lidar_port, camera=camera, intrinsics=intrinsics,
                                  hand_eye=hand_eye)
     save_robot_file(file, description, name)

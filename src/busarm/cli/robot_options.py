@@ -51,13 +51,14 @@ def describe_robot(
     from busarm.robot.port_url import parse_lidar_port
     from busarm.twin.spec import TwinSpec
 
-    if scene is not None or arena is not None or board is not None:
+    if scene is not None or arena is not None:
         if not isinstance(world, TwinSpec):
-            what = "a scene" if scene is not None else "an arena" if arena else "a board"
+            what = "a scene" if scene is not None else "an arena"
             raise ConfigError(f"{what} is for the twin; {world.name} is not one (use --port "
                               "twin, or no --port)")
-        twin = _placed(world, scene, arena)
-        world = twin.with_board(board) if board is not None else twin
+        world = _placed(world, scene, arena)
+    if board is not None and isinstance(world, TwinSpec):  # on hardware, a person lays it
+        world = world.with_board(board)
     base = BaseSpec(chassis) if chassis is not None and not isinstance(world, TwinSpec) else None
     if chassis is not None and isinstance(world, TwinSpec):
         world = replace(world, chassis=chassis)

@@ -136,7 +136,7 @@ def detect(
     min_area_px: float, find_tags: bool, as_json: bool, save_dir: str | None,
 ) -> None:
     """Find colour blocks in camera frames: colour, centroid (px), yaw (deg), area (px)."""
-    from busarm.cli.robot_options import camera_from_text
+    from busarm.cli.common import camera_from_text
     from busarm.vision.annotate import annotate, save_image
     from busarm.vision.camera import EndOfFrames
     from busarm.vision.color import ColorDetector

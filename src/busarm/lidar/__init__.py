@@ -1,6 +1,7 @@
-"""2D Lidars: the ``LaserScan`` every source produces, scan geometry, and the Slamtec
-RPLIDAR A1 driver (``open_lidar``)."""
+"""2D Lidars: the ``LaserScan`` every source produces, scan geometry, the Slamtec
+RPLIDAR A1 driver (``open_lidar``), and the sources by model (``open_lidar_source``)."""
 
 from busarm.lidar.scan import LaserScan, LidarSource, to_points
+from busarm.lidar.sources import LIDARS, open_lidar_source
 
-__all__ = ["LaserScan", "LidarSource", "to_points"]
+__all__ = ["LIDARS", "LaserScan", "LidarSource", "open_lidar_source", "to_points"]

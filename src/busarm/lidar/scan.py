@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
@@ -109,8 +109,10 @@ def to_points(scan: LaserScan, mount: Mount) -> FloatArray:
     return points
 
 
+@runtime_checkable
 class LidarSource(Protocol):
-    """Anything that delivers scans: the A1 driver, the twin's ray-cast Lidar."""
+    """Anything that delivers scans: the A1 driver, the twin's ray-cast Lidar (by model:
+    busarm.lidar.sources)."""
 
     def read_scan(self, timeout_s: float) -> LaserScan:
         """The next complete revolution; BusTimeoutError if none comes in ``timeout_s``."""

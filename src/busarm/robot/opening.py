@@ -20,7 +20,8 @@ from busarm.arm.config import ArmConfig, deck_mounted, load_arm_config
 from busarm.base.base import Base
 from busarm.base.config import ChassisConfig, load_chassis_config
 from busarm.bus.board_bus import BoardServoBus
-from busarm.bus.driver import ServoBus, servo_bus_on
+from busarm.bus.driver import servo_bus_on
+from busarm.bus.lx_port import LxServoPort
 from busarm.bus.transport import Transport
 from busarm.errors import ConfigError
 from busarm.lidar.scan import LidarSource
@@ -141,7 +142,7 @@ def _open_lidar(lidar: LidarSpec | None, twin: Twin | None) -> LidarSource | Non
     return twin_lidar(twin) if twin is not None and twin.arena is not None else None
 
 
-def _open_base(bus: ServoBus, twin: Twin | None, base: BaseSpec | None) -> Base | None:
+def _open_base(bus: LxServoPort, twin: Twin | None, base: BaseSpec | None) -> Base | None:
     """The base on a controller board's wheels: the one described, or a twin's chassis
     behind its board; None without one (a twin's arena without a board stands still)."""
     chassis: ChassisConfig | None = None
@@ -154,7 +155,7 @@ def _open_base(bus: ServoBus, twin: Twin | None, base: BaseSpec | None) -> Base 
         return None
     if not isinstance(bus, BoardServoBus):  # RobotConfig refuses it; a guard all the same
         raise ConfigError(f"a base drives its wheels through the controller board, not "
-                          f"{bus.transport.name}")
+                          f"{bus.name}")
     return Base(bus.link, chassis)
 
 

@@ -85,7 +85,7 @@ class Robot:
         """The mobile base (on a controller board with a chassis config), else None."""
         self.lidar = lidar
         """The 2D Lidar (given, or the twin's in an arena), else None."""
-        self.port = arm.bus.transport.name
+        self.port = arm.bus.name
         """What it was opened on, as a person names it."""
         self.description: RobotConfig | None = None
         """What it was opened from (``Robot.open``'s description), if opened that way."""
@@ -260,7 +260,7 @@ class Robot:
                 self.lidar.close()
 
     def __repr__(self) -> str:
-        where = "twin" if self.twin is not None else self.arm.bus.transport.name
+        where = "twin" if self.twin is not None else self.arm.bus.name
         parts = "".join(f", {name}" for name, part in (("base", self.base),
                                                        ("lidar", self.lidar)) if part)
         return (f"Robot({self.config.name!r} on {where}, cameras={sorted(self.cameras)}"

@@ -11,7 +11,8 @@ source from one string:
 - an existing folder: its images in (natural) sorted order;
 - an existing file: a video;
 - ``twin`` or ``twin://...``: a scheme from :data:`CAMERA_SCHEMES`, a
-  ``"module:callable"`` imported only when used, so this layer never imports the twin;
+  ``"module:callable"`` imported only when used, so this layer never imports the twin
+  (installed packages add schemes under the entry-point group ``busarm.cameras``);
 - ``rtsp://``, ``http://``, ``https://`` URLs: a network stream (``busarm.vision.stream``),
   with timeouts on opening and on every read.
 
@@ -40,6 +41,7 @@ import numpy as np
 import numpy.typing as npt
 
 from busarm.errors import CameraError, ConfigError
+from busarm.lazy import backend_table
 from busarm.units import check_int_range, check_range
 
 UInt8Image = npt.NDArray[np.uint8]
@@ -52,6 +54,9 @@ CAMERA_SCHEMES: dict[str, str] = {
     "twin": "busarm.twin.camera:open_twin_camera",
     **dict.fromkeys(_URL_SCHEMES, "busarm.vision.stream:NetworkStream"),
 }
+CAMERA_ENTRY_POINT_GROUP = "busarm.cameras"
+"""Installed packages' camera schemes: ``[project.entry-points."busarm.cameras"]``
+``myscheme = "mypkg.cam:open_my_camera"`` (a built-in scheme is never replaced)."""
 
 DEFAULT_WIDTH_PX = 640
 DEFAULT_HEIGHT_PX = 480
@@ -479,7 +484,8 @@ def open_camera(spec: str | int, **options: Any) -> CameraSource:
     if spec.startswith("/dev/"):
         return _construct(UsbCamera, spec, spec, options)
     scheme = spec.split("://", 1)[0] if "://" in spec else spec
-    target = CAMERA_SCHEMES.get(scheme)
+    schemes = camera_schemes()
+    target = schemes.get(scheme)
     if target is not None:
         factory = _import_factory(scheme, target)
         return _construct(factory, spec, spec, options)
@@ -488,10 +494,16 @@ def open_camera(spec: str | int, **options: Any) -> CameraSource:
         return _construct(ImageFolderSource, spec, path, options)
     if path.is_file():
         return _construct(VideoFileSource, spec, path, options)
-    known = ", ".join(sorted(set(CAMERA_SCHEMES) - set(_URL_SCHEMES))) or "none"
+    known = ", ".join(sorted(set(schemes) - set(_URL_SCHEMES))) or "none"
     raise CameraError(
         f"no camera at {spec}: not a device, file, folder or known scheme (known: {known})"
     )
+
+
+def camera_schemes() -> dict[str, str]:
+    """Every camera scheme: ``CAMERA_SCHEMES`` and those of the ``busarm.cameras``
+    entry-point group."""
+    return backend_table(CAMERA_SCHEMES, CAMERA_ENTRY_POINT_GROUP)
 
 
 def _import_factory(scheme: str, target: str) -> Callable[..., CameraSource]:
@@ -530,6 +542,7 @@ def _construct(
 
 
 __all__ = [
+    "CAMERA_ENTRY_POINT_GROUP",
     "CAMERA_SCHEMES",
     "CameraBase",
     "CameraFrame",
@@ -538,6 +551,7 @@ __all__ = [
     "ImageFolderSource",
     "UsbCamera",
     "VideoFileSource",
+    "camera_schemes",
     "check_bgr_image",
     "open_camera",
 ]
