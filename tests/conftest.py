@@ -286,6 +286,17 @@ def twin_calibration(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Pa
     return files
 
 
+@pytest.fixture
+def twin_config_home(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                     twin_calibration: tuple[Path, Path]) -> Path:
+    """``$XDG_CONFIG_HOME`` of this test, with the twin's camera calibration kept there (as
+    a first run leaves it): what is opened there does not make it again."""
+    home = tmp_path / "config"
+    keep_twin_calibration(home, twin_calibration)
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(home))
+    return home
+
+
 def keep_twin_calibration(config_home: Path, files: tuple[Path, Path]) -> Path:
     """Keep ``files`` (``twin_calibration``'s) for robot ``twin`` in the XDG config folder
     ``config_home``, where a twin's ``pick-sort`` would keep the calibration it made

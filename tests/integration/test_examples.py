@@ -9,8 +9,6 @@ from pathlib import Path
 
 import pytest
 
-from conftest import keep_twin_calibration
-
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
@@ -25,13 +23,9 @@ def run_example(name: str, folder: Path, monkeypatch: pytest.MonkeyPatch,
 
 
 @pytest.fixture
-def calibrated(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-               twin_calibration: tuple[Path, Path]) -> Path:
-    """A configuration folder where the twin's camera calibration is kept (as the first
-    run of an example leaves it), so the examples that look do not make it again."""
-    home = tmp_path / "config"
-    keep_twin_calibration(home, twin_calibration)
-    monkeypatch.setenv("XDG_CONFIG_HOME", str(home))
+def calibrated(tmp_path: Path, twin_config_home: Path) -> Path:
+    """A folder to run in, the twin's camera calibration kept (as the first run of an
+    example leaves it), so the examples that look do not make it again."""
     return tmp_path
 
 

@@ -53,9 +53,6 @@ Bins = dict[str, tuple[float, float]]
 LidarPort = SerialPort | SimLidarSpec | TwinSpec
 """Where a Lidar is: its serial device, the simulated A1, or an arena twin's own."""
 
-LIDAR_MODELS = ("rplidar-a1",)
-
-
 @dataclass(frozen=True)
 class ServoLine:
     """How the arm's servo line is driven: its baud rate (a controller board's link is
@@ -86,13 +83,34 @@ class ServoLine:
 @dataclass(frozen=True)
 class ArmSpec:
     """The arm: its config (an ArmConfig, a shipped name or a file; default: the world's,
-    else the JetAuto Pro), its joint calibration (or none), and its servo line."""
+    else the JetAuto Pro), its joint calibration (or none), its servos' kind (``servo``:
+    a name in busarm.bus.servo_port's table, ``lx``, ``board``, ``zenoh`` or a plugin's;
+    default: the world's, ``board`` behind a controller board, ``zenoh`` for a robot
+    served elsewhere, else ``lx``) and its servo line."""
 
     __repr__ = short_repr
 
     config: ArmConfig | str | Path | None = None
     calibration: Calibration | str | Path | None = None
     line: ServoLine = field(default_factory=ServoLine)
+    servo: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.servo is not None:
+            from busarm.bus.servo_port import servo_port_kinds  # reads the entry points
+
+            kinds = servo_port_kinds()
+            if self.servo not in kinds:
+                raise ConfigError(f"arm: servo = {self.servo!r}; allowed: "
+                                  f"{', '.join(sorted(kinds))}")
+
+    def servo_kind(self, world: PortSpec) -> str:
+        """The servos' kind on ``world``: the one given, else the world's."""
+        if self.servo is not None:
+            return self.servo
+        if isinstance(world, ZenohPort):
+            return "zenoh"
+        return "board" if world.through_board else "lx"
 
 
 @dataclass(frozen=True)
@@ -107,7 +125,8 @@ class BaseSpec:
 
 @dataclass(frozen=True)
 class LidarSpec:
-    """The 2D Lidar: its model and where it is."""
+    """The 2D Lidar: its model (busarm.lidar.sources' table: ``rplidar-a1`` or a
+    plugin's) and where it is."""
 
     __repr__ = short_repr
 
@@ -115,9 +134,13 @@ class LidarSpec:
     model: str = "rplidar-a1"
 
     def __post_init__(self) -> None:
-        if self.model not in LIDAR_MODELS:
+        from busarm.lidar.sources import lidar_models  # reads the entry points
+
+        models = lidar_models()
+        if self.model not in models or self.model == "twin":
             raise ConfigError(f"lidar: model = {self.model!r}; allowed: "
-                              f"{', '.join(LIDAR_MODELS)}")
+                              f"{', '.join(sorted(set(models) - {'twin'}))} (a twin's "
+                              "own Lidar comes with its arena)")
         if isinstance(self.port, TwinSpec) and not self.port.mobile:
             raise ConfigError("lidar: this twin is an arm on a table, with no Lidar; give a "
                               "twin with an arena (family arena, or an arena file)")

@@ -20,11 +20,12 @@ from busarm.arm.config import ArmConfig, deck_mounted, load_arm_config
 from busarm.base.base import Base
 from busarm.base.config import ChassisConfig, load_chassis_config
 from busarm.bus.board_bus import BoardServoBus
-from busarm.bus.driver import servo_bus_on
-from busarm.bus.lx_port import LxServoPort
+from busarm.bus.ports import SerialPort
+from busarm.bus.servo_port import ServoPort, open_servo_port
 from busarm.bus.transport import Transport
 from busarm.errors import ConfigError
 from busarm.lidar.scan import LidarSource
+from busarm.lidar.sources import open_lidar_source
 from busarm.progress import Progress
 from busarm.robot.calibration_store import (
     CalibrationStore,
@@ -33,7 +34,7 @@ from busarm.robot.calibration_store import (
     StaleCalibration,
 )
 from busarm.robot.description import ArmSpec, BaseSpec, LidarSpec, RobotConfig
-from busarm.robot.lidar_port import open_lidar_port, twin_lidar
+from busarm.robot.lidar_port import open_lidar_port
 from busarm.robot.twin_calibration import calibrate_twin_camera
 from busarm.twin.camera import TwinCamera
 from busarm.twin.spec import TwinSpec
@@ -81,7 +82,8 @@ def open_parts(config: RobotConfig, needs: Collection[str], progress: Progress) 
     given, cal = arm_files(config.arm)
     transport, twin, arm_config = _arm_transport(config, given)
     with closed_on_error([transport]) as opened:  # a failure: nothing sent, just close
-        bus = servo_bus_on(transport, **config.arm.line.options())
+        bus = open_servo_port(config.arm.servo_kind(config.world), transport,
+                              **config.arm.line.options())
         arm = Arm(bus, arm_config, cal)
         source = kept(opened, _open_camera(cam.source, twin))
         made_for = None if store is None or source is None else MadeFor.for_camera(
@@ -136,13 +138,19 @@ def kept(opened: list[Any], thing: _T) -> _T:
 
 
 def _open_lidar(lidar: LidarSpec | None, twin: Twin | None) -> LidarSource | None:
-    """The Lidar described, else an arena twin's own, else None."""
-    if lidar is not None:
-        return open_lidar_port(lidar.port)
-    return twin_lidar(twin) if twin is not None and twin.arena is not None else None
+    """The Lidar described (by its model, busarm.lidar.sources), else an arena twin's
+    own, else None."""
+    if lidar is None:
+        return (open_lidar_source("twin", twin) if twin is not None and twin.arena is not None
+                else None)
+    port = lidar.port
+    if isinstance(port, TwinSpec):  # a twin made for the Lidar alone
+        return open_lidar_port(port)
+    where = port.device if isinstance(port, SerialPort) else port.open()
+    return open_lidar_source(lidar.model, where)
 
 
-def _open_base(bus: LxServoPort, twin: Twin | None, base: BaseSpec | None) -> Base | None:
+def _open_base(bus: ServoPort, twin: Twin | None, base: BaseSpec | None) -> Base | None:
     """The base on a controller board's wheels: the one described, or a twin's chassis
     behind its board; None without one (a twin's arena without a board stands still)."""
     chassis: ChassisConfig | None = None

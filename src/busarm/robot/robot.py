@@ -30,7 +30,7 @@ from types import TracebackType
 from busarm.arm.arm import Arm
 from busarm.arm.config import ArmConfig
 from busarm.base.base import Base
-from busarm.bus.driver import servo_bus_on
+from busarm.bus.servo_port import open_servo_port
 from busarm.bus.zenoh_link import ZenohPort
 from busarm.clock import Clock
 from busarm.errors import ConfigError
@@ -152,8 +152,9 @@ class Robot:
             if missing:
                 raise ConfigError(f"the robot on {world.name} has no {listing(missing)}: give "
                                   "them here, or serve them with it")
-            arm = Arm(servo_bus_on(transport, **config.arm.line.options()),
-                      given or parts.config, cal)
+            bus = open_servo_port(config.arm.servo_kind(world), transport,
+                                  **config.arm.line.options())
+            arm = Arm(bus, given or parts.config, cal)
             robot = cls(arm, camera=source, calibration=calibration,
                         bins=dict(config.bins) if config.bins else parts.bins)
             robot.description = config
