@@ -27,11 +27,11 @@ from busarm.lazy import lazy_exports
 from busarm.version import __version__ as __version__
 
 if TYPE_CHECKING:  # the same names, eagerly, for mypy and the API reference
-    from busarm.apps.explore import MapRun, build_map
-    from busarm.apps.line_follow import LineFollowJob, LineFollowReport
-    from busarm.apps.navigator import Navigator, NavSettings, Trip
-    from busarm.apps.pick_sort import PickSorter
-    from busarm.apps.transport import TransportJob, TransportReport
+    from busarm.apps.line_follow.job import LineFollowJob, LineFollowReport
+    from busarm.apps.navigation.explore import MapRun, build_map
+    from busarm.apps.navigation.navigator import Navigator, NavSettings, Trip
+    from busarm.apps.pick_sort.sorter import PickSorter
+    from busarm.apps.transport.job import TransportJob, TransportReport
     from busarm.arm import Arm, ArmConfig, ArmKinematics, Pose, load_arm_config
     from busarm.base.base import Base
     from busarm.base.config import ChassisConfig, load_chassis_config
@@ -126,17 +126,17 @@ _SOURCES: dict[str, str] = {
     "NamedPoints": "busarm.nav.points",
     "load_points": "busarm.nav.points",
     "save_points": "busarm.nav.points",
-    "build_map": "busarm.apps.explore",
-    "MapRun": "busarm.apps.explore",
-    "Navigator": "busarm.apps.navigator",
-    "NavSettings": "busarm.apps.navigator",
-    "Trip": "busarm.apps.navigator",
+    "build_map": "busarm.apps.navigation.explore",
+    "MapRun": "busarm.apps.navigation.explore",
+    "Navigator": "busarm.apps.navigation.navigator",
+    "NavSettings": "busarm.apps.navigation.navigator",
+    "Trip": "busarm.apps.navigation.navigator",
     # jobs
-    "PickSorter": "busarm.apps.pick_sort",
-    "TransportJob": "busarm.apps.transport",
-    "TransportReport": "busarm.apps.transport",
-    "LineFollowJob": "busarm.apps.line_follow",
-    "LineFollowReport": "busarm.apps.line_follow",
+    "PickSorter": "busarm.apps.pick_sort.sorter",
+    "TransportJob": "busarm.apps.transport.job",
+    "TransportReport": "busarm.apps.transport.job",
+    "LineFollowJob": "busarm.apps.line_follow.job",
+    "LineFollowReport": "busarm.apps.line_follow.job",
     # the bus, the simulators, time
     "ServoBus": "busarm.bus.driver",
     "SimBus": "busarm.sim.bus",

@@ -200,7 +200,7 @@ def test_a_block_beyond_reach_is_skipped_as_out_of_reach_and_the_run_exits_0(
 def test_a_block_that_failed_makes_pick_sort_exit_1_after_its_report(
         home: dict[str, str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
         twin_calibration: tuple[Path, Path]) -> None:
-    from busarm.apps.pick_sort import PickSorter
+    from busarm.apps.pick_sort.sorter import PickSorter
 
     keep_twin_calibration(Path(os.environ["XDG_CONFIG_HOME"]), twin_calibration)  # this test's
     def missed(self: PickSorter, target: Any) -> tuple[bool, str, None, Any]:

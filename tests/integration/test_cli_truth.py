@@ -294,7 +294,7 @@ def test_pick_sort_ctrl_c_as_the_gripper_opens_says_it_holds_the_block(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """Over the bin, about to let go: the block is still in the fingers, and so it says
     (it used to say "open", the fingers a block's width apart)."""
-    from busarm.apps import pick_job
+    from busarm.apps.pick_sort import job as pick_job
     from busarm.arm.arm import Arm
     from busarm.twin.twin import BlockState, Twin
 
@@ -338,7 +338,7 @@ def test_pick_sort_error_mid_run_is_one_line_that_names_the_silent_servo(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """The elbow browns out while a block is lifted: one error line, the others holding,
     the elbow not answering, the gripper holding the block; the report is valid JSON."""
-    from busarm.apps import pick_job
+    from busarm.apps.pick_sort import job as pick_job
     from busarm.twin.camera import TwinCamera
 
     on_step = pick_job._Pictures.on_step

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from busarm.apps.footprint import Footprint
-from busarm.apps.grasp import GraspPlanner, NoClearGrasp
+from busarm.apps.pick_sort.footprint import Footprint
+from busarm.apps.pick_sort.grasp import GraspPlanner, NoClearGrasp
 from busarm.arm.config import load_arm_config
 from busarm.arm.kinematics import ArmKinematics
 

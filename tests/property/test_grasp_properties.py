@@ -15,8 +15,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from busarm.apps.footprint import Footprint
-from busarm.apps.grasp import (
+from busarm.apps.pick_sort.footprint import Footprint
+from busarm.apps.pick_sort.grasp import (
     MAX_CLOSING_TILT_DEG,
     MAX_TILTED_TURN_DEG,
     GraspPlan,

@@ -1,4 +1,4 @@
-"""Properties of where a thing that is not a block may be (busarm.robot.obstacles): seen
+"""Properties of where a thing that is not a block may be (busarm.perception.obstacles): seen
 whole from cameras anywhere above the table, an upright box is always inside what is kept
 off (the cones through its casts never clear a point of it), and what one camera sees of
 a low thing (a pen) leaves the space above it clear, where a column of unknown height on
@@ -13,7 +13,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from busarm.robot.obstacles import Obstacle, View, near_convex, refine
+from busarm.perception.obstacles import Obstacle, View, near_convex, refine
 
 PROPS = settings(max_examples=150, deadline=None, derandomize=True)
 TABLE_Z_MM = -20.0

@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from busarm.apps.pick_sort import IN_BIN_MM, PickSorter
+from busarm.apps.pick_sort.sorter import IN_BIN_MM, PickSorter
 from busarm.bus.board_bus import BoardServoBus
 from busarm.protocol import Command, Request
 from busarm.robot import CameraSpec, Robot, RobotConfig

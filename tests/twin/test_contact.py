@@ -11,7 +11,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from busarm.apps.pick_sort import PickSortSettings
+from busarm.apps.pick_sort.sorter import PickSortSettings
 from busarm.errors import ConfigError, ContactError
 from busarm.robot import CameraSpec, Robot, RobotConfig
 from busarm.twin.spec import TwinSpec

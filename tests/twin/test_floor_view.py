@@ -22,16 +22,12 @@ import numpy as np
 import numpy.typing as npt
 import pytest
 
+from busarm.apps.line_follow.floor_look import floor_camera, look_ahead
 from busarm.base.config import load_chassis_config
 from busarm.base.odometry import Pose2D
 from busarm.errors import ConfigError
+from busarm.perception.floor_view import LOOK_AHEAD_DEG, FloorCamera
 from busarm.robot import CameraSpec, RobotConfig
-from busarm.robot.floor_view import (
-    LOOK_AHEAD_DEG,
-    FloorCamera,
-    floor_camera,
-    look_ahead,
-)
 from busarm.robot.robot import Robot
 from busarm.sim.spec import BoardSettings
 from busarm.twin.arena import Arena, Room, StartPose

@@ -1,4 +1,4 @@
-"""Line following with obstacle clearing (busarm.apps.line_follow,
+"""Line following with obstacle clearing (busarm.apps.line_follow.job,
 ``busarm line-follow``) on the arena twin, through the real path:
 ``Robot.open(RobotConfig(TwinSpec(arena=..., controller=BoardSettings())))`` drives the
 chassis through the simulated controller board, reads the simulated Lidar's bytes and
@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from busarm.apps.line_follow import LineFollowJob
+from busarm.apps.line_follow.job import LineFollowJob
 from busarm.base.odometry import Pose2D
 from busarm.cli.main import cli
 from busarm.errors import NavigationError

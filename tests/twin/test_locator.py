@@ -12,7 +12,7 @@ from busarm.arm.camera_mount import CameraMount
 from busarm.arm.config import load_arm_config
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import ConfigError, VisionError
-from busarm.robot.locate import BlockLocator
+from busarm.perception.locate import BlockLocator
 from busarm.twin.lens import LensSpec
 from busarm.twin.model import AS_BUILT_MOUNT_ERROR
 from busarm.twin.scene import random_scene

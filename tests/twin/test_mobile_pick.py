@@ -1,4 +1,4 @@
-"""Pick and place with the arm on the mobile base (busarm.apps.mobile_pick) on the arena
+"""Pick and place with the arm on the mobile base (busarm.apps.transport.mobile_pick) on the arena
 twin, through the real path: ``Robot.open(RobotConfig(TwinSpec(arena=...,
 controller=BoardSettings())))`` drives the chassis through the simulated controller
 board, the arm through its servos' bytes, and sees with the wrist camera (calibrated by
@@ -23,10 +23,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from busarm.apps import mobile_pick
-from busarm.apps.gripping import descend_and_grip
-from busarm.apps.look_poses import AIM_MM, TOOL_CLEAR_MM, look_pose
-from busarm.apps.mobile_pick import (
+from busarm.apps.transport import mobile_pick
+from busarm.apps.pick_sort.gripping import descend_and_grip
+from busarm.apps.pick_sort.look_poses import AIM_MM, TOOL_CLEAR_MM, look_pose
+from busarm.apps.transport.mobile_pick import (
     FLOOR,
     MAX_ALIGN_M,
     MIN_ASIDE_M,

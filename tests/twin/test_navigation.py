@@ -3,8 +3,8 @@
 ``Robot.open(RobotConfig(TwinSpec(arena=..., controller=BoardSettings())))`` drives the
 chassis through the simulated controller board and reads the simulated A1's bytes; the
 map is the robot's own (``build_map``, once for the module), then ``Navigator``
-localises on it, plans and follows (busarm.apps.navigator), and ``TransportJob`` fetches
-a block (busarm.apps.transport). The truth (the chassis's pose and speed, the arena's
+localises on it, plans and follows (busarm.apps.navigation.navigator), and ``TransportJob`` fetches
+a block (busarm.apps.transport.job). The truth (the chassis's pose and speed, the arena's
 geometry, what touched the chassis) is read only here, by the tests and their scan hooks
 (a person carrying the robot, stepping in the way, unplugging the Lidar, a servo
 browning out).
@@ -27,10 +27,10 @@ import pytest
 from scipy.optimize import minimize
 from scipy.spatial import cKDTree
 
-from busarm.apps.explore import MapRun, build_map
-from busarm.apps.nav_sensing import SensedScan
-from busarm.apps.navigator import Navigator, NavSettings
-from busarm.apps.transport import TransportJob
+from busarm.apps.navigation.explore import MapRun, build_map
+from busarm.apps.navigation.navigator import Navigator, NavSettings
+from busarm.apps.navigation.sensing import SensedScan
+from busarm.apps.transport.job import TransportJob
 from busarm.base.odometry import Pose2D, wrap_rad
 from busarm.errors import ConfigError, NavigationError
 from busarm.lidar.rplidar import RplidarA1

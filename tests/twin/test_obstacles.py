@@ -1,4 +1,4 @@
-"""Things on the table that are not blocks (busarm.robot.obstacles), as the locator finds
+"""Things on the table that are not blocks (busarm.perception.obstacles), as the locator finds
 them in the wrist camera's picture of a cluttered twin table from the look pose: every
 distractor in view is covered by an obstacle, and a table with none shows no big
 phantom (shadows are not things). Scored against the twin's scene, which the locator never
@@ -16,8 +16,8 @@ import numpy as np
 import numpy.typing as npt
 import pytest
 
+from busarm.perception.obstacles import Obstacle
 from busarm.robot import CameraSpec, Robot, RobotConfig
-from busarm.robot.obstacles import Obstacle
 from busarm.twin.clutter import clutter_scene
 from busarm.twin.scene import Distractor, Scene
 from busarm.twin.spec import TwinSpec

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 from click.testing import CliRunner
 
-from busarm.apps.pick_sort import IN_BIN_MM, PickSorter, PickSortSettings
+from busarm.apps.pick_sort.sorter import IN_BIN_MM, PickSorter, PickSortSettings
 from busarm.cli.main import cli
 from busarm.errors import ConfigError, UnreachableError
 from busarm.robot import CameraSpec, Robot, RobotConfig

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from busarm.apps.pick_sort import BIN_SLOTS_MM, IN_BIN_MM, PickSorter, RunReport
+from busarm.apps.pick_sort.sorter import BIN_SLOTS_MM, IN_BIN_MM, PickSorter, RunReport
 from busarm.robot import CameraSpec, Robot, RobotConfig
 from busarm.twin.clutter import clutter_scene
 from busarm.twin.scene import DEFAULT_BINS, Block, Distractor, Scene

@@ -1,5 +1,5 @@
 """Touching blocks of one colour make one blob; the locator splits it into its blocks by
-their top faces (busarm.robot.split) and locates each. On the twin, lit from the side (the
+their top faces (busarm.perception.split) and locates each. On the twin, lit from the side (the
 side faces bright on one side, dark on the other, shadows cast): as many sightings as
 blocks, each within ``TOLERANCE_MM`` of a block, one to one. Scored against the twin's
 truth, which the locator never reads."""

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from busarm.apps.bins import BIN_PLACES
-from busarm.apps.pick_outcomes import BlockOutcome
+from busarm.apps.pick_sort.bins import BIN_PLACES
+from busarm.apps.pick_sort.outcomes import BlockOutcome
 from busarm.bench.common import CalibrationSummary, HandEyeFit, IntrinsicsFit
 from busarm.bench.pick import SceneResult, SceneTask, _score
 from busarm.twin.twin import BlockState

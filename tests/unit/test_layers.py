@@ -56,7 +56,7 @@ def test_the_package_keeps_its_layer_contract() -> None:
     ("target", "planted", "contract"),
     [
         # The lowest layer reaching for the top.
-        ("protocol/commands.py", "busarm.apps.pick_sort", "busarm layers"),
+        ("protocol/commands.py", "busarm.apps.pick_sort.sorter", "busarm layers"),
         # The pure arm model reaching up to the twin.
         ("arm/kinematics.py", "busarm.twin", "busarm layers"),
         # Above the arm in the layers, but vision must not need the robot's hardware.

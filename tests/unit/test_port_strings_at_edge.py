@@ -55,21 +55,28 @@ def _messages(tree: ast.AST) -> set[int]:
     return said
 
 
+def _imports_url_parsing(node: ast.AST) -> bool:
+    return ((isinstance(node, ast.ImportFrom) and node.module == "urllib.parse")
+            or (isinstance(node, ast.Import)
+                and any(a.name == "urllib.parse" for a in node.names)))
+
+
+def _port_syntax(text: str) -> bool:
+    """A scheme of ours, or the ``://`` that splits or builds one."""
+    return "://" in text and (text == "://" or text.startswith(SCHEMES) or text.endswith("://"))
+
+
 def _violations(path: Path) -> list[str]:
     tree = ast.parse(path.read_text(encoding="utf-8"))
     said = _messages(tree)
     found = []
     for node in ast.walk(tree):
         line = getattr(node, "lineno", 0)
-        if isinstance(node, ast.ImportFrom) and node.module == "urllib.parse":
-            found.append(f"{line}: imports urllib.parse")
-        elif isinstance(node, ast.Import) and any(a.name == "urllib.parse" for a in node.names):
+        if _imports_url_parsing(node):
             found.append(f"{line}: imports urllib.parse")
         elif (isinstance(node, ast.Constant) and isinstance(node.value, str)
-              and id(node) not in said):
-            if "://" in node.value and (node.value == "://" or node.value.startswith(SCHEMES)
-                                        or node.value.endswith("://")):
-                found.append(f"{line}: port syntax {node.value!r}")
+              and id(node) not in said and _port_syntax(node.value)):
+            found.append(f"{line}: port syntax {node.value!r}")
     return found
 
 

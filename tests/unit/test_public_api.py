@@ -34,7 +34,7 @@ def test_the_new_users_names_import_from_busarm() -> None:
     assert Base is BaseAgain and Pose2D is Pose2DAgain
     assert Robot.__module__ == "busarm.robot.robot" and Arm.__module__ == "busarm.arm.arm"
     assert LaserScan.__module__ == "busarm.lidar.scan"
-    assert callable(build_map) and Trip.__module__ == "busarm.apps.navigator"
+    assert callable(build_map) and Trip.__module__ == "busarm.apps.navigation.navigator"
     assert Twist(0.1, 0.0, 0.0).vx_m_s == 0.1
 
 

@@ -1,4 +1,4 @@
-"""Pushes that free a boxed-in block (busarm.apps.push): the pushed block's path stays off
+"""Pushes that free a boxed-in block (busarm.apps.pick_sort.push): the pushed block's path stays off
 the other blocks, the bins and the obstacles, its end is a block side (or one and a half)
 away, and a push that says it frees the block leaves it graspable."""
 
@@ -12,9 +12,9 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from busarm.apps.footprint import Footprint
-from busarm.apps.grasp import GraspPlanner
-from busarm.apps.push import BIN_KEEP_OFF_MM, SLIDE_MM, Push, PushPlanner
+from busarm.apps.pick_sort.footprint import Footprint
+from busarm.apps.pick_sort.grasp import GraspPlanner
+from busarm.apps.pick_sort.push import BIN_KEEP_OFF_MM, SLIDE_MM, Push, PushPlanner
 from busarm.arm.config import load_arm_config
 from busarm.arm.kinematics import ArmKinematics
 

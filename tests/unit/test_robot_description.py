@@ -17,7 +17,7 @@ from busarm.cli.main import cli
 from busarm.errors import ConfigError
 from busarm.robot import ArmSpec, BaseSpec, CameraSpec, LidarSpec, RobotConfig, ServoLine
 from busarm.robot.port_url import parse_port
-from busarm.robot.robot_file import load_robot_file, robot_file_text, save_robot_file
+from busarm.robot.robot_file import load_robot_file, save_robot_file
 from busarm.sim.spec import BoardSettings, SimLidarSpec, SimSpec
 from busarm.twin.spec import TwinSpec
 
@@ -31,7 +31,8 @@ HARDWARE = RobotConfig(
 @pytest.mark.parametrize("config", [
     RobotConfig(),
     HARDWARE,
-    RobotConfig(TwinSpec(family="arena", seed=3, slip=False, controller=BoardSettings(imu_hz=50.0))),
+    RobotConfig(TwinSpec(family="arena", seed=3, slip=False,
+                         controller=BoardSettings(imu_hz=50.0))),
     RobotConfig(TwinSpec(family="clutter", seed=7, blocks=10, lens="vendor")),
     RobotConfig(SimSpec(ids=(1, 2), echo=True, drop=0.01, controller=BoardSettings()),
                 lidar=LidarSpec(SimLidarSpec(hz=10.0))),

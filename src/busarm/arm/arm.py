@@ -35,6 +35,7 @@ from busarm.arm.line_plan import (
 )
 from busarm.arm.motion import check_line_request
 from busarm.bus.driver import ServoBus
+from busarm.bus.ports import PortSpec
 from busarm.errors import ConfigError, LimitError
 
 # Action frames are the vendor's files: LX servo positions, whatever the port.
@@ -74,12 +75,13 @@ class Arm(ArmServos):
     @classmethod
     def open(
         cls,
-        port: str,
+        port: PortSpec | str,
         config: ArmConfig | str | Path | None = None,
         calibration: Calibration | str | Path | None = None,
         **bus_kwargs: object,
     ) -> Arm:
-        """Open the bus on ``port`` and check the arm's servos (and calibration) on it."""
+        """Open the bus on ``port`` (a ``PortSpec``: ``SimSpec()``, ``SerialPort(...)``, or a
+        serial device's path) and check the arm's servos (and calibration) on it."""
         cfg = config if isinstance(config, ArmConfig) else load_arm_config(config or "jetauto_pro")
         cal = (
             calibration if isinstance(calibration, Calibration) or calibration is None

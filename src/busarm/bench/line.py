@@ -145,7 +145,7 @@ class _Obstacles:
 
 def run_layout(seed: int, intrinsics: Path, hand_eye: Path) -> LayoutRun:
     """One seeded layout, one lap, on a twin of its own (this process)."""
-    from busarm.apps.line_follow import LineFollowJob
+    from busarm.apps.line_follow.job import LineFollowJob
 
     wall = time.monotonic()
     rng = random.Random(seed)

@@ -31,10 +31,10 @@ from busarm.bench.common import (
     short_machine_info,
 )
 from busarm.errors import ConfigError, UnreachableError
+from busarm.perception.locate import Sighting
 from busarm.robot import Robot
 from busarm.robot.camera_calibration import sees_points
 from busarm.robot.description import CameraSpec, RobotConfig
-from busarm.robot.locate import Sighting
 from busarm.robot.twin_calibration import calibrate_twin_camera
 from busarm.twin.lens import LensSpec
 from busarm.twin.scene import COLORS, random_scene

@@ -38,7 +38,7 @@ from busarm.twin.twin import BlockState
 from busarm.units import check_int_range
 
 if TYPE_CHECKING:
-    from busarm.apps.pick_sort import BlockOutcome
+    from busarm.apps.pick_sort.sorter import BlockOutcome
 
 __all__ = [
     "DISTRACTOR_MOVED_MM",
@@ -141,8 +141,8 @@ class PickBenchReport:
     in_their_bins: int
     sorted_fraction: float
     beyond_bins: int
-    """Blocks more than their colour's bin holds (``busarm.apps.bins.BIN_PLACES``): left on
-    the table with "bin full", by design."""
+    """Blocks more than their colour's bin holds (``busarm.apps.pick_sort.bins.BIN_PLACES``):
+    left on the table with "bin full", by design."""
     fitting_sorted_fraction: float
     """``in_their_bins`` / (``blocks`` - ``beyond_bins``): of the blocks the bins can take."""
     reported_sorted: int
@@ -183,7 +183,7 @@ class PickBenchReport:
 
 def run_scene(task: SceneTask) -> SceneResult:
     """Sort one seeded scene on a twin of its own (in this process)."""
-    from busarm.apps.pick_sort import PickSorter
+    from busarm.apps.pick_sort.sorter import PickSorter
 
     wall = time.monotonic()
     if task.family == "clutter":
@@ -218,7 +218,7 @@ def run_scene(task: SceneTask) -> SceneResult:
 
 def _results(tasks: list[SceneTask], workers: int, progress: Progress) -> list[SceneResult]:
     """Every scene's result, in scene order; ``workers`` processes (1: this one)."""
-    from busarm.apps.pick_sort import IN_BIN_MM
+    from busarm.apps.pick_sort.sorter import IN_BIN_MM
 
     def report(done: int, r: SceneResult) -> None:
         placed = r.placed(IN_BIN_MM)
@@ -301,8 +301,8 @@ def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] |
 def _score(results: list[SceneResult], calibration: CalibrationSummary, seconds: float,
            calibration_s: float, workers: int, realtime: bool,
            family: str = "random") -> PickBenchReport:
-    from busarm.apps.bins import BIN_PLACES
-    from busarm.apps.pick_sort import IN_BIN_MM
+    from busarm.apps.pick_sort.bins import BIN_PLACES
+    from busarm.apps.pick_sort.sorter import IN_BIN_MM
 
     total = in_bin = false_sorted = reported_sorted = tilted = beyond = 0
     cycles: list[float] = []

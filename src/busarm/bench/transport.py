@@ -116,7 +116,7 @@ def _taught(robot: Robot, grid: OccupancyGrid, stands: NamedPoints, origin: Pose
             ) -> NamedPoints:
     """The points as a person teaches them: the robot put at each stand (arena frame),
     told roughly where it is (TEACH_GUESS off), its own estimate saved (``teach_point``)."""
-    from busarm.apps.transport import teach_point
+    from busarm.apps.transport.job import teach_point
 
     taught = {}
     to_map = inverse(origin)
@@ -129,8 +129,8 @@ def _taught(robot: Robot, grid: OccupancyGrid, stands: NamedPoints, origin: Pose
 
 def run_arena(seed: int, intrinsics: Path, hand_eye: Path) -> ArenaRun:
     """Map, carry, transport: one seeded arena on a twin of its own (this process)."""
-    from busarm.apps.explore import build_map
-    from busarm.apps.transport import TransportJob
+    from busarm.apps.navigation.explore import build_map
+    from busarm.apps.transport.job import TransportJob
 
     wall = time.monotonic()
     out = ArenaRun(seed)

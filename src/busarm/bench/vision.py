@@ -298,7 +298,7 @@ def run_vision_bench(*, pictures: int = 24, seed: int = 0, seconds_per_case: flo
     and camera mount stand in: the timing does not depend on their values."""
     from busarm.arm.config import load_arm_config
     from busarm.arm.kinematics import ArmKinematics
-    from busarm.robot.locate import BlockLocator
+    from busarm.perception.locate import BlockLocator
 
     shots = twin_pictures(pictures, seed=seed)
     thresholds = default_thresholds().select(["red", "green", "blue"])

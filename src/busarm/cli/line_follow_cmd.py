@@ -1,5 +1,5 @@
 """``line-follow``: follow the taped floor loop with the wrist camera, stop for obstacles,
-clear coloured blocks off the line (busarm.apps.line_follow).
+clear coloured blocks off the line (busarm.apps.line_follow.job).
 
 Without ``--port`` it runs on a twin of its own in ``--arena`` (a seed or a file), its
 camera calibration kept for the robot ``twin`` (made first if there is none, as
@@ -39,7 +39,7 @@ if TYPE_CHECKING:
     import numpy as np
     import numpy.typing as npt
 
-    from busarm.apps.line_follow import LineFollowReport
+    from busarm.apps.line_follow.job import LineFollowReport
     from busarm.robot import Robot
 
 __all__ = [
@@ -58,7 +58,7 @@ DEFAULT_COLORS = "red,green,blue"
 def parse_clear_colors(text: str) -> list[str]:
     """--colors: block colours to clear (``none``: none); ConfigError naming one that is
     not a block colour of the shipped thresholds."""
-    from busarm.robot.locate import NOT_BLOCK_COLORS
+    from busarm.perception.locate import NOT_BLOCK_COLORS
     from busarm.vision.color_thresholds import default_thresholds, parse_color_names
 
     if text.strip().lower() == "none":
@@ -110,7 +110,7 @@ def line_follow(settings: Settings, laps: float, speed_m_s: float, colors_text: 
     and put aside. Prints its progress and a summary; writes a report folder (JSON, the
     path drawn). Exit code 0 when the laps are done and every block on the way was
     cleared, 1 when not. Without --port: a twin of its own in --arena."""
-    from busarm.apps.line_follow import LineFollowJob
+    from busarm.apps.line_follow.job import LineFollowJob
 
     colors = parse_clear_colors(colors_text)
     ac = ArmContext(settings, config, None)

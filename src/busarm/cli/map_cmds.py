@@ -76,7 +76,7 @@ def build(settings: Settings, out_file: Path, time_limit_s: float, png: Path | N
     frontier between the known free floor and the unknown until none is left, every
     scan placed where it fits the map so far. The map's origin is where the base started.
     Without --port: a twin of its own in --arena."""
-    from busarm.apps.explore import build_map
+    from busarm.apps.navigation.explore import build_map
     from busarm.nav.map_files import save_map
 
     check_writable(out_file)
@@ -120,7 +120,7 @@ def point(settings: Settings, name: str, map_file: Path, points_file: Path,
           lidar_port: str | None) -> None:
     """Save where the base stands now as the named point NAME (put the robot there, facing
     the blocks' spot, about 0.2 m ahead): localised on the map with the Lidar."""
-    from busarm.apps.transport import teach_point
+    from busarm.apps.transport.job import teach_point
     from busarm.nav.map_files import load_map
     from busarm.nav.points import NamedPoints, check_point_name, load_points, save_points
 

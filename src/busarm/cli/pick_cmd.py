@@ -35,7 +35,7 @@ from busarm.cli.text import place
 from busarm.errors import ConfigError
 
 if TYPE_CHECKING:
-    from busarm.apps.pick_sort import RunReport
+    from busarm.apps.pick_sort.sorter import RunReport
     from busarm.robot import Robot
 
 __all__ = [
@@ -189,8 +189,8 @@ def _run_job(settings: Settings, robot: Robot, report_dir: Path, names: list[str
              survey_poses: list[tuple[float, ...]], order: str) -> tuple[RunReport, Path]:
     """Sort the table with ``robot``: the report and its file. A stop's one line also
     says what the gripper holds and where the report is."""
-    from busarm.apps.pick_job import PickJob
-    from busarm.apps.pick_settings import PickSortSettings
+    from busarm.apps.pick_sort.job import PickJob
+    from busarm.apps.pick_sort.settings import PickSortSettings
 
     job = PickJob(robot, report_dir, colors=names, survey_poses=survey_poses,
                   settings=PickSortSettings(order=order),

@@ -48,7 +48,7 @@ ON_A_ROBOT = ("on a robot, give --map MAP.yaml (made by `busarm map build`) and 
 def _setup(settings: Settings, robot: Robot, points_file: Path | None, map_file: Path | None,
            report: Path) -> tuple[OccupancyGrid, NamedPoints, Pose2D | None]:
     """The map, the points and (when known) where the base stands on the map."""
-    from busarm.apps.explore import build_map
+    from busarm.apps.navigation.explore import build_map
     from busarm.nav.map_files import load_map, save_map
     from busarm.nav.points import load_points, save_points
 
@@ -102,8 +102,8 @@ def transport(settings: Settings, pick: str, place: str, points_file: Path | Non
     the map, drive there clear of everything, find the block with the wrist camera, line
     the base up and pick it (grasp checked), drive to --place, put it down and look that
     it is there. Without --port: a twin of its own in --arena."""
-    from busarm.apps.transport import TransportJob
-    from busarm.apps.transport_report import write_transport_report
+    from busarm.apps.transport.job import TransportJob
+    from busarm.apps.transport.report import write_transport_report
     from busarm.twin.spec import TwinSpec
 
     start = parse_pose(start_text, "--start") if start_text is not None else None

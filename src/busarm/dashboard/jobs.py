@@ -12,8 +12,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from busarm.apps.pick_job import PickJob
-from busarm.apps.pick_settings import PickSortSettings
+from busarm.apps.pick_sort.job import PickJob
+from busarm.apps.pick_sort.settings import PickSortSettings
 from busarm.arm.actions import ActionGroup
 from busarm.arm.arm import Arm
 from busarm.arm.named_poses import NamedPose

@@ -50,10 +50,10 @@ from busarm.robot import Robot
 from busarm.twin.arena import Arena
 
 if TYPE_CHECKING:
-    from busarm.apps.explore import Explorer
-    from busarm.apps.line_follow import LineFollowJob, LineFollowReport
-    from busarm.apps.nav_sensing import SensedScan
-    from busarm.apps.navigator import Navigator
+    from busarm.apps.line_follow.job import LineFollowJob, LineFollowReport
+    from busarm.apps.navigation.explore import Explorer
+    from busarm.apps.navigation.navigator import Navigator
+    from busarm.apps.navigation.sensing import SensedScan
 
 __all__ = [
     "ARENA_POINTS",
@@ -104,7 +104,7 @@ class MobileSetup:
 
 def block_colors() -> list[str]:
     """The colours a block may have (the shipped thresholds' but the line's and table's)."""
-    from busarm.robot.locate import NOT_BLOCK_COLORS
+    from busarm.perception.locate import NOT_BLOCK_COLORS
     from busarm.vision.color_thresholds import default_thresholds
 
     return [c for c in default_thresholds().names if c not in NOT_BLOCK_COLORS]
@@ -199,8 +199,8 @@ class MobileJobs:
                   progress: Progress) -> str:
         """The transport job (its report in a new folder of ``reports``); raises
         HaltedError when stopped, NavigationError when the block was not delivered."""
-        from busarm.apps.transport import TransportJob
-        from busarm.apps.transport_report import write_transport_report
+        from busarm.apps.transport.job import TransportJob
+        from busarm.apps.transport.report import write_transport_report
 
         try:
             grid, points, start = self._map_and_points(cancel, progress)
@@ -235,7 +235,7 @@ class MobileJobs:
         and where the base is on the map, when known."""
         if self._grid is not None and self._points is not None:
             return self._grid, self._points, self._start()
-        from busarm.apps.explore import build_map
+        from busarm.apps.navigation.explore import build_map
         from busarm.nav.map_files import save_map
         from busarm.nav.points import save_points
         from busarm.twin.arena_tasks import twin_transport_points
@@ -304,7 +304,7 @@ class MobileJobs:
     def line_follow(self, request: LineFollow, cancel: threading.Event,
                     progress: Progress) -> str:
         """The line-following job (its report in a new folder of ``reports``)."""
-        from busarm.apps.line_follow import LineFollowJob
+        from busarm.apps.line_follow.job import LineFollowJob
 
         job = LineFollowJob(self.robot, laps=request.laps, speed_m_s=request.speed_m_s,
                             colors=list(request.colors), on_step=self._line_hook(cancel),

@@ -31,7 +31,7 @@ from busarm.arm.camera_mount import CameraMount
 from busarm.arm.config import load_arm_config
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import UnreachableError, VisionError
-from busarm.robot.locate import CAMERA_LINK, link2base
+from busarm.perception.locate import CAMERA_LINK, link2base
 from busarm.units import check_int_range
 from busarm.vision.calibration import (
     BoardObservation,

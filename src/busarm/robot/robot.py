@@ -36,10 +36,10 @@ from busarm.clock import Clock
 from busarm.errors import ConfigError
 from busarm.fileio import robot_key
 from busarm.lidar.scan import LidarSource
+from busarm.perception.locate import NOT_BLOCK_COLORS, BlockLocator
 from busarm.progress import Progress, quiet
 from busarm.robot.calibration_store import CameraCalibration
 from busarm.robot.description import Bins, RobotConfig
-from busarm.robot.locate import NOT_BLOCK_COLORS, BlockLocator
 from busarm.robot.observation import Action, ActionLike, Observation, observe, send_action
 from busarm.robot.opening import (
     NEEDS,

@@ -20,7 +20,7 @@ from busarm.arm.kinematics import ArmKinematics
 from busarm.arm.urdf import link_names
 from busarm.base.config import Mount
 from busarm.base.odometry import Pose2D
-from busarm.robot.locate import CAMERA_LINK
+from busarm.perception.locate import CAMERA_LINK
 
 __all__ = [
     "CAMERA_FRAME",

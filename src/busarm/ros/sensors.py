@@ -12,7 +12,7 @@ from busarm.base.base import BaseOdometry
 from busarm.lidar.scan import LaserScan
 from busarm.nav.grid import OccupancyGrid
 from busarm.nav.map_files import FREE_THRESH, OCCUPIED_THRESH
-from busarm.robot.locate import Sighting
+from busarm.perception.locate import Sighting
 from busarm.robot.state import StateReader
 from busarm.ros.messages import (
     DIAGNOSTIC_ARRAY,

@@ -11,12 +11,13 @@ gripper's top edge down are not the floor: ``FloorCamera.floor_rows`` says where
 begin, computed from the gripper's envelope (the arm config's finger pads opened
 widest, and a palm) projected through the camera's calibration.
 
-``floor_camera(robot)`` is the camera's model and pose on the floor: the intrinsics and
+``floor_camera_at(...)`` is the camera's model and pose on the floor: the intrinsics and
 the camera-to-base transform (the base frame on the floor, z = 0 the floor, metres),
 from the joints measured now through the arm's kinematics and the hand-eye calibration
 (``cam2base``), and where the chassis carries the arm (its config's arm ``Mount``).
-The arm stays put while the base drives: make it once after ``look_ahead`` and use it
-for every frame (``FloorCamera.find_line``).
+The arm stays put while the base drives: make it once after looking ahead and use it
+for every frame (``FloorCamera.find_line``); for a robot, ``busarm.apps.line_follow.floor_look``
+poses the arm (``look_ahead``) and makes it (``floor_camera``).
 """
 
 from __future__ import annotations
@@ -24,25 +25,20 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from busarm.arm.config import ArmConfig
 from busarm.arm.kinematics import ArmKinematics
-from busarm.base.config import ChassisConfig, Mount
+from busarm.base.config import Mount
 from busarm.errors import ConfigError
-from busarm.robot.locate import CAMERA_LINK_NAME, link2base
-from busarm.units import check_range
+from busarm.perception.locate import link2base
 from busarm.vision.calibration import CameraIntrinsics
 from busarm.vision.calibration.core import invert_transform
 from busarm.vision.color_thresholds import ColorRange
 from busarm.vision.floor_line import FloorLineSighting, find_floor_line
 from busarm.vision.localize import camera_to_base
-
-if TYPE_CHECKING:
-    from busarm.robot.robot import Robot
 
 __all__ = [
     "GRIPPER_MARGIN_PX",
@@ -54,10 +50,8 @@ __all__ = [
     "PALM_HALF_MM",
     "FloatArray",
     "FloorCamera",
-    "floor_camera",
     "floor_camera_at",
     "floor_rows",
-    "look_ahead",
 ]
 
 
@@ -173,39 +167,3 @@ def floor_camera_at(config: ArmConfig, kin: ArmKinematics, intrinsics: CameraInt
                           f"it: joints {[round(j, 1) for j in joints]} deg")
     return FloorCamera(intrinsics, to_floor,
                        floor_rows(config, kin, intrinsics, cam2arm, joints), joints)
-
-
-def _chassis(robot: Robot, chassis: ChassisConfig | None) -> ChassisConfig:
-    if chassis is not None:
-        return chassis
-    if robot.base is not None:
-        return robot.base.config
-    if robot.twin is not None and robot.twin.chassis is not None:
-        return robot.twin.chassis
-    raise ConfigError("the floor camera needs to know where the arm sits above the floor: "
-                      "open the robot with its chassis (Robot.open(..., chassis=\"jetauto\")) "
-                      "or give chassis=")
-
-
-def look_ahead(robot: Robot, *, speed_deg_s: float = LOOK_AHEAD_SPEED_DEG_S) -> tuple[float, ...]:
-    """Move the arm to ``LOOK_AHEAD_DEG`` (its fastest joint at ``speed_deg_s``) and
-    return the joints measured once it stands still."""
-    speed = check_range("speed_deg_s", speed_deg_s, 1.0, MAX_LOOK_SPEED_DEG_S, "deg/s")
-    robot.arm.move_joints(LOOK_AHEAD_DEG, speed_deg_s=speed)
-    return robot.arm.settled_joints_deg()
-
-
-def floor_camera(robot: Robot, *, chassis: ChassisConfig | None = None,
-                 joints_deg: Sequence[float] | None = None) -> FloorCamera:
-    """The wrist camera on the floor now: its calibration, the joints measured (or
-    ``joints_deg``) and the chassis's arm mount (``chassis``, else the robot's base's or
-    its twin's); ConfigError without a camera calibration or a chassis."""
-    cal = robot.require_camera_calibration()
-    if cal.hand_eye.link != CAMERA_LINK_NAME:
-        raise ConfigError(f"the hand-eye calibration places the camera on the "
-                          f"{cal.hand_eye.link!r} link; the wrist camera rides the "
-                          f"{CAMERA_LINK_NAME!r} link")
-    mount = _chassis(robot, chassis).arm
-    joints = robot.arm.read_joints_deg() if joints_deg is None else joints_deg
-    return floor_camera_at(robot.config, robot.arm.kin, cal.intrinsics,
-                           cal.hand_eye.cam2link, mount, joints)

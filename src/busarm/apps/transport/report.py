@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from busarm.apps.transport import TransportReport
+from busarm.apps.transport.job import TransportReport
 from busarm.errors import ConfigError
 from busarm.fileio import write_text_atomic
 from busarm.nav.grid import OccupancyGrid

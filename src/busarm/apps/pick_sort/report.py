@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from busarm.apps.pick_sort import RunReport
+from busarm.apps.pick_sort.sorter import RunReport
 from busarm.errors import ConfigError
 from busarm.fileio import write_bytes_atomic, write_text_atomic
 from busarm.vision.annotate import save_image

@@ -1,6 +1,6 @@
 """Building a map by exploring: drive to the nearest open frontier until none is left.
 
-``build_map(robot)`` reads the Lidar scan after scan (busarm.apps.nav_sensing), places
+``build_map(robot)`` reads the Lidar scan after scan (busarm.apps.navigation.sensing), places
 each where it fits what is mapped so far (busarm.nav.mapping.MapBuilder: the odometry's
 drift stops at the map), and drives the base to the frontier (busarm.nav.frontiers) it
 can reach soonest, on the inflated map (busarm.nav.costmap, planner, follower), checking
@@ -14,7 +14,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from busarm.apps.nav_sensing import ScanReader, SensedScan
+from busarm.apps.navigation.sensing import ScanReader, SensedScan
 from busarm.base.odometry import Pose2D
 from busarm.lidar.scan import to_points
 from busarm.nav.costmap import Costmap

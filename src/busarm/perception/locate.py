@@ -22,8 +22,8 @@ import numpy.typing as npt
 from busarm.arm.config import CAMERA_JOINT_INDEX
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import ConfigError, UnreachableError, VisionError
-from busarm.robot.obstacles import Obstacle, find_obstacles
-from busarm.robot.split import top_faces_mm
+from busarm.perception.obstacles import Obstacle, find_obstacles
+from busarm.perception.split import top_faces_mm
 from busarm.units import check_range
 from busarm.vision.calibration import CameraIntrinsics, HandEyeResult
 from busarm.vision.color import ColorDetector, Detection
@@ -198,7 +198,7 @@ class BlockLocator:
     def obstacles(self, image: npt.NDArray[np.uint8], joints_deg: Sequence[float],
                   bins: Sequence[tuple[float, float, float]] = (),
                   blocks: Sequence[Sighting] = ()) -> list[Obstacle]:
-        """Things in ``image`` that are not blocks (``busarm.robot.obstacles``), cast onto
+        """Things in ``image`` that are not blocks (``busarm.perception.obstacles``), cast onto
         the table; ``bins``: (x, y, side mm) of each tray, and ``blocks``: the blocks
         located in it, are not things (a block's side face in shade looks like no colour).
         """
@@ -299,7 +299,7 @@ class BlockLocator:
     def _split(self, d: Detection, cam2base: FloatArray) -> list[BlockLocation] | None:
         """The blocks in a blob that holds several touching ones (a row, a 2 x 2, a
         staggered cluster): their top faces found on the top plane
-        (``busarm.robot.split``); None for one block."""
+        (``busarm.perception.split``); None for one block."""
         grid = self._outline_grid(d, cam2base)
         if grid is None or grid.counts[0] * grid.counts[1] <= 1 or max(grid.counts) > MAX_SPLIT:
             return None

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from busarm.apps.grasp import GraspPlan
+from busarm.apps.pick_sort.grasp import GraspPlan
 from busarm.arm import Arm
 from busarm.errors import ContactError, MotionTimeoutError
 from busarm.units import place_text

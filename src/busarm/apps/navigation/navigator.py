@@ -1,6 +1,6 @@
 """Going to a pose on a saved map: localise, plan, follow, and never touch anything.
 
-``Navigator(robot, grid)`` reads the Lidar scan after scan (busarm.apps.nav_sensing), keeps
+``Navigator(robot, grid)`` reads the Lidar scan after scan (busarm.apps.navigation.sensing), keeps
 a particle filter (busarm.nav.localize) on the map, and drives the base along a path
 planned on the inflated map with the scan's returns added (busarm.nav.costmap, planner),
 followed holonomically (busarm.nav.follower). Every scan it checks that the next second
@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from busarm.apps.nav_sensing import ScanReader, SensedScan
+from busarm.apps.navigation.sensing import ScanReader, SensedScan
 from busarm.base.kinematics import Twist
 from busarm.base.odometry import Pose2D
 from busarm.errors import ConfigError, NavigationError

@@ -16,12 +16,12 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from busarm.apps.pick_report import write_report
-from busarm.apps.pick_settings import PickSortSettings
-from busarm.apps.pick_sort import PickSorter, RunReport
+from busarm.apps.pick_sort.report import write_report
+from busarm.apps.pick_sort.settings import PickSortSettings
+from busarm.apps.pick_sort.sorter import PickSorter, RunReport
 from busarm.errors import BusArmError
+from busarm.perception.locate import Sighting
 from busarm.robot import Robot
-from busarm.robot.locate import Sighting
 from busarm.units import place_text
 from busarm.vision.camera import CameraSource
 

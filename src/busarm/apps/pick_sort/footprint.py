@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from busarm.robot.obstacles import near_convex
+from busarm.perception.obstacles import near_convex
 
 __all__ = [
     "TOUCH_MM",

@@ -25,7 +25,7 @@ the deck (``ChassisConfig.arm``): a surface ``height_m`` above the floor is at
 
 The arm's config keeps its tool above its table (``table_z_mm``, the deck here); while
 these run the arm reaches down to the surface (``Workspace.reaching``, in
-busarm.apps.mobile_workspace with the looks and the reach), and keeps off the chassis by
+busarm.apps.transport.workspace with the looks and the reach), and keeps off the chassis by
 the grasp planner (the chassis is a neighbour no finger may touch) and by its travel
 height (a held block passes over the deck).
 """
@@ -41,9 +41,9 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
-from busarm.apps.footprint import Footprint
-from busarm.apps.gripping import descend_and_grip, lower_and_release, still_holding
-from busarm.apps.mobile_workspace import (
+from busarm.apps.pick_sort.footprint import Footprint
+from busarm.apps.pick_sort.gripping import descend_and_grip, lower_and_release, still_holding
+from busarm.apps.transport.workspace import (
     FLOOR,
     BlockSeen,
     Reach,
@@ -57,8 +57,8 @@ from busarm.arm import Arm
 from busarm.base.odometry import Pose2D
 from busarm.errors import ConfigError, UnreachableError
 from busarm.lidar.scan import to_points
+from busarm.perception.locate import Sighting
 from busarm.robot import Robot
-from busarm.robot.locate import Sighting
 from busarm.units import check_int_range
 
 MAX_ALIGN_M = 0.3

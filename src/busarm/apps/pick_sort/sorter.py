@@ -30,7 +30,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import numpy.typing as npt
 
-from busarm.apps.bins import (
+from busarm.apps.pick_sort.bins import (
     BIN_PLACES,
     BIN_RADIUS_MM,
     BIN_SLOTS_MM,
@@ -38,15 +38,15 @@ from busarm.apps.bins import (
     STACK_DROP_MM,
     BinPlaces,
 )
-from busarm.apps.footprint import Footprint
-from busarm.apps.grasp import GraspPlan, GraspPlanner, NoClearGrasp
-from busarm.apps.gripping import descend_and_grip, lower_and_release, still_holding
-from busarm.apps.pick_outcomes import BlockOutcome, RunReport
-from busarm.apps.pick_records import BlockRecords, mark_moved
-from busarm.apps.pick_settings import ORDERS, PickSortSettings
-from busarm.apps.push import Push, PushPlanner
-from busarm.apps.restage import Restaged, staging_spot
-from busarm.apps.table_view import (
+from busarm.apps.pick_sort.footprint import Footprint
+from busarm.apps.pick_sort.grasp import GraspPlan, GraspPlanner, NoClearGrasp
+from busarm.apps.pick_sort.gripping import descend_and_grip, lower_and_release, still_holding
+from busarm.apps.pick_sort.outcomes import BlockOutcome, RunReport
+from busarm.apps.pick_sort.push import Push, PushPlanner
+from busarm.apps.pick_sort.records import BlockRecords, mark_moved
+from busarm.apps.pick_sort.restage import Restaged, staging_spot
+from busarm.apps.pick_sort.settings import ORDERS, PickSortSettings
+from busarm.apps.pick_sort.table_view import (
     OVER_THINGS_MM,
     TableView,
     off_mm,
@@ -59,8 +59,8 @@ from busarm.errors import (
     ServoFaultError,
     UnreachableError,
 )
+from busarm.perception.locate import Sighting
 from busarm.robot import Robot
-from busarm.robot.locate import Sighting
 from busarm.units import place_text
 
 MAX_CYCLES = 150

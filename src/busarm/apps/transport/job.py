@@ -1,10 +1,10 @@
 """Navigation transport: fetch a block from one named point and deliver it to another.
 
 ``run_transport(robot, grid, points, "shelf", "bin")``: localise on the saved map (near a
-given start, or anywhere), drive to the pick point (busarm.apps.navigator), stand there
+given start, or anywhere), drive to the pick point (busarm.apps.navigation.navigator), stand there
 exactly (the filter's estimate refined standing still, the last centimetres closed by
 ``move_by``), look for the block with the wrist camera and locate it in millimetres,
-line the base up and pick it with the grasp verified (busarm.apps.mobile_pick, with
+line the base up and pick it with the grasp verified (busarm.apps.transport.mobile_pick, with
 retries), drive to the place point, put it down and look that it is there. Every phase
 is timed and kept for the report; a phase that cannot be done stops the job with the
 wheels stopped and the arm holding, and the report says which and why: a block is
@@ -18,7 +18,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from busarm.apps.mobile_pick import (
+from busarm.apps.navigation.navigator import Navigator, NavSettings, ScanHook, Trip
+from busarm.apps.transport.mobile_pick import (
     BlockSeen,
     PickResult,
     PlaceResult,
@@ -27,7 +28,6 @@ from busarm.apps.mobile_pick import (
     pick_block,
     place_block,
 )
-from busarm.apps.navigator import Navigator, NavSettings, ScanHook, Trip
 from busarm.base.odometry import Pose2D
 from busarm.errors import BusArmError, NavigationError
 from busarm.nav.grid import OccupancyGrid

@@ -13,7 +13,7 @@ from typing import Protocol
 import numpy as np
 import numpy.typing as npt
 
-from busarm.apps.footprint import Footprint
+from busarm.apps.pick_sort.footprint import Footprint
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import UnreachableError
 from busarm.units import check_range, place_text
@@ -65,7 +65,7 @@ over 4): thinner than a pen with the margin on both sides."""
 class Thing(Protocol):
     """Something that is not a block: what it stands on (``corners``, N x 2 mm, convex)
     and whether it may come within a margin of points in space (a ``Footprint`` may be
-    any height; ``busarm.robot.obstacles.Obstacle`` knows its cameras' cones)."""
+    any height; ``busarm.perception.obstacles.Obstacle`` knows its cameras' cones)."""
 
     @property
     def corners(self) -> FloatArray: ...

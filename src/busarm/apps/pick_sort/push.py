@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from busarm.apps.footprint import Footprint
-from busarm.apps.grasp import GraspPlan, GraspPlanner
+from busarm.apps.pick_sort.footprint import Footprint
+from busarm.apps.pick_sort.grasp import GraspPlan, GraspPlanner
 from busarm.errors import UnreachableError
 
 __all__ = [

@@ -9,9 +9,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from busarm.apps.pick_outcomes import BlockOutcome, RunReport
-from busarm.apps.table_view import SAME_BLOCK_MM, off_mm, same_block
-from busarm.robot.locate import Sighting
+from busarm.apps.pick_sort.outcomes import BlockOutcome, RunReport
+from busarm.apps.pick_sort.table_view import SAME_BLOCK_MM, off_mm, same_block
+from busarm.perception.locate import Sighting
 
 __all__ = [
     "BlockRecords",

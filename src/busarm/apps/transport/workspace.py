@@ -1,4 +1,4 @@
-"""The arm over a surface, on the mobile base: what ``busarm.apps.mobile_pick`` works in.
+"""The arm over a surface, on the mobile base: what ``busarm.apps.transport.mobile_pick`` works in.
 
 ``Workspace(robot, surface)`` holds the arm's kinematics reaching down to the surface
 (the arm's config keeps its tool above its own table, the deck), the block locator and
@@ -8,7 +8,7 @@ floor under the base's centre) and the arm's (mm, on the deck, ``ChassisConfig.a
 surface ``height_m`` above the floor is at ``(height_m - arm.z_m) * 1000`` mm there).
 It knows where straight-down grasps reach on the surface (``Reach``) and how the wrist
 camera looks at it: look poses chosen from the kinematics and the hand-eye calibration
-(``busarm.apps.look_poses``), pictures averaged and merged by ``TableView``.
+(``busarm.apps.pick_sort.look_poses``), pictures averaged and merged by ``TableView``.
 """
 
 from __future__ import annotations
@@ -21,16 +21,16 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import numpy.typing as npt
 
-from busarm.apps.footprint import Footprint
-from busarm.apps.grasp import GraspPlanner
-from busarm.apps.look_poses import look_pose
-from busarm.apps.pick_settings import PickSortSettings
-from busarm.apps.table_view import TableView
+from busarm.apps.pick_sort.footprint import Footprint
+from busarm.apps.pick_sort.grasp import GraspPlanner
+from busarm.apps.pick_sort.look_poses import look_pose
+from busarm.apps.pick_sort.settings import PickSortSettings
+from busarm.apps.pick_sort.table_view import TableView
 from busarm.arm.kinematics import ArmKinematics
 from busarm.base.config import ChassisConfig
 from busarm.errors import ConfigError, UnreachableError
+from busarm.perception.locate import BlockLocator, Sighting
 from busarm.robot import Robot
-from busarm.robot.locate import BlockLocator, Sighting
 from busarm.units import check_range, place_text
 
 ImageArray = npt.NDArray[np.uint8]

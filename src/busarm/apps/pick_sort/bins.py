@@ -6,8 +6,8 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 
-from busarm.apps.footprint import Footprint
-from busarm.apps.grasp import GraspPlan, GraspPlanner
+from busarm.apps.pick_sort.footprint import Footprint
+from busarm.apps.pick_sort.grasp import GraspPlan, GraspPlanner
 from busarm.errors import ConfigError, UnreachableError
 
 __all__ = [

@@ -14,13 +14,13 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 import numpy.typing as npt
 
-from busarm.apps.bins import BIN_RADIUS_MM
-from busarm.apps.footprint import Footprint
-from busarm.apps.pick_settings import PickSortSettings
+from busarm.apps.pick_sort.bins import BIN_RADIUS_MM
+from busarm.apps.pick_sort.footprint import Footprint
+from busarm.apps.pick_sort.settings import PickSortSettings
 from busarm.arm import Arm
 from busarm.errors import ConfigError, UnreachableError
-from busarm.robot.locate import BlockLocator, Sighting
-from busarm.robot.obstacles import Obstacle, refine
+from busarm.perception.locate import BlockLocator, Sighting
+from busarm.perception.obstacles import Obstacle, refine
 from busarm.vision.camera import CameraSource
 
 __all__ = [

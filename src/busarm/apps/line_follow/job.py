@@ -2,7 +2,7 @@
 coloured blocks off the line.
 
 ``LineFollowJob(robot).run()`` poses the arm to look ahead and down (``look_ahead``) and
-goes round, paced by the Lidar: each scan (about 10 a second, busarm.apps.nav_sensing),
+goes round, paced by the Lidar: each scan (about 10 a second, busarm.apps.navigation.sensing),
 then a camera frame of the same moment, in which it
 
 - finds the tape on the floor (``FloorCamera.find_line``) and remembers its points in the
@@ -16,7 +16,7 @@ then a camera frame of the same moment, in which it
 - locates coloured blocks on the floor (the block locator on the floor's plane, below the
   Lidar's) and, when one is on the base's path (within ``near_line_m`` of the tracked
   line: the chassis's half width, the block's and a margin) and ``CLEAR_AHEAD_M`` ahead,
-  stops, turns to face it, picks it (busarm.apps.mobile_pick, the base lined up to it)
+  stops, turns to face it, picks it (busarm.apps.transport.mobile_pick, the base lined up to it)
   and puts it down beside the base on the side where it ends farther from the line,
   looks that it is there and off the line, looks ahead again and goes on (the
   odometry, and so the remembered line, runs on through it all).
@@ -47,18 +47,19 @@ from typing import Any, Literal
 import numpy as np
 import numpy.typing as npt
 
-from busarm.apps.mobile_pick import FLOOR, BlockSeen, pick_block, put_aside
-from busarm.apps.mobile_workspace import Workspace, half_size_m, m_text
-from busarm.apps.nav_sensing import ScanReader, SensedScan
+from busarm.apps.line_follow.floor_look import floor_camera, look_ahead
+from busarm.apps.navigation.sensing import ScanReader, SensedScan
+from busarm.apps.transport.mobile_pick import FLOOR, BlockSeen, pick_block, put_aside
+from busarm.apps.transport.workspace import Workspace, half_size_m, m_text
 from busarm.base.kinematics import Twist
 from busarm.base.odometry import Pose2D, wrap_rad
 from busarm.errors import NavigationError, UnreachableError
 from busarm.lidar.scan import to_points
 from busarm.nav.line_track import LineController, LineTracker, in_stop_range, obstacle_ahead
 from busarm.nav.mapping import compose
+from busarm.perception.floor_view import FloorCamera
 from busarm.progress import Progress, quiet
 from busarm.robot import Robot
-from busarm.robot.floor_view import FloorCamera, floor_camera, look_ahead
 from busarm.units import check_range
 
 FloatArray = npt.NDArray[np.float64]

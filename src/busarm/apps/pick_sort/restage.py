@@ -8,8 +8,8 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from busarm.apps.footprint import Footprint
-from busarm.apps.grasp import GraspPlanner, Thing
+from busarm.apps.pick_sort.footprint import Footprint
+from busarm.apps.pick_sort.grasp import GraspPlanner, Thing
 from busarm.errors import UnreachableError
 from busarm.units import place_text
 
