@@ -23,9 +23,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from busarm.apps.transport import mobile_pick
 from busarm.apps.pick_sort.gripping import descend_and_grip
 from busarm.apps.pick_sort.look_poses import AIM_MM, TOOL_CLEAR_MM, look_pose
+from busarm.apps.transport import mobile_pick
 from busarm.apps.transport.mobile_pick import (
     FLOOR,
     MAX_ALIGN_M,
