@@ -214,6 +214,8 @@ class Settings:
         """The name of the robot's kept files (poses, calibrations): a running `sim
         serve`/`twin serve` is its kind (``sim``, ``twin``) whether it is reached by
         default or by its pty, so that both find the same files."""
+        if self.robot_file is not None and not self.port_given:
+            return self.robot_description().world.robot_key
         port = self.port if self.port_given else self.default_port(say=False)
         served = next((s for s in running_sessions() if s.port == port), None)
         return served.kind if served is not None else parse_port(port).robot_key

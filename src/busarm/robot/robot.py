@@ -65,11 +65,18 @@ __all__ = [
 
 
 class Robot:
-    """The arm and what it sees with; ``with Robot.open(port) as robot: ...``.
+    """The whole robot; ``with Robot.open(description) as robot: ...``.
+
+    Its parts: ``arm`` (busarm.arm.Arm), ``base`` (busarm.base.Base, or None),
+    ``lidar`` (a LidarSource, or None), ``cameras`` (by role: ``wrist``, on a twin
+    ``overview``; ``camera`` is the wrist's), ``camera_calibration``, ``bins``, ``clock``
+    (the robot's time: wait on it), ``sim`` (what only a twin has, or None) and
+    ``description`` (the RobotConfig it was opened from). One state, one action:
+    ``get_observation()``, ``send_action(...)``.
 
     Leaving the ``with`` block by an exception (Ctrl+C included) stops the arm (MOVE_STOP
     to every servo: those with torque on hold) if anything was written to it since its
-    last stop, then closes the cameras, the bus and the twin.
+    last stop, and the wheels, then closes the cameras, the bus and the twin.
     """
 
     def __init__(self, arm: Arm, *, camera: CameraSource | None = None,
