@@ -5,11 +5,10 @@ your configuration folder; on your robot, calibrate it once with ``busarm camera
 calibrate`` and ``busarm camera handeye``.
 """
 
-from busarm import CameraSpec, Robot, RobotConfig, TwinSpec
-from busarm.robot.calibration_store import CalibrationStore
+from busarm import Robot, RobotConfig, TwinSpec
 
 world = TwinSpec(seed=3, blocks=4)
-robot_config = RobotConfig(world, camera=CameraSpec(store=CalibrationStore.for_port(world)))
+robot_config = RobotConfig(world)  # its camera calibration kept as the commands keep it
 
 with Robot.open(robot_config) as robot:
     robot.move_to_pose("look")

@@ -4,11 +4,10 @@
 carry, release. On the twin the block's true place is known, so the program checks it.
 """
 
-from busarm import CameraSpec, PickSorter, Robot, RobotConfig, TwinSpec
-from busarm.robot.calibration_store import CalibrationStore
+from busarm import PickSorter, Robot, RobotConfig, TwinSpec
 
 world = TwinSpec(seed=5, blocks=2)
-robot_config = RobotConfig(world, camera=CameraSpec(store=CalibrationStore.for_port(world)))
+robot_config = RobotConfig(world)  # its camera calibration kept as the commands keep it
 
 with Robot.open(robot_config) as robot:
     sorter = PickSorter(robot)

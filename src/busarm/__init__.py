@@ -9,7 +9,7 @@ described in full (its world, arm, base, Lidar, camera: ``RobotConfig``)::
 
     with Robot.open("twin") as robot:
         robot.arm.home()
-        print(robot.arm.pose())
+        print(robot.arm.read_pose())
 
 The names below are the ones a program needs; each is loaded on first use, so ``import
 busarm`` stays light (no MuJoCo, OpenCV or serial port until they are used).
@@ -33,6 +33,7 @@ if TYPE_CHECKING:  # the same names, eagerly, for mypy and the API reference
     from busarm.apps.pick_sort.sorter import PickSorter
     from busarm.apps.transport.job import TransportJob, TransportReport
     from busarm.arm import Arm, ArmConfig, ArmKinematics, Pose, load_arm_config
+    from busarm.arm.arm import GripResult
     from busarm.base.base import Base
     from busarm.base.config import ChassisConfig, load_chassis_config
     from busarm.base.kinematics import Twist
@@ -47,6 +48,8 @@ if TYPE_CHECKING:  # the same names, eagerly, for mypy and the API reference
         CalibrationError,
         CameraError,
         ConfigError,
+        ContactError,
+        DeviceInUseError,
         HaltedError,
         KinematicsError,
         LimitError,
@@ -54,6 +57,7 @@ if TYPE_CHECKING:  # the same names, eagerly, for mypy and the API reference
         MotionTimeoutError,
         NavigationError,
         ProtocolError,
+        ServoFaultError,
         TransportError,
         TwinError,
         UnreachableError,
@@ -64,6 +68,7 @@ if TYPE_CHECKING:  # the same names, eagerly, for mypy and the API reference
     from busarm.nav.grid import OccupancyGrid
     from busarm.nav.map_files import load_map, save_map
     from busarm.nav.points import NamedPoint, NamedPoints, load_points, save_points
+    from busarm.perception.locate import Sighting
     from busarm.robot import (
         ArmSpec,
         BaseSpec,
@@ -74,6 +79,7 @@ if TYPE_CHECKING:  # the same names, eagerly, for mypy and the API reference
         RobotConfig,
         ServoLine,
     )
+    from busarm.robot.calibration_store import CalibrationStore
     from busarm.robot.observation import Action, Observation
     from busarm.robot.robot_file import load_robot_file, save_robot_file
     from busarm.sim.bus import SimBus
@@ -81,6 +87,7 @@ if TYPE_CHECKING:  # the same names, eagerly, for mypy and the API reference
     from busarm.twin.spec import TwinSpec
     from busarm.twin.twin import Twin
     from busarm.vision.camera import CameraFrame, CameraSource
+    from busarm.vision.localize import BlockLocation
 
 _SOURCES: dict[str, str] = {
     # the robot
@@ -148,9 +155,14 @@ _SOURCES: dict[str, str] = {
     # errors (all are BusArmError)
     **dict.fromkeys((
         "BusArmError", "BusTimeoutError", "CalibrationError", "CameraError", "ConfigError",
-        "HaltedError", "KinematicsError", "LimitError", "MotionError", "MotionTimeoutError",
-        "NavigationError", "ProtocolError", "TransportError", "TwinError", "UnreachableError",
+        "ContactError", "DeviceInUseError", "HaltedError", "KinematicsError", "LimitError",
+        "MotionError", "MotionTimeoutError", "NavigationError", "ProtocolError",
+        "ServoFaultError", "TransportError", "TwinError", "UnreachableError",
         "VisionError"), "busarm.errors"),
+    "CalibrationStore": "busarm.robot.calibration_store",
+    "GripResult": "busarm.arm.arm",
+    "Sighting": "busarm.perception.locate",
+    "BlockLocation": "busarm.vision.localize",
 }
 """Each exported name and the module that defines it."""
 
@@ -163,10 +175,12 @@ __all__ = [
     "ArmSpec",
     "Base",
     "BaseSpec",
+    "BlockLocation",
     "BoardSettings",
     "BusArmError",
     "BusTimeoutError",
     "CalibrationError",
+    "CalibrationStore",
     "CameraCalibration",
     "CameraError",
     "CameraFrame",
@@ -175,7 +189,10 @@ __all__ = [
     "ChassisConfig",
     "Clock",
     "ConfigError",
+    "ContactError",
+    "DeviceInUseError",
     "FrozenClockWarning",
+    "GripResult",
     "HaltedError",
     "KinematicsError",
     "LaserScan",
@@ -203,7 +220,9 @@ __all__ = [
     "RplidarA1",
     "SerialPort",
     "ServoBus",
+    "ServoFaultError",
     "ServoLine",
+    "Sighting",
     "SimBus",
     "SimClock",
     "SimLidarSpec",

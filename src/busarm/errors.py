@@ -8,6 +8,7 @@ still catch them.
 from __future__ import annotations
 
 import functools
+import os
 
 
 class BusArmError(Exception):
@@ -171,6 +172,7 @@ __all__ = [
     "ChecksumError",
     "ConfigError",
     "ContactError",
+    "DeviceInUseError",
     "EchoMismatchError",
     "HaltedError",
     "KinematicsError",
@@ -194,3 +196,23 @@ __all__ = [
 class NavigationError(BusArmError):
     """A mobile job could not go on: no path, lost localisation, a Lidar that stopped
     sending, an obstacle that did not go away. The base is stopped when it is raised."""
+
+
+class DeviceInUseError(TransportError):
+    """The device is open by another driver (which may be this very program)."""
+
+    def __init__(self, port: str, device: str, pid: int | None, command: str) -> None:
+        self.port = port
+        self.device = device
+        self.pid = pid
+        self.command = command
+        shown = port if port == device else f"{port} ({device})"
+        who = f"PID {pid} ({command})" if pid is not None else "another program"
+        if pid == os.getpid():
+            who += ", this program itself, which has it open already"
+        super().__init__(f"{shown} is in use by {who}: one program drives a robot at a "
+                         "time; stop that one first, or wait for it to end")
+
+    def __reduce__(self) -> tuple[type[DeviceInUseError], tuple[str, str, int | None, str]]:
+        # Made again from its parts (OSError's own would pass the message as the port).
+        return type(self), (self.port, self.device, self.pid, self.command)

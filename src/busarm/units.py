@@ -179,7 +179,7 @@ def short_repr(obj: Any) -> str:
         if f.name == "label" or value == default:
             continue
         text = repr(value)
-        if len(text) > 60:
+        if len(text) > 60 and getattr(type(value), "__repr__", None) is not short_repr:  # a part
             name = getattr(value, "name", None) or getattr(value, "source", None)
             text = f"<{type(value).__name__}{f' {name!r}' if name else ''}>"
         parts.append(f"{f.name}={text}")

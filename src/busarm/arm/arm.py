@@ -68,9 +68,16 @@ class MotionRecord:
     measured: list[tuple[float, tuple[float, ...]]] = field(default_factory=list)
     """(seconds since the start, joint angles in degrees) read back during the motion."""
 
+    def __repr__(self) -> str:
+        return (f"MotionRecord({self.duration_s:.3f} s, {len(self.commanded_deg)} waypoints, "
+                f"{len(self.measured)} measured)")
+
 
 class Arm(ArmServos):
     """Command an arm in joint degrees or millimetres, on real servos or the simulator."""
+
+    def __repr__(self) -> str:
+        return f"Arm({self.config.name!r} on {self.bus.name})"
 
     @classmethod
     def open(

@@ -30,7 +30,7 @@ import time
 from pathlib import Path
 from types import TracebackType
 
-from busarm.errors import TransportError
+from busarm.errors import DeviceInUseError, TransportError
 from busarm.fileio import RUNTIME_DIR_ENV, runtime_dir
 
 __all__ = [
@@ -45,26 +45,6 @@ __all__ = [
 _COMMAND_MAX = 200
 _READ_TRIES = 20  # x _READ_PAUSE_S: how long a refusal waits for the holder's name
 _READ_PAUSE_S = 0.005
-
-
-class DeviceInUseError(TransportError):
-    """The device is open by another driver (which may be this very program)."""
-
-    def __init__(self, port: str, device: str, pid: int | None, command: str) -> None:
-        self.port = port
-        self.device = device
-        self.pid = pid
-        self.command = command
-        shown = port if port == device else f"{port} ({device})"
-        who = f"PID {pid} ({command})" if pid is not None else "another program"
-        if pid == os.getpid():
-            who += ", this program itself, which has it open already"
-        super().__init__(f"{shown} is in use by {who}: one program drives a robot at a "
-                         "time; stop that one first, or wait for it to end")
-
-    def __reduce__(self) -> tuple[type[DeviceInUseError], tuple[str, str, int | None, str]]:
-        # Made again from its parts (OSError's own would pass the message as the port).
-        return type(self), (self.port, self.device, self.pid, self.command)
 
 
 def locks_dir() -> Path:

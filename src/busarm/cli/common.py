@@ -214,7 +214,7 @@ class Settings:
         """The name of the robot's kept files (poses, calibrations): a running `sim
         serve`/`twin serve` is its kind (``sim``, ``twin``) whether it is reached by
         default or by its pty, so that both find the same files."""
-        if self.robot_file is not None and not self.port_given:
+        if self.on_robot_file:
             return self.robot_description().world.robot_key
         port = self.port if self.port_given else self.default_port(say=False)
         served = next((s for s in running_sessions() if s.port == port), None)
@@ -224,11 +224,22 @@ class Settings:
         """``port`` (default: --port, else the default port) read into a typed port: the
         one place the command line's port string is parsed."""
         if port is None:
-            if self.robot_file is not None and not self.port_given:
+            if self.on_robot_file:
                 return self.robot_description().world
             port = self.port if self.port_given else self.default_port()
         with self._port_named():
             return parse_port(port)
+
+    @property
+    def on_robot_file(self) -> bool:
+        """Whether the robot is --robot FILE's (which beats $BUSARM_PORT); ConfigError
+        when --port is given with it."""
+        if self.robot_file is None:
+            return False
+        if self.port_given and not self.port_from_env:
+            raise ConfigError(f"give --robot {self.robot_file} or --port {self.port}, not "
+                              "both: the robot file names its port")
+        return True
 
     def robot_description(self) -> RobotConfig:
         """The robot of --robot FILE."""
@@ -305,7 +316,7 @@ class Settings:
         read back, for the message."""
         from busarm.robot import Robot  # MuJoCo and OpenCV load only for commands that use it
 
-        if self.robot_file is not None and world is None and not self.port_given:
+        if world is None and self.on_robot_file:
             description = from_robot_file(self.robot_description(), options)
             with self._port_named():
                 robot = Robot.open(description, needs=needs, progress=progress)

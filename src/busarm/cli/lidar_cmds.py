@@ -9,11 +9,22 @@ from __future__ import annotations
 import json
 import math
 import sys
+from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
-from busarm.cli.common import RangeType, lidar_port_or_default, serve_until_stopped
+from busarm.cli.common import (
+    RangeType,
+    Settings,
+    lidar_port_or_default,
+    pass_settings,
+    serve_until_stopped,
+)
+
+if TYPE_CHECKING:
+    from busarm.robot.description import LidarPort
 
 __all__ = [
     "COMMANDS",
@@ -45,14 +56,21 @@ def lidar() -> None:
               help="Print the device, the summary and every beam as JSON.")
 @click.option("--timeout", "timeout_s", type=RangeType("timeout", 0.2, 30.0, "s"), default=2.0,
               show_default=True, help="How long to wait for a complete revolution, in s.")
-def scan(lidar_port: str, png: Path | None, as_json: bool, timeout_s: float) -> None:
+@pass_settings
+def scan(settings: Settings, lidar_port: str | None, png: Path | None, as_json: bool,
+         timeout_s: float) -> None:
     """Read one 360-degree scan: how many returns, the rate, the nearest return and its
-    bearing (degrees counter-clockwise from the Lidar's forward axis)."""
+    bearing (degrees counter-clockwise from the Lidar's forward axis). Without --lidar:
+    the Lidar of --robot's robot file, or of the twin --port names (with an arena)."""
     from busarm.robot.lidar_port import open_lidar_port
     from busarm.robot.port_url import parse_lidar_port
 
-    lidar_port = lidar_port_or_default(lidar_port)
-    with open_lidar_port(parse_lidar_port(lidar_port)) as device:
+    where = _robots_lidar(settings) if lidar_port is None else None
+    if where is None:
+        lidar_port = lidar_port_or_default(lidar_port)
+        where = parse_lidar_port(lidar_port)
+    lidar_port = where.name
+    with open_lidar_port(where) as device:
         one = device.read_scan(timeout_s)
         info, health = device.info, device.health
     returns = int(one.valid.sum())
@@ -118,3 +136,22 @@ def serve(scan_hz: float, garbage: float, seed: int) -> None:
 
 
 COMMANDS = [lidar]
+
+
+def _robots_lidar(settings: Settings) -> LidarPort | None:
+    """The Lidar of the robot --robot or --port describes, if it says one: a robot file's
+    Lidar, or a twin's own in its arena."""
+    from busarm.twin.spec import TwinSpec
+
+    if settings.on_robot_file:
+        description = settings.robot_description()
+        if description.lidar is not None:
+            return description.lidar.port
+        world = description.world
+    elif settings.port_given:
+        world = settings.world()
+    else:
+        return None
+    if isinstance(world, TwinSpec) and world.mobile:
+        return replace(world, controller=None)  # the twin's Lidar alone
+    return None

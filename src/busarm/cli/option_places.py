@@ -1,8 +1,8 @@
 """Options that users put in more than one place, accepted in each.
 
 * The global options (``--port``, ``--baud``, ``--echo``, ``--timeout-margin-ms``,
-  ``--retries``, ``-v``) are accepted after the subcommand too: ``busarm arm pose --port
-  twin`` is ``busarm --port twin arm pose``. Each command gets hidden copies of them
+  ``--retries``, ``--robot``, ``-v``) are accepted after the subcommand too: ``busarm arm
+  pose --port twin`` is ``busarm --port twin arm pose``. Each command gets hidden copies of them
   (except where it has an option of the same name, such as ``sim serve --echo``).
 * The arm options (``--config``, ``--calibration``) are accepted before the command
   (``busarm --config X arm pose``), at the group (``busarm arm --config X pose``) and
@@ -39,7 +39,8 @@ __all__ = [
 ]
 
 
-GLOBAL_NAMES = ("port", "baudrate", "echo", "timeout_margin_ms", "retries", "verbose")
+GLOBAL_NAMES = ("port", "baudrate", "echo", "timeout_margin_ms", "retries", "robot_file",
+                "verbose")
 """The root options that commands accept after themselves too."""
 ARM_NAMES = ("config", "calibration")
 ARM_ENVVAR = "BUSARM_ARM"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import click
@@ -56,6 +57,8 @@ def init(settings: Settings, file: Path, name: str, config: str,
                                  arm_calibration=calibration, chassis=chassis,
                                  lidar=lidar_port, camera=camera, intrinsics=intrinsics,
                                  hand_eye=hand_eye)
+    # A program opening the file keeps its camera calibration as the commands do.
+    description = replace(description, camera=replace(description.camera, keep=True))
     save_robot_file(file, description, name)
     load_robot_file(file)  # what was written reads back (paths, every key)
     settings.out.print(f"wrote {file}: {description}", highlight=False, soft_wrap=True)

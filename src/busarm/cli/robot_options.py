@@ -65,8 +65,10 @@ def describe_robot(
     return RobotConfig(
         world, ArmSpec(config, arm_calibration, line), base=base,
         lidar=LidarSpec(parse_lidar_port(lidar)) if lidar is not None else None,
+        # The commands say which store they use (calibration_store), or none (those
+        # that make a calibration): never the default one behind their back.
         camera=CameraSpec(camera, intrinsics, hand_eye, calibrate, calibration_store,
-                          calibration_dir),
+                          calibration_dir, keep=False),
         bins=bins)
 
 
@@ -111,7 +113,7 @@ def from_robot_file(file: RobotConfig, options: dict[str, Any]) -> RobotConfig:
                         options.pop("hand_eye", cam.hand_eye),
                         options.pop("calibrate", cam.calibrate),
                         options.pop("calibration_store", cam.store),
-                        options.pop("calibration_dir", cam.folder))
+                        options.pop("calibration_dir", cam.folder), keep=False)
     described = describe_robot(file.world, file.arm.line,
                                config=file.arm.config or given_config,
                                arm_calibration=options.pop("arm_calibration",

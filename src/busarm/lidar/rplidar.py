@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import statistics
 from collections import deque
 from collections.abc import Callable
 from types import TracebackType
@@ -46,6 +47,9 @@ from busarm.protocol.rplidar import (
     find_descriptor,
 )
 
+MAX_REVOLUTION_S = 0.75
+"""The longest a revolution takes (the A1 turns at 2 Hz at its slowest, with a margin): a
+longer one was read across a pause and is passed over."""
 IDENTIFY_TIMEOUT_S = 0.5
 """How long the A1 may take to answer GET_HEALTH or GET_INFO (it answers in ~1 ms)."""
 STOP_SETTLE_S = 0.01
@@ -84,6 +88,8 @@ class RplidarA1:
         self._queue: deque[tuple[Node, float]] = deque()
         self._revolution: list[Node] | None = None
         self._revolution_start_s = math.nan
+        self._spans: deque[float] = deque(maxlen=5)
+        """How long the last revolutions took (s), whole or not."""
         self._scanning = False
         self._closed = False
         self.motor_line = self._set_motor(True)
@@ -216,6 +222,15 @@ class RplidarA1:
         for k, node in enumerate(nodes):
             self._queue.append((node, at - (len(nodes) - 1 - k) * node_s))
 
+    def _whole(self, span_s: float) -> bool:
+        """Whether a revolution that took ``span_s`` is one turn: one that took longer than
+        the slowest turn, or half as long again as the recent ones (their median), spans
+        a pause in the reading (nodes from before and after it, some lost between): it is
+        passed over."""
+        typical = statistics.median(self._spans) if self._spans else math.inf
+        self._spans.append(span_s)
+        return span_s <= min(MAX_REVOLUTION_S, 1.5 * typical)
+
     def _next_revolution(self, timeout_s: float) -> LaserScan:
         deadline = self.clock.now() + timeout_s
         while True:
@@ -225,7 +240,7 @@ class RplidarA1:
                     done = self._revolution
                     started = self._revolution_start_s
                     self._revolution, self._revolution_start_s = [node], at
-                    if done:
+                    if done and self._whole(at - started):
                         return _scan(done, started, at - started)
                 elif self._revolution is not None:
                     self._revolution.append(node)
@@ -252,4 +267,4 @@ def _scan(nodes: list[Node], stamp_s: float, scan_time_s: float) -> LaserScan:
                      scan_time_s=scan_time_s if scan_time_s > 0 else math.nan)
 
 
-__all__ = ["Health", "RplidarA1", "open_lidar"]
+__all__ = ["MAX_REVOLUTION_S", "Health", "RplidarA1", "open_lidar"]

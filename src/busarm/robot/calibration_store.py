@@ -183,6 +183,10 @@ class CameraCalibration:
     twin_run: TwinCalibration | None = None
     """When it was made in the twin: what that found (errors against the twin's truth)."""
 
+    def __repr__(self) -> str:
+        i = self.intrinsics
+        return f"CameraCalibration({i.width_px}x{i.height_px}, {self.source})"
+
 
 class CalibrationStore:
     """A robot's folder of kept camera calibrations (see the module docstring)."""
@@ -192,6 +196,9 @@ class CalibrationStore:
         self.folder = folder
         self.port = port if port is not None else robot
         """The ``--port`` the remaking commands are given in messages."""
+
+    def __repr__(self) -> str:
+        return f"CalibrationStore({self.robot!r} in {self.folder})"
 
     @classmethod
     def for_port(cls, port: PortSpec) -> CalibrationStore:

@@ -26,7 +26,7 @@ from busarm.arm.config import ArmConfig
 from busarm.base.config import ChassisConfig
 from busarm.bus.driver import DEFAULT_RETRIES, DEFAULT_TIMEOUT_MARGIN_S, EchoMode
 from busarm.bus.ports import PortSpec, SerialPort
-from busarm.bus.transport import DEFAULT_BAUDRATE, check_baudrate
+from busarm.bus.transport import DEFAULT_BAUDRATE, Transport, check_baudrate
 from busarm.bus.zenoh_link import ZenohPort
 from busarm.errors import ConfigError
 from busarm.sim.spec import SimLidarSpec, check_flag
@@ -34,6 +34,7 @@ from busarm.twin.spec import TwinSpec
 from busarm.units import check_int_range, check_range, short_repr
 
 if TYPE_CHECKING:
+    from busarm.bus.servo_port import ServoPort
     from busarm.robot.calibration_store import CalibrationStore
 
 __all__ = [
@@ -112,6 +113,15 @@ class ArmSpec:
             return "zenoh"
         return "board" if world.through_board else "lx"
 
+    def open_servos(self, world: PortSpec, transport: Transport) -> ServoPort:
+        """The arm's servo port on ``world``'s open ``transport``: its kind's backend, the
+        LX kinds given the line's settings (a plugin's kind takes its own defaults)."""
+        from busarm.bus.servo_port import SERVO_PORTS, open_servo_port
+
+        kind = self.servo_kind(world)
+        return open_servo_port(kind, transport,
+                               **(self.line.options() if kind in SERVO_PORTS else {}))
+
 
 @dataclass(frozen=True)
 class BaseSpec:
@@ -136,6 +146,11 @@ class LidarSpec:
     def __post_init__(self) -> None:
         from busarm.lidar.sources import lidar_models  # reads the entry points
 
+        if not isinstance(self.port, SerialPort | SimLidarSpec | TwinSpec):
+            raise ConfigError(f"lidar: port must be a SerialPort(\"/dev/ttyUSB1\"), a "
+                              f"SimLidarSpec() or a TwinSpec with an arena, got {self.port!r} "
+                              "(busarm.robot.port_url.parse_lidar_port reads a port string)")
+
         models = lidar_models()
         if self.model not in models or self.model == "twin":
             raise ConfigError(f"lidar: model = {self.model!r}; allowed: "
@@ -152,8 +167,10 @@ class CameraSpec:
 
     ``source``: a camera (``/dev/video0``, an index, a stream URL; ``busarm.vision.camera``);
     on a twin, None or ``twin`` is the twin's own. ``intrinsics``/``hand_eye``: calibration
-    files; else the calibration kept in ``store`` (refused if stale); on a twin a missing
-    one is made there (``calibrate``), into ``store`` or ``folder`` if given."""
+    files; else the calibration kept in ``store`` (refused if stale), by default (``keep``)
+    the robot's own folder in the user's configuration, as the command line keeps it
+    (busarm.robot.calibration_store); on a twin a missing one is made there (``calibrate``:
+    a few seconds, once), into that store, or into ``folder`` if given instead."""
 
     __repr__ = short_repr
 
@@ -163,9 +180,11 @@ class CameraSpec:
     calibrate: bool = True
     store: CalibrationStore | None = None
     folder: Path | None = None
+    keep: bool = True
 
     def __post_init__(self) -> None:
         check_flag("camera: calibrate", self.calibrate)
+        check_flag("camera: keep", self.keep)
         if self.store is not None and self.folder is not None:
             raise ConfigError("camera: give a calibration store or a folder, not both")
         if self.hand_eye is not None and self.intrinsics is None:  # solved with those
@@ -175,6 +194,17 @@ class CameraSpec:
     @property
     def files_given(self) -> bool:
         return self.intrinsics is not None or self.hand_eye is not None
+
+    def kept_in(self, world: PortSpec) -> CalibrationStore | None:
+        """Where the calibration is kept for the robot in ``world``: the store given, else
+        (``keep``, no folder) the robot's own; None when files are given."""
+        if self.files_given:
+            return None
+        if self.store is None and self.keep and self.folder is None:
+            from busarm.robot.calibration_store import CalibrationStore
+
+            return CalibrationStore.for_port(world)
+        return self.store
 
 
 @dataclass(frozen=True)
@@ -198,7 +228,19 @@ class RobotConfig:
     def __post_init__(self) -> None:
         if not isinstance(self.world, PortSpec):
             raise ConfigError(f"world: a SerialPort, SimSpec, TwinSpec or ZenohPort, got "
-                              f"{self.world!r}")
+                              f"{self.world!r} (RobotConfig.from_port reads a port string)")
+        for key, kind, value in (("arm", ArmSpec, self.arm), ("camera", CameraSpec, self.camera),
+                                 ("base", BaseSpec | None, self.base),
+                                 ("lidar", LidarSpec | None, self.lidar)):
+            if not isinstance(value, kind):
+                raise ConfigError(f"{key}: a {kind.__name__ if isinstance(kind, type) else kind}"
+                                  f", got {value!r}" + (" (CameraSpec() is none given)"
+                                                        if key == "camera" else ""))
+        if self.bins is not None:
+            _check_bins(self.bins)
+        if self.camera.source == "twin" and not self.is_twin:
+            raise ConfigError(f"camera: source 'twin' is a twin's own camera; {self.world.name} "
+                              "is not a twin")
         if isinstance(self.world, ZenohPort) and (self.base or self.lidar):
             raise ConfigError(f"{self.world.name}: a robot served on Zenoh has what it has "
                               "where it is served (its base and Lidar are chosen there)")
@@ -230,3 +272,16 @@ class RobotConfig:
     def with_world(self, world: PortSpec) -> RobotConfig:
         """The same robot in another world (e.g. a twin with a board on its table)."""
         return replace(self, world=world)
+
+
+def _check_bins(bins: Mapping[str, tuple[float, float]]) -> None:
+    """Each bin a colour and a place on the table: (x_mm, y_mm), finite numbers."""
+    if not isinstance(bins, Mapping):
+        raise ConfigError(f"bins: colour -> (x_mm, y_mm), got {bins!r}")
+    for colour, where in bins.items():
+        if (not isinstance(colour, str) or not isinstance(where, tuple | list)
+                or len(where) != 2):
+            raise ConfigError(f"bins: {colour!r} -> {where!r}; each bin is a colour and "
+                              "(x_mm, y_mm)")
+        check_range(f"bins: {colour} x_mm", where[0], -1000.0, 1000.0, "mm")
+        check_range(f"bins: {colour} y_mm", where[1], -1000.0, 1000.0, "mm")

@@ -21,7 +21,7 @@ from busarm.base.base import Base
 from busarm.base.config import ChassisConfig, load_chassis_config
 from busarm.bus.board_bus import BoardServoBus
 from busarm.bus.ports import SerialPort
-from busarm.bus.servo_port import ServoPort, open_servo_port
+from busarm.bus.servo_port import ServoPort
 from busarm.bus.transport import Transport
 from busarm.errors import ConfigError
 from busarm.lidar.scan import LidarSource
@@ -76,14 +76,13 @@ def open_parts(config: RobotConfig, needs: Collection[str], progress: Progress) 
     """Open what ``config`` describes (not a robot served on Zenoh: busarm.robot.remote)."""
     world = config.world
     cam = config.camera
-    store = cam.store if not cam.files_given else None
+    store = cam.kept_in(world)
     world.check()  # a missing adapter first: it is what to fix first
     check_needs(needs, config, store)
     given, cal = arm_files(config.arm)
     transport, twin, arm_config = _arm_transport(config, given)
     with closed_on_error([transport]) as opened:  # a failure: nothing sent, just close
-        bus = open_servo_port(config.arm.servo_kind(config.world), transport,
-                              **config.arm.line.options())
+        bus = config.arm.open_servos(config.world, transport)
         arm = Arm(bus, arm_config, cal)
         source = kept(opened, _open_camera(cam.source, twin))
         made_for = None if store is None or source is None else MadeFor.for_camera(

@@ -20,6 +20,8 @@ the ranges are the ports' own checks.
 
 from __future__ import annotations
 
+import difflib
+import os
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
@@ -67,6 +69,7 @@ def parse_port(text: str) -> PortSpec:
         return _twin(query, text, None)
     if kind == "zenoh":
         return _zenoh(text)
+    _check_device_name(text)
     return SerialPort(text, label=text)
 
 
@@ -209,3 +212,17 @@ def port_text(port: ZenohPort) -> str:
     host = f"[{port.host}]" if ":" in port.host else port.host
     robot = "" if port.robot == DEFAULT_ROBOT else f"?robot={port.robot}"
     return f"zenoh://{host}:{port.port}{robot}"
+
+
+def _check_device_name(text: str) -> None:
+    """On POSIX a device is a path (/dev/...) or a pyserial URL: anything else is a port
+    misspelt (``twn``, ``twin?seed=3``), said as such rather than as a missing adapter."""
+    if os.name != "posix" or text.startswith("/") or "://" in text:
+        return
+    head = text.split("?", 1)[0]
+    near = difflib.get_close_matches(head, ["sim", "twin"], n=1, cutoff=0.5)
+    hint = (f"; did you mean {near[0]}" + ("://?" + text.split("?", 1)[1] if "?" in text
+                                          else "") + "?") if near else ""
+    raise ConfigError(f"port {text!r} is not a device path (/dev/ttyUSB0), a pyserial URL "
+                      f"(socket://HOST:PORT), sim[://?...], twin[://?...], board://... or "
+                      f"zenoh://HOST{hint}")

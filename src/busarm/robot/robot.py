@@ -30,7 +30,6 @@ from types import TracebackType
 from busarm.arm.arm import Arm
 from busarm.arm.config import ArmConfig
 from busarm.base.base import Base
-from busarm.bus.servo_port import open_servo_port
 from busarm.bus.zenoh_link import ZenohPort
 from busarm.clock import Clock
 from busarm.errors import ConfigError
@@ -159,9 +158,7 @@ class Robot:
             if missing:
                 raise ConfigError(f"the robot on {world.name} has no {listing(missing)}: give "
                                   "them here, or serve them with it")
-            bus = open_servo_port(config.arm.servo_kind(world), transport,
-                                  **config.arm.line.options())
-            arm = Arm(bus, given or parts.config, cal)
+            arm = Arm(config.arm.open_servos(world, transport), given or parts.config, cal)
             robot = cls(arm, camera=source, calibration=calibration,
                         bins=dict(config.bins) if config.bins else parts.bins)
             robot.description = config

@@ -165,8 +165,8 @@ class _Reader(TomlReader):
         values = {k: self._value(k, v) for k, v in table.items()}
         try:
             return cls(**values, **given)
-        except ConfigError as exc:
-            raise self.fail(where, str(exc)) from None
+        except ConfigError as exc:  # its message names its part already: not twice
+            raise self.fail(where, str(exc).removeprefix(f"{where.split('.')[0]}: ")) from None
         except TypeError as exc:  # a value of the wrong kind where a check did not look
             raise self.fail(where, str(exc)) from None
 
@@ -190,14 +190,14 @@ def robot_file_text(config: RobotConfig, name: str) -> str:
     controller = getattr(world, "controller", None)
     if controller is not None:
         lines += ["", "[world.controller]", *_keys(controller)]
-    lines += ["", "[arm]", *_keys(config.arm, skip={"line"}), "", "[arm.line]",
-              *_keys(config.arm.line)]
+    lines += _section("arm", _keys(config.arm, skip={"line"}))
+    lines += _section("arm.line", _keys(config.arm.line))
     if config.base is not None:
         lines += ["", "[base]", f"chassis = {_toml(config.base.chassis)}"]
     if config.lidar is not None:
         lines += ["", "[lidar]", f"model = {toml_string(config.lidar.model)}",
                   *_lidar_place(config.lidar.port, world)]
-    lines += ["", "[camera]", *_keys(config.camera)]
+    lines += _section("camera", _keys(config.camera))
     if config.bins:
         lines += ["", "[bins]", *(f"{toml_string(c)} = [{x!r}, {y!r}]"
                                   for c, (x, y) in config.bins.items())]
@@ -207,6 +207,11 @@ def robot_file_text(config: RobotConfig, name: str) -> str:
 def save_robot_file(path: str | Path, config: RobotConfig, name: str) -> None:
     """Write ``config`` as a robot file at ``path`` (atomically)."""
     write_text_atomic(path, robot_file_text(config, name), "robot file")
+
+
+def _section(name: str, keys: list[str]) -> list[str]:
+    """A table's lines, none for a table with nothing but defaults."""
+    return ["", f"[{name}]", *keys] if keys else []
 
 
 def _lidar_place(port: Any, world: PortSpec) -> list[str]:

@@ -117,6 +117,9 @@ class SimSpec:
     """The port in the user's own words (for messages), if given that way."""
 
     def __post_init__(self) -> None:
+        if self.controller is not None and not isinstance(self.controller, BoardSettings):
+            raise ConfigError(f"sim: controller must be a BoardSettings() (the simulated "
+                              f"controller board in front), got {self.controller!r}")
         for sid in self.ids:
             check_int_range("sim: ids", sid, 0, 253)
         for key in ("echo", "timing", "block", "realtime"):

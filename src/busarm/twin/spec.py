@@ -98,6 +98,9 @@ class TwinSpec:
     """The port in the user's own words (for messages), if given that way."""
 
     def __post_init__(self) -> None:
+        if self.controller is not None and not isinstance(self.controller, BoardSettings):
+            raise ConfigError(f"twin: controller must be a BoardSettings() (the simulated "
+                              f"controller board in front), got {self.controller!r}")
         given = {k for k in (*_SEEDED, "scene", "arena", *_MOBILE)
                  if getattr(self, k) is not None}
         if self.family is not None and self.family not in FAMILIES:
