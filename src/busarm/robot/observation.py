@@ -307,8 +307,10 @@ def check_action(action: Action, arm: Arm, chassis: ChassisConfig | None) -> Che
     twist = None
     if action.base is not None:
         if chassis is None:
-            raise ConfigError(f"{', '.join(BASE_KEYS)}: this robot has no base (a mobile "
-                              "robot opens on a board:// port with a chassis)")
+            raise ConfigError(f"{', '.join(BASE_KEYS)}: this robot has no base (its wheels "
+                              "are on the controller board: a board:// port with a chassis, "
+                              "BaseSpec(...) on hardware, a twin in an arena with "
+                              "controller=BoardSettings())")
         twist = _twist(chassis, action.base)
     return CheckedAction(joints, gap, duration, twist)
 
