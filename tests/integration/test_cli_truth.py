@@ -251,6 +251,27 @@ def test_ctrl_c_during_a_move_exits_130_with_one_true_line(
     assert sim.servo(1).is_loaded
 
 
+@pytest.mark.wallclock("SIGTERM to a real process, moving servos served on a real pty")
+def test_sigterm_during_a_move_stops_as_ctrl_c_does_and_exits_143(
+        pty_arm: tuple[str, ListeningSim]) -> None:
+    """What `timeout`, systemd and container runtimes send: the servos held, one line
+    saying so, 128 + 15."""
+    path, sim = pty_arm
+    move = busarm("--port", path, *MARGIN, "move", "1", "100", "--time", "5", "--wait")
+    assert move.stdout is not None
+    assert "moving" in move.stdout.readline()
+    move.send_signal(signal.SIGTERM)
+    try:
+        _, err = move.communicate(timeout=20)
+    finally:
+        move.kill()
+    assert move.returncode == 143, err
+    assert err.strip().splitlines() == [
+        "stopped by SIGTERM: all servos stopped (MOVE_STOP); servo 1 holding position "
+        "(torque on)"]
+    assert sim.servo(1).is_loaded
+
+
 @pytest.mark.wallclock(SIGINT_REASON + " at a moment of the wall clock, as a person presses it")
 @pytest.mark.parametrize("after_s", [0.0, 0.3, 0.6, 1.2])
 def test_a_ctrl_c_at_any_moment_is_one_line_and_130(after_s: float, tmp_path: Path) -> None:

@@ -281,9 +281,13 @@ def calibrated(twin_calibration: tuple[Path, Path]) -> list[str]:
     return ["--intrinsics", str(twin_calibration[0]), "--hand-eye", str(twin_calibration[1])]
 
 
-@pytest.mark.wallclock("Ctrl+C to a line-follow process while it drives")
-def test_ctrl_c_stops_the_wheels_and_keeps_the_report(
-        tmp_path: Path, twin_calibration: tuple[Path, Path]) -> None:
+@pytest.mark.wallclock("Ctrl+C, SIGTERM or SIGHUP to a line-follow process while it drives")
+@pytest.mark.parametrize(("sent", "code", "said"), [
+    (signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "stopped by SIGTERM"),
+    (signal.SIGHUP, 129, "stopped by SIGHUP")], ids=["ctrl-c", "sigterm", "sighup"])
+def test_a_signal_stops_the_wheels_and_keeps_the_report(
+        tmp_path: Path, twin_calibration: tuple[Path, Path], sent: signal.Signals, code: int,
+        said: str) -> None:
     folder = tmp_path / "report"
     proc = subprocess.Popen(
         [sys.executable, "-m", "busarm", "line-follow", "--arena", str(CLI_SEED), "--report",
@@ -293,14 +297,14 @@ def test_ctrl_c_stops_the_wheels_and_keeps_the_report(
     assert proc.stderr is not None
     assert proc.stderr.readline().startswith("Robot(")
     assert proc.stderr.readline() == "the arm looks ahead: following the line\n"  # under way
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(sent)
     try:
         _, err = proc.communicate(timeout=30)
     finally:
         proc.kill()
-    assert proc.returncode == 130, err
+    assert proc.returncode == code, err
     assert err.strip().splitlines() == [
-        "interrupted: all servos stopped (MOVE_STOP); servos 1-5, 10 holding position "
+        f"{said}: all servos stopped (MOVE_STOP); servos 1-5, 10 holding position "
         f"(torque on); the wheels stopped; report: {folder}/report.json"]
     data = json.loads((folder / "report.json").read_text())
-    assert not data["finished"] and data["why"] == "interrupted"
+    assert not data["finished"] and data["why"] == said

@@ -523,15 +523,17 @@ def serve_until_stopped(server: PtyServer) -> None:
 
 
 def interrupt_on_signals() -> Callable[[], None]:
-    """Make SIGINT and SIGTERM raise KeyboardInterrupt (even if SIGINT was inherited as
-    ignored, as in background jobs); return a function restoring the old handlers."""
+    """Make SIGINT, SIGTERM and SIGHUP raise KeyboardInterrupt (even if SIGINT was
+    inherited as ignored, as in background jobs): a server stops cleanly on each; return
+    a function restoring the old handlers."""
     if threading.current_thread() is not threading.main_thread():
         return lambda: None
 
     def handler(signum: int, frame: FrameType | None) -> None:
         raise KeyboardInterrupt
 
-    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    previous = {sig: signal.signal(sig, handler)
+                for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
 
     def restore() -> None:
         for sig, old in previous.items():

@@ -54,7 +54,7 @@ from busarm.cli import (
 from busarm.cli.bench_cmd import bench
 from busarm.cli.common import Settings, report_line, unwritten_text
 from busarm.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OUTPUT_CLOSED
-from busarm.cli.stopping import new_command, servos_note
+from busarm.cli.stopping import Terminated, new_command, servos_note, stop_on_termination
 from busarm.errors import BusArmError, ConfigError
 from busarm.version import __version__
 
@@ -83,11 +83,22 @@ def _fail(message: str, code: int, exc: BaseException | None = None) -> NoReturn
 
 
 def _interrupted(exc: BaseException, message: str = "interrupted") -> NoReturn:
-    """Ctrl+C: one line, what the servos were left doing, exit code 130."""
-    if sys.stderr.isatty():
+    """Ctrl+C: one line, what the servos were left doing, exit code 130; SIGTERM or
+    SIGHUP the same, saying which, with 128 + its number (143, 129), as a shell reports a
+    program it ended."""
+    signalled = _terminated(exc)
+    if signalled is not None:
+        message = str(signalled) if message == "interrupted" else message
+    elif sys.stderr.isatty():
         click.echo(err=True)  # off the line where the terminal echoed ^C
     click.echo(report_line(exc, message, unwritten=unwritten_text()), err=True)
-    sys.exit(EXIT_INTERRUPTED)
+    sys.exit(EXIT_INTERRUPTED if signalled is None else 128 + signalled.signum)
+
+
+def _terminated(exc: BaseException) -> Terminated | None:
+    """The SIGTERM or SIGHUP ``exc`` came of, if it did."""
+    found = _of(exc, Terminated)
+    return found if isinstance(found, Terminated) else None
 
 
 def _output_closed(exc: BaseException) -> NoReturn:
@@ -104,14 +115,19 @@ def _output_closed(exc: BaseException) -> NoReturn:
 def _by(exc: BaseException, kind: type[BaseException]) -> bool:
     """Whether ``exc`` is, or came of, a ``kind`` (click turns an EOF at a prompt into its
     Abort; rich turns a broken pipe into SystemExit)."""
+    return _of(exc, kind) is not None
+
+
+def _of(exc: BaseException, kind: type[BaseException]) -> BaseException | None:
+    """The ``kind`` that ``exc`` is or came of, if any."""
     seen: BaseException | None = exc
     met: set[int] = set()
     while seen is not None and id(seen) not in met:
         if isinstance(seen, kind):
-            return True
+            return seen
         met.add(id(seen))
         seen = seen.__cause__ or seen.__context__
-    return False
+    return None
 
 
 def _of_ctrl_c(exc: BaseException) -> bool:
@@ -140,6 +156,14 @@ class BusArmGroup(click.Group):
         **extra: Any,
     ) -> Any:
         new_command()
+        restore = stop_on_termination()
+        try:
+            return self._main(args, prog_name, complete_var, standalone_mode, **extra)
+        finally:
+            restore()
+
+    def _main(self, args: Sequence[str] | None, prog_name: str | None,
+              complete_var: str | None, standalone_mode: bool, **extra: Any) -> Any:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning
             try:

@@ -10,8 +10,11 @@ does not answer is named as such.
 from __future__ import annotations
 
 import functools
+import signal
+import threading
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import AbstractContextManager, contextmanager
+from types import FrameType
 from typing import Any, TypeVar, cast
 
 from busarm.bus.lx_port import LxServoPort
@@ -26,6 +29,8 @@ __all__ = [
     "NOTHING_WRITTEN",
     "SILENT",
     "STOP_SENT",
+    "TERMINATING",
+    "Terminated",
     "add_detail",
     "details",
     "halt_motor",
@@ -37,6 +42,7 @@ __all__ = [
     "servos_note",
     "stop_and_read_back",
     "stop_motors",
+    "stop_on_termination",
     "torque_text",
     "unwritten_text",
 ]
@@ -50,6 +56,37 @@ _wrote_before: list[bool] = []
 _without_servos: list[bool] = []
 """Holds True once a command that has no servos (``no_servos``) has started."""
 F = TypeVar("F", bound=Callable[..., Any])
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP (what ``timeout``, systemd, container runtimes and a closed
+    terminal send), handled as a Ctrl+C is: the arm held, the wheels stopped, the report
+    so far written; the program then exits with 128 + the signal's number."""
+
+    def __init__(self, signum: int) -> None:
+        self.signum = signum
+        super().__init__(f"stopped by {signal.Signals(signum).name}")
+
+
+TERMINATING = (signal.SIGTERM, signal.SIGHUP)
+
+
+def stop_on_termination() -> Callable[[], None]:
+    """Make SIGTERM and SIGHUP raise ``Terminated`` in the main thread (as Ctrl+C raises
+    KeyboardInterrupt); return a function restoring the handlers there were."""
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        raise Terminated(signum)
+
+    previous = {sig: signal.signal(sig, handler) for sig in TERMINATING}
+
+    def restore() -> None:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+    return restore
 
 
 def new_command() -> None:

@@ -260,8 +260,8 @@ class LineFollowJob:
             self.report.why = str(exc)
             raise
         except BaseException as exc:
-            self.report.why = ("interrupted" if isinstance(exc, KeyboardInterrupt) else
-                               f"stopped by an error: {str(exc) or type(exc).__name__}")
+            self.report.why = ((str(exc) or "interrupted") if isinstance(exc, KeyboardInterrupt)
+                               else f"stopped by an error: {str(exc) or type(exc).__name__}")
             raise
         finally:
             self.base.stop()

@@ -395,7 +395,8 @@ class PickSorter:
                     outcome.outcome, outcome.reason = "failed", why
             self.verify_bins(report)
         except BaseException as exc:
-            report.stopped = ("interrupted (Ctrl+C)" if isinstance(exc, KeyboardInterrupt)
+            report.stopped = ((str(exc) or "interrupted (Ctrl+C)")
+                              if isinstance(exc, KeyboardInterrupt)
                               else f"{type(exc).__name__}: {exc}")
             report.gripper = "not read back (interrupted again)"  # if a Ctrl+C cuts it short
             report.gripper = self._stop_and_read_gripper()
