@@ -29,7 +29,7 @@ from click.testing import CliRunner
 from busarm.apps.line_follow.job import LineFollowJob
 from busarm.base.odometry import Pose2D
 from busarm.cli.main import cli
-from busarm.errors import NavigationError
+from busarm.errors import HaltedError, NavigationError
 from busarm.robot import CameraSpec, Robot, RobotConfig
 from busarm.sim.spec import BoardSettings
 from busarm.twin.arena import Arena, ArenaBlock, FloorLine, Room, Solid, StartPose
@@ -201,6 +201,21 @@ def test_something_that_stays_in_the_way_ends_the_run(twin_calibration: tuple[Pa
         assert twin.mobile is not None and twin.mobile.contacts == []
     assert not job.report.finished and job.report.why.startswith("something")
     assert [s.cleared for s in job.report.stops] == [False]
+
+
+def test_a_persons_stop_is_reported_as_a_stop(twin_calibration: tuple[Path, Path]) -> None:
+    """The dashboard's Stop (a halt in the job's step hook) is a stop in the report, not
+    "stopped by an error" (issue 30)."""
+    with robot_in(ellipse_arena(), twin_calibration) as (robot, twin):
+        def stop_button(job: LineFollowJob) -> None:
+            if job.report.travelled_m > 0.2:
+                raise HaltedError("stopped from the dashboard")
+
+        job = LineFollowJob(robot, laps=1.0, on_step=stop_button)
+        with pytest.raises(HaltedError):
+            job.run()
+        assert robot.base is not None and robot.base.command.is_zero
+    assert not job.report.finished and job.report.why == "stopped from the dashboard"
 
 
 def test_the_end_of_the_tape_is_searched_for_then_reported(

@@ -53,7 +53,7 @@ from busarm.apps.transport.mobile_pick import FLOOR, BlockSeen, pick_block, put_
 from busarm.apps.transport.workspace import Workspace, half_size_m, m_text
 from busarm.base.kinematics import Twist
 from busarm.base.odometry import Pose2D, wrap_rad
-from busarm.errors import NavigationError, UnreachableError
+from busarm.errors import HaltedError, NavigationError, UnreachableError
 from busarm.lidar.scan import to_points
 from busarm.nav.line_track import LineController, LineTracker, in_stop_range, obstacle_ahead
 from busarm.nav.mapping import compose
@@ -260,7 +260,9 @@ class LineFollowJob:
             self.report.why = str(exc)
             raise
         except BaseException as exc:
-            self.report.why = ((str(exc) or "interrupted") if isinstance(exc, KeyboardInterrupt)
+            # A person's stop (Ctrl+C, a signal, a halt or a page's Stop) is a stop.
+            stopped = isinstance(exc, KeyboardInterrupt | HaltedError)
+            self.report.why = ((str(exc) or "interrupted") if stopped
                                else f"stopped by an error: {str(exc) or type(exc).__name__}")
             raise
         finally:
