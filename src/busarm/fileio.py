@@ -10,9 +10,11 @@ old file or the new one.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
+import stat
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -93,6 +95,8 @@ __all__ = [
     "RUNTIME_DIR_ENV",
     "atomic_path",
     "config_home",
+    "own_dir",
+    "pid_alive",
     "read_versioned_json",
     "robot_folder",
     "robot_key",
@@ -188,3 +192,34 @@ def runtime_dir() -> Path:
         return Path(xdg) / "busarm"
     user = os.getuid() if hasattr(os, "getuid") else os.environ.get("USERNAME", "user")
     return Path(tempfile.gettempdir()) / f"busarm-{user}"
+
+
+def own_dir(folder: Path, *, create: bool) -> bool:
+    """Whether ``folder`` is a directory of this user (made, private, if ``create``).
+
+    In a shared /tmp another user could make the folder first and plant files there
+    (runtime files naming their ports, locks keeping us off our devices): a folder that
+    is not ours is not trusted."""
+    if create:
+        with contextlib.suppress(OSError):
+            folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+    try:
+        info = folder.lstat()
+    except OSError:
+        return False
+    if not stat.S_ISDIR(info.st_mode):
+        return False
+    return not hasattr(os, "getuid") or info.st_uid == os.getuid()
+
+
+def pid_alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (this user's or another's)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # it exists, run by someone else
+    except OSError:
+        return False
+    return True

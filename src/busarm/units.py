@@ -18,6 +18,7 @@ from typing import Any
 from busarm.errors import ConfigError
 
 __all__ = [
+    "changed_fields",
     "check_int_range",
     "check_range",
     "fixed_number",
@@ -166,21 +167,29 @@ def parse_ids(text: str) -> list[int]:
     return ids
 
 
-def short_repr(obj: Any) -> str:
-    """``Name(key=value, ...)`` of a dataclass, with only the fields that differ from their
-    defaults (and not ``label``): a description's repr a person can read. A long value (a
-    scene, an arm config) is shown by its name or kind."""
-    parts = []
+def changed_fields(obj: Any) -> list[tuple[str, Any]]:
+    """(name, value) of a dataclass's fields whose values differ from their defaults (not
+    ``label``: the user's own words for it), in their order."""
+    out = []
     for f in dataclasses.fields(obj):
         value = getattr(obj, f.name)
         default = (f.default if f.default is not dataclasses.MISSING else
                    f.default_factory() if f.default_factory is not dataclasses.MISSING
                    else dataclasses.MISSING)
-        if f.name == "label" or value == default:
-            continue
+        if f.name != "label" and value != default:
+            out.append((f.name, value))
+    return out
+
+
+def short_repr(obj: Any) -> str:
+    """``Name(key=value, ...)`` of a dataclass, with only the fields that differ from their
+    defaults (``changed_fields``): a description's repr a person can read. A long value
+    (a scene, an arm config) is shown by its name or kind; a part shown so, in full."""
+    parts = []
+    for name, value in changed_fields(obj):
         text = repr(value)
-        if len(text) > 60 and getattr(type(value), "__repr__", None) is not short_repr:  # a part
-            name = getattr(value, "name", None) or getattr(value, "source", None)
-            text = f"<{type(value).__name__}{f' {name!r}' if name else ''}>"
-        parts.append(f"{f.name}={text}")
+        if len(text) > 60 and getattr(type(value), "__repr__", None) is not short_repr:
+            shown_as = getattr(value, "name", None) or getattr(value, "source", None)
+            text = f"<{type(value).__name__}{f' {shown_as!r}' if shown_as else ''}>"
+        parts.append(f"{name}={text}")
     return f"{type(obj).__name__}({', '.join(parts)})"

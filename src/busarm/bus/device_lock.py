@@ -24,14 +24,13 @@ import json
 import os
 import re
 import shlex
-import stat
 import sys
 import time
 from pathlib import Path
 from types import TracebackType
 
 from busarm.errors import DeviceInUseError, TransportError
-from busarm.fileio import RUNTIME_DIR_ENV, runtime_dir
+from busarm.fileio import RUNTIME_DIR_ENV, own_dir, pid_alive, runtime_dir
 
 __all__ = [
     "DeviceInUseError",
@@ -135,21 +134,13 @@ def lock_device(port: str) -> DeviceLock:
 
 
 def _check_folder(folder: Path, port: str) -> None:
-    """Make ``folder`` (private) if need be; TransportError unless it is this user's.
-
-    In a shared /tmp another user could make it first, and plant lock files there that
-    would keep us off our own devices."""
-    with contextlib.suppress(OSError):
-        folder.mkdir(mode=0o700, parents=True, exist_ok=True)
-    try:
-        info = folder.lstat()
-    except OSError as exc:
-        raise TransportError(f"cannot lock {port}: no lock folder {folder} "
-                             f"({exc.strerror or exc}); set ${RUNTIME_DIR_ENV} to a "
-                             "folder of yours") from exc
-    if not stat.S_ISDIR(info.st_mode) or info.st_uid != os.getuid():
-        raise TransportError(f"cannot lock {port}: {folder} is not a folder of yours; set "
-                             f"${RUNTIME_DIR_ENV} to one")
+    """Make ``folder`` (private) if need be; TransportError unless it is this user's
+    (busarm.fileio.own_dir: another user's could hold locks that keep us off our own
+    devices)."""
+    if not own_dir(folder, create=True):
+        raise TransportError(f"cannot lock {port}: no lock folder {folder} of yours (it "
+                             "cannot be made, or it is not yours); set "
+                             f"${RUNTIME_DIR_ENV} to a folder of yours")
 
 
 def _write_holder(fd: int) -> None:
@@ -174,19 +165,9 @@ def _holder(fd: int) -> tuple[int | None, str]:
         pid, command = (data.get("pid"), data.get("command")) if isinstance(
             data, dict) else (None, None)
         if isinstance(pid, int) and not isinstance(pid, bool) and pid > 0 and isinstance(
-                command, str) and _alive(pid):
+                command, str) and pid_alive(pid):
             return pid, command
     return None, ""
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:
-        return True  # it exists, run by someone else
-    return True
 
 
 def _file_name(device: str) -> str:

@@ -449,9 +449,9 @@ def calibration_store(settings: Settings, default: str = "sim") -> CalibrationSt
     from busarm.robot.calibration_store import CalibrationStore
 
     if settings.port_given or default == "sim":
-        key = settings.robot_key()
-        return CalibrationStore(key, robot_folder(key), settings.port if settings.port_given
-                                else settings.default_port(say=False))
+        return CalibrationStore.for_robot(settings.robot_key(), settings.port
+                                          if settings.port_given
+                                          else settings.default_port(say=False))
     return CalibrationStore.for_port(parse_port(default))
 
 

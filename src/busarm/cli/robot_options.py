@@ -19,7 +19,6 @@ if TYPE_CHECKING:
     from busarm.robot.description import RobotConfig, ServoLine
     from busarm.twin.arena import Arena
     from busarm.twin.scene import Scene
-    from busarm.twin.spec import TwinSpec
     from busarm.vision.camera import CameraSource
 
 __all__ = [
@@ -56,7 +55,7 @@ def describe_robot(
             what = "a scene" if scene is not None else "an arena"
             raise ConfigError(f"{what} is for the twin; {world.name} is not one (use --port "
                               "twin, or no --port)")
-        world = _placed(world, scene, arena)
+        world = world.placed(scene=scene, arena=arena)
     if board is not None and isinstance(world, TwinSpec):  # on hardware, a person lays it
         world = world.with_board(board)
     base = BaseSpec(chassis) if chassis is not None and not isinstance(world, TwinSpec) else None
@@ -70,19 +69,6 @@ def describe_robot(
         camera=CameraSpec(camera, intrinsics, hand_eye, calibrate, calibration_store,
                           calibration_dir, keep=False),
         bins=bins)
-
-
-def _placed(world: TwinSpec, scene: Scene | None, arena: Arena | None) -> TwinSpec:
-    """The twin ``world`` with ``scene`` or ``arena`` as its world (not both, and not
-    when its port already chose one)."""
-    if scene is None and arena is None:
-        return world
-    chosen = [k for k in ("family", "seed", "blocks", "colors", "board", "scene", "arena")
-              if getattr(world, k) is not None]
-    if chosen:
-        raise ConfigError(f"{world.name}: the world is given twice (in the port and as "
-                          f"{'a scene' if scene is not None else 'an arena'})")
-    return replace(world, scene=scene, arena=arena)
 
 
 def with_realtime(world: PortSpec) -> PortSpec:

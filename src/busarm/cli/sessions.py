@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import json
 import os
-import stat
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
@@ -28,7 +27,13 @@ from pathlib import Path
 
 from busarm.bus.ports import PortSpec, SerialPort
 from busarm.errors import ConfigError
-from busarm.fileio import RUNTIME_DIR_ENV, runtime_dir, write_text_atomic
+from busarm.fileio import (
+    RUNTIME_DIR_ENV,
+    own_dir,
+    pid_alive,
+    runtime_dir,
+    write_text_atomic,
+)
 
 __all__ = [
     "FORMAT_NAME",
@@ -72,23 +77,6 @@ class Session:
         return f"the {what} of `busarm {self.kind} serve` (pid {self.pid}) on {self.port}"
 
 
-def _own_dir(folder: Path, create: bool) -> bool:
-    """Whether ``folder`` is a directory of this user (made, private, if ``create``).
-
-    In a shared /tmp another user could make the folder first and plant files naming
-    their ports; a folder that is not ours is not trusted."""
-    if create:
-        with suppress(OSError):
-            folder.mkdir(mode=0o700, parents=True, exist_ok=True)
-    try:
-        info = folder.lstat()
-    except OSError:
-        return False
-    if not stat.S_ISDIR(info.st_mode):
-        return False
-    return not hasattr(os, "getuid") or info.st_uid == os.getuid()
-
-
 @contextmanager
 def announced(kind: str, port: str, camera: str | None = None,
               lidar: str | None = None) -> Iterator[Path | None]:
@@ -97,7 +85,7 @@ def announced(kind: str, port: str, camera: str | None = None,
     The file is removed when the body ends, by an exception or SIGTERM too (the caller
     turns SIGTERM into KeyboardInterrupt); a SIGKILL leaves it, and readers clean it."""
     folder = runtime_dir()
-    if kind not in KINDS or not _own_dir(folder, create=True):
+    if kind not in KINDS or not own_dir(folder, create=True):
         yield None
         return
     path = folder / f"{kind}-{os.getpid()}.json"
@@ -116,18 +104,6 @@ def announced(kind: str, port: str, camera: str | None = None,
     finally:
         if written is not None:
             written.unlink(missing_ok=True)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True  # it exists, run by someone else
-    except OSError:
-        return False
-    return True
 
 
 def _read(path: Path) -> Session | None:
@@ -151,7 +127,7 @@ def _read(path: Path) -> Session | None:
 def running_sessions() -> list[Session]:
     """The servers running now, newest first; stale runtime files are removed."""
     folder = runtime_dir()
-    if not _own_dir(folder, create=False):
+    if not own_dir(folder, create=False):
         return []
     found = []
     for path in folder.glob("*.json"):
@@ -160,7 +136,7 @@ def running_sessions() -> list[Session]:
             continue  # not ours to judge or remove
         world = _world(session.port)
         device = world.device if isinstance(world, SerialPort) else session.port
-        if not _alive(session.pid) or not Path(device).exists():
+        if not pid_alive(session.pid) or not Path(device).exists():
             with suppress(OSError):
                 path.unlink()
             continue

@@ -203,7 +203,13 @@ class CalibrationStore:
     @classmethod
     def for_port(cls, port: PortSpec) -> CalibrationStore:
         """The store of the robot on ``port``, in the user's configuration directory."""
-        return cls(port.robot_key, robot_folder(port.robot_key), port.name)
+        return cls.for_robot(port.robot_key, port.name)
+
+    @classmethod
+    def for_robot(cls, key: str, port: str) -> CalibrationStore:
+        """The store of the robot ``key`` (a port's ``robot_key``) in the user's
+        configuration directory; ``port`` is how its remaking commands name it."""
+        return cls(key, robot_folder(key), port)
 
     @property
     def intrinsics_path(self) -> Path:

@@ -17,7 +17,7 @@ or from the command line's ``--port`` (``RobotConfig.from_port``, read once by
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -268,10 +268,6 @@ class RobotConfig:
         from busarm.robot.port_url import parse_port  # the one place a port is read
 
         return cls(parse_port(port), **parts)
-
-    def with_world(self, world: PortSpec) -> RobotConfig:
-        """The same robot in another world (e.g. a twin with a board on its table)."""
-        return replace(self, world=world)
 
 
 def _check_bins(bins: Mapping[str, tuple[float, float]]) -> None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import tempfile
 from collections.abc import Collection, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -62,14 +63,16 @@ NEEDS = {"camera": "the wrist camera (--camera)",
          "bins": "where the bins are (--bins COLOUR=X,Y;...)"}
 
 
+@dataclass(frozen=True)
 class Parts:
     """What ``open_parts`` opened, for the Robot to hold."""
 
-    def __init__(self, arm: Arm, camera: CameraSource | None,
-                 calibration: CameraCalibration | None, twin: Twin | None, base: Base | None,
-                 lidar: LidarSource | None) -> None:
-        self.arm, self.camera, self.calibration = arm, camera, calibration
-        self.twin, self.base, self.lidar = twin, base, lidar
+    arm: Arm
+    camera: CameraSource | None
+    calibration: CameraCalibration | None
+    twin: Twin | None
+    base: Base | None
+    lidar: LidarSource | None
 
 
 def open_parts(config: RobotConfig, needs: Collection[str], progress: Progress) -> Parts:

@@ -64,9 +64,9 @@ def parse_port(text: str) -> PortSpec:
         return _board_port(text)
     kind, query = _split(text)
     if kind == "sim":
-        return _sim(query, text, None)
+        return _sim(_pairs(query), text, None)
     if kind == "twin":
-        return _twin(query, text, None)
+        return _twin(_pairs(query), text, None)
     if kind == "zenoh":
         return _zenoh(text)
     _check_device_name(text)
@@ -83,8 +83,8 @@ def parse_lidar_port(text: str) -> LidarPort:
         if not (text == "lidar://sim" or text.startswith("lidar://sim?")):
             raise ConfigError(f"Lidar port {text!r}: the only lidar:// port is "
                               "lidar://sim[?hz=...]")
-        query = _query(urlsplit(text).query, "lidar URL", _LIDAR_KEYS)
-        return SimLidarSpec(**query, label=text)
+        values = _values(_pairs(urlsplit(text).query), "lidar URL", _LIDAR_KEYS)
+        return SimLidarSpec(**values, label=text)
     port = parse_port(text)
     if isinstance(port, TwinSpec) and port.controller is None:
         if not port.mobile:
@@ -116,36 +116,29 @@ def _board_port(text: str) -> PortSpec:
     inner = text[len(_BOARD):]
     for kind in ("sim", "twin"):
         if inner == kind or inner.startswith((kind + "?", kind + "://")):
-            query = inner.split("?", 1)[1] if "?" in inner else ""
-            board_keys = {k: v for k, v in parse_qs(query, keep_blank_values=True).items()
-                          if k in _BOARD_KEYS}
-            board = BoardSettings(**_query_of(board_keys, "board URL", _BOARD_KEYS))
-            rest = {k: v for k, v in parse_qs(query, keep_blank_values=True).items()
-                    if k not in _BOARD_KEYS}
-            build = _sim if kind == "sim" else _twin
-            return build(rest, text, board)
+            pairs = _pairs(inner.split("?", 1)[1] if "?" in inner else "")
+            board = BoardSettings(**_values({k: v for k, v in pairs.items()
+                                             if k in _BOARD_KEYS}, "board URL", _BOARD_KEYS))
+            rest = {k: v for k, v in pairs.items() if k not in _BOARD_KEYS}
+            return (_sim if kind == "sim" else _twin)(rest, text, board)
     if not inner:
         raise ConfigError(f"{text!r}: give the board's device after board://, e.g. "
                           "board:///dev/ttyACM0 (or board://sim, board://twin)")
     return SerialPort(inner, board=True, label=text)
 
 
-def _sim(query: str | dict[str, list[str]], text: str, board: BoardSettings | None) -> SimSpec:
-    values = _query(query, "sim URL", _SIM_KEYS) if isinstance(query, str) else _query_of(
-        query, "sim URL", _SIM_KEYS)
+def _sim(pairs: dict[str, list[str]], text: str, board: BoardSettings | None) -> SimSpec:
+    values = _values(pairs, "sim URL", _SIM_KEYS)
     if "ids" in values:
         values["ids"] = tuple(values["ids"])
     return SimSpec(**values, controller=board, label=text)
 
 
-def _twin(query: str | dict[str, list[str]], text: str, board: BoardSettings | None,
-          ) -> TwinSpec:
-    values = _query(query, "twin URL", _TWIN_KEYS) if isinstance(query, str) else _query_of(
-        query, "twin URL", _TWIN_KEYS)
-    for key in ("colors",):
-        if key in values:
-            values[key] = tuple(values[key])
-    for key in ("config", "chassis"):
+def _twin(pairs: dict[str, list[str]], text: str, board: BoardSettings | None) -> TwinSpec:
+    values = _values(pairs, "twin URL", _TWIN_KEYS)
+    if "colors" in values:
+        values["colors"] = tuple(values["colors"])
+    for key in ("config", "chassis"):  # given empty: the default
         if key in values and not values[key]:
             del values[key]
     return TwinSpec(**values, controller=board, label=text)
@@ -169,11 +162,12 @@ def _zenoh(text: str) -> ZenohPort:
                      label=text)
 
 
-def _query(query: str, what: str, known: set[str]) -> dict[str, Any]:
-    return _query_of(parse_qs(query, keep_blank_values=True), what, known)
+def _pairs(query: str) -> dict[str, list[str]]:
+    """A query's keys and their values (blank ones kept: ``scene=`` is a key given)."""
+    return parse_qs(query, keep_blank_values=True)
 
 
-def _query_of(raw: dict[str, list[str]], what: str, known: set[str]) -> dict[str, Any]:
+def _values(raw: dict[str, list[str]], what: str, known: set[str]) -> dict[str, Any]:
     """The keys of a query as their fields' kinds; ConfigError naming a bad key or value."""
     unknown = set(raw) - known
     if unknown:

@@ -56,6 +56,7 @@ from busarm.robot.description import (
 from busarm.sim.spec import BoardSettings, SimLidarSpec, SimSpec
 from busarm.tomlfile import TomlReader, parse_toml, toml_string
 from busarm.twin.spec import TwinSpec
+from busarm.units import changed_fields
 
 __all__ = [
     "FORMAT_NAME",
@@ -227,16 +228,8 @@ def _lidar_place(port: Any, world: PortSpec) -> list[str]:
 
 def _keys(spec: Any, skip: frozenset[str] | set[str] = frozenset()) -> list[str]:
     """``key = value`` of the fields of ``spec`` that differ from their defaults."""
-    out = []
-    for f in dataclasses.fields(spec):
-        value = getattr(spec, f.name)
-        default = (f.default if f.default is not dataclasses.MISSING else
-                   f.default_factory() if f.default_factory is not dataclasses.MISSING
-                   else dataclasses.MISSING)
-        if f.name in skip or f.name == "label" or value == default:
-            continue
-        out.append(f"{f.name} = {_toml(value, f.name)}")
-    return out
+    return [f"{name} = {_toml(value, name)}" for name, value in changed_fields(spec)
+            if name not in skip]
 
 
 def _toml(value: Any, key: str = "") -> str:

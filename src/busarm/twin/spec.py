@@ -176,6 +176,16 @@ class TwinSpec:
     def check(self) -> None:
         """Nothing to check before opening: the twin is always there."""
 
+    def placed(self, *, scene: Scene | None = None, arena: Arena | None = None) -> TwinSpec:
+        """This twin with ``scene`` or ``arena`` as its world; ConfigError when it has
+        chosen one already (a seeded table or arena, a scene, an arena)."""
+        if scene is None and arena is None:
+            return self
+        if any(getattr(self, k) is not None for k in (*_SEEDED, "scene", "arena")):
+            raise ConfigError(f"{self.name}: the world is given twice (in the port and as "
+                              f"{'a scene' if scene is not None else 'an arena'})")
+        return replace(self, scene=scene, arena=arena)
+
     def with_board(self, board: str) -> TwinSpec:
         """This twin with calibration ``board`` on its table (unless its scene is given,
         or it already has that board)."""
