@@ -1,7 +1,7 @@
 """The dashboard's Mobile panel in a real browser, against a real `busarm dashboard` on the
 mobile robot's twin in an arena (``--port board://twin?family=arena&seed=3``).
 
-Transport is started from the panel; the map picture arrives beside the wrist camera,
+Transport is started from the panel; the map picture arrives (the wrist camera streams),
 the job's progress lines under them; the panel's Stop ends the job and the page says so.
 
 BUSARM_DASHBOARD_SCREENSHOT=1 also writes the panel's picture to
@@ -58,7 +58,7 @@ def test_mobile_panel_runs_transport_shows_the_map_and_stops(
         expect(progress).to_contain_text("drive to pick", timeout=DOCS_WAIT_S * 1000)
         page.wait_for_timeout(3000)  # the plan and the drive under way on the map
     page.wait_for_function(
-        "() => document.querySelector('#mobile-cam').naturalWidth > 0", timeout=30_000)
+        "() => document.querySelector('#cam-wrist').naturalWidth > 0", timeout=30_000)
     picture = panel.screenshot()
     assert picture.startswith(b"\x89PNG")
     (tmp_path / "dashboard-mobile.png").write_bytes(picture)

@@ -209,8 +209,8 @@ def move_box(robot: Robot, x_m: float, y_m: float) -> None:
 
 def simulated_lidar(robot: Robot) -> SimRplidar:
     """The simulated A1 behind ``robot.lidar``'s bytes."""
-    assert isinstance(robot.lidar, RplidarA1)
-    transport = robot.lidar.transport
+    assert robot.lidar is not None and isinstance(robot.lidar.source, RplidarA1)
+    transport = robot.lidar.source.transport
     assert isinstance(transport, SimTransport)
     assert isinstance(transport.bus, SimRplidar)
     return transport.bus

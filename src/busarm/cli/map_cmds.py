@@ -122,7 +122,13 @@ def point(settings: Settings, name: str, map_file: Path, points_file: Path,
     the blocks' spot, about 0.2 m ahead): localised on the map with the Lidar."""
     from busarm.apps.transport.job import teach_point
     from busarm.nav.map_files import load_map
-    from busarm.nav.points import NamedPoints, check_point_name, load_points, save_points
+    from busarm.nav.points import (
+        NamedPoints,
+        check_point_name,
+        load_points,
+        map_reference,
+        save_points,
+    )
 
     check_point_name(name)
     grid = load_map(map_file)
@@ -132,18 +138,10 @@ def point(settings: Settings, name: str, map_file: Path, points_file: Path,
     with open_mobile_robot(settings, arena_spec, chassis, lidar_port) as robot:
         taught = teach_point(robot, grid, name, surface_m=surface_m, near=near)
     points = NamedPoints(known.name, {**known.points, name: taught}, source=str(points_file))
-    save_points(points_file, points, _relative(map_file, points_file))
+    save_points(points_file, points, map_reference(map_file, points_file))
     p = taught.pose
     settings.out.print(f"{name}: x {p.x_m:+.3f} m, y {p.y_m:+.3f} m, {p.yaw_deg:+.1f} deg on "
                        f"{map_file}; saved in {points_file}", highlight=False, markup=False)
-
-
-def _relative(map_file: Path, points_file: Path) -> str:
-    """The map's path as the points file names it (relative to its folder when it can)."""
-    try:
-        return str(map_file.resolve().relative_to(points_file.resolve().parent))
-    except ValueError:
-        return str(map_file.resolve())
 
 
 COMMANDS = [map_group]

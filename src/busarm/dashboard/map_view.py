@@ -6,7 +6,8 @@ map's frame) at most every ``MAP_PERIOD_S`` (``MapView.due``): copies, so that t
 server's thread draws it (busarm.nav.map_picture) while the job goes on. ``png()`` draws
 the newest scene once and keeps its PNG for every page that asks (``GET /map.png``);
 the scene's number is in each ``state`` message (``map``), so a page loads a new picture
-only when there is one.
+only when there is one, and ``info()`` (``GET /api/map``) says where the map's metres
+fall on it, so that a click on a map names a point there.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import numpy.typing as npt
 
 from busarm.base.odometry import Pose2D
 from busarm.nav.grid import OccupancyGrid
-from busarm.nav.map_picture import map_picture
+from busarm.nav.map_picture import map_picture, picture_frame
 from busarm.vision.annotate import draw_label, label_size
 
 __all__ = [
@@ -58,6 +59,9 @@ class MapScene:
     returns: tuple[Point, ...] = ()
     """The latest Lidar returns."""
     marks: Mapping[str, Point] = field(default_factory=dict)
+    frame: str = "map"
+    """``map``: the frame of the named points (a click there names one); ``odometry``:
+    where the base started (line following's picture)."""
 
     def picture(self) -> Image:
         image = map_picture(self.grid, path=self.path, plans=self.plans,
@@ -99,6 +103,17 @@ class MapView:
             self._sequence += 1
             self._shown_at = time.monotonic()
 
+    def info(self) -> dict[str, object]:
+        """The newest scene's number, frame, and where its metres fall on its picture."""
+        with self._lock:
+            scene, sequence = self._scene, self._sequence
+        if scene is None:
+            return {"sequence": sequence, "frame": None}
+        f = picture_frame(scene.grid)
+        return {"sequence": sequence, "frame": scene.frame, "origin_x_m": f.origin_x_m,
+                "origin_y_m": f.origin_y_m, "px_per_m": f.px_per_m, "width_px": f.width_px,
+                "height_px": f.height_px, "marks": {k: list(v) for k, v in scene.marks.items()}}
+
     def png(self) -> tuple[int, bytes]:
         """(the scene's number, its picture as PNG); drawn once per scene."""
         with self._lock:
@@ -107,7 +122,7 @@ class MapView:
             return kept
         image = scene.picture() if scene is not None else _titled(
             np.full((EMPTY_PX[1], EMPTY_PX[0], 3), 128, np.uint8),
-            "no map yet: start transport or line following")
+            "no map yet: transport maps the arena first (on a twin), or start with --map")
         ok, data = cv2.imencode(".png", image)
         if not ok:  # not expected of an 8-bit BGR picture; the page keeps its last one
             raise RuntimeError("the map picture could not be encoded as PNG")

@@ -38,10 +38,10 @@ from busarm.base.base import Base
 from busarm.base.odometry import Pose2D
 from busarm.dashboard.jobs import report_folder
 from busarm.dashboard.map_view import MapScene, MapView, Point
-from busarm.dashboard.protocol import LineFollow, NavTransport, RequestError
+from busarm.dashboard.protocol import LineFollow, NamePoint, NavTransport, RequestError
 from busarm.errors import BusArmError, ConfigError, HaltedError, NavigationError
 from busarm.fileio import write_text_atomic
-from busarm.lidar.scan import to_points
+from busarm.lidar.scan import LaserScan, to_points
 from busarm.nav.grid import GridSpec, OccupancyGrid, cropped
 from busarm.nav.mapping import compose, inverse, transform_points
 from busarm.nav.points import NamedPoints
@@ -137,12 +137,18 @@ class MobileJobs:
         self._where: tuple[Pose2D, Pose2D] | None = None
         """(the base's pose on the map, the odometry's pose then) when a job last knew."""
         self._canvas: OccupancyGrid | None = None
+        self._points_file: Path | None = None
+        """Where the named points are kept (a point named on the page is saved there)."""
+        self._map_file: Path | None = None
         loaded = None if setup is None else setup.load()
         if loaded is not None:
             if not self.available:
                 raise ConfigError("--points and --map are for a robot with a base and a "
                                   "Lidar (--port board://..., --chassis and --lidar)")
             self._grid, self._points = loaded
+            assert setup is not None
+            self._points_file = setup.points_file
+            self._map_file = setup.map_file or self._points.map_path
 
     @property
     def available(self) -> bool:
@@ -163,7 +169,8 @@ class MobileJobs:
         if not self.available:
             return None
         return {"points": self.point_names(), "arena": self._arena() is not None,
-                "colors": block_colors()}
+                "colors": block_colors(), "map": self._grid is not None,
+                "points_file": None if self._points_file is None else str(self._points_file)}
 
     # ------------------------------------------------------------------ checks
 
@@ -213,7 +220,14 @@ class MobileJobs:
             job = TransportJob(self.robot, grid, points, request.pick, request.place,
                                color=request.color, progress=say,
                                on_scan=self._nav_hook(cancel, points, request, said))
-            report = job.run(start)
+            try:
+                report = job.run(start)
+            except HaltedError as exc:  # a stop (the job's own report says so): kept too
+                path = write_transport_report(_report_folder(self.reports, "transport"),
+                                              job.report, grid, points, job.pictures)
+                exc.notes = [*getattr(exc, "notes", []),  # type: ignore[attr-defined]
+                             f"the report so far: {path}"]
+                raise
             self._remember(job.nav)
             folder = _report_folder(self.reports, "transport")
             path = write_transport_report(folder, report, grid, points, job.pictures)
@@ -253,6 +267,7 @@ class MobileJobs:
         save_points(folder / "points.toml", points, "map.yaml")
         progress(run.summary(folder / "map.yaml"))
         self._grid, self._points = run.grid, points
+        self._points_file, self._map_file = folder / "points.toml", folder / "map.yaml"
         return run.grid, points, run.poses[-1] if run.poses else None
 
     def _start(self) -> Pose2D | None:
@@ -284,8 +299,7 @@ class MobileJobs:
 
     def _nav_hook(self, cancel: threading.Event, points: NamedPoints, request: NavTransport,
                   said: list[str]) -> Callable[[Navigator, SensedScan], None]:
-        marks = {name: (p.pose.x_m, p.pose.y_m) for name, p in points.points.items()
-                 if name in (request.pick, request.place)}
+        marks = _marks(points)
 
         def hook(nav: Navigator, sensed: SensedScan) -> None:
             _stop_if(cancel)
@@ -342,7 +356,8 @@ class MobileJobs:
             title = (f"line following (odometry frame): {r.laps_done:.2f} of {r.laps_wanted:g}"
                      f" lap(s), {r.travelled_m:.1f} m")
             self.view.show(MapScene(self._blank((*path, *marks.values())), title, path,
-                                    pose=job.odometry, returns=returns, marks=marks))
+                                    pose=job.odometry, returns=returns, marks=marks,
+                                    frame="odometry"))
         return hook
 
     def _blank(self, points: Sequence[Point]) -> OccupancyGrid:
@@ -364,6 +379,44 @@ class MobileJobs:
         write_text_atomic(path, json.dumps(report.to_dict(), indent=2) + "\n", "report")
         return path
 
+    # ------------------------------------------------------------------ between jobs
+
+    def show_idle(self, scan: LaserScan) -> None:
+        """Between jobs (about once a second): the map, when there is one, with the named
+        points, the base where the odometry has carried it since a job last knew where it
+        was, and ``scan``'s returns around it."""
+        if self._grid is None or not self.view.due():
+            return
+        pose = self._start()
+        if pose is None:
+            title = "map: where the base is on it is not known yet (a job localises it)"
+            returns: tuple[Point, ...] = ()
+        else:
+            title = "map: the base now (odometry since the last job), the Lidar's returns"
+            returns = _points_seen(to_points(scan, self._base().config.lidar), pose)
+        marks = _marks(self._points) if self._points is not None else {}
+        self.view.show(MapScene(self._grid, title, pose=pose, returns=returns, marks=marks))
+
+    def name_point(self, request: NamePoint) -> Path:
+        """Keep a named point on the map (for transport) in the points file, atomically;
+        the file it is in. RequestError when there is no map to name it on."""
+        if self._grid is None or self._points_file is None:
+            raise RequestError("name_point: no map yet: run transport (a twin in an arena "
+                               "maps itself first) or start the dashboard with --points and "
+                               "--map")
+        from busarm.nav.points import NamedPoint, check_point_name, map_reference, save_points
+
+        name = check_point_name(request.name)
+        known = self._points or NamedPoints(self._points_file.stem)
+        point = NamedPoint(name, Pose2D(request.x_m, request.y_m,
+                                        math.radians(request.yaw_deg)))
+        points = NamedPoints(known.name, {**known.points, name: point}, self._map_file,
+                             str(self._points_file))
+        save_points(self._points_file, points, None if self._map_file is None else
+                    map_reference(self._map_file, self._points_file))
+        self._points = points
+        return self._points_file
+
     # ------------------------------------------------------------------ the base
 
     def _base(self) -> Base:
@@ -374,6 +427,10 @@ class MobileJobs:
         """The wheels stopped (allowed while halted); a link that fails is said by the job."""
         with contextlib.suppress(BusArmError):
             self._base().stop()
+
+
+def _marks(points: NamedPoints) -> dict[str, Point]:
+    return {name: (p.pose.x_m, p.pose.y_m) for name, p in points.points.items()}
 
 
 def _report_folder(reports: Path, kind: str) -> Path:

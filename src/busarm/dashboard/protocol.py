@@ -27,6 +27,13 @@ pick_sort     ``colors`` (list), ``order`` (nearest, colors)
 transport     ``pick``, ``place`` (named points; default pick, place), ``color``
               (optional): fetch a block from one point and deliver it to the other (a
               twin in an arena with no points file explores to map it first)
+base_drive    ``vx_m_s`` (forward), ``vy_m_s`` (left), ``wz_rad_s`` (counter-clockwise),
+              within the base's limits (the robot's ``base`` in ``welcome``): drive
+              at that twist until ``base_stop``, or until the driver falls silent
+              (no message for 250 ms: the deadman; the wheels stop)
+base_stop     stop the wheels now (the key or button was released)
+name_point    ``name``, ``x_m``, ``y_m``, ``yaw_deg``: a named point on the map (for
+              transport), kept in the points file
 line_follow   ``laps`` (0.05..100), ``speed_m_s`` (0.01..0.5), ``colors`` (list, maybe
               empty: block colours cleared off the line)
 stop          stop the job and any motion, holding (not latched)
@@ -55,15 +62,18 @@ __all__ = [
     "JOG_AXES",
     "LAPS_RANGE",
     "LINE_SPEED_RANGE_M_S",
+    "MAX_BASE_NUMBER",
     "MAX_MESSAGE_BYTES",
     "MIN_JOG_SPEED",
     "NAME_CHARS",
     "PICK_ORDERS",
     "RECORD_ACTIONS",
+    "BaseDrive",
     "Drive",
     "Gripper",
     "Jog",
     "LineFollow",
+    "NamePoint",
     "Named",
     "NavTransport",
     "PickSort",
@@ -87,6 +97,9 @@ LAPS_RANGE = (0.05, 100.0)
 LINE_SPEED_RANGE_M_S = (0.01, 0.5)
 DEFAULT_CLEAR_COLORS = ("red", "green", "blue")
 MIN_JOG_SPEED = 0.05
+MAX_BASE_NUMBER = 1e3
+"""A base request's numbers beyond this are refused as nonsense here; the base's own
+limits are checked where the wheels are driven (busarm.dashboard.service)."""
 NAME_CHARS = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-."
 
 
@@ -112,6 +125,25 @@ class Jog(Request):
     axis: str | None
     direction: int
     speed: float
+
+
+@dataclass(frozen=True)
+class BaseDrive(Request):
+    """``base_drive``: the base at this twist (m/s forward and left, rad/s)."""
+
+    vx_m_s: float
+    vy_m_s: float
+    wz_rad_s: float
+
+
+@dataclass(frozen=True)
+class NamePoint(Request):
+    """``name_point``: a named point on the map (m, its frame; heading in deg)."""
+
+    name: str
+    x_m: float
+    y_m: float
+    yaw_deg: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -163,7 +195,7 @@ class LineFollow(Request):
     colors: tuple[str, ...] = DEFAULT_CLEAR_COLORS
 
 
-_BARE = ("heartbeat", "release", "jog_stop", "stop", "estop", "rearm")
+_BARE = ("heartbeat", "release", "jog_stop", "base_stop", "stop", "estop", "rearm")
 
 
 def parse_request(text: str | bytes, joint_names: tuple[str, ...]) -> Request:
@@ -252,6 +284,22 @@ def _jog(kind: str, fields: dict[str, Any], joints: tuple[str, ...]) -> Request:
     return Jog(kind, joint, axis, int(direction), speed)
 
 
+def _base_drive(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request:
+    f = _take(fields, kind, ("vx_m_s", "vy_m_s", "wz_rad_s"))
+    vx, vy, wz = (_number(kind, key, f.get(key, 0.0), -MAX_BASE_NUMBER, MAX_BASE_NUMBER)
+                  for key in ("vx_m_s", "vy_m_s", "wz_rad_s"))
+    return BaseDrive(kind, vx, vy, wz)
+
+
+def _name_point(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request:
+    f = _take(fields, kind, ("name", "x_m", "y_m", "yaw_deg"))
+    name = _name(kind, f.get("name"))
+    x, y = (_number(kind, key, f.get(key), -MAX_BASE_NUMBER, MAX_BASE_NUMBER)
+            for key in ("x_m", "y_m"))
+    return NamePoint(kind, name, x, y, _number(kind, "yaw_deg", f.get("yaw_deg", 0.0),
+                                               -180.0, 180.0))
+
+
 def _named(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request:
     key = "group" if kind == "play" else "name"
     f = _take(fields, kind, (key,))
@@ -322,7 +370,8 @@ def _line_follow(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Reque
 
 _PARSERS = {
     **{kind: _bare for kind in _BARE},
-    "drive": _drive, "jog": _jog, "move_pose": _named, "save_pose": _named,
+    "drive": _drive, "jog": _jog, "base_drive": _base_drive, "name_point": _name_point,
+    "move_pose": _named, "save_pose": _named,
     "gripper": _gripper, "torque": _torque, "play": _named, "record": _record,
     "pick_sort": _pick_sort, "transport": _transport, "line_follow": _line_follow,
 }

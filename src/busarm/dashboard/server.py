@@ -10,7 +10,8 @@ with uvicorn until Ctrl+C, then stops the robot (holding) and closes it.
   twin).
 - ``GET /api/state``, ``GET /api/robot``: the newest state and the robot, as JSON.
 - ``GET /map.png``: a mobile robot's map with what its job did on it
-  (busarm.dashboard.map_view); the number of the newest one is each state's ``map``.
+  (busarm.dashboard.map_view); the number of the newest one is each state's ``map``;
+  ``GET /api/map``: where its metres fall on the picture (a click names a point).
 - ``GET /reports/NAME/FILE``: a pick-and-sort report's files.
 
 Every request passes ``Access`` first (busarm.dashboard.access).
@@ -42,6 +43,7 @@ from busarm.dashboard.service import RobotService
 from busarm.errors import BusArmError, ConfigError
 
 __all__ = [
+    "LIVE",
     "OUTBOX",
     "STATIC",
     "STATIC_TYPES",
@@ -59,16 +61,20 @@ STATIC = resources.files("busarm.dashboard") / "static"
 STATIC_TYPES = {".html": "text/html", ".js": "text/javascript", ".css": "text/css",
                 ".svg": "image/svg+xml"}
 OUTBOX = 64
-"""Messages waiting for a slow page; beyond this its oldest state messages are dropped."""
+"""Messages waiting for a slow page; beyond this its oldest live ones (state, scan) are
+dropped."""
+LIVE = ('{"type":"state"', '{"type":"scan"')
+"""The messages a newer one of replaces: a slow page may miss old ones."""
 _ids = itertools.count(1)
 
 
 class Delivered:
-    """What the server has sent: state messages per page, frames per camera stream (for
-    the benchmark: ``GET /api/delivered``)."""
+    """What the server has sent: state and scan messages per page, frames per camera
+    stream (for the benchmark: ``GET /api/delivered``)."""
 
     def __init__(self) -> None:
         self.states: dict[str, int] = {}
+        self.scans: dict[str, int] = {}
         self.frames: dict[str, int] = {}
         self._streams = itertools.count(1)
 
@@ -137,7 +143,8 @@ def _page_routes(app: FastAPI, service: RobotService, delivered: Delivered) -> N
 
     @app.get("/api/delivered")
     async def counts() -> JSONResponse:
-        return JSONResponse({"states": delivered.states, "frames": delivered.frames})
+        return JSONResponse({"states": delivered.states, "scans": delivered.scans,
+                             "frames": delivered.frames})
 
     @app.get("/api/robot")
     async def robot() -> JSONResponse:
@@ -165,6 +172,13 @@ def _media_routes(app: FastAPI, service: RobotService, feeds: dict[str, Feed],
         sequence, png = await asyncio.to_thread(service.mobile.view.png)
         return Response(png, media_type="image/png",
                         headers={"Cache-Control": "no-store", "X-Map-Sequence": str(sequence)})
+
+    @app.get("/api/map")
+    async def map_info() -> JSONResponse:
+        if not service.mobile.available:
+            return JSONResponse({"error": "no map: this robot has no base and Lidar"},
+                                status_code=404)
+        return JSONResponse(service.mobile.view.info())
 
     @app.get("/reports/{name}/{file:path}")
     async def report(name: str, file: str) -> Response:
@@ -208,7 +222,7 @@ async def _session(socket: WebSocket, service: RobotService, delivered: Delivere
         loop.call_soon_threadsafe(_offer, outbox, text)
 
     welcome = service.subscribe(client, put)
-    delivered.states[client] = 0
+    delivered.states[client] = delivered.scans[client] = 0
     sender = asyncio.create_task(_send_all(socket, outbox, welcome, delivered, client))
     try:
         while True:
@@ -230,7 +244,7 @@ async def _session(socket: WebSocket, service: RobotService, delivered: Delivere
 
 def _offer(outbox: asyncio.Queue[str], text: str) -> None:
     if outbox.qsize() >= OUTBOX:  # a page that cannot keep up misses old states, not logs
-        kept = [t for t in _drain(outbox) if not t.startswith('{"type":"state"')]
+        kept = [t for t in _drain(outbox) if not t.startswith(LIVE)]
         for t in kept[-OUTBOX // 2:]:
             outbox.put_nowait(t)
     outbox.put_nowait(text)
@@ -250,8 +264,10 @@ async def _send_all(socket: WebSocket, outbox: asyncio.Queue[str], first: str,
         while True:
             text = await outbox.get()
             await socket.send_text(text)
-            if text.startswith('{"type":"state"'):
+            if text.startswith(LIVE[0]):
                 delivered.states[client] += 1
+            elif text.startswith(LIVE[1]):
+                delivered.scans[client] += 1
     except (WebSocketDisconnect, RuntimeError):
         pass
 

@@ -40,11 +40,13 @@ from busarm.dashboard import jobs
 from busarm.dashboard.jog import JogPlan
 from busarm.dashboard.mobile import MobileJobs, MobileSetup
 from busarm.dashboard.protocol import (
+    BaseDrive,
     Drive,
     Gripper,
     Jog,
     LineFollow,
     Named,
+    NamePoint,
     NavTransport,
     PickSort,
     Record,
@@ -53,6 +55,8 @@ from busarm.dashboard.protocol import (
     Torque,
     message,
 )
+from busarm.dashboard.sensing import LiveScans
+from busarm.dashboard.teleop import BaseTeleop, base_limits
 from busarm.errors import BusArmError, HaltedError
 from busarm.fileio import robot_folder
 from busarm.robot import Robot
@@ -130,12 +134,25 @@ class RobotService:
         # does not delay the stop of a jog whose heartbeat is gone.
         self._watchdog = threading.Thread(target=self._watch, name="busarm-dashboard-deadman",
                                           daemon=True)
+        self.teleop = BaseTeleop(robot.base, self.log) if robot.base is not None else None
+        self.scans = self._live_scans()
+
+    def _live_scans(self) -> LiveScans | None:
+        robot = self.robot
+        if robot.lidar is None or robot.base is None:
+            return None
+        return LiveScans(robot.lidar, robot.base.config.lidar,
+                         publish=lambda fields: self.publish("scan", **fields),
+                         watched=lambda: bool(self._subscribers),
+                         busy=lambda: self._job is not None, idle=self.mobile.show_idle)
 
     # ------------------------------------------------------------------ lifecycle
 
     def start(self) -> RobotService:
         self._thread.start()
         self._watchdog.start()
+        if self.scans is not None:
+            self.scans.start()
         return self
 
     def close(self) -> None:
@@ -144,6 +161,8 @@ class RobotService:
             return
         self.stop("the dashboard is closing", who=None)
         self._closed.set()
+        if self.scans is not None:
+            self.scans.close()
         for thread in (self._thread, self._watchdog):
             if thread.is_alive():
                 thread.join(timeout=2)
@@ -186,6 +205,8 @@ class RobotService:
             "groups": self.group_names(), "cameras": sorted(self.robot.cameras),
             "colors": ["red", "green", "blue", "yellow"],
             "mobile": self.mobile.describe(),
+            "base": base_limits(self.robot.base) if self.robot.base is not None else None,
+            "bins": sorted(self.robot.bins),
         }
 
     def group_names(self) -> list[str]:
@@ -234,6 +255,7 @@ class RobotService:
             with self._lock:
                 self.driver = None
             self._stop_jog("the driver left the seat")
+            self._stop_base("the driver left the seat")
             self.publish("role", driver=None)
             self.log(f"page {client} stopped driving")
         elif kind == "stop":
@@ -242,6 +264,14 @@ class RobotService:
             self.rearm(client)
         elif kind == "jog_stop":
             self._stop_jog("released")
+        elif kind == "base_stop":
+            self._stop_base("released")
+        elif kind == "name_point":
+            assert isinstance(request, NamePoint)
+            path = self.mobile.name_point(request)
+            self.log(f"point {request.name!r} at x {request.x_m:+.2f} m, y {request.y_m:+.2f} "
+                     f"m, {request.yaw_deg:+.0f} deg saved in {path}")
+            self.publish("robot", robot=self.describe())
         elif kind == "record":
             assert isinstance(request, Record)
             self._record(request)
@@ -252,6 +282,8 @@ class RobotService:
             self._check_can_move(kind)
             if isinstance(request, Jog):
                 self._start_jog(request)
+            elif isinstance(request, BaseDrive):
+                self._start_base(request)
             elif isinstance(request, Torque):
                 self._torque(request)
             else:
@@ -267,6 +299,7 @@ class RobotService:
             before, self.driver, self._heard = self.driver, client, time.monotonic()
         if before is not None:
             self._stop_jog(f"page {client} took over")
+            self._stop_base(f"page {client} took over")
         self.publish("role", driver=client)
         self.log(f"page {client} drives" + (f" (took over from {before})" if before else ""))
 
@@ -287,11 +320,14 @@ class RobotService:
             job = self._job
         if job is not None:
             job.cancel.set()
+        self._stop_base("e-stop")
         self.log(f"E-STOP: {why}; every servo holds where it stopped; re-arm to move again",
                  "error")
 
     def stop(self, why: str, *, who: str | None) -> None:
-        """Cancel the job and the jog; every servo holds (MOVE_STOP). Not latched."""
+        """Cancel the job and the jog; every servo holds (MOVE_STOP), the wheels stop.
+        Not latched."""
+        self._stop_base(why)
         with self._jog_io:
             with self._lock:
                 self._jog = None
@@ -321,6 +357,18 @@ class RobotService:
         self.arm.bus.rearm()
         self.log(f"re-armed by page {client}: the robot may move again")
 
+    # ------------------------------------------------------------------ the base
+
+    def _start_base(self, request: BaseDrive) -> None:
+        if self.teleop is None:
+            raise RequestError("base_drive: this robot has no base (open the dashboard on "
+                               "a controller board with a chassis)")
+        self.teleop.start(self.teleop.check(request))
+
+    def _stop_base(self, why: str) -> None:
+        if self.teleop is not None:
+            self.teleop.stop(why)
+
     # ------------------------------------------------------------------ jog
 
     def _start_jog(self, request: Jog) -> None:
@@ -345,10 +393,14 @@ class RobotService:
         self.log(f"jog {what} stopped ({why}); the joints hold")
 
     def _watch(self) -> None:
-        """The deadman: a jog stops when the driver has not been heard for JOG_HOLD_S."""
+        """The deadman: a jog stops when the driver has not been heard for JOG_HOLD_S, the
+        base's drive after BASE_HOLD_S (and is repeated to the base meanwhile)."""
         while not self._closed.wait(WATCH_PERIOD_S):
             with self._lock:
-                lost = self._jog is not None and time.monotonic() - self._heard > JOG_HOLD_S
+                silent_s = time.monotonic() - self._heard
+                lost = self._jog is not None and silent_s > JOG_HOLD_S
+            if self.teleop is not None:
+                self.teleop.tick(silent_s)
             if lost:
                 self._stop_jog(f"no heartbeat from the driver for {JOG_HOLD_S * 1000:.0f} ms")
 
@@ -416,6 +468,7 @@ class RobotService:
 
     def _start_job(self, request: Request) -> None:
         run, name = self._job_for(request)
+        self._stop_base(f"{request.type} starts")
         with self._lock:
             if self._job is not None:
                 raise RequestError(f"{request.type}: {self._job.name} is running")
@@ -536,5 +589,8 @@ class RobotService:
                 "recording": None if self._recording is None else len(self._recording),
                 "map": self.mobile.view.sequence if self.mobile.available else None,
             })
+        if self.teleop is not None:
+            state["base"] = self.teleop.state()
+            state["lidar_error"] = None if self.scans is None else self.scans.error
         self.last_state = state
         self.publish("state", **state)

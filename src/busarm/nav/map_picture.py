@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import cv2
@@ -22,8 +23,10 @@ __all__ = [
     "PLAN_BGR",
     "POSE_BGR",
     "POSE_RADIUS_M",
+    "PictureFrame",
     "Point",
     "map_picture",
+    "picture_frame",
 ]
 
 
@@ -37,6 +40,37 @@ POSE_RADIUS_M = 0.2
 """The base drawn as a disc this wide (the footprint the planners keep clear)."""
 
 
+@dataclass(frozen=True)
+class PictureFrame:
+    """Where the map's metres fall on its picture: pixel (0, 0) is the top-left corner;
+    ``(x_m - origin_x_m) * px_per_m`` across and ``height_px - (y_m - origin_y_m) *
+    px_per_m`` down."""
+
+    origin_x_m: float
+    origin_y_m: float
+    px_per_m: float
+    width_px: int
+    height_px: int
+
+    def pixel(self, x_m: float, y_m: float) -> tuple[int, int]:
+        return (round((x_m - self.origin_x_m) * self.px_per_m),
+                round(self.height_px - (y_m - self.origin_y_m) * self.px_per_m))
+
+    def metres(self, u_px: float, v_px: float) -> tuple[float, float]:
+        """The map's point at picture pixel (u across, v down)."""
+        return (self.origin_x_m + u_px / self.px_per_m,
+                self.origin_y_m + (self.height_px - v_px) / self.px_per_m)
+
+
+def picture_frame(grid: OccupancyGrid) -> PictureFrame:
+    """The frame of ``map_picture(grid)``: enlarged by a whole factor so that its longer
+    side is at least MIN_SIDE_PX."""
+    h, w = grid.spec.height, grid.spec.width
+    scale = max(1, math.ceil(MIN_SIDE_PX / max(h, w)))
+    s = grid.spec
+    return PictureFrame(s.origin_x_m, s.origin_y_m, scale / s.resolution_m, w * scale, h * scale)
+
+
 def map_picture(grid: OccupancyGrid, *, path: Sequence[Point] = (),
                 plans: Sequence[Sequence[Point]] = (),
                 marks: Mapping[str, Point] | None = None,
@@ -48,15 +82,10 @@ def map_picture(grid: OccupancyGrid, *, path: Sequence[Point] = (),
     (blue), named points (labelled), Lidar returns (orange dots) and the base at ``pose``
     (a disc with its heading); all in metres."""
     pixels = grid_pixels(grid)
-    h, w = pixels.shape
-    scale = max(1, math.ceil(MIN_SIDE_PX / max(h, w)))
+    frame = picture_frame(grid)
+    scale = frame.width_px // pixels.shape[1]
     image = cv2.cvtColor(np.repeat(np.repeat(pixels, scale, 0), scale, 1), cv2.COLOR_GRAY2BGR)
-    s = grid.spec
-    px_per_m = scale / s.resolution_m
-
-    def px(x_m: float, y_m: float) -> tuple[int, int]:
-        return (round((x_m - s.origin_x_m) * px_per_m),
-                round(h * scale - (y_m - s.origin_y_m) * px_per_m))
+    px_per_m, px = frame.px_per_m, frame.pixel
 
     for (dx, dy), bgr in (((AXIS_M, 0.0), (40, 40, 230)), ((0.0, AXIS_M), (40, 170, 40))):
         cv2.arrowedLine(image, px(0.0, 0.0), px(dx, dy), bgr, 2, cv2.LINE_AA, tipLength=0.2)
@@ -71,7 +100,7 @@ def map_picture(grid: OccupancyGrid, *, path: Sequence[Point] = (),
         cv2.drawMarker(image, px(x, y), (180, 0, 180), cv2.MARKER_TILTED_CROSS, 14, 2)
         cv2.putText(image, name, (px(x, y)[0] + 8, px(x, y)[1] - 8), cv2.FONT_HERSHEY_SIMPLEX,
                     0.5, (180, 0, 180), 1, cv2.LINE_AA)
-    bar_y = h * scale - 12
+    bar_y = frame.height_px - 12
     cv2.line(image, (10, bar_y), (10 + round(px_per_m), bar_y), (200, 80, 0), 3)
     cv2.putText(image, "1 m", (12, bar_y - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (200, 80, 0), 1,
                 cv2.LINE_AA)

@@ -44,6 +44,7 @@ __all__ = [
     "NamedPoints",
     "check_point_name",
     "load_points",
+    "map_reference",
     "points_from_toml",
     "points_to_toml",
     "save_points",
@@ -157,6 +158,15 @@ def points_to_toml(points: NamedPoints, map_file: str | None = None) -> str:
                   f"y_m = {p.pose.y_m:.4f}", f"yaw_deg = {p.pose.yaw_deg:.2f}",
                   f"surface_m = {p.surface_m:.4f}"]
     return "\n".join(lines) + "\n"
+
+
+def map_reference(map_file: str | Path, points_file: str | Path) -> str:
+    """The map's path as a points file names it: relative to the points file's folder
+    when it can be, else absolute."""
+    try:
+        return str(Path(map_file).resolve().relative_to(Path(points_file).resolve().parent))
+    except ValueError:
+        return str(Path(map_file).resolve())
 
 
 def save_points(path: str | Path, points: NamedPoints, map_file: str | None = None) -> None:

@@ -35,6 +35,7 @@ from busarm.clock import Clock
 from busarm.errors import ConfigError
 from busarm.fileio import robot_key
 from busarm.lidar.scan import LidarSource
+from busarm.lidar.tap import ScanTap
 from busarm.perception.locate import NOT_BLOCK_COLORS, BlockLocator
 from busarm.progress import Progress, quiet
 from busarm.robot.calibration_store import CameraCalibration
@@ -89,8 +90,9 @@ class Robot:
         """What only a simulated robot has (busarm.robot.sim_handle), else None."""
         self.base = base
         """The mobile base (on a controller board with a chassis config), else None."""
-        self.lidar = lidar
-        """The 2D Lidar (given, or the twin's in an arena), else None."""
+        self.lidar = lidar if lidar is None or isinstance(lidar, ScanTap) else ScanTap(lidar)
+        """The 2D Lidar (given, or the twin's in an arena), else None: a ``ScanTap``,
+        whose scans also reach its listeners (a dashboard's view, a recorder)."""
         self.port = arm.bus.name
         """What it was opened on, as a person names it."""
         self.description: RobotConfig | None = None

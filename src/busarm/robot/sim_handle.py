@@ -49,6 +49,20 @@ class SimHandle:
         mobile = self.twin.mobile
         return None if mobile is None else mobile.pose(self.twin.data)
 
+    def base_velocity(self) -> tuple[float, float, float] | None:
+        """How fast the mobile base really goes (m/s in the arena's x and y, rad/s), or
+        None: truth."""
+        mobile = self.twin.mobile
+        return None if mobile is None else mobile.speed(self.twin.data)
+
+    def wheel_targets_rev_s(self) -> tuple[float, ...] | None:
+        """What the board last told each wheel motor (rev/s), or None without one: truth
+        of what reached the wheels."""
+        mobile = self.twin.mobile
+        if mobile is None or mobile.board is None:
+            return None
+        return tuple(w.target_rev_s for w in mobile.board.wheels)
+
     def live_camera(self, view: str = "arm") -> TwinCamera:
         """A camera of the twin for a person to watch (``arm``: the wrist's, or
         ``overview``), drawn without shadows or antialiasing: several times cheaper on a

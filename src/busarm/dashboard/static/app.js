@@ -99,8 +99,7 @@
     socket.onmessage = (ev) => {
       let msg;
       try { msg = JSON.parse(ev.data); } catch (e) { return; }
-      const handler = HANDLERS[msg.type];
-      if (handler) handler(msg);
+      dispatch(msg);
     };
     socket.onclose = (ev) => {
       if (ws !== socket) return;
@@ -157,7 +156,6 @@
       toast(msg.request, msg.text);
     },
     job(msg) {
-      if (MOBILE_JOBS.includes(msg.name)) addProgress(msg);
       const last = $('job-last');
       if (msg.state === 'running') {
         $('job').textContent = `${msg.name}: ${msg.text}`;
@@ -170,6 +168,15 @@
     report(msg) { showReport(msg.name); },
   };
 
+  /** What other scripts of the page (mobile.js) hook into: each message kind's
+   * listeners are called after this page's own handler, with the message. */
+  const hooks = {};
+  function dispatch(msg) {
+    const handler = HANDLERS[msg.type];
+    if (handler) handler(msg);
+    for (const fn of hooks[msg.type] || []) fn(msg);
+  }
+
   function setRobot(r) {
     robot = r;
     $('robot-name').textContent = r.name;
@@ -181,8 +188,9 @@
     buildPoses(r.poses);
     buildGroups(r.groups);
     buildColors(r.colors);
-    $('mobile').hidden = !r.mobile;
-    if (r.mobile) buildMobile(r.mobile);
+    const sorts = (r.bins || []).length > 0;
+    $('pick-panel').hidden = !sorts;
+    $('pick-none').hidden = sorts;
     $('fig-overview').hidden = !(r.cameras || []).includes('overview');
     $('fig-wrist').hidden = !(r.cameras || []).includes('wrist');
   }
@@ -326,7 +334,6 @@
     }
     renderServos(s.servos || []);
     renderJob(s.job);
-    if (typeof s.map === 'number') loadMap(s.map);
     $('rec-frames').textContent = s.recording === null || s.recording === undefined
       ? 'not recording' : `recording: ${s.recording} frame${s.recording === 1 ? '' : 's'}`;
     markMoving(s.jog);
@@ -657,18 +664,6 @@
                                   duration_ms: Math.round(Number($('rec-duration').value)) }));
   on('rec-save', () => request({ type: 'record', action: 'save', name: $('rec-name').value.trim() }));
   on('rec-cancel', () => request({ type: 'record', action: 'cancel' }));
-  on('tr-run', () => {
-    const color = $('tr-color').value;
-    request({ type: 'transport', pick: $('tr-pick').value, place: $('tr-place').value,
-              ...(color ? { color } : {}) });
-  });
-  on('lf-run', () => {
-    const colors = Array.from(document.querySelectorAll('#lf-colors input:checked'))
-      .map((c) => c.dataset.color);
-    request({ type: 'line_follow', laps: Number($('lf-laps').value),
-              speed_m_s: Number($('lf-speed').value), colors });
-  });
-  on('mobile-stop', () => request({ type: 'stop' }));
   on('pick-run', () => {
     const colors = Array.from(document.querySelectorAll('#pick-colors input:checked'))
       .map((c) => c.dataset.color);
@@ -686,12 +681,8 @@
       img.dataset.live = wanted ? '1' : '';
       img.src = url;
     }
-    const cam = $('mobile-cam');  // the wrist camera again, beside the map
-    const wanted = show && robot && robot.mobile && (robot.cameras || []).includes('wrist');
-    cam.dataset.live = wanted ? '1' : '';
-    cam.src = wanted ? withToken('/camera/wrist.mjpg', { n: String(Date.now()) }) : BLANK;
   }
-  for (const img of [$('cam-wrist'), $('cam-overview'), $('mobile-cam')]) {
+  for (const img of [$('cam-wrist'), $('cam-overview')]) {
     img.addEventListener('error', () => {  // a stream cut (server restarted): retry
       if (img.dataset.live) setTimeout(() => { if (img.dataset.live && connected) startCameras(); }, 2000);
     });
@@ -712,61 +703,6 @@
       img.onerror = () => { img.hidden = true; };  // not in this report (a stopped run)
       img.src = withToken(`${base}${file}`, { n: String(Date.now()) });
     }
-  }
-
-  // ------------------------------------------------------------------ mobile jobs
-
-  const MOBILE_JOBS = ['transport', 'line follow'];
-  const PROGRESS_MAX = 40;
-  let mapShown = -1;     // the number of the map picture shown
-  let mapLoading = false;
-
-  function buildMobile(m) {
-    const fill = (sel, names, preferred) => {
-      const keep = sel.value;
-      sel.replaceChildren(...names.map((n) => el('option', { value: n }, n)));
-      sel.value = names.includes(keep) ? keep : names.includes(preferred) ? preferred : names[0] || '';
-    };
-    fill($('tr-pick'), m.points || [], 'pick');
-    fill($('tr-place'), m.points || [], 'place');
-    const color = $('tr-color');
-    if (color.options.length !== (m.colors || []).length + 1) {
-      color.replaceChildren(el('option', { value: '' }, 'nearest'),
-        ...(m.colors || []).map((c) => el('option', { value: c }, c)));
-    }
-    const box = $('lf-colors');
-    if (box.childElementCount !== (m.colors || []).length) {
-      box.replaceChildren(...(m.colors || []).map((c) => el('label', {},
-        el('input', { type: 'checkbox', 'data-color': c, checked: c !== 'yellow' }), ` ${c}`)));
-    }
-    $('tr-run').disabled = !(m.points || []).length;
-  }
-
-  /** The map picture numbered ``n`` (GET /map.png), unless shown or on its way. */
-  function loadMap(n) {
-    if (n === mapShown || mapLoading) return;
-    const img = $('map-view');
-    mapLoading = true;
-    img.onload = () => { mapLoading = false; mapShown = n; img.dataset.map = String(n); };
-    img.onerror = () => { mapLoading = false; };  // the next state tries again
-    img.src = withToken('/map.png', { n: String(n) });
-  }
-
-  /** A mobile job's progress line: a line on the same step (the words before its first
-   * colon) replaces the one before it; the end is marked done, failed or stopped. */
-  function addProgress(msg) {
-    const list = $('mobile-progress');
-    const text = msg.state === 'running' ? msg.text : `${msg.state}: ${msg.text}`;
-    const step = (t) => t.split(':')[0];
-    const last = list.lastElementChild;
-    if (msg.state === 'running' && last && !last.dataset.end && step(last.textContent) === step(text)) {
-      last.textContent = text;
-    } else {
-      list.append(el('li', { class: msg.state === 'running' ? '' : msg.state,
-                             'data-end': msg.state === 'running' ? null : msg.state }, text));
-    }
-    while (list.childElementCount > PROGRESS_MAX) list.firstElementChild.remove();
-    list.scrollTop = list.scrollHeight;
   }
 
   // ------------------------------------------------------------------ log, errors
@@ -791,6 +727,15 @@
     setTimeout(() => box.remove(), 6000);
     addLog({ t: Date.now() / 1000, level: 'error', text: `refused ${what || 'request'}: ${text}` });
   }
+
+  window.busarm = {
+    $, el, send, request, toast, withToken,
+    /** Call ``fn(msg)`` with every message of ``kind`` (after the page's own handling). */
+    on(kind, fn) { (hooks[kind] = hooks[kind] || []).push(fn); },
+    robot: () => robot,
+    driving: () => connected && me !== null && driver === me,
+    typing,
+  };
 
   renderRole();
   connect();
