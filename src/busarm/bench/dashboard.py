@@ -40,6 +40,9 @@ __all__ = [
     "CHROMIUM_FLAGS",
     "WARM_UP_S",
     "DashboardBenchReport",
+    "browser_driver",
+    "get_json",
+    "open_ws",
     "run_dashboard_bench",
 ]
 
@@ -64,7 +67,8 @@ class DashboardBenchReport:
         return asdict(self)
 
 
-def _ws(url: str) -> ClientConnection:
+def open_ws(url: str) -> ClientConnection:
+    """A page's WebSocket to the dashboard at ``url``, for measuring."""
     # The stop measurements read no messages: let them queue (a few thousand), no pings.
     return connect(url.replace("http", "ws") + "ws", open_timeout=10, ping_interval=None,
                    max_queue=None)
@@ -75,7 +79,7 @@ CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu",
                   "--no-first-run"]
 
 
-def _get(url: str) -> dict[str, Any]:
+def get_json(url: str) -> dict[str, Any]:
     import urllib.request
 
     with urllib.request.urlopen(url, timeout=10) as reply:
@@ -86,17 +90,7 @@ def _rates(url: str, seconds: float, report: DashboardBenchReport,
            progress: Progress) -> None:
     """Two headless Chromium pages on the dashboard (each showing the cameras); what the
     server delivered to them over ``seconds``, after a warm-up."""
-    import shutil
-
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        raise ConfigError("bench dashboard drives two browsers: it needs Playwright "
-                          "(pip install -e '.[dev]')") from None
-    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
-    if chromium is None:
-        raise ConfigError("bench dashboard drives two browsers: it needs Chromium "
-                          "(make browser, or apt-get install chromium)")
+    chromium, sync_playwright = browser_driver()
     moving, mover_id = threading.Event(), list[str]()
     mover = threading.Thread(target=_keep_moving, args=(url, moving, mover_id),
                              name="busarm-bench-mover")
@@ -109,10 +103,27 @@ def _rates(url: str, seconds: float, report: DashboardBenchReport,
         mover.join()
 
 
+def browser_driver() -> tuple[str, Any]:
+    """(Chromium's path, Playwright's ``sync_playwright``); ConfigError naming what is
+    missing."""
+    import shutil
+
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        raise ConfigError("bench dashboard drives two browsers: it needs Playwright "
+                          "(pip install -e '.[dev]')") from None
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    if chromium is None:
+        raise ConfigError("bench dashboard drives two browsers: it needs Chromium "
+                          "(make browser, or apt-get install chromium)")
+    return chromium, sync_playwright
+
+
 def _keep_moving(url: str, moving: threading.Event, mover: list[str]) -> None:
     """The arm waves (the sample action group, again and again) while the rates are
     measured: every camera frame differs, as when a person watches a job."""
-    with _ws(url) as ws:
+    with open_ws(url) as ws:
         mover.append(json.loads(ws.recv(timeout=10))["client"])  # its welcome
         moving.set()
         playing = False
@@ -144,9 +155,9 @@ def _browsers(url: str, seconds: float, report: DashboardBenchReport, progress: 
                 context.pages[0].goto(url)
             time.sleep(WARM_UP_S)
             progress(f"two browsers on the page for {seconds:g} s...")
-            before, start = _get(url + "api/delivered"), time.monotonic()
+            before, start = get_json(url + "api/delivered"), time.monotonic()
             time.sleep(seconds)
-            after, took = _get(url + "api/delivered"), time.monotonic() - start
+            after, took = get_json(url + "api/delivered"), time.monotonic() - start
         finally:
             for context in contexts:
                 context.close()
@@ -183,7 +194,7 @@ def _jog(ws: Connection, direction: int, seconds: float) -> None:
 def _stops(url: str, seen: list[tuple[float, Request]], tries: int,
            report: DashboardBenchReport, progress: Progress) -> None:
     estop, deadman = [], []
-    with _ws(url) as ws:
+    with open_ws(url) as ws:
         # The waving page may not have left the seat yet (the server frees it after its
         # close): then this page watches, and takes the seat over.
         if json.loads(ws.recv(timeout=10))["role"] != "driver":  # its welcome

@@ -28,6 +28,7 @@ from busarm.units import listing
 
 if TYPE_CHECKING:
     from busarm.bench.dashboard import DashboardBenchReport
+    from busarm.bench.dashboard_mobile import MobilePageReport
     from busarm.bench.ik import IkBenchReport
     from busarm.bench.line import LineBenchReport
     from busarm.bench.locate import LocateBenchReport
@@ -379,12 +380,25 @@ def _print_vision(settings: Settings, report: VisionBenchReport) -> None:
               help="How long two pages and two camera streams are measured, in s.")
 @click.option("--tries", type=click.IntRange(1, 1000), default=50, show_default=True,
               help="E-stops (and lost heartbeats) measured.")
+@click.option("--mobile", is_flag=True,
+              help="The mobile robot's page (an arena twin): state and scan rates to two "
+                   "pages; key release, lost heartbeat and e-stop to the wheels stopped.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @pass_settings
 @no_servos
-def bench_dashboard(settings: Settings, seconds: float, tries: int, as_json: bool) -> None:
+def bench_dashboard(settings: Settings, seconds: float, tries: int, mobile: bool,
+                    as_json: bool) -> None:
     """The dashboard on the twin in real time: state rate to two pages while two camera
-    streams run; e-stop (sent to MOVE_STOP at the servos) and lost-heartbeat stop times."""
+    streams run; e-stop (sent to MOVE_STOP at the servos) and lost-heartbeat stop times.
+    With --mobile, the mobile robot's page and the base's stops."""
+    if mobile:
+        from busarm.bench.dashboard_mobile import run_mobile_page_bench
+
+        mobile_report = run_mobile_page_bench(seconds=seconds, tries=tries,
+                                              progress=settings.err.print)
+        _judged(settings, as_json, mobile_report.as_dict(),
+                lambda shown: _print_mobile_page(shown, mobile_report))
+        return
     from busarm.bench.dashboard import run_dashboard_bench
 
     report = run_dashboard_bench(seconds=seconds, tries=tries, progress=lambda text: None
@@ -407,6 +421,26 @@ def _print_dashboard(settings: Settings, report: DashboardBenchReport) -> None:
         f"{report.estop_ms['max']:.1f} ms ({ok(report.estop_ms['p99'] <= 100)} p99 <= 100)\n"
         f"heartbeat lost -> MOVE_STOP: p50 {report.deadman_ms['p50']:.0f} ms, max "
         f"{report.deadman_ms['max']:.0f} ms ({ok(report.deadman_ms['max'] <= 400)} <= 400)")
+
+
+def _print_mobile_page(settings: Settings, report: MobilePageReport) -> None:
+    ok = _verdict
+    hz, scan_hz = min(report.state_hz, default=0.0), min(report.scan_hz, default=0.0)
+    release_p99 = report.key_release_ms["p99"]
+    settings.out.print(
+        f"[bold]busarm bench dashboard --mobile[/] on the arena twin in real time "
+        f"({report.machine['cpu']}, {report.machine['cores']} cores)\n"
+        f"two browsers: state {', '.join(f'{v:.1f}' for v in report.state_hz)} Hz "
+        f"({ok(hz >= 20)} >= 20), Lidar scans {', '.join(f'{v:.1f}' for v in report.scan_hz)}"
+        f" Hz ({ok(scan_hz >= 5)} >= 5), wrist camera "
+        f"{', '.join(f'{v:.1f}' for v in report.camera_fps)} fps\n"
+        f"key released -> wheels told 0, {report.tries} tries: p50 "
+        f"{report.key_release_ms['p50']:.1f} ms, p99 {release_p99:.1f} ms, max "
+        f"{report.key_release_ms['max']:.1f} ms ({ok(release_p99 <= 300)} p99 <= 300)\n"
+        f"heartbeat lost -> wheels told 0: p50 {report.deadman_ms['p50']:.0f} ms, max "
+        f"{report.deadman_ms['max']:.0f} ms ({ok(report.deadman_ms['max'] <= 300)} <= 300)\n"
+        f"e-stop sent -> wheels told 0: p50 {report.estop_ms['p50']:.1f} ms, p99 "
+        f"{report.estop_ms['p99']:.1f} ms ({ok(report.estop_ms['p99'] <= 100)} p99 <= 100)")
 
 
 @bench.command("pick")
