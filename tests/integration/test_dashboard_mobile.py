@@ -136,6 +136,58 @@ def test_the_estop_latches_the_wheels_until_rearmed(board_robot: Robot,
         service.close()
 
 
+@LIVE
+def test_base_drive_is_checked_held_and_stopped_through_the_server(
+        board_robot: Robot, plain_robot: Robot, tmp_path: Path) -> None:
+    """The base's requests from a page: refused (named value, range) with nothing sent to
+    the wheels; a drive reaches the wheels and base_stop stops them; refused while halted
+    or while a job runs; a point named without a map refused."""
+    service, http = serve(board_robot, tmp_path)
+    try:
+        with ws_of(http) as ws:
+            robot = receive(ws, "welcome")["robot"]
+            assert robot["base"]["max_speed_m_s"] == 0.4 and robot["bins"] == []
+            for request, said in (
+                    ({"vx_m_s": 0.9}, "base_drive: vx_m_s = 0.9; allowed: -0.4..0.4 m/s"),
+                    ({"wz_rad_s": -3}, "base_drive: wz_rad_s = -3; allowed: -2.09..2.09 "
+                                       "rad/s"),
+                    ({"vy_m_s": "fast"}, 'base_drive: vy_m_s = "fast"; allowed: a number '
+                                         "-1000..1000"),
+                    ({"spin": 1}, "base_drive: unknown field(s) spin; allowed: vx_m_s, "
+                                  "vy_m_s, wz_rad_s")):
+                ws.send(json.dumps({"type": "base_drive", **request}))
+                assert receive(ws, "error")["text"] == said
+                assert wheel_targets(board_robot) == [0.0] * 4
+            ws.send('{"type": "base_drive", "vx_m_s": 0.2}')
+            deadline = time.monotonic() + 5
+            while not any(wheel_targets(board_robot)) and time.monotonic() < deadline:
+                time.sleep(0.01)
+            assert any(wheel_targets(board_robot))
+            assert receive(ws, "state")["base"]["driving"]["vx_m_s"] == 0.2
+            ws.send('{"type": "base_stop"}')
+            while "base stopped (released)" not in receive(ws, "log")["text"]:
+                pass  # "base: driving at ..." first
+            assert wheel_targets(board_robot) == [0.0] * 4
+            ws.send('{"type": "estop"}')
+            ws.send('{"type": "base_drive", "vx_m_s": 0.2}')
+            assert receive(ws, "error")["text"].startswith("base_drive: the robot is stopped")
+            assert wheel_targets(board_robot) == [0.0] * 4
+            ws.send('{"type": "name_point", "name": "shelf", "x_m": 1, "y_m": 2}')
+            assert receive(ws, "error")["text"].startswith("name_point: no map yet")
+    finally:
+        http.stop()
+        service.close()
+    service, http = serve(plain_robot, tmp_path / "plain")
+    try:
+        with ws_of(http) as ws:
+            assert receive(ws, "welcome")["robot"]["base"] is None
+            ws.send('{"type": "base_drive", "vx_m_s": 0.1}')
+            assert receive(ws, "error")["text"].startswith("base_drive: this robot has no base")
+    finally:
+        http.stop()
+        service.close()
+
+
 ARENA = "board://twin?family=arena&seed=3"
 
 

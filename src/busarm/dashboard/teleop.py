@@ -21,7 +21,6 @@ from busarm.base.base import Base
 from busarm.base.kinematics import Twist
 from busarm.dashboard.protocol import BaseDrive, RequestError
 from busarm.errors import BusArmError
-from busarm.units import range_text
 
 __all__ = [
     "BASE_HOLD_S",
@@ -72,7 +71,7 @@ class BaseTeleop:
                 ("wz_rad_s", request.wz_rad_s, cfg.max_yaw_rate_rad_s, "rad/s")):
             if abs(value) > limit + 1e-9:
                 raise RequestError(f"base_drive: {key} = {value:g}; allowed: "
-                                   f"{range_text(-limit, limit, unit)}")
+                                   f"{-limit:.3g}..{limit:.3g} {unit}")
         return Twist(request.vx_m_s, request.vy_m_s, request.wz_rad_s)
 
     def start(self, twist: Twist) -> None:
