@@ -38,7 +38,13 @@ from busarm.base.base import Base
 from busarm.base.odometry import Pose2D
 from busarm.dashboard.jobs import report_folder
 from busarm.dashboard.map_view import MapScene, MapView, Point
-from busarm.dashboard.protocol import LineFollow, NamePoint, NavTransport, RequestError
+from busarm.dashboard.protocol import (
+    LineFollow,
+    Localise,
+    NamePoint,
+    NavTransport,
+    RequestError,
+)
 from busarm.errors import BusArmError, ConfigError, HaltedError, NavigationError
 from busarm.fileio import write_text_atomic
 from busarm.lidar.scan import LaserScan, to_points
@@ -174,13 +180,23 @@ class MobileJobs:
 
     # ------------------------------------------------------------------ checks
 
-    def check(self, request: NavTransport | LineFollow) -> None:
+    def check(self, request: NavTransport | LineFollow | Localise) -> None:
         """Refuse (RequestError) a job that cannot run here, before anything moves."""
         kind = request.type
         if not self.available:
             raise RequestError(f"{kind}: this robot has no base and Lidar; open the dashboard "
                                "on one (--port board://twin?family=arena&seed=N, or "
                                "board://DEVICE with --chassis and --lidar)")
+        if isinstance(request, Localise):
+            if self._grid is None:
+                raise RequestError(f"{kind}: no map yet: run transport (a twin in an arena "
+                                   "maps itself first) or start the dashboard with --points "
+                                   "and --map")
+            if request.near is None and self._where is None:
+                raise RequestError(f"{kind}: where the base is on the map is not known yet: "
+                                   "click the map where it stands and press 'The base is "
+                                   "here' (its heading too)")
+            return
         colors = list(request.colors) if isinstance(request, LineFollow) else (
             [request.color] if request.color is not None else [])
         allowed = block_colors()
@@ -378,6 +394,41 @@ class MobileJobs:
         path = folder / "report.json"
         write_text_atomic(path, json.dumps(report.to_dict(), indent=2) + "\n", "report")
         return path
+
+    # ------------------------------------------------------------------ localising
+
+    def localise(self, request: Localise, cancel: threading.Event, progress: Progress) -> str:
+        """Find where the base stands on the map (the base does not move): near the
+        request's guess, else where the odometry has carried it since a job last knew."""
+        from busarm.apps.navigation.navigator import Navigator, NavSettings
+        from busarm.apps.transport.job import TEACH_LIMIT_S
+
+        grid, points = self._grid, self._points
+        if grid is None:
+            raise RequestError("localise: no map yet")
+        marks = _marks(points) if points is not None else {}
+
+        def hook(nav: Navigator, sensed: SensedScan) -> None:
+            _stop_if(cancel)
+            if self.view.due() and nav.estimate is not None:
+                local, _ = nav.returns_m(sensed)
+                self.view.show(MapScene(grid, "localising: where is the base on the map?",
+                                        pose=nav.pose, returns=_points_seen(local, nav.pose),
+                                        marks=marks))
+
+        near = self._start() if request.near is None else Pose2D(
+            request.near[0], request.near[1], math.radians(request.near[2]))
+        assert near is not None  # checked (check)
+        progress(f"finding the base on the map near x {near.x_m:+.2f} m, y {near.y_m:+.2f} m")
+        nav = Navigator(self.robot, grid, settings=NavSettings(localize_limit_s=TEACH_LIMIT_S),
+                        on_scan=hook)
+        try:
+            nav.localize(near, wander=False)
+        finally:
+            self._stop_wheels()
+        self._remember(nav)
+        p = nav.pose
+        return f"the base is at x {p.x_m:+.2f} m, y {p.y_m:+.2f} m, {p.yaw_deg:+.0f} deg on the map"
 
     # ------------------------------------------------------------------ between jobs
 

@@ -34,6 +34,9 @@ base_drive    ``vx_m_s`` (forward), ``vy_m_s`` (left), ``wz_rad_s`` (counter-clo
 base_stop     stop the wheels now (the key or button was released)
 name_point    ``name``, ``x_m``, ``y_m``, ``yaw_deg``: a named point on the map (for
               transport), kept in the points file
+localise      find where the base stands on the map (it does not move): near ``x_m``,
+              ``y_m``, ``yaw_deg`` (a person's guess, all three), else near where the
+              odometry has carried it since a job last knew
 line_follow   ``laps`` (0.05..100), ``speed_m_s`` (0.01..0.5), ``colors`` (list, maybe
               empty: block colours cleared off the line)
 stop          stop the job and any motion, holding (not latched)
@@ -73,6 +76,7 @@ __all__ = [
     "Gripper",
     "Jog",
     "LineFollow",
+    "Localise",
     "NamePoint",
     "Named",
     "NavTransport",
@@ -144,6 +148,13 @@ class NamePoint(Request):
     x_m: float
     y_m: float
     yaw_deg: float = 0.0
+
+
+@dataclass(frozen=True)
+class Localise(Request):
+    """``localise``: where the base is on the map, near ``near`` (m, m, deg) if given."""
+
+    near: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -300,6 +311,18 @@ def _name_point(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Reques
                                                -180.0, 180.0))
 
 
+def _localise(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request:
+    f = _take(fields, kind, ("x_m", "y_m", "yaw_deg"))
+    if not f:
+        return Localise(kind)
+    if len(f) != 3:
+        raise RequestError("localise: give x_m, y_m and yaw_deg (where the base is about), "
+                           "all three, or none")
+    x, y = (_number(kind, key, f[key], -MAX_BASE_NUMBER, MAX_BASE_NUMBER)
+            for key in ("x_m", "y_m"))
+    return Localise(kind, (x, y, _number(kind, "yaw_deg", f["yaw_deg"], -180.0, 180.0)))
+
+
 def _named(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request:
     key = "group" if kind == "play" else "name"
     f = _take(fields, kind, (key,))
@@ -371,6 +394,7 @@ def _line_follow(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Reque
 _PARSERS = {
     **{kind: _bare for kind in _BARE},
     "drive": _drive, "jog": _jog, "base_drive": _base_drive, "name_point": _name_point,
+    "localise": _localise,
     "move_pose": _named, "save_pose": _named,
     "gripper": _gripper, "torque": _torque, "play": _named, "record": _record,
     "pick_sort": _pick_sort, "transport": _transport, "line_follow": _line_follow,

@@ -45,6 +45,7 @@ from busarm.dashboard.protocol import (
     Gripper,
     Jog,
     LineFollow,
+    Localise,
     Named,
     NamePoint,
     NavTransport,
@@ -67,6 +68,7 @@ __all__ = [
     "JOB_STOP_WAIT_S",
     "JOG_HOLD_S",
     "LOG_LINES",
+    "MOBILE_JOBS",
     "WATCH_PERIOD_S",
     "Publish",
     "RobotService",
@@ -84,6 +86,7 @@ WATCH_PERIOD_S = 0.01
 JOB_STOP_WAIT_S = 5.0
 """How long a stop waits for a cancelled job's thread to end before saying so."""
 LOG_LINES = 200
+MOBILE_JOBS = ("transport", "line follow", "localise")
 
 Publish = Callable[[str], None]
 
@@ -506,6 +509,10 @@ class RobotService:
             return pick, "pick-sort"
         if isinstance(request, NavTransport | LineFollow):
             return self._mobile_job(request)
+        if isinstance(request, Localise):
+            self.mobile.check(request)
+            return (lambda job: self.mobile.localise(request, job.cancel, self._progress(job)),
+                    "localise")
         raise RequestError(f"{request.type}: not a job")
 
     def _mobile_job(self, request: NavTransport | LineFollow
@@ -554,6 +561,8 @@ class RobotService:
                 self.arm.bus.rearm()  # the stop that cut it short was not an e-stop
             self._rearm_after = None
         self.publish("job", name=job.name, state=state, text=text)
+        if job.name in MOBILE_JOBS:  # a map made, points set up: the page's lists change
+            self.publish("robot", robot=self.describe())
         self.log(text, "info" if state == "done" else "error" if state == "failed" else "warning")
 
     # ------------------------------------------------------------------ control thread

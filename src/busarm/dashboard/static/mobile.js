@@ -15,7 +15,7 @@
   const { $, el } = B;
   const RESEND_MS = 100;
   const PAD_DEADZONE = 0.2;
-  const MOBILE_JOBS = ['transport', 'line follow'];
+  const MOBILE_JOBS = ['transport', 'line follow', 'localise'];
   const PROGRESS_MAX = 40;
   // Each held direction adds this much of (vx, vy, wz) at full speed.
   const MOVES = {
@@ -272,6 +272,12 @@
     $('point-form').hidden = true;
   });
   $('point-cancel').addEventListener('click', () => { $('point-form').hidden = true; });
+  $('base-here').addEventListener('click', () => {
+    if (!pointAt) return;
+    B.request({ type: 'localise', x_m: round(pointAt[0]), y_m: round(pointAt[1]),
+                yaw_deg: Number($('point-yaw').value) || 0 });
+    $('point-form').hidden = true;
+  });
 
   // ------------------------------------------------------------------ mobile jobs
 
@@ -294,6 +300,9 @@
         el('input', { type: 'checkbox', 'data-color': c, checked: c !== 'yellow' }), ` ${c}`)));
     }
     $('tr-run').disabled = !(m.points || []).length;
+    $('localise').disabled = !m.map;
+    $('map-note').textContent = m.map ? (m.points_file ? `points kept in ${m.points_file}` : '')
+      : 'no map yet: a first transport on an arena twin maps it';
   }
 
   /** A mobile job's progress line: a line on the same step (the words before its first
@@ -327,4 +336,5 @@
                 speed_m_s: Number($('lf-speed').value), colors });
   });
   on('mobile-stop', () => B.request({ type: 'stop' }));
+  on('localise', () => B.request({ type: 'localise' }));
 })();
