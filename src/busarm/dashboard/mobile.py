@@ -161,6 +161,11 @@ class MobileJobs:
         """Whether the robot has a base and a Lidar (else no mobile job can run)."""
         return self.robot.base is not None and self.robot.lidar is not None
 
+    @property
+    def has_map(self) -> bool:
+        """Whether there is a map (given, or made by a transport's exploring)."""
+        return self._grid is not None
+
     def _arena(self) -> Arena | None:
         sim = self.robot.sim
         return None if sim is None else sim.arena

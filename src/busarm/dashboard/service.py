@@ -597,6 +597,7 @@ class RobotService:
                                                  "direction": jog.direction},
                 "recording": None if self._recording is None else len(self._recording),
                 "map": self.mobile.view.sequence if self.mobile.available else None,
+                "has_map": self.mobile.has_map,
             })
         if self.teleop is not None:
             state["base"] = self.teleop.state()

@@ -169,6 +169,7 @@
 
   B.on('state', (s) => {
     if (typeof s.map === 'number') loadMap(s.map);
+    if (typeof s.has_map === 'boolean') showMapNote(s.has_map);
     const b = s.base;
     if (!b) return;
     if (b.error) { $('odom-source').textContent = b.error; return; }
@@ -300,9 +301,16 @@
         el('input', { type: 'checkbox', 'data-color': c, checked: c !== 'yellow' }), ` ${c}`)));
     }
     $('tr-run').disabled = !(m.points || []).length;
-    $('localise').disabled = !m.map;
-    $('map-note').textContent = m.map ? (m.points_file ? `points kept in ${m.points_file}` : '')
+    pointsFile = m.points_file;
+    showMapNote(m.map);
+  }
+
+  let pointsFile = null;
+  function showMapNote(hasMap) {
+    $('localise').disabled = !hasMap;
+    const note = hasMap ? (pointsFile ? `points kept in ${pointsFile}` : '')
       : 'no map yet: a first transport on an arena twin maps it';
+    if ($('map-note').textContent !== note) $('map-note').textContent = note;
   }
 
   /** A mobile job's progress line: a line on the same step (the words before its first
