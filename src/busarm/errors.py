@@ -190,6 +190,7 @@ __all__ = [
     "UnreliableLineError",
     "UnsupportedError",
     "VisionError",
+    "why_stopped",
 ]
 
 
@@ -216,3 +217,12 @@ class DeviceInUseError(TransportError):
     def __reduce__(self) -> tuple[type[DeviceInUseError], tuple[str, str, int | None, str]]:
         # Made again from its parts (OSError's own would pass the message as the port).
         return type(self), (self.port, self.device, self.pid, self.command)
+
+
+def why_stopped(exc: BaseException) -> str:
+    """What a job's report says of ``exc``, which ended it: a person's stop (Ctrl+C,
+    SIGTERM or SIGHUP, a halt or a page's Stop) in its own words, "stopped by SIGTERM";
+    anything else as an error."""
+    if isinstance(exc, KeyboardInterrupt | HaltedError):
+        return str(exc) or "interrupted"
+    return f"stopped by an error: {str(exc) or type(exc).__name__}"

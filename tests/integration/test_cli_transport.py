@@ -9,6 +9,7 @@ once, as the README's lines: test_readme_examples checks what they print and wri
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -61,3 +62,37 @@ def test_a_twin_on_a_board_port_needs_no_map_or_points(tmp_path: Path) -> None:
     assert proc.returncode == 130, err
     assert out == ""
     assert len(err.strip().splitlines()) == 1 and err.startswith("interrupted: "), err
+
+
+@pytest.mark.slow  # it explores the arena first (about 10 s)
+@pytest.mark.wallclock("SIGTERM to a transport process while it drives to the block")
+def test_sigterm_while_it_drives_keeps_the_report_and_stops_the_robot(
+        tmp_path: Path, twin_config_home: Path) -> None:
+    """What `timeout`, systemd and container runtimes send (issue 30): exit 143 and one
+    line (the servos' torque read back after the stop, the wheels stopped, where the
+    report is); the report so far says which phase it stopped in, and why."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "busarm", "transport", "--arena", str(SEED), "--report",
+         "out"], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env=dict(os.environ, PYTHONUNBUFFERED="1", BUSARM_RUNTIME_DIR=str(tmp_path / "run")))
+    try:
+        assert proc.stderr is not None
+        said = []
+        for line in proc.stderr:  # the map made, the arm stowed, localised: then it drives
+            said.append(line)
+            if line.startswith("drive to pick"):
+                break
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 143, [*said, err]
+    assert out == "" and err.splitlines() == [
+        "stopped by SIGTERM: all servos stopped (MOVE_STOP); servos 1-5, 10 holding position "
+        "(torque on); the wheels stopped; the report so far: out/report.json"]
+    data = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert not data["delivered"] and data["why"] == "stopped by SIGTERM"
+    assert [(p["name"], p["ok"], p["detail"]) for p in data["phases"]] == [
+        ("stow the arm", True, ""), ("localise", True, ""),
+        ("drive to pick", False, "stopped by SIGTERM")]
+    assert (tmp_path / "out" / "map.yaml").exists()  # the map it explored, kept

@@ -22,7 +22,9 @@ import re
 import signal
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -45,6 +47,8 @@ at_the_served_twin = pytest.mark.wallclock(
 WALL_X_M = 1.5
 """The wall the robot faces: the room's +x side, straight ahead of its start."""
 MOVE_M = 0.3
+MAP_ARENA = 1
+"""A seeded arena too big to see whole from the start (exploring takes a while)."""
 
 
 def run(*args: str, env: dict[str, str | None] | None = None) -> Result:
@@ -94,10 +98,9 @@ class Served:
     lidar: str
 
 
-@pytest.fixture(scope="module")
-def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Served]:
-    folder = tmp_path_factory.mktemp("mobile")
-    arena = facing_a_wall(folder / "wall.toml")
+@contextmanager
+def serving(arena: str, folder: Path) -> Iterator[Served]:
+    """``busarm twin serve --arena ARENA`` running, its runtime and config in ``folder``."""
     given = {"BUSARM_RUNTIME_DIR": str(folder / "run"),
              "XDG_CONFIG_HOME": str(folder / "config"), "COLUMNS": "200",
              # The served twin answers in wall-clock time beside the rest of the suite: a
@@ -107,7 +110,7 @@ def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Served]:
     server_env = {**{k: v for k, v in os.environ.items() if k not in UNSET}, **given,
                   "PYTHONUNBUFFERED": "1"}
     proc = subprocess.Popen(
-        [sys.executable, "-m", "busarm", "twin", "serve", "--arena", str(arena)],
+        [sys.executable, "-m", "busarm", "twin", "serve", "--arena", arena],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=server_env,
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
@@ -119,6 +122,13 @@ def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Served]:
         if proc.poll() is None:  # the stopping test did not run or failed
             proc.kill()
             proc.communicate(timeout=10)
+
+
+@pytest.fixture(scope="module")
+def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Served]:
+    folder = tmp_path_factory.mktemp("mobile")
+    with serving(str(facing_a_wall(folder / "wall.toml")), folder) as twin:
+        yield twin
 
 
 def scan_json(served: Served) -> dict[str, Any]:
@@ -272,3 +282,46 @@ def test_bad_input_is_one_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
     assert result.stdout == ""  # no port announced, no picture written
     assert not (tmp_path / "x.png").exists()
     assert not list((tmp_path / "run").glob("*.json"))
+
+
+@at_the_served_twin
+def test_sigterm_stops_a_map_build_keeps_its_map_and_the_base_stands_still(
+        tmp_path: Path) -> None:
+    """What `timeout`, systemd and container runtimes send (issue 30), to `map build`
+    exploring a served twin's arena: exit 143, one line (the wheels stopped, the map so
+    far kept where --out says), and the base stands still after (its odometry, from the
+    twin's wheels, over a second)."""
+    with serving(str(MAP_ARENA), tmp_path) as twin:
+        env = {**{k: v for k, v in os.environ.items() if k not in UNSET},
+               **{k: v for k, v in twin.env.items() if v is not None},
+               "PYTHONUNBUFFERED": "1"}
+        out = tmp_path / "room.yaml"
+        before = scan_json(twin)
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "busarm", "--port", twin.board, "map", "build", "--lidar",
+             twin.lidar, "--chassis", "jetauto", "--out", str(out)], stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE, text=True, env=env)
+        try:
+            assert proc.stderr is not None
+            assert proc.stderr.readline().startswith("exploring with Robot(")
+            time.sleep(2.0)  # on its way to the first frontier
+            proc.send_signal(signal.SIGTERM)
+            printed, err = proc.communicate(timeout=30)
+        finally:
+            proc.kill()
+        assert proc.returncode == 143, err
+        assert printed == "" and re.fullmatch(
+            r"stopped by SIGTERM: nothing was written to the servos; the wheels stopped; the "
+            rf"map so far \(\d+ scans\): {re.escape(str(out))}\n", err), err
+        after = scan_json(twin)
+        still = ok(run("base", "odom", "--time", "1.0", env=twin.env))
+        twin.proc.terminate()
+    moved = [abs(after[k] - before[k]) for k in ("nearest_m", "nearest_bearing_deg")]
+    assert moved[0] > 0.02 or moved[1] > 5.0, (before, after)  # it had been exploring
+    found = re.search(r"x ([-+.\d]+) m\s+y ([-+.\d]+) m\s+yaw ([-+.\d]+) deg", still)
+    assert found, still
+    x_m, y_m, yaw_deg = (abs(float(found[k])) for k in (1, 2, 3))
+    assert x_m < 0.005 and y_m < 0.005 and yaw_deg < 0.5, still
+    shown = ok(run("map", "show", str(out)))  # what was explored, readable
+    free = re.search(r"free ([\d.]+)%", shown)
+    assert free and float(free[1]) > 5.0, shown

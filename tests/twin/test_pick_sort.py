@@ -293,3 +293,44 @@ def test_ctrl_c_leaves_the_arm_stopped_holding_and_the_gripper_known(
         assert 2 < gap_mm <= 34, message
     else:
         assert state.startswith("open") and gap_mm > 2, message
+
+
+@pytest.mark.wallclock("SIGTERM to a pick-sort process while it sorts a twin of its own")
+def test_sigterm_mid_sort_holds_the_arm_and_keeps_the_report(
+        calibration: tuple[Path, Path], tmp_path: Path) -> None:
+    """What `timeout`, systemd and container runtimes send (issue 30): exit 143 and one
+    line (each servo's torque and the gripper read back after the stop, where the report
+    is), the report so far saying what stopped it."""
+    import json
+    import os
+    import re
+    import signal
+    import subprocess
+    import sys
+
+    report = tmp_path / "report"
+    run = subprocess.Popen(
+        [sys.executable, "-m", "busarm", "pick-sort", "--seed", "3", "--blocks", "6",
+         "--report", str(report), "--intrinsics", str(calibration[0]),
+         "--hand-eye", str(calibration[1])],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env=dict(os.environ, PYTHONUNBUFFERED="1", BUSARM_RUNTIME_DIR=str(tmp_path / "run")))
+    assert run.stderr is not None
+    for line in run.stderr:
+        if "into its bin" in line:  # under way: five blocks to go
+            break
+    run.send_signal(signal.SIGTERM)
+    try:
+        out, err = run.communicate(timeout=60)
+    finally:
+        run.kill()
+    assert run.returncode == 143, err
+    *progress, said = err.strip().splitlines()
+    assert not any("SIGTERM" in line or "Traceback" in line for line in progress), err
+    found = re.fullmatch(r"stopped by SIGTERM: all servos stopped \(MOVE_STOP\); servos 1-5, "
+                         r"10 holding position \(torque on\); the gripper: (.+); the report "
+                         r"so far: (.+)", said)
+    assert found and found[2] == str(report / "report.json"), said
+    data = json.loads((report / "report.json").read_text())
+    assert data["stopped"] == "stopped by SIGTERM" and data["gripper"] == found[1]
+    assert 1 <= data["totals"]["sorted"] < 6 and out == ""

@@ -21,7 +21,7 @@ import busarm
 SRC = Path(busarm.__file__).parent
 EDGE = {"robot/port_url.py"}
 """Where port strings are read."""
-INTERFACES = ("cli/", "dashboard/", "ros/", "__main__.py")
+INTERFACES = ("cli/", "dashboard/", "ros/", "view/", "__main__.py")
 """Above the robot: they read what a person typed (and hand it to the edge)."""
 ADDRESSES = {
     "vision/stream.py": "a network camera's stream URL (http://, rtsp://): a camera address",

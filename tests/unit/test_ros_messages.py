@@ -18,8 +18,8 @@ from busarm.base.config import Mount
 from busarm.base.odometry import Pose2D
 from busarm.errors import ConfigError, ProtocolError
 from busarm.lidar.scan import LaserScan
+from busarm.robot.frames import arm_frames, base_frames
 from busarm.ros import messages as m
-from busarm.ros.frames import arm_frames, base_frames
 from busarm.ros.sensors import SCAN_BEAMS, laser_scan
 
 CONFIG = load_arm_config("jetauto_pro")

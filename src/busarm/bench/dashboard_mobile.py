@@ -33,6 +33,8 @@ from busarm.progress import Progress, quiet
 from busarm.robot import Robot
 from busarm.robot.description import RobotConfig
 from busarm.robot.sim_handle import SimHandle
+from busarm.sim.spec import BoardSettings
+from busarm.twin.spec import TwinSpec
 
 __all__ = [
     "ARENA",
@@ -42,7 +44,9 @@ __all__ = [
 ]
 
 
-ARENA = "board://twin?family=arena&seed=3&realtime=1"
+ARENA = RobotConfig(TwinSpec(family="arena", seed=3, controller=BoardSettings(),
+                             realtime=True))
+"""The mobile robot in arena 3, behind its controller board, on the wall clock."""
 DRIVE_S = 0.4
 """How long each drive lasts before its stop is measured."""
 STOP_TIMEOUT_S = 3.0
@@ -162,7 +166,7 @@ def run_mobile_page_bench(*, seconds: float = 10.0, tries: int = 50,
     """The benchmark (see the module docstring) on a real-time arena twin."""
     report = MobilePageReport(machine_info(), seconds, tries=tries)
     progress("opening the arena twin (real time)...")
-    with Robot.open(RobotConfig.from_port(ARENA), progress=progress) as robot:
+    with Robot.open(ARENA, progress=progress) as robot:
         assert robot.sim is not None
         service = RobotService(robot).start()
         feeds = robot_feeds(robot, fps=DEFAULT_FPS)  # as `busarm dashboard` streams

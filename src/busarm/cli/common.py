@@ -38,8 +38,22 @@ from busarm.cli.arm_inputs import (
 )
 from busarm.cli.exits import JobNotDone
 from busarm.cli.help_style import metavar_from_help, unit_metavar
+from busarm.cli.job_view import (
+    explore_hook,
+    navigation_hook,
+    need_view,
+    start_view,
+    view_options,
+    watching,
+)
 from busarm.cli.live_robot import open_live_robot
-from busarm.cli.mobile_common import arena_from_spec, mobile_options, open_mobile_robot
+from busarm.cli.mobile_common import (
+    arena_from_spec,
+    keeping_what_was_done,
+    mobile_options,
+    open_mobile_robot,
+    stop_wheels,
+)
 from busarm.cli.param_types import (
     ANGLE,
     ID_LIST,
@@ -80,10 +94,12 @@ from busarm.cli.servo_tables import (
 )
 from busarm.cli.sessions import Session, announced, find_session, running_sessions
 from busarm.cli.stopping import (
+    Terminated,
     add_detail,
     halt_motor,
     marking_the_stop,
     no_servos,
+    note_the_stop,
     report_line,
     stop_and_read_back,
     stop_motors,
@@ -117,6 +133,7 @@ SIM_NOTE = ("note: no --port given: using a simulated arm that lives for this on
 __all__ = [
     "ArmContext",
     "Settings",
+    "Terminated",
     "add_detail",
     "arm_options",
     "calibration_store",
@@ -129,6 +146,7 @@ __all__ = [
     "make_scene",
     "marking_the_stop",
     "no_servos",
+    "note_the_stop",
     "report_line",
     "scene_options",
     "serve_until_stopped",
@@ -141,8 +159,11 @@ __all__ = [
 __all__ += ["check_gap_mm", "gap_report", "joints_in", "joints_to_move",
             "parse_gripper_target", "robot_folder", "target_in"]
 __all__ += ["announced", "find_session"]  # running `sim serve`/`twin serve` (cli.sessions)
-__all__ += ["arena_from_spec", "mobile_options", "open_mobile_robot"]  # cli.mobile_common
+__all__ += ["arena_from_spec", "keeping_what_was_done", "mobile_options",  # cli.mobile_common
+            "open_mobile_robot", "stop_wheels"]
 __all__ += ["open_live_robot"]  # cli.live_robot
+__all__ += ["explore_hook", "navigation_hook", "need_view",  # cli.job_view
+            "start_view", "view_options", "watching"]
 __all__ += ["camera_from_text", "describe_robot", "from_robot_file",  # cli.robot_options
             "with_realtime"]
 __all__ += ["JobNotDone", "metavar_from_help",  # exit codes, help style (cli.exits, help_style)
@@ -522,18 +543,19 @@ def serve_until_stopped(server: PtyServer) -> None:
         server.stop()
 
 
-def interrupt_on_signals() -> Callable[[], None]:
-    """Make SIGINT, SIGTERM and SIGHUP raise KeyboardInterrupt (even if SIGINT was
-    inherited as ignored, as in background jobs): a server stops cleanly on each; return
-    a function restoring the old handlers."""
+def interrupt_on_signals(signals: tuple[signal.Signals, ...] = (
+        signal.SIGINT, signal.SIGTERM, signal.SIGHUP)) -> Callable[[], None]:
+    """Make ``signals`` (SIGINT, SIGTERM and SIGHUP) raise KeyboardInterrupt (even if
+    SIGINT was inherited as ignored, as in background jobs): a server stops cleanly on
+    each; return a function restoring the old handlers. (Left out, SIGTERM and SIGHUP
+    raise ``Terminated``, as for every command: exit 143 or 129.)"""
     if threading.current_thread() is not threading.main_thread():
         return lambda: None
 
     def handler(signum: int, frame: FrameType | None) -> None:
         raise KeyboardInterrupt
 
-    previous = {sig: signal.signal(sig, handler)
-                for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    previous = {sig: signal.signal(sig, handler) for sig in signals}
 
     def restore() -> None:
         for sig, old in previous.items():

@@ -26,14 +26,14 @@ from busarm.cli.common import (
     JobNotDone,
     RangeType,
     Settings,
-    add_detail,
     calibration_store,
     check_writable,
+    keeping_what_was_done,
     mobile_options,
     open_mobile_robot,
     pass_settings,
 )
-from busarm.errors import BusArmError, ConfigError
+from busarm.errors import ConfigError
 
 if TYPE_CHECKING:
     import numpy as np
@@ -128,13 +128,10 @@ def line_follow(settings: Settings, laps: float, speed_m_s: float, colors_text: 
                            **options) as robot:
         job = LineFollowJob(robot, laps=laps, speed_m_s=speed_m_s, colors=colors,
                             obstacle_wait_s=obstacle_wait_s, progress=say)
-        try:
+        with keeping_what_was_done(robot, lambda exc: "the report so far: "
+                                   f"{_write(report_dir, job.report, robot)}"):
             say(f"{robot!r}: {laps:g} lap(s) of the line at {speed_m_s:g} m/s")
             report = job.run()
-        except BaseException as exc:
-            _stop_wheels(robot, exc)
-            add_detail(exc, f"report: {_write(report_dir, job.report, robot)}")
-            raise
         path = _write(report_dir, report, robot)
         simulated = robot.clock.is_simulated
     if as_json:
@@ -151,17 +148,6 @@ def _sayer(settings: Settings) -> Any:
     def say(text: str) -> None:
         settings.err.print(text, highlight=False, markup=False, soft_wrap=True)
     return say
-
-
-def _stop_wheels(robot: Robot, exc: BaseException) -> None:
-    """The wheels stopped again (the job stops them on its way out), said if it worked."""
-    if robot.base is None:
-        return
-    try:
-        robot.base.stop()
-    except BusArmError:
-        return
-    add_detail(exc, "the wheels stopped")
 
 
 def _write(folder: Path, report: LineFollowReport, robot: Robot) -> Path:

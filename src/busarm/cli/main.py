@@ -49,6 +49,7 @@ from busarm.cli import (
     sim_cmds,
     transport_cmd,
     twin_cmds,
+    view_cmds,
     vision_cmds,
 )
 from busarm.cli.bench_cmd import bench
@@ -270,7 +271,7 @@ def cli(
 for _module in (
     bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, actions_cmds, twin_cmds,
     camera_cmds, vision_cmds, pick_cmd, demo, motor_cmd, dashboard_cmd, board_cmds, base_cmds,
-    lidar_cmds, map_cmds, line_follow_cmd, transport_cmd, ros_cmds, robot_cmds,
+    lidar_cmds, map_cmds, line_follow_cmd, transport_cmd, ros_cmds, robot_cmds, view_cmds,
 ):
     for _command in _module.COMMANDS:
         cli.add_command(_command)

@@ -4,6 +4,7 @@ with the Lidar, described, and drawn."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
@@ -11,11 +12,16 @@ from busarm.cli.common import (
     RangeType,
     Settings,
     check_writable,
+    keeping_what_was_done,
     mobile_options,
     open_mobile_robot,
     parse_pose,
     pass_settings,
 )
+from busarm.errors import why_stopped
+
+if TYPE_CHECKING:
+    from busarm.apps.navigation.explore import MapRun
 
 __all__ = [
     "COMMANDS",
@@ -76,15 +82,18 @@ def build(settings: Settings, out_file: Path, time_limit_s: float, png: Path | N
     frontier between the known free floor and the unknown until none is left, every
     scan placed where it fits the map so far. The map's origin is where the base started.
     Without --port: a twin of its own in --arena."""
-    from busarm.apps.navigation.explore import build_map
-    from busarm.nav.map_files import save_map
+    from busarm.apps.navigation.explore import Explorer
 
     check_writable(out_file)
     with open_mobile_robot(settings, arena_spec, chassis, lidar_port) as robot:
         settings.err.print(f"exploring with {robot!r} (at most {time_limit_s:g} s)",
                            highlight=False, markup=False)
-        run = build_map(robot, time_limit_s=time_limit_s)
-    save_map(out_file, run.grid)
+        explorer = Explorer(robot, time_limit_s=time_limit_s)
+        # A stop keeps the map explored so far (what `map show` and transport read).
+        with keeping_what_was_done(robot, lambda exc: _keep(
+                explorer.so_far(why_stopped(exc)), out_file, png)):
+            run = explorer.run()
+    _save(run, out_file, png)
     s = run.grid.spec
     settings.out.print(
         f"map {out_file}: {s.width} x {s.height} cells of {s.resolution_m * 100:g} cm "
@@ -92,12 +101,28 @@ def build(settings: Settings, out_file: Path, time_limit_s: float, png: Path | N
         f"{run.scans} scans over {run.driven_m:.1f} m in {run.seconds:.0f} s; stopped: "
         f"{run.finished}", highlight=False, markup=False)
     if png is not None:
+        settings.out.print(f"drawn to {png}")
+
+
+def _save(run: MapRun, out_file: Path, png: Path | None) -> None:
+    """The map in ``out_file`` (and beside it its PGM); drawn with the path to ``png``."""
+    from busarm.nav.map_files import save_map
+
+    save_map(out_file, run.grid)
+    if png is not None:
         from busarm.nav.map_picture import map_picture
         from busarm.vision.annotate import save_image
 
         path = [(p.x_m, p.y_m) for p in run.poses]
         save_image(png, map_picture(run.grid, path=path))
-        settings.out.print(f"drawn to {png}")
+
+
+def _keep(run: MapRun, out_file: Path, png: Path | None) -> str:
+    """A stopped build: the map so far saved as a finished one is, and where it is."""
+    if not run.scans:
+        return "no map kept (stopped before the first scan)"
+    _save(run, out_file, png)
+    return f"the map so far ({run.scans} scans): {out_file}"
 
 
 @map_group.command("point")

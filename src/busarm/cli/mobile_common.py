@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from busarm.errors import ConfigError
+from busarm.errors import BusArmError, ConfigError
 
 if TYPE_CHECKING:
     from busarm.cli.common import Settings
@@ -24,8 +24,10 @@ if TYPE_CHECKING:
 __all__ = [
     "MAX_SEED",
     "arena_from_spec",
+    "keeping_what_was_done",
     "mobile_options",
     "open_mobile_robot",
+    "stop_wheels",
 ]
 
 
@@ -98,6 +100,42 @@ def open_mobile_robot(settings: Settings, arena_spec: str, chassis: str | None,
         options["chassis"] = chassis
     with settings.open_robot(world=world, **options) as robot:
         yield robot
+
+
+def stop_wheels(robot: Robot, exc: BaseException) -> None:
+    """The wheels stopped again (a job stops them on its way out), said on the one line
+    that reports ``exc`` if it worked."""
+    from busarm.cli.common import add_detail  # common re-exports this module
+
+    if robot.base is None:
+        return
+    try:
+        robot.base.stop()
+    except BusArmError:
+        return
+    add_detail(exc, "the wheels stopped")
+
+
+@contextmanager
+def keeping_what_was_done(robot: Robot, keep: Callable[[BaseException], str]
+                          ) -> Iterator[None]:
+    """The body of a mobile job: an exception leaving it (Ctrl+C, SIGTERM or SIGHUP, an
+    error) stops the wheels and keeps what the job did so far: ``keep(exc)`` writes it
+    and says where ("the report so far: PATH"). Both join the one line that reports the
+    exception, after what the servos were left doing: the one format of every job."""
+    from busarm.cli.common import add_detail  # common re-exports this module
+
+    try:
+        yield
+    except BaseException as exc:
+        stop_wheels(robot, exc)
+        try:
+            said = keep(exc)
+        except (BusArmError, OSError) as error:  # the stop's own exception is the one
+            said = f"the report could not be written: {error}"
+        if said:
+            add_detail(exc, said)
+        raise
 
 
 def _lidar_port(given: str | None) -> str:

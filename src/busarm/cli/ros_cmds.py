@@ -9,6 +9,7 @@ publishes it on a Zenoh session with rmw_zenoh's keys, attachments and livelines
 from __future__ import annotations
 
 import json
+import signal
 import sys
 import time
 from pathlib import Path
@@ -19,10 +20,13 @@ import click
 from busarm.cli.common import (
     RangeType,
     Settings,
+    Terminated,
     interrupt_on_signals,
+    note_the_stop,
     open_live_robot,
     pass_settings,
     scene_options,
+    stop_wheels,
 )
 from busarm.errors import ConfigError
 
@@ -110,7 +114,8 @@ def bridge(settings: Settings, scene_file: Path | None, seed: int | None, blocks
     the robot's limits before anything moves; a bad one is logged and dropped.
 
     Without --port it runs the twin in real time. Prints one line when it is up;
-    Ctrl+C (or --time) stops the robot (the arm holds, the wheels stop).
+    Ctrl+C (or --time) stops the robot (the arm holds, the wheels stop); SIGTERM or
+    SIGHUP too, said in one line as every command says it (exit code 143 or 129).
     """
     from busarm.arm.config import load_arm_config
     from busarm.nav.map_files import load_map
@@ -122,7 +127,8 @@ def bridge(settings: Settings, scene_file: Path | None, seed: int | None, blocks
     grid = load_map(map_file) if map_file is not None else None  # refused before opening
     listen = listen or (() if connect else (DEFAULT_ENDPOINT,))
     session = _open(listen, connect, token)  # a taken port is refused before the twin starts
-    restore = interrupt_on_signals()
+    # Ctrl+C ends it as a server ends (exit 0); SIGTERM and SIGHUP as every job (Terminated).
+    restore = interrupt_on_signals((signal.SIGINT,))
     try:
         with open_live_robot(settings, (scene_file, seed, blocks, colors),
                              camera=camera_src, config=load_arm_config(config),
@@ -141,14 +147,21 @@ def bridge(settings: Settings, scene_file: Path | None, seed: int | None, blocks
                           if running.server is not None else "")
                        + "; Ctrl+C stops the robot")
             sys.stdout.flush()
+            signalled: Terminated | None = None
             try:
                 deadline = time.monotonic() + (duration_s or float("inf"))
                 while time.monotonic() < deadline and not running.errors:
                     time.sleep(min(0.2, max(0.0, deadline - time.monotonic())))
+            except Terminated as exc:
+                signalled = exc
             except KeyboardInterrupt:
                 pass
             finally:
                 running.close()
+            if signalled is not None:  # one line: the arm held (read back), the wheels
+                note_the_stop(signalled, robot.arm.bus, robot.config.servo_ids)
+                stop_wheels(robot, signalled)
+                raise signalled
             if running.errors:
                 raise ConfigError(f"the bridge stopped: {running.errors[0]}")
     finally:

@@ -38,6 +38,7 @@ __all__ = [
     "marking_the_stop",
     "new_command",
     "no_servos",
+    "note_the_stop",
     "report_line",
     "servos_note",
     "stop_and_read_back",
@@ -199,11 +200,17 @@ def marking_the_stop(owner: AbstractContextManager[object], bus: ServoPort,
             if bus.wrote:
                 _wrote_before.append(True)
         except BaseException as exc:
-            if bus.wrote:
-                # Said if a second Ctrl+C cuts the read-back short (the bus's exit stops).
-                setattr(exc, _NOTE, f"{STOP_SENT}; torque not read back")
-                setattr(exc, _NOTE, stop_and_read_back(bus, ids))
+            if bus.wrote and getattr(exc, _NOTE, None) is None:
+                note_the_stop(exc, bus, ids)
             raise
+
+
+def note_the_stop(exc: BaseException, bus: ServoPort, ids: Iterable[int] = ()) -> None:
+    """Stop the servos (MOVE_STOP) and mark ``exc`` with what they do now, read back (a
+    live interface's stop: the arm held whether or not this process moved it)."""
+    # Said if a second Ctrl+C cuts the read-back short (the bus's exit stops).
+    setattr(exc, _NOTE, f"{STOP_SENT}; torque not read back")
+    setattr(exc, _NOTE, stop_and_read_back(bus, ids))
 
 
 def _chain(exc: BaseException) -> Iterator[BaseException]:

@@ -19,18 +19,25 @@ from busarm.cli.common import (
     JobNotDone,
     Settings,
     check_writable,
+    explore_hook,
+    keeping_what_was_done,
     mobile_options,
+    navigation_hook,
     open_mobile_robot,
     parse_pose,
     pass_settings,
+    view_options,
+    watching,
 )
-from busarm.errors import ConfigError
+from busarm.errors import ConfigError, why_stopped
 
 if TYPE_CHECKING:
+    from busarm.apps.navigation.explore import Explorer
     from busarm.base.odometry import Pose2D
     from busarm.nav.grid import OccupancyGrid
     from busarm.nav.points import NamedPoints
     from busarm.robot import Robot
+    from busarm.view.live import RobotView
 
 __all__ = [
     "COMMANDS",
@@ -46,9 +53,10 @@ ON_A_ROBOT = ("on a robot, give --map MAP.yaml (made by `busarm map build`) and 
 
 
 def _setup(settings: Settings, robot: Robot, points_file: Path | None, map_file: Path | None,
-           report: Path) -> tuple[OccupancyGrid, NamedPoints, Pose2D | None]:
+           report: Path, names: tuple[str, str], view: RobotView | None = None
+           ) -> tuple[OccupancyGrid, NamedPoints, Pose2D | None]:
     """The map, the points and (when known) where the base stands on the map."""
-    from busarm.apps.navigation.explore import build_map
+    from busarm.apps.navigation.explore import Explorer
     from busarm.nav.map_files import load_map, save_map
     from busarm.nav.points import load_points, save_points
 
@@ -64,17 +72,33 @@ def _setup(settings: Settings, robot: Robot, points_file: Path | None, map_file:
     from busarm.twin.arena_tasks import twin_transport_points
 
     # The points in the frame of the map about to be built (taken before exploring).
-    arena_points = twin_transport_points(robot.twin, robot.base) if points is None else None
+    named = points if points is not None else twin_transport_points(robot.twin, robot.base)
     settings.err.print("no map given: exploring the arena first", highlight=False, markup=False)
-    run = build_map(robot, time_limit_s=300.0)
+    explorer = Explorer(robot, time_limit_s=300.0, on_scan=explore_hook(view))
+    with keeping_what_was_done(robot, lambda exc: _explored(
+            report, explorer, named, names, why_stopped(exc))):
+        run = explorer.run()
     report.mkdir(parents=True, exist_ok=True)
     save_map(report / "map.yaml", run.grid)
-    if arena_points is not None:
-        points = arena_points
-        save_points(report / "points.toml", points, "map.yaml")
-    assert points is not None
+    if points is None:
+        save_points(report / "points.toml", named, "map.yaml")
     settings.err.print(run.summary(report / "map.yaml"), highlight=False, markup=False)
-    return run.grid, points, run.poses[-1]
+    return run.grid, named, run.poses[-1]
+
+
+def _explored(folder: Path, explorer: Explorer, points: NamedPoints, names: tuple[str, str],
+              why: str) -> str:
+    """A stop while exploring: the map so far (map.yaml) and a report saying so."""
+    from busarm.apps.transport.job import TransportReport
+    from busarm.apps.transport.report import write_transport_report
+    from busarm.nav.map_files import save_map
+
+    grid = explorer.so_far(why).grid
+    folder.mkdir(parents=True, exist_ok=True)
+    save_map(folder / "map.yaml", grid)
+    report = TransportReport(*names, why=f"{why} while exploring the arena (the map so "
+                                         "far: map.yaml)")
+    return f"the report so far: {write_transport_report(folder, report, grid, points)}"
 
 
 @click.command()
@@ -93,15 +117,18 @@ def _setup(settings: Settings, robot: Robot, points_file: Path | None, map_file:
               type=click.Path(file_okay=False, path_type=Path),
               help="Where to write report.json and the pictures.")
 @mobile_options
+@view_options
 @pass_settings
 def transport(settings: Settings, pick: str, place: str, points_file: Path | None,
               map_file: Path | None, start_text: str | None, color: str | None,
               report_dir: Path, arena_spec: str, chassis: str | None,
-              lidar_port: str | None) -> None:
+              lidar_port: str | None, foxglove_port: int | None,
+              mcap_file: Path | None) -> None:
     """Fetch a block from the named point --pick and deliver it to --place: localise on
     the map, drive there clear of everything, find the block with the wrist camera, line
     the base up and pick it (grasp checked), drive to --place, put it down and look that
-    it is there. Without --port: a twin of its own in --arena."""
+    it is there. Without --port: a twin of its own in --arena. --foxglove and --mcap
+    show the run in Foxglove live and record it (map, plan, path, scans, camera)."""
     from busarm.apps.transport.job import TransportJob
     from busarm.apps.transport.report import write_transport_report
     from busarm.twin.spec import TwinSpec
@@ -111,13 +138,18 @@ def transport(settings: Settings, pick: str, place: str, points_file: Path | Non
             and not isinstance(settings.world(), TwinSpec)):
         raise ConfigError(ON_A_ROBOT)  # before anything is opened: only a twin has an arena
     check_writable(report_dir / "report.json" if report_dir.is_dir() else report_dir)
-    with open_mobile_robot(settings, arena_spec, chassis, lidar_port, camera=True) as robot:
-        grid, points, known = _setup(settings, robot, points_file, map_file, report_dir)
+    with open_mobile_robot(settings, arena_spec, chassis, lidar_port, camera=True) as robot, \
+            watching(settings, robot, foxglove_port, mcap_file) as view:
+        grid, points, known = _setup(settings, robot, points_file, map_file, report_dir,
+                                     (pick, place), view)
         points.get(pick), points.get(place)  # both named, before anything moves
         job = TransportJob(robot, grid, points, pick, place, color=color,
                            progress=lambda line: settings.err.print(
-                               line, highlight=False, markup=False))
-        report = job.run(start if start is not None else known)
+                               line, highlight=False, markup=False),
+                           on_scan=navigation_hook(view, points, (pick, place)))
+        with keeping_what_was_done(robot, lambda exc: "the report so far: " + str(
+                write_transport_report(report_dir, job.report, grid, points, job.pictures))):
+            report = job.run(start if start is not None else known)
     path = write_transport_report(report_dir, report, grid, points, job.pictures)
     settings.out.print(
         f"{'delivered' if report.delivered else 'not delivered'}: {report.color or 'block'} "

@@ -29,6 +29,7 @@ __all__ = [
     "load_map",
     "read_pgm",
     "save_map",
+    "trinary_cells",
 ]
 
 
@@ -44,6 +45,16 @@ def grid_pixels(grid: OccupancyGrid) -> npt.NDArray[np.uint8]:
     out[p >= OCCUPIED_THRESH] = PIXEL_OCCUPIED
     out[p <= FREE_THRESH] = PIXEL_FREE
     return np.ascontiguousarray(out[::-1])
+
+
+def trinary_cells(grid: OccupancyGrid) -> npt.NDArray[np.int8]:
+    """Each cell as map_server publishes it: 100 occupied, 0 free, -1 unknown (by the map
+    file's thresholds); rows as the grid's, the first one at the origin."""
+    p = grid.probability
+    out = np.full(p.shape, -1, dtype=np.int8)
+    out[p >= OCCUPIED_THRESH] = 100
+    out[p <= FREE_THRESH] = 0
+    return out
 
 
 def save_map(yaml_path: str | Path, grid: OccupancyGrid) -> Path:

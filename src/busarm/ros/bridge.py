@@ -45,11 +45,7 @@ from busarm.errors import BusArmError, ConfigError, HaltedError
 from busarm.nav.grid import OccupancyGrid
 from busarm.protocol.rmw_zenoh import LATCHED, SENSOR_DATA, gid_of
 from busarm.robot import Robot
-from busarm.robot.remote import RobotServer
-from busarm.robot.state import StateReader
-from busarm.ros import messages as m
-from busarm.ros.commands import CLOSED_GAP_M, CmdVel, TrajectoryRunner, plan_trajectory
-from busarm.ros.frames import (
+from busarm.robot.frames import (
     CAMERA_FRAME,
     FOOTPRINT_FRAME,
     LASER_FRAME,
@@ -57,6 +53,10 @@ from busarm.ros.frames import (
     arm_frames,
     base_frames,
 )
+from busarm.robot.remote import RobotServer
+from busarm.robot.state import StateReader
+from busarm.ros import messages as m
+from busarm.ros.commands import CLOSED_GAP_M, CmdVel, TrajectoryRunner, plan_trajectory
 from busarm.ros.node import Received, RosNode
 from busarm.ros.rosout import RosoutHandler
 from busarm.ros.sensors import (

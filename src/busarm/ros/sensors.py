@@ -9,9 +9,10 @@ from typing import Any
 import numpy as np
 
 from busarm.base.base import BaseOdometry
+from busarm.lidar.beams import SCAN_BEAMS, even_beams
 from busarm.lidar.scan import LaserScan
 from busarm.nav.grid import OccupancyGrid
-from busarm.nav.map_files import FREE_THRESH, OCCUPIED_THRESH
+from busarm.nav.map_files import trinary_cells
 from busarm.perception.locate import Sighting
 from busarm.robot.state import StateReader
 from busarm.ros.messages import (
@@ -40,9 +41,6 @@ __all__ = [
 OK, WARN, ERROR = 0, 1, 2
 BLOCK_COLORS_RGB = {"red": (0.9, 0.1, 0.1), "green": (0.1, 0.8, 0.2),
                     "blue": (0.1, 0.3, 0.9), "yellow": (0.95, 0.85, 0.1)}
-SCAN_BEAMS = 360
-"""/scan has one beam a degree (the A1 gives about 400 a turn at uneven bearings; ROS
-wants them evenly spaced: each goes to its nearest degree, the nearest return kept)."""
 
 
 def diagnostics(t_s: float, state: StateReader, joint_names: Sequence[str],
@@ -115,14 +113,7 @@ def laser_scan(t_s: float, scan: LaserScan, frame_id: str) -> Any:
     """The scan at one beam a degree from -180 deg (NaN-free: no return is +inf, as
     REP 117 has it)."""
     increment = 2 * math.pi / SCAN_BEAMS
-    ranges = np.full(SCAN_BEAMS, np.inf, dtype=np.float32)
-    intensities = np.zeros(SCAN_BEAMS, dtype=np.float32)
-    seen = np.isfinite(scan.ranges_m)
-    bins = np.round((np.mod(scan.angles_rad[seen] + math.pi, 2 * math.pi)) / increment)
-    bins = bins.astype(int) % SCAN_BEAMS
-    for b, r, i in zip(bins, scan.ranges_m[seen], scan.intensities[seen], strict=True):
-        if r < ranges[b]:
-            ranges[b], intensities[b] = r, i
+    ranges, intensities = even_beams(scan, SCAN_BEAMS)
     scan_time = scan.scan_time_s if math.isfinite(scan.scan_time_s) else 0.0
     return message_class(LASER_SCAN)(
         header=header(t_s, frame_id), angle_min=-math.pi,
@@ -153,10 +144,7 @@ def odometry(t_s: float, odom: BaseOdometry, frame_id: str, child_frame_id: str)
 def occupancy_grid(t_s: float, grid: OccupancyGrid, frame_id: str = "map") -> Any:
     """A saved map as map_server publishes it (trinary: 100 occupied, 0 free, -1
     unknown, by the map file's thresholds; the first row is the one at the origin)."""
-    p = grid.probability
-    data = np.full(p.shape, -1, dtype=np.int8)
-    data[p >= OCCUPIED_THRESH] = 100
-    data[p <= FREE_THRESH] = 0
+    data = trinary_cells(grid)
     s, geo = grid.spec, "geometry_msgs/msg/"
     origin = message_class(geo + "Pose")(
         position=message_class(geo + "Point")(x=float(s.origin_x_m), y=float(s.origin_y_m),

@@ -98,16 +98,20 @@ class TwinCamera(CameraBase):
         self.view = view
         self._owns = owns_twin
         self.live = live
+        self._taken_s = twin.clock.now()
 
     def _grab(self) -> npt.NDArray[np.uint8]:
         if self.twin.is_closed:
             raise CameraError(f"{self.name}: the twin was closed")
+        # The moment the picture shows: the render that follows takes time on the wall
+        # clock (a real-time twin moves on meanwhile), none on a simulated one.
+        self._taken_s = self.twin.clock.now()
         if self.view == "arm":
             return self.twin.render_camera(live=self.live)
         return self.twin.render_overview(live=self.live)
 
     def _timestamp(self) -> float:
-        return self.twin.clock.now()
+        return self._taken_s
 
     def _release(self) -> None:
         if self._owns:

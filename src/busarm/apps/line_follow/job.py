@@ -53,7 +53,7 @@ from busarm.apps.transport.mobile_pick import FLOOR, BlockSeen, pick_block, put_
 from busarm.apps.transport.workspace import Workspace, half_size_m, m_text
 from busarm.base.kinematics import Twist
 from busarm.base.odometry import Pose2D, wrap_rad
-from busarm.errors import HaltedError, NavigationError, UnreachableError
+from busarm.errors import NavigationError, UnreachableError, why_stopped
 from busarm.lidar.scan import to_points
 from busarm.nav.line_track import LineController, LineTracker, in_stop_range, obstacle_ahead
 from busarm.nav.mapping import compose
@@ -260,10 +260,7 @@ class LineFollowJob:
             self.report.why = str(exc)
             raise
         except BaseException as exc:
-            # A person's stop (Ctrl+C, a signal, a halt or a page's Stop) is a stop.
-            stopped = isinstance(exc, KeyboardInterrupt | HaltedError)
-            self.report.why = ((str(exc) or "interrupted") if stopped
-                               else f"stopped by an error: {str(exc) or type(exc).__name__}")
+            self.report.why = why_stopped(exc)  # a person's stop is a stop, not an error
             raise
         finally:
             self.base.stop()
@@ -441,6 +438,11 @@ class LineFollowJob:
                 f"again after {MAX_CLEARS_HERE} clearings here: the base is stopped")
         self.progress(f"a {block.color} block on the line {_ahead_text((block.x_m, block.y_m))}"
                       ": clearing it")
+        # Seen from where the base stopped, not where the picture was taken: on the wall
+        # clock it drove on while the picture was looked at (a busy computer's tenths of
+        # a second: centimetres the pick's closer look then misses the block by).
+        self.base.wait_stopped()
+        block = _seen_after(block, self.base.odometry().pose.relative_to(self.odometry))
         try:
             picked = pick_block(self.robot, FLOOR, self._face(block))
         except UnreachableError as exc:
@@ -481,10 +483,7 @@ class LineFollowJob:
         turning_m = math.hypot(*half_size_m(self.base.config)) + TURN_CLEAR_M
         if len(returns) and float(np.min(np.hypot(returns[:, 0], returns[:, 1]))) < turning_m:
             return block
-        turned = self.base.move_by(0.0, 0.0, bearing)
-        seen = Pose2D(block.x_m, block.y_m, math.radians(block.yaw_deg)).relative_to(turned)
-        return replace(block, x_m=seen.x_m, y_m=seen.y_m,
-                       yaw_deg=(seen.yaw_deg + 45.0) % 90.0 - 45.0)
+        return _seen_after(block, self.base.move_by(0.0, 0.0, bearing))
 
     def _not_picked(self, block: BlockSeen, found: tuple[float, float], why: str,
                     attempts: int, began: float) -> None:
@@ -560,6 +559,13 @@ class LineFollowJob:
     def _to_odometry(self, xy_base_m: tuple[float, float]) -> tuple[float, float]:
         p = compose(self.odometry, Pose2D(xy_base_m[0], xy_base_m[1], 0.0))
         return p.x_m, p.y_m
+
+
+def _seen_after(block: BlockSeen, moved: Pose2D) -> BlockSeen:
+    """``block`` as seen from the base after it ``moved`` (in the frame it had)."""
+    seen = Pose2D(block.x_m, block.y_m, math.radians(block.yaw_deg)).relative_to(moved)
+    return replace(block, x_m=seen.x_m, y_m=seen.y_m,
+                   yaw_deg=(seen.yaw_deg + 45.0) % 90.0 - 45.0)
 
 
 def _distance_m(points: FloatArray, xy: tuple[float, float]) -> float:

@@ -107,18 +107,23 @@ class Explorer:
         self.unreachable: list[tuple[float, float]] = []
         """Frontier targets given up on: no route, or the way there blocked."""
         self._planned_at_s = -math.inf
+        self._began_s = self.clock.now()
 
     def run(self) -> MapRun:
-        """Explore until done; the wheels are stopped whatever happens."""
-        start = self.clock.now()
-        run = MapRun(self.builder.grid)
+        """Explore until done; the wheels are stopped whatever happens (on a stop, what
+        was explored before it is ``so_far``)."""
+        self._began_s = self.clock.now()
         try:
-            finished = self._loop(start)
+            finished = self._loop(self._began_s)
         finally:
             self.base.stop()
-        run.grid = cropped(self.builder.grid)
-        run.poses = list(self.builder.poses)
-        run.seconds = self.clock.now() - start
+        return self.so_far(finished)
+
+    def so_far(self, finished: str) -> MapRun:
+        """The map and the path as they are now, ``finished`` saying why it stopped:
+        ``run``'s result, or what a stop (Ctrl+C, a signal, an error) left."""
+        run = MapRun(cropped(self.builder.grid), list(self.builder.poses))
+        run.seconds = self.clock.now() - self._began_s
         run.driven_m = sum(math.dist((a.x_m, a.y_m), (b.x_m, b.y_m))
                            for a, b in zip(run.poses, run.poses[1:], strict=False))
         run.scans, run.corrections = self.reader.scans, self.builder.corrections

@@ -111,9 +111,9 @@ class PickJob:
             if stopped.gripper:  # empty if it stopped before the run began
                 self.notes.append(f"the gripper: {stopped.gripper}")
             try:
-                write_report(self.report_dir, stopped, picks=self.pictures.picks,
-                             camera_frames=self.pictures.frames, extra=self.about)
-                self.notes.append(f"the report so far: {self.report_dir}/")
+                path = write_report(self.report_dir, stopped, picks=self.pictures.picks,
+                                    camera_frames=self.pictures.frames, extra=self.about)
+                self.notes.append(f"the report so far: {path}")
             except (BusArmError, OSError) as write_error:  # the stop's own error is the one
                 self.notes.append(f"the report could not be written: {write_error}")
             raise

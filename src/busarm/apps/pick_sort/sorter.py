@@ -55,6 +55,7 @@ from busarm.apps.pick_sort.table_view import (
 from busarm.errors import (
     BusArmError,
     ConfigError,
+    HaltedError,
     MotionTimeoutError,
     ServoFaultError,
     UnreachableError,
@@ -395,8 +396,9 @@ class PickSorter:
                     outcome.outcome, outcome.reason = "failed", why
             self.verify_bins(report)
         except BaseException as exc:
+            # A person's stop (Ctrl+C, a signal, a halt or a page's Stop) in its words.
             report.stopped = ((str(exc) or "interrupted (Ctrl+C)")
-                              if isinstance(exc, KeyboardInterrupt)
+                              if isinstance(exc, KeyboardInterrupt | HaltedError)
                               else f"{type(exc).__name__}: {exc}")
             report.gripper = "not read back (interrupted again)"  # if a Ctrl+C cuts it short
             report.gripper = self._stop_and_read_gripper()

@@ -13,6 +13,7 @@ reported delivered only when the last look saw it where it was put.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -29,7 +30,7 @@ from busarm.apps.transport.mobile_pick import (
     place_block,
 )
 from busarm.base.odometry import Pose2D
-from busarm.errors import BusArmError, NavigationError
+from busarm.errors import BusArmError, HaltedError, NavigationError, why_stopped
 from busarm.nav.grid import OccupancyGrid
 from busarm.nav.mapping import compose
 from busarm.nav.points import WORK_AHEAD_M, NamedPoint, NamedPoints
@@ -129,7 +130,9 @@ class TransportJob:
 
     def run(self, start: Pose2D | None = None) -> TransportReport:
         """The whole job; never raises for a job that did not work (the report says
-        why), only for bad input found before anything moved."""
+        why), only for bad input found before anything moved, and for a person's stop
+        (Ctrl+C, SIGTERM or SIGHUP, a halt: HaltedError), the wheels stopped and the
+        report so far kept in ``report``."""
         clock = self.robot.clock
         began = clock.now()
         try:
@@ -142,8 +145,12 @@ class TransportJob:
             self._phase("pick", lambda: self._pick(block))
             self._go("drive to " + self.place_point.name, self.place_point)
             self._phase("place", self._place)
-        except BusArmError as exc:
-            self.report.why = str(exc)
+        except BaseException as exc:
+            self.report.why = _why(exc)
+            if not _failed(exc):  # a person's stop (or a bug): the wheels stop, it goes on
+                with contextlib.suppress(BusArmError):
+                    self._stop()
+                raise
             self._stop()
         finally:
             self.report.seconds = clock.now() - began
@@ -154,11 +161,11 @@ class TransportJob:
     def _phase(self, name: str, action: Callable[[], Any]) -> Any:
         clock = self.robot.clock
         began = clock.now()
-        self.progress(f"{name}...")
-        try:
+        try:  # a stop that comes as the phase is said is this phase's
+            self.progress(f"{name}...")
             result = action()
-        except BusArmError as exc:
-            self.report.phases.append(Phase(name, clock.now() - began, False, str(exc)))
+        except BaseException as exc:
+            self.report.phases.append(Phase(name, clock.now() - began, False, _why(exc)))
             raise
         self.report.phases.append(Phase(name, clock.now() - began, True))
         return result
@@ -236,6 +243,16 @@ class TransportJob:
 
 class _PhaseFailed(NavigationError):
     """A phase of the job that could not be done (the report says which)."""
+
+
+def _failed(exc: BaseException) -> bool:
+    """Whether ``exc`` says the job could not be done (not a person's stop, not a bug)."""
+    return isinstance(exc, BusArmError) and not isinstance(exc, HaltedError)
+
+
+def _why(exc: BaseException) -> str:
+    """What the report says of ``exc``: why the job could not be done, or the stop."""
+    return str(exc) if _failed(exc) else why_stopped(exc)
 
 
 def teach_point(robot: Robot, grid: OccupancyGrid, name: str, *, surface_m: float = 0.0,

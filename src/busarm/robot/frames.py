@@ -1,4 +1,5 @@
-"""The robot's coordinate frames for /tf, named as the URDF ``busarm arm urdf`` writes.
+"""The robot's coordinate frames, named as the URDF ``busarm arm urdf`` writes: what ROS's
+/tf (busarm.ros) and Foxglove's transforms (busarm.view) show.
 
 The arm: ``base_link`` -> one ``<joint>_link`` per joint -> ``tool`` (a chain, as in the
 URDF, so robot_state_publisher's tree and ours agree), and the wrist camera's optical
