@@ -289,3 +289,24 @@ def test_view_refuses_a_short_token_and_record_writes_when_complete(tmp_path: Pa
         topics = {c.topic for _, c, _, _ in make_reader(
             f, decoder_factories=decoders()).iter_decoded_messages()}
     assert topics == {"/tf", "/joint_states", "/robot_description"}  # no camera, no base
+
+
+def test_a_map_build_recorded_for_foxglove(tmp_path: Path) -> None:
+    """`busarm map build --mcap`: the map as it grew and the path driven are in the file,
+    in the map's frame."""
+    runner = CliRunner(mix_stderr=False)
+    out = tmp_path / "build.mcap"
+    done = runner.invoke(cli, ["map", "build", "--arena", "1", "--time", "12", "--out",
+                               str(tmp_path / "map.yaml"), "--mcap", str(out)])
+    not_crashed(done)
+    assert done.exit_code == 0, done.output
+    counts: dict[str, int] = {}
+    last: dict[str, Any] = {}
+    with open(out, "rb") as f:
+        for _, channel, _, decoded in make_reader(
+                f, decoder_factories=decoders()).iter_decoded_messages():
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+            last[channel.topic] = decoded
+    assert {"/map", "/path", "/scan", "/tf"} <= set(counts), counts
+    assert counts["/map"] >= 2 and counts["/path"] >= 2  # as the map grew
+    assert last["/map"].frame_id == "map" and last["/path"].entities[0].frame_id == "map"

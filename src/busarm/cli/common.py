@@ -40,6 +40,7 @@ from busarm.cli.exits import JobNotDone
 from busarm.cli.help_style import metavar_from_help, unit_metavar
 from busarm.cli.job_view import (
     explore_hook,
+    line_follow_hook,
     navigation_hook,
     need_view,
     start_view,
@@ -162,7 +163,7 @@ __all__ += ["announced", "find_session"]  # running `sim serve`/`twin serve` (cl
 __all__ += ["arena_from_spec", "keeping_what_was_done", "mobile_options",  # cli.mobile_common
             "open_mobile_robot", "stop_wheels"]
 __all__ += ["open_live_robot"]  # cli.live_robot
-__all__ += ["explore_hook", "navigation_hook", "need_view",  # cli.job_view
+__all__ += ["explore_hook", "line_follow_hook", "navigation_hook", "need_view",  # job_view
             "start_view", "view_options", "watching"]
 __all__ += ["camera_from_text", "describe_robot", "from_robot_file",  # cli.robot_options
             "with_realtime"]

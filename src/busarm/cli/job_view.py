@@ -15,6 +15,7 @@ import click
 from busarm.errors import ConfigError
 
 if TYPE_CHECKING:
+    from busarm.apps.line_follow.job import LineFollowJob
     from busarm.apps.navigation.explore import Explorer
     from busarm.apps.navigation.navigator import Navigator
     from busarm.apps.navigation.sensing import SensedScan
@@ -27,6 +28,7 @@ __all__ = [
     "JOB_VIEW_FPS",
     "JOB_VIEW_HZ",
     "explore_hook",
+    "line_follow_hook",
     "navigation_hook",
     "need_view",
     "start_view",
@@ -136,3 +138,13 @@ def navigation_hook(view: RobotView | None, points: NamedPoints, names: tuple[st
     from busarm.view.jobs import navigation_hook as hook
 
     return hook(view, points, names)
+
+
+def line_follow_hook(view: RobotView | None) -> Callable[[LineFollowJob], None] | None:
+    """A LineFollowJob's ``on_step`` that shows its path and what it found (None without a
+    view)."""
+    if view is None:
+        return None
+    from busarm.view.jobs import line_follow_hook as hook
+
+    return hook(view)

@@ -29,9 +29,12 @@ from busarm.cli.common import (
     calibration_store,
     check_writable,
     keeping_what_was_done,
+    line_follow_hook,
     mobile_options,
     open_mobile_robot,
     pass_settings,
+    view_options,
+    watching,
 )
 from busarm.errors import ConfigError
 
@@ -99,12 +102,14 @@ def parse_clear_colors(text: str) -> list[str]:
 @click.option("--config", default="jetauto_pro", show_default=True,
               help="Arm description: a shipped name or a TOML file.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
+@view_options
 @mobile_options
 @pass_settings
 def line_follow(settings: Settings, laps: float, speed_m_s: float, colors_text: str,
                 obstacle_wait_s: float, report_dir: Path, camera_src: str | None,
                 intrinsics: Path | None, hand_eye: Path | None, config: str, as_json: bool,
-                arena_spec: str, chassis: str | None, lidar_port: str | None) -> None:
+                foxglove_port: int | None, mcap_file: Path | None, arena_spec: str,
+                chassis: str | None, lidar_port: str | None) -> None:
     """Follow the floor loop with the wrist camera looking ahead: the Lidar stops the base
     for anything in its way (until it goes), and a coloured block on the line is picked
     and put aside. Prints its progress and a summary; writes a report folder (JSON, the
@@ -125,9 +130,11 @@ def line_follow(settings: Settings, laps: float, speed_m_s: float, colors_text: 
         options["camera"] = camera_src
     wall_start = time.monotonic()
     with open_mobile_robot(settings, arena_spec, chassis, lidar_port, camera=True,
-                           **options) as robot:
+                           **options) as robot, \
+            watching(settings, robot, foxglove_port, mcap_file) as view:
         job = LineFollowJob(robot, laps=laps, speed_m_s=speed_m_s, colors=colors,
-                            obstacle_wait_s=obstacle_wait_s, progress=say)
+                            obstacle_wait_s=obstacle_wait_s, progress=say,
+                            on_step=line_follow_hook(view))
         with keeping_what_was_done(robot, lambda exc: "the report so far: "
                                    f"{_write(report_dir, job.report, robot)}"):
             say(f"{robot!r}: {laps:g} lap(s) of the line at {speed_m_s:g} m/s")

@@ -12,11 +12,14 @@ from busarm.cli.common import (
     RangeType,
     Settings,
     check_writable,
+    explore_hook,
     keeping_what_was_done,
     mobile_options,
     open_mobile_robot,
     parse_pose,
     pass_settings,
+    view_options,
+    watching,
 )
 from busarm.errors import why_stopped
 
@@ -74,10 +77,12 @@ def show(settings: Settings, map_file: Path, png: Path | None) -> None:
               help="The longest it may explore (simulated seconds on the twin).")
 @click.option("--png", type=click.Path(dir_okay=False, path_type=Path),
               help="Also draw the map with the path driven to this PNG file.")
+@view_options
 @mobile_options
 @pass_settings
 def build(settings: Settings, out_file: Path, time_limit_s: float, png: Path | None,
-          arena_spec: str, chassis: str | None, lidar_port: str | None) -> None:
+          foxglove_port: int | None, mcap_file: Path | None, arena_spec: str,
+          chassis: str | None, lidar_port: str | None) -> None:
     """Explore and map the place the robot stands in: the base drives itself to each
     frontier between the known free floor and the unknown until none is left, every
     scan placed where it fits the map so far. The map's origin is where the base started.
@@ -85,10 +90,11 @@ def build(settings: Settings, out_file: Path, time_limit_s: float, png: Path | N
     from busarm.apps.navigation.explore import Explorer
 
     check_writable(out_file)
-    with open_mobile_robot(settings, arena_spec, chassis, lidar_port) as robot:
+    with open_mobile_robot(settings, arena_spec, chassis, lidar_port) as robot, \
+            watching(settings, robot, foxglove_port, mcap_file) as view:
         settings.err.print(f"exploring with {robot!r} (at most {time_limit_s:g} s)",
                            highlight=False, markup=False)
-        explorer = Explorer(robot, time_limit_s=time_limit_s)
+        explorer = Explorer(robot, time_limit_s=time_limit_s, on_scan=explore_hook(view))
         # A stop keeps the map explored so far (what `map show` and transport read).
         with keeping_what_was_done(robot, lambda exc: _keep(
                 explorer.so_far(why_stopped(exc)), out_file, png)):

@@ -14,10 +14,12 @@ from typing import TYPE_CHECKING
 
 from busarm.nav.grid import cropped
 from busarm.nav.points import NamedPoints
+from busarm.robot.frames import ODOM_FRAME
 from busarm.view.live import RobotView
 from busarm.view.messages import Point2
 
 if TYPE_CHECKING:
+    from busarm.apps.line_follow.job import LineFollowJob
     from busarm.apps.navigation.explore import Explorer
     from busarm.apps.navigation.navigator import Navigator
     from busarm.apps.navigation.sensing import SensedScan
@@ -26,6 +28,7 @@ __all__ = [
     "MAP_EVERY_S",
     "PATH_EVERY_S",
     "explore_hook",
+    "line_follow_hook",
     "navigation_hook",
 ]
 
@@ -88,4 +91,19 @@ def explore_hook(view: RobotView) -> Callable[[Explorer], None]:
             driven = [(p.x_m, p.y_m) for p in explorer.builder.poses]
             marks = {"frontier": explorer.goal} if explorer.goal is not None else {}
             view.show_path((), driven, marks)
+    return hook
+
+
+def line_follow_hook(view: RobotView) -> Callable[[LineFollowJob], None]:
+    """A LineFollowJob's ``on_step``: the path driven (in ``odom``: the job has no map),
+    the blocks found on the line and the stops for obstacles."""
+    path_due = _Every(view, PATH_EVERY_S)
+
+    def hook(job: LineFollowJob) -> None:
+        if not path_due():
+            return
+        r = job.report
+        marks = {f"{i + 1} {b.color}": b.found_m for i, b in enumerate(r.blocks)}
+        marks |= {f"stop {i + 1}": (s.at.x_m, s.at.y_m) for i, s in enumerate(r.stops)}
+        view.show_path((), [(p.x_m, p.y_m) for p in r.path], marks, frame_id=ODOM_FRAME)
     return hook
