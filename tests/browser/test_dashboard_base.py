@@ -136,7 +136,7 @@ def test_the_page_drives_the_base_and_every_stop_stops_it(
         cdp.send("Debugger.enable")
         cdp.send("Debugger.pause")
         wait_for(page, lambda: stopped(arena_robot), "the wheels stopped by the deadman")
-        assert any("no heartbeat from the driver for 250 ms" in e["text"]
+        assert any("no drive from the driver for 250 ms" in e["text"]
                    for e in service.log_lines)
         cdp.send("Debugger.resume")
         page.keyboard.up("j")
@@ -217,6 +217,13 @@ def test_a_click_on_the_map_names_a_point_and_finds_the_base(
         page.locator("#point-name").fill("no good!")
         page.locator("#point-save").click()
         expect(page.locator("[data-testid=error-toast]").first).to_contain_text("no good!")
+        room = arena_robot.sim.arena.room if arena_robot.sim and arena_robot.sim.arena else None
+        assert room is not None
+        click_map(page, tmp_path / "room.yaml", room.x_min_m - 0.15, 0.0)  # in the wall
+        page.locator("#point-name").fill("wall")
+        page.locator("#point-save").click()
+        expect(page.locator("[data-testid=error-toast]").last).to_contain_text(
+            "is occupied on the map")
         assert set(load_points(tmp_path / "points.toml").points) == {"pick", "place", "shelf"}
 
         # Where the base is, from a person's rough guess (0.2 m, 15 deg off): the map

@@ -140,17 +140,22 @@ def test_the_estop_latches_the_wheels_until_rearmed(board_robot: Robot,
 def test_base_drive_is_checked_held_and_stopped_through_the_server(
         board_robot: Robot, plain_robot: Robot, tmp_path: Path) -> None:
     """The base's requests from a page: refused (named value, range) with nothing sent to
-    the wheels; a drive reaches the wheels and base_stop stops them; refused while halted
-    or while a job runs; a point named without a map refused."""
+    the wheels; a drive reaches the wheels and base_stop stops them; heartbeats alone do
+    not keep it going; refused while a job runs and while halted; a point named without a
+    map refused."""
     service, http = serve(board_robot, tmp_path)
     try:
         with ws_of(http) as ws:
             robot = receive(ws, "welcome")["robot"]
             assert robot["base"]["max_speed_m_s"] == 0.4 and robot["bins"] == []
             for request, said in (
-                    ({"vx_m_s": 0.9}, "base_drive: vx_m_s = 0.9; allowed: -0.4..0.4 m/s"),
-                    ({"wz_rad_s": -3}, "base_drive: wz_rad_s = -3; allowed: -2.09..2.09 "
-                                       "rad/s"),
+                    ({"vx_m_s": 0.9}, "base_drive: vx = 0.9 m/s is beyond the chassis's "
+                                      "limit; allowed: -0.4..0.4 m/s"),
+                    ({"wz_rad_s": -3}, "base_drive: wz = -171.887 deg/s is beyond the "
+                                       "chassis's limit; allowed: -120..120 deg/s"),
+                    ({"vx_m_s": 0.4, "vy_m_s": 0.4}, "base_drive: vx 0.4 m/s, vy 0.4 m/s and "
+                     "wz 0 deg/s together need a wheel at 2.64 rev/s; the wheels turn at most "
+                     "1.5 rev/s (in this direction at most 57% as fast)"),
                     ({"vy_m_s": "fast"}, 'base_drive: vy_m_s = "fast"; allowed: a number '
                                          "-1000..1000"),
                     ({"spin": 1}, "base_drive: unknown field(s) spin; allowed: vx_m_s, "
@@ -168,6 +173,25 @@ def test_base_drive_is_checked_held_and_stopped_through_the_server(
             while "base stopped (released)" not in receive(ws, "log")["text"]:
                 pass  # "base: driving at ..." first
             assert wheel_targets(board_robot) == [0.0] * 4
+            # Heartbeats alone (a key-up lost, a page whose script failed): the wheels stop.
+            ws.send('{"type": "base_drive", "vx_m_s": -0.2}')
+            deadline = time.monotonic() + 5
+            while not any(wheel_targets(board_robot)) and time.monotonic() < deadline:
+                time.sleep(0.01)
+            assert any(wheel_targets(board_robot))
+            for _ in range(10):
+                ws.send('{"type": "heartbeat"}')
+                time.sleep(0.1)
+            assert wheel_targets(board_robot) == [0.0] * 4
+            assert any(e["text"] == "base stopped (no drive from the driver for 250 ms)"
+                       for e in service.log_lines)
+            ws.send('{"type": "play", "group": "wave"}')
+            receive(ws, "job")
+            ws.send('{"type": "base_drive", "vx_m_s": 0.2}')
+            assert receive(ws, "error")["text"] == (
+                "base_drive: play sample wave is running: stop it first")
+            assert wheel_targets(board_robot) == [0.0] * 4
+            ws.send('{"type": "stop"}')
             ws.send('{"type": "estop"}')
             ws.send('{"type": "base_drive", "vx_m_s": 0.2}')
             assert receive(ws, "error")["text"].startswith("base_drive: the robot is stopped")

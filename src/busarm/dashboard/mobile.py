@@ -183,6 +183,19 @@ class MobileJobs:
                 "colors": block_colors(), "map": self._grid is not None,
                 "points_file": None if self._points_file is None else str(self._points_file)}
 
+    def job_for(self, request: NavTransport | LineFollow | Localise
+                ) -> tuple[Callable[[threading.Event, Progress], str], str]:
+        """The job ``request`` asks for (checked first: RequestError) and its name; run
+        it with its cancel event and progress."""
+        self.check(request)
+        if isinstance(request, NavTransport):
+            return (lambda cancel, progress: self.transport(request, cancel, progress),
+                    "transport")
+        if isinstance(request, LineFollow):
+            return (lambda cancel, progress: self.line_follow(request, cancel, progress),
+                    "line follow")
+        return lambda cancel, progress: self.localise(request, cancel, progress), "localise"
+
     # ------------------------------------------------------------------ checks
 
     def check(self, request: NavTransport | LineFollow | Localise) -> None:
@@ -463,6 +476,7 @@ class MobileJobs:
         from busarm.nav.points import NamedPoint, check_point_name, map_reference, save_points
 
         name = check_point_name(request.name)
+        _check_free(self._grid, request)
         known = self._points or NamedPoints(self._points_file.stem)
         point = NamedPoint(name, Pose2D(request.x_m, request.y_m,
                                         math.radians(request.yaw_deg)))
@@ -483,6 +497,26 @@ class MobileJobs:
         """The wheels stopped (allowed while halted); a link that fails is said by the job."""
         with contextlib.suppress(BusArmError):
             self._base().stop()
+
+
+def _check_free(grid: OccupancyGrid, request: NamePoint) -> None:
+    """RequestError unless the point is on the map, on floor the map knows is free (the
+    map file's own threshold): where the base can stand."""
+    from busarm.nav.map_files import FREE_THRESH, OCCUPIED_THRESH
+
+    spec = grid.spec
+    rows, cols = spec.cells([(request.x_m, request.y_m)])
+    x_max = spec.origin_x_m + spec.width * spec.resolution_m
+    y_max = spec.origin_y_m + spec.height * spec.resolution_m
+    where = f"name_point: {request.name} at x {request.x_m:g} m, y {request.y_m:g} m"
+    if not spec.inside(rows, cols)[0]:
+        raise RequestError(f"{where} is off the map; allowed: x {spec.origin_x_m:.2f}.."
+                           f"{x_max:.2f} m, y {spec.origin_y_m:.2f}..{y_max:.2f} m")
+    p = float(grid.probability[rows[0], cols[0]])
+    if p >= FREE_THRESH:
+        said = "occupied" if p >= OCCUPIED_THRESH else "not known to be free"
+        raise RequestError(f"{where} is {said} on the map: a point is where the base "
+                           "stands, on free floor")
 
 
 def _marks(points: NamedPoints) -> dict[str, Point]:

@@ -20,7 +20,6 @@ Every request passes ``Access`` first (busarm.dashboard.access).
 from __future__ import annotations
 
 import asyncio
-import errno
 import itertools
 import json
 import logging
@@ -41,6 +40,7 @@ from busarm.dashboard.feeds import Feed
 from busarm.dashboard.protocol import message, parse_request, request_type
 from busarm.dashboard.service import RobotService
 from busarm.errors import BusArmError, ConfigError
+from busarm.robot.listen import bind_socket
 
 __all__ = [
     "LIVE",
@@ -288,22 +288,6 @@ async def _answer(socket: WebSocket, service: RobotService, client: str, text: s
         log.exception("request %s", text[:200])
         await socket.send_text(message("error", request=kind,
                                        text=f"internal error: {type(exc).__name__}: {exc}"))
-
-
-def bind_socket(host: str, port: int) -> socket.socket:
-    """A listening TCP socket on ``host``:``port``; ConfigError if it cannot be had."""
-    family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    sock = socket.socket(family, socket.SOCK_STREAM)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    try:
-        sock.bind((host, port))
-    except OSError as exc:
-        sock.close()
-        why = "is in use (give another --http-port, or 0 for any free one)" if (
-            exc.errno == errno.EADDRINUSE) else f"cannot be used: {exc.strerror}"
-        raise ConfigError(f"{host}:{port} {why}") from None
-    sock.listen(64)
-    return sock
 
 
 def serve(service: RobotService, access: Access, feeds: dict[str, Feed], *,

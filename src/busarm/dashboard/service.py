@@ -34,9 +34,9 @@ from pathlib import Path
 from typing import Any
 
 from busarm.arm.action_samples import read_group_or_sample, sample_names
-from busarm.arm.actions import ActionFrame, ActionGroup, write_d6a
 from busarm.arm.named_poses import find_pose, list_poses, save_pose
 from busarm.dashboard import jobs
+from busarm.dashboard.group_recorder import GroupRecorder
 from busarm.dashboard.jog import JogPlan
 from busarm.dashboard.mobile import MobileJobs, MobileSetup
 from busarm.dashboard.protocol import (
@@ -127,7 +127,7 @@ class RobotService:
         self._jog: JogPlan | None = None
         self._jog_target: tuple[float, ...] | None = None
         self._job: _Job | None = None
-        self._recording: list[ActionFrame] | None = None
+        self.recorder = GroupRecorder(robot.arm, self.folder, self.log)
         self._rearm_after: str | None = None  # a stop's halt, lifted when its job ends
         self.log_lines: collections.deque[dict[str, Any]] = collections.deque(maxlen=LOG_LINES)
         self.last_state: dict[str, Any] = {}
@@ -237,6 +237,9 @@ class RobotService:
         if kind == "estop":  # anyone may stop the robot
             self.estop(f"e-stop from page {client}")
             return
+        if kind == "base_stop":  # a stop is never wrong: from a page that just lost the seat
+            self._stop_base("released")
+            return
         with self._lock:
             if client == self.driver:
                 self._heard = time.monotonic()
@@ -267,8 +270,6 @@ class RobotService:
             self.rearm(client)
         elif kind == "jog_stop":
             self._stop_jog("released")
-        elif kind == "base_stop":
-            self._stop_base("released")
         elif kind == "name_point":
             assert isinstance(request, NamePoint)
             path = self.mobile.name_point(request)
@@ -277,7 +278,8 @@ class RobotService:
             self.publish("robot", robot=self.describe())
         elif kind == "record":
             assert isinstance(request, Record)
-            self._record(request)
+            if self.recorder.handle(request):
+                self.publish("robot", robot=self.describe())
         elif kind == "save_pose":
             assert isinstance(request, Named)
             self._save_pose(request.name)
@@ -286,7 +288,7 @@ class RobotService:
             if isinstance(request, Jog):
                 self._start_jog(request)
             elif isinstance(request, BaseDrive):
-                self._start_base(request)
+                self._start_base(client, request)
             elif isinstance(request, Torque):
                 self._torque(request)
             else:
@@ -362,11 +364,15 @@ class RobotService:
 
     # ------------------------------------------------------------------ the base
 
-    def _start_base(self, request: BaseDrive) -> None:
+    def _start_base(self, client: str, request: BaseDrive) -> None:
         if self.teleop is None:
             raise RequestError("base_drive: this robot has no base (open the dashboard on "
                                "a controller board with a chassis)")
-        self.teleop.start(self.teleop.check(request))
+        twist = self.teleop.check(request)
+        with self._lock:  # a page that lost the seat meanwhile (a take-over) does not drive
+            if self.driver != client:
+                raise RequestError(f"base_drive: page {self.driver} drives now")
+            self.teleop.start(twist)
 
     def _stop_base(self, why: str) -> None:
         if self.teleop is not None:
@@ -403,7 +409,7 @@ class RobotService:
                 silent_s = time.monotonic() - self._heard
                 lost = self._jog is not None and silent_s > JOG_HOLD_S
             if self.teleop is not None:
-                self.teleop.tick(silent_s)
+                self.teleop.tick()
             if lost:
                 self._stop_jog(f"no heartbeat from the driver for {JOG_HOLD_S * 1000:.0f} ms")
 
@@ -441,31 +447,6 @@ class RobotService:
         save_pose(self.folder, self.robot.config, name, joints)
         self.log(f"saved pose {name!r}: " + ", ".join(f"{a:.1f}" for a in joints) + " deg")
         self.publish("robot", robot=self.describe())
-
-    def _record(self, request: Record) -> None:
-        if request.action == "start":
-            self._recording = []
-            self.log("recording an action group: jog to each pose and add it as a frame")
-            return
-        if self._recording is None:
-            raise RequestError(f"record: {request.action} needs a recording: start one first")
-        if request.action == "cancel":
-            self._recording = None
-            self.log("recording cancelled")
-        elif request.action == "frame":
-            self._recording.append(self.arm.record_frame(request.duration_ms))
-            self.log(f"frame {len(self._recording)} recorded ({request.duration_ms} ms)")
-        else:
-            if not self._recording:
-                raise RequestError("record: no frame recorded yet: add one first")
-            assert request.name is not None
-            path = self.folder / "actions" / f"{request.name}.d6a"
-            path.parent.mkdir(parents=True, exist_ok=True)
-            write_d6a(path, ActionGroup(tuple(self._recording)))
-            self.log(f"saved action group {request.name!r} ({len(self._recording)} frames) "
-                     f"in {path}")
-            self._recording = None
-            self.publish("robot", robot=self.describe())
 
     # ------------------------------------------------------------------ jobs
 
@@ -507,22 +488,10 @@ class RobotService:
                     if (folder / "report.json").exists():
                         self.publish("report", name=folder.name)
             return pick, "pick-sort"
-        if isinstance(request, NavTransport | LineFollow):
-            return self._mobile_job(request)
-        if isinstance(request, Localise):
-            self.mobile.check(request)
-            return (lambda job: self.mobile.localise(request, job.cancel, self._progress(job)),
-                    "localise")
+        if isinstance(request, NavTransport | LineFollow | Localise):
+            mobile, name = self.mobile.job_for(request)
+            return lambda job: mobile(job.cancel, self._progress(job)), name
         raise RequestError(f"{request.type}: not a job")
-
-    def _mobile_job(self, request: NavTransport | LineFollow
-                    ) -> tuple[Callable[[_Job], str], str]:
-        self.mobile.check(request)
-        if isinstance(request, NavTransport):
-            return (lambda job: self.mobile.transport(request, job.cancel, self._progress(job)),
-                    "transport")
-        return (lambda job: self.mobile.line_follow(request, job.cancel, self._progress(job)),
-                "line follow")
 
     def _progress(self, job: _Job) -> Callable[[str], None]:
         def say(text: str) -> None:
@@ -595,7 +564,8 @@ class RobotService:
                 "job": None if job is None else {"name": job.name, "text": job.progress},
                 "jog": None if jog is None else {"joint": jog.joint, "axis": jog.axis,
                                                  "direction": jog.direction},
-                "recording": None if self._recording is None else len(self._recording),
+                "recording": (None if self.recorder.frames is None
+                              else len(self.recorder.frames)),
                 "map": self.mobile.view.sequence if self.mobile.available else None,
                 "has_map": self.mobile.has_map,
             })

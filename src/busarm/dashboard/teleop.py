@@ -1,12 +1,14 @@
 """Driving the mobile base from the page: a twist held while a key or button is held.
 
 The page sends ``base_drive`` (a twist within the base's limits) when a key or button is
-pressed and again every heartbeat while it is held, and ``base_stop`` when it is let go.
-``BaseTeleop`` checks the twist against the base's limits (a refusal names the value and
-the range; nothing is sent), and the dashboard's deadman thread calls ``tick`` every few
-milliseconds: it repeats the twist to the base (``Base.drive``, which ramps within the
-acceleration limits and has its own watchdog) every ``DRIVE_PERIOD_S``, and stops the
-wheels at once when the driver has not been heard for ``BASE_HOLD_S``.
+pressed and again every 100 ms while it is held, and ``base_stop`` when it is let go.
+``BaseTeleop`` checks the twist against the base's limits, its wheels' included (a
+refusal names the value and the range; nothing is sent), and the dashboard's deadman
+thread calls ``tick`` every few milliseconds: it repeats the twist to the base
+(``Base.drive``, which ramps within the acceleration limits and has its own watchdog)
+every ``DRIVE_PERIOD_S``, and stops the wheels at once when no ``base_drive`` has come for
+``BASE_HOLD_S``: the page's heartbeats do not keep the base going, only the held twist
+asked again does (a key-up lost, a page whose script failed: the wheels stop).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from typing import Any
 from busarm.base.base import Base
 from busarm.base.kinematics import Twist
 from busarm.dashboard.protocol import BaseDrive, RequestError
-from busarm.errors import BusArmError
+from busarm.errors import BusArmError, ConfigError
 
 __all__ = [
     "BASE_HOLD_S",
@@ -31,8 +33,8 @@ __all__ = [
 
 
 BASE_HOLD_S = 0.25
-"""The wheels stop when the driver has not been heard for this long (the page's
-heartbeat comes every 100 ms): stopped within 300 ms of its last one."""
+"""The wheels stop when no ``base_drive`` has come for this long (the page asks again every
+100 ms while a key is held): stopped within 300 ms of its last one."""
 DRIVE_PERIOD_S = 0.05
 """The held twist is sent to the base this often (its watchdog stops the wheels after
 ``command_timeout_s``, 0.5 s on the JetAuto)."""
@@ -48,14 +50,18 @@ def base_limits(base: Base) -> dict[str, Any]:
 
 
 class BaseTeleop:
-    """The base's held twist (``start``, ``stop``), driven by ``tick``; ``say`` logs."""
+    """The base's held twist (``start``, ``stop``), driven by ``tick``; ``say`` logs;
+    ``now``: the wall clock's seconds (monotonic), which the page's messages keep."""
 
-    def __init__(self, base: Base, say: Callable[[str, str], None]) -> None:
+    def __init__(self, base: Base, say: Callable[[str, str], None],
+                 now: Callable[[], float] = time.monotonic) -> None:
         self.base = base
         self.say = say
+        self.now = now
         self._lock = threading.Lock()
         self._twist: Twist | None = None
         self._sent_at = -math.inf
+        self._asked_at = -math.inf  # when the held twist was last asked for (monotonic)
 
     @property
     def twist(self) -> Twist | None:
@@ -63,21 +69,20 @@ class BaseTeleop:
         return self._twist
 
     def check(self, request: BaseDrive) -> Twist:
-        """The request's twist, if within the base's limits; else RequestError."""
-        cfg = self.base.config
-        for key, value, limit, unit in (
-                ("vx_m_s", request.vx_m_s, cfg.max_speed_m_s, "m/s"),
-                ("vy_m_s", request.vy_m_s, cfg.max_speed_m_s, "m/s"),
-                ("wz_rad_s", request.wz_rad_s, cfg.max_yaw_rate_rad_s, "rad/s")):
-            if abs(value) > limit + 1e-9:
-                raise RequestError(f"base_drive: {key} = {value:g}; allowed: "
-                                   f"{-limit:.3g}..{limit:.3g} {unit}")
-        return Twist(request.vx_m_s, request.vy_m_s, request.wz_rad_s)
+        """The request's twist, if within the base's limits and its wheels'; else
+        RequestError naming the value and the range (nothing is scaled in silence)."""
+        twist = Twist(request.vx_m_s, request.vy_m_s, request.wz_rad_s)
+        try:
+            self.base.kinematics.check_limits(twist)
+        except ConfigError as exc:
+            raise RequestError(f"base_drive: {exc}") from None
+        return twist
 
     def start(self, twist: Twist) -> None:
         """Drive at ``twist`` from now on (sent at once)."""
         with self._lock:
             started = self._twist is None
+            self._asked_at = self.now()
             try:
                 self._send(twist)
             except BusArmError:
@@ -89,37 +94,37 @@ class BaseTeleop:
 
     def stop(self, why: str) -> None:
         """Stop the wheels at once (sent even when not driving: a stop is never wrong)."""
-        with self._lock:
+        failed = None
+        with self._lock:  # nothing said under it: saying takes the dashboard's lock
             was, self._twist = self._twist, None
             try:
                 self.base.stop()
             except BusArmError as exc:
-                self.say(f"base: the stop could not be sent: {exc}", "error")
-                return
-        if was is not None:
+                failed = str(exc)
+        if failed is not None:
+            self.say(f"base: the stop could not be sent: {failed}", "error")
+        elif was is not None:
             self.say(f"base stopped ({why})", "info")
 
-    def tick(self, heard_s_ago: float) -> None:
-        """Repeat the twist (due every DRIVE_PERIOD_S), or stop the wheels when the driver
-        has been silent for BASE_HOLD_S."""
+    def tick(self) -> None:
+        """Repeat the twist (due every DRIVE_PERIOD_S), or stop the wheels when it has not
+        been asked for again for BASE_HOLD_S."""
         twist = self._twist
         if twist is None:
             return
-        if heard_s_ago > BASE_HOLD_S:
-            self.stop(f"no heartbeat from the driver for {BASE_HOLD_S * 1000:.0f} ms")
+        if self.now() - self._asked_at > BASE_HOLD_S:
+            self.stop(f"no drive from the driver for {BASE_HOLD_S * 1000:.0f} ms")
             return
-        if time.monotonic() - self._sent_at < DRIVE_PERIOD_S:
+        if self.now() - self._sent_at < DRIVE_PERIOD_S:
             return
         with self._lock:
             if self._twist is not twist:
                 return  # stopped (or changed) meanwhile
             try:
                 self._send(twist)
-            except BusArmError as exc:
-                self._twist = None
-                failed = str(exc)
-            else:
                 return
+            except BusArmError as exc:
+                failed = str(exc)
         self.stop(f"the base refused: {failed}")
 
     def state(self) -> dict[str, Any]:
@@ -136,7 +141,7 @@ class BaseTeleop:
 
     def _send(self, twist: Twist) -> None:
         self.base.drive(twist.vx_m_s, twist.vy_m_s, twist.wz_rad_s)
-        self._sent_at = time.monotonic()
+        self._sent_at = self.now()
 
 
 def _twist_text(twist: Twist) -> str:

@@ -27,6 +27,7 @@
   let limits = null;          // the robot's base: max_speed_m_s, max_yaw_rate_rad_s
   const held = new Map();     // what is held: source (key:KeyI, pointer, pad) -> direction
   let padTwist = null;        // the gamepad's twist, when its trigger is held
+  let padBlocked = false;     // the pad ignored until its trigger is let go (after a blur)
   let sentTwist = null;       // the twist last sent (null: stopped)
   let resend = null;
 
@@ -56,16 +57,23 @@
 
   // ------------------------------------------------------------------ driving
 
+  /** (vx, vy, wz) as fractions of the limits, scaled down so that together they stay
+   * within the wheels' (each limit alone is within them: their sum at most 1 is). */
+  function twistOf(f) {
+    const total = Math.abs(f[0]) + Math.abs(f[1]) + Math.abs(f[2]);
+    const k = (total > 1 ? 1 / total : 1) * speed();
+    return [f[0] * k * limits.max_speed_m_s, f[1] * k * limits.max_speed_m_s,
+      f[2] * k * limits.max_yaw_rate_rad_s];
+  }
+
   /** The twist the held keys, buttons and pad ask for (m/s, m/s, rad/s). */
   function wanted() {
     if (!limits) return null;
-    if (padTwist) return padTwist;
+    if (padTwist) return twistOf(padTwist);
     const sum = [0, 0, 0];
     for (const dir of new Set(held.values())) MOVES[dir].forEach((v, i) => { sum[i] += v; });
     if (sum.every((v) => v === 0)) return null;
-    const clamp = (v) => Math.max(-1, Math.min(1, v)) * speed();
-    return [clamp(sum[0]) * limits.max_speed_m_s, clamp(sum[1]) * limits.max_speed_m_s,
-      clamp(sum[2]) * limits.max_yaw_rate_rad_s];
+    return twistOf(sum);
   }
 
   const round = (v) => Math.round(v * 1000) / 1000;
@@ -93,8 +101,16 @@
                 wz_rad_s: round(sentTwist[2]) });
   }
 
+  /** Let go of what ``source`` holds; with none, of everything (the pad too, until its
+   * trigger is let go and pressed again). */
   function release(source) {
-    if (source === undefined) held.clear(); else held.delete(source);
+    if (source === undefined) {
+      held.clear();
+      if (padTwist) padBlocked = true;
+      padTwist = null;
+    } else {
+      held.delete(source);
+    }
     update();
   }
 
@@ -104,7 +120,7 @@
   }
 
   // A refused drive (a job runs, the robot is stopped): stop asking until released.
-  B.on('error', (msg) => { if (msg.request === 'base_drive') { held.clear(); padTwist = null; update(); } });
+  B.on('error', (msg) => { if (msg.request === 'base_drive') release(); });
 
   document.addEventListener('pointerdown', (ev) => {
     const b = ev.target.closest('.bjog');
@@ -121,7 +137,7 @@
   $('base-stop').addEventListener('click', () => { release(); B.send({ type: 'base_stop' }); });
 
   document.addEventListener('keydown', (ev) => {
-    if (ev.key === 'Escape') { held.clear(); padTwist = null; update(); return; }
+    if (ev.key === 'Escape') { release(); return; }
     if (B.typing(ev) || ev.ctrlKey || ev.altKey || ev.metaKey || !limits) return;
     const dir = KEYS[ev.key.toLowerCase()];
     if (!dir) return;
@@ -149,10 +165,11 @@
         const v = typeof pad.axes[i] === 'number' ? pad.axes[i] : 0;
         return Math.abs(v) > PAD_DEADZONE ? v : 0;
       };
-      if (down(6) || down(7)) {
-        const t = [-ax(1) * limits.max_speed_m_s, -ax(0) * limits.max_speed_m_s,
-          -ax(2) * limits.max_yaw_rate_rad_s].map((v) => v * speed());
-        if (t.some((v) => v !== 0)) next = t;
+      const trigger = down(6) || down(7);
+      if (!trigger) padBlocked = false;
+      if (trigger && !padBlocked && !document.hidden && document.hasFocus()) {
+        const f = [-ax(1), -ax(0), -ax(2)];  // fractions of the limits
+        if (f.some((v) => v !== 0)) next = f;
       }
     }
     const changed = (next === null) !== (padTwist === null) ||
