@@ -340,9 +340,8 @@ class MobileJobs:
             if not self.view.due():
                 return
             local, _ = nav.returns_m(sensed)
-            trips = nav.trips
-            path = tuple((p.x_m, p.y_m) for trip in trips for p in trip.path)
-            plans = (tuple(trips[-1].plans[-1]),) if trips and trips[-1].plans else ()
+            plan = nav.latest_plan()
+            path, plans = tuple(nav.path_driven()), ((tuple(plan),) if plan else ())
             self.view.show(MapScene(nav.grid, f"transport: {said[0]}", path, plans, nav.pose,
                                     _points_seen(local, nav.pose), marks))
         return hook

@@ -154,6 +154,14 @@ class Navigator:
         return local, transform_points(self.pose, local)
 
     # ------------------------------------------------------------------ localising
+    def path_driven(self) -> list[Point]:
+        """Where every trip so far went (m, the map's frame): what a person is shown."""
+        return [(p.x_m, p.y_m) for trip in self.trips for p in trip.path]
+
+    def latest_plan(self) -> list[Point]:
+        """The plan the last trip follows now (m, the map's frame; empty before one)."""
+        return list(self.trips[-1].plans[-1]) if self.trips and self.trips[-1].plans else []
+
     def localize(self, start: Pose2D | None = None, *, wander: bool = True) -> PoseEstimate:
         """Find where the base is: near ``start`` if given, else anywhere on the map
         (driving about slowly, clear of everything, until the filter has converged;
