@@ -2,8 +2,10 @@
 (foxglove.sdk.v1: serverInfo, advertise, subscribe, binary message data), each message
 decoded with the protobuf schema its channel advertises and checked against the twin's
 truth; the same run recorded into MCAP and read back by `mcap`'s reader with its
-protobuf decoder; the token relay refusing a client without the token; and `busarm
-record` writing a file only when it is complete."""
+protobuf decoder (the latched topics once, however many clients subscribe); the token
+relay refusing a client without the token; `busarm record` writing a file only when it is
+complete, and finishing it on SIGTERM (exit 143); a port in use refused before the robot
+is opened; and the view's failures never ending the job it watches."""
 
 from __future__ import annotations
 
@@ -11,7 +13,14 @@ import asyncio
 import base64
 import json
 import math
+import os
+import re
+import signal
+import socket
 import struct
+import subprocess
+import sys
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -27,14 +36,17 @@ from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoder
 from websockets.exceptions import InvalidStatus
 
+from busarm.apps.navigation.explore import Explorer
 from busarm.arm.urdf import urdf_from_config
 from busarm.cli.main import cli
+from busarm.errors import TransportError
 from busarm.lidar.beams import SCAN_BEAMS
 from busarm.nav.grid import GridSpec, OccupancyGrid
 from busarm.nav.map_files import trinary_cells
 from busarm.robot import Robot
 from busarm.robot.frames import arm_frames
 from busarm.rotations import quaternion_wxyz
+from busarm.view.jobs import explore_hook
 from busarm.view.live import TOPICS, RobotView, ViewSettings
 from busarm.view.recording import McapRecording
 from busarm.view.server import SUBPROTOCOL, URDF_ASSET, is_loopback, serve_view
@@ -145,6 +157,9 @@ def test_every_channel_over_foxglove_websocket_and_mcap(arena_robot: Robot,
                        {"pick": (1.0, 0.5)})
         assert server.token is None and server.url.startswith("ws://127.0.0.1:")
         channels, first, extras = watch(server.url, set(TOPICS))
+        # A second client gets the latched topics too (sent again to the live clients
+        # only: the recording keeps each once).
+        _, again, _ = watch(server.url, {"/robot_description", "/map", "/path"})
     finally:
         server.stop()
         view.close()
@@ -158,6 +173,8 @@ def test_every_channel_over_foxglove_websocket_and_mcap(arena_robot: Robot,
         "/blocks": "foxglove.SceneUpdate", "/scan": "foxglove.LaserScan",
         "/map": "foxglove.Grid", "/path": "foxglove.SceneUpdate"}
     check_messages(robot, grid, first)
+    check_grid(again["/map"], grid)
+    assert again["/robot_description"] == first["/robot_description"]
     urdf = urdf_from_config(robot.config)
     assert extras["parameter"] == [{"name": "/robot_description", "value": urdf}]
     assert extras["asset"] == (7, 0, urdf.encode())
@@ -234,7 +251,7 @@ def decoders() -> list[McapDecoderFactory]:
 def check_mcap(path: Path, grid: OccupancyGrid) -> None:
     """Every channel of the run in the file, each message decoded by the decoder of its
     encoding: protobuf by mcap-protobuf-support's, the URDF's JSON by json's."""
-    assert not list(path.parent.glob(".*.partial"))
+    assert not list(path.parent.glob(".*"))  # no temporary file left
     counts: dict[str, int] = {}
     last: dict[str, Any] = {}
     with open(path, "rb") as f:
@@ -245,6 +262,8 @@ def check_mcap(path: Path, grid: OccupancyGrid) -> None:
             assert schema is not None and schema.encoding in ("protobuf", "jsonschema")
     assert set(counts) == set(TOPICS)
     assert counts["/tf"] >= 5
+    # Given once, at the file's start or when shown, however many clients subscribed.
+    assert [counts[t] for t in ("/robot_description", "/map", "/path")] == [1, 1, 1]
     check_grid(last["/map"], grid)
     assert len(last["/scan"].ranges) == SCAN_BEAMS
     assert last["/robot_description"]["data"].startswith("<?xml")
@@ -310,3 +329,107 @@ def test_a_map_build_recorded_for_foxglove(tmp_path: Path) -> None:
     assert {"/map", "/path", "/scan", "/tf"} <= set(counts), counts
     assert counts["/map"] >= 2 and counts["/path"] >= 2  # as the map grew
     assert last["/map"].frame_id == "map" and last["/path"].entities[0].frame_id == "map"
+
+
+def test_the_views_failures_never_end_the_job_it_watches(arena_robot: Robot,
+                                                         tmp_path: Path) -> None:
+    """A map build whose view fails at every map it is given (a sink that refuses it)
+    explores on to its time limit, the error noted once; and the view's own /tf goes on
+    past odometry reads that fail (each skips one tick)."""
+    with Robot.open("board://twin?family=arena&seed=1") as robot:  # simulated time
+        view = RobotView(robot, ViewSettings(camera=False))
+        refused: list[OccupancyGrid] = []
+
+        def refusing_sink(grid: OccupancyGrid) -> None:
+            refused.append(grid)
+            raise RuntimeError("FoxgloveError: the sink is gone")
+
+        view.show_map = refusing_sink  # type: ignore[method-assign]
+        run = Explorer(robot, time_limit_s=5.0, on_scan=explore_hook(view)).run()
+    assert run.finished == "the time limit (5 s)" and run.scans >= 20
+    assert len(refused) >= 2  # tried each time it was due, refused each time
+    assert view.errors == ["a job's view: RuntimeError: FoxgloveError: the sink is gone"]
+
+    base = arena_robot.base
+    assert base is not None
+    read_odometry, failures = base.odometry, [3]
+
+    def odometry_failing_thrice() -> Any:
+        if failures[0] > 0:
+            failures[0] -= 1
+            raise TransportError("the board did not answer")
+        return read_odometry()
+
+    base.odometry = odometry_failing_thrice  # type: ignore[method-assign]
+    watched = RobotView(arena_robot, ViewSettings(camera=False, state_hz=20.0))
+    recording = McapRecording(watched, tmp_path / "tf.mcap")  # counts what is logged
+    try:
+        with watched:
+            deadline = time.monotonic() + TIMEOUT_S
+            while time.monotonic() < deadline and watched.counts.get("/tf", 0) < 3:
+                time.sleep(0.05)
+            # A scan's stamp: when its revolution began (the robot's clock), on the view's
+            # timeline; one from long ago (a clock gone wrong) is stamped now.
+            began_s = arena_robot.clock.now() - 0.1
+            assert watched.stamp_at(began_s) == pytest.approx(watched.now_s() - 0.1, abs=0.05)
+            assert watched.stamp_at(began_s - 60.0) == pytest.approx(watched.now_s(), abs=0.05)
+    finally:
+        del base.odometry  # the Base's own again
+        recording.close()
+    assert failures[0] == 0 and watched.counts["/tf"] >= 3 and watched.failure is None
+    assert watched.errors == [
+        "joint states or odometry not read: the board did not answer"]
+
+
+def test_a_port_in_use_is_refused_before_the_robot_is_opened(tmp_path: Path) -> None:
+    """`transport --foxglove PORT --mcap FILE` on a port another program listens on: one
+    error naming --foxglove, exit 2, at once (no twin opened: that takes seconds), and
+    no file; `view --ws-port` the same."""
+    runner = CliRunner(mix_stderr=False)
+    with socket.socket() as held:
+        held.bind(("127.0.0.1", 0))
+        held.listen()
+        port = held.getsockname()[1]
+        out = tmp_path / "t.mcap"
+        started = time.monotonic()
+        job = runner.invoke(cli, ["transport", "--foxglove", str(port), "--mcap", str(out)])
+        took_s = time.monotonic() - started
+        served = runner.invoke(cli, ["view", "--ws-port", str(port)])
+    for result, option in ((job, "--foxglove"), (served, "--ws-port")):
+        not_crashed(result)
+        assert result.exit_code == 2 and result.stdout == "", result.output
+        assert result.stderr == (f"error: 127.0.0.1:{port} is in use (give another {option}, "
+                                 "or 0 for any free port)\n")
+    assert took_s < 10.0  # generous: opening the arena's twin alone takes longer
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_record_finishes_its_file_on_sigterm(tmp_path: Path) -> None:
+    """`busarm record` is a job: SIGTERM finishes the file, says what it holds in the one
+    line that reports the stop, and exits 143."""
+    out = tmp_path / "table.mcap"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "busarm", "record", str(out), "--seconds", "30",
+         "--no-camera", "--rate", "10"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    try:
+        assert proc.stderr is not None
+        assert proc.stderr.readline().startswith("recording /tf, /joint_states, ")
+        time.sleep(0.5)  # a few messages in
+        proc.send_signal(signal.SIGTERM)
+        printed, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert proc.returncode == 143, err
+    assert re.fullmatch(r"stopped by SIGTERM: nothing was written to the servos; recorded "
+                        rf"\d+ messages on 3 channels into {re.escape(str(out))}\n", err), err
+    assert "/robot_description: 1 message\n" in printed
+    counts: dict[str, int] = {}
+    with open(out, "rb") as f:
+        for _, channel, _, _ in make_reader(
+                f, decoder_factories=decoders()).iter_decoded_messages():
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+    assert set(counts) == {"/tf", "/joint_states", "/robot_description"}
+    assert printed == "".join(f"{t}: {n} message{'s' if n > 1 else ''}\n"
+                              for t, n in sorted(counts.items()))
+    assert list(tmp_path.iterdir()) == [out]  # no temporary file left

@@ -43,6 +43,7 @@ from busarm.cli.job_view import (
     line_follow_hook,
     navigation_hook,
     need_view,
+    say_view_errors,
     start_view,
     view_options,
     watching,
@@ -164,7 +165,7 @@ __all__ += ["arena_from_spec", "keeping_what_was_done", "mobile_options",  # cli
             "open_mobile_robot", "stop_wheels"]
 __all__ += ["open_live_robot"]  # cli.live_robot
 __all__ += ["explore_hook", "line_follow_hook", "navigation_hook", "need_view",  # job_view
-            "start_view", "view_options", "watching"]
+            "say_view_errors", "start_view", "view_options", "watching"]
 __all__ += ["camera_from_text", "describe_robot", "from_robot_file",  # cli.robot_options
             "with_realtime"]
 __all__ += ["JobNotDone", "metavar_from_help",  # exit codes, help style (cli.exits, help_style)

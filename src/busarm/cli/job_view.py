@@ -1,6 +1,11 @@
 """A job's run in Foxglove: ``--foxglove PORT`` (live) and ``--mcap FILE`` (recorded), and
 the view that ``busarm view`` and ``busarm record`` start (re-exported by
 busarm.cli.common). foxglove-sdk is imported only when a view is asked for.
+
+The view only watches: a port in use or a file that cannot be written is refused while
+the command line is read, before the robot is opened; a view that fails to start leaves
+no file; what goes wrong in it while the job runs is said when the job ends, never the
+job's end.
 """
 
 from __future__ import annotations
@@ -8,11 +13,12 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
+from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
 import click
 
-from busarm.errors import ConfigError
+from busarm.errors import BusArmError, ConfigError
 
 if TYPE_CHECKING:
     from busarm.apps.line_follow.job import LineFollowJob
@@ -23,14 +29,18 @@ if TYPE_CHECKING:
     from busarm.nav.points import NamedPoints
     from busarm.robot import Robot
     from busarm.view.live import RobotView, ViewSettings
+    from busarm.view.recording import McapRecording
 
 __all__ = [
     "JOB_VIEW_FPS",
     "JOB_VIEW_HZ",
+    "Recorder",
     "explore_hook",
     "line_follow_hook",
+    "messages_text",
     "navigation_hook",
     "need_view",
+    "say_view_errors",
     "start_view",
     "view_options",
     "watching",
@@ -45,48 +55,123 @@ def need_view() -> None:
         raise ConfigError("this needs foxglove-sdk: pip install 'busarm[view]'") from exc
 
 
+def messages_text(count: int) -> str:
+    return f"{count} message" if count == 1 else f"{count} messages"
+
+
+class Recorder:
+    """A view recorded into a file until the stack it is on closes. If it closes before
+    ``began()`` (the view failed to start, its port was taken) the file is abandoned:
+    none is left. Else it is finished and what it holds is said: on stdout topic by
+    topic (``per_topic``) and in one line on stderr, or, when the command ends on an
+    exception (a signal, an error), as a detail of the one line that reports it."""
+
+    def __init__(self, running: RobotView, path: Path, settings: Settings,
+                 per_topic: bool) -> None:
+        from busarm.view.recording import McapRecording
+
+        self.view, self.settings, self.per_topic = running, settings, per_topic
+        self.recording: McapRecording = McapRecording(running, path)
+        self._began = False
+
+    def began(self) -> None:
+        self._began = True
+
+    def summary(self) -> str:
+        counts = {t: n for t, n in self.view.counts.items() if n}
+        if not counts:
+            return f"recorded no messages into {self.recording.path}"
+        return (f"recorded {messages_text(sum(counts.values()))} on {len(counts)} "
+                f"channel{'s' if len(counts) != 1 else ''} into {self.recording.path}")
+
+    def __call__(self, kind: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> bool:
+        """The stack's exit: finish the file (or abandon it); never swallows ``exc``."""
+        from busarm.cli.common import add_detail  # common re-exports this module
+
+        if not self._began:
+            self.recording.abandon()
+            return False
+        try:
+            self.recording.close()
+        except BusArmError as error:
+            if exc is None:
+                raise
+            add_detail(exc, f"the recording could not be finished: {error}")
+            return False
+        if self.per_topic:
+            for topic, count in sorted(self.view.counts.items()):
+                if count:
+                    self.settings.out.print(f"{topic}: {messages_text(count)}",
+                                            highlight=False, markup=False)
+        if exc is None:
+            self.settings.err.print(self.summary(), highlight=False, markup=False)
+        else:
+            add_detail(exc, self.summary())
+        return False
+
+
 def start_view(robot: Robot, view_settings: ViewSettings, stack: ExitStack,
-               settings: Settings, record_into: Path | None = None) -> RobotView:
+               settings: Settings, record_into: Path | None = None, *,
+               per_topic: bool = True) -> tuple[RobotView, Recorder | None]:
     """A RobotView of ``robot``, started, closed with ``stack``; recording into
-    ``record_into`` (when given) until after it is closed, so that the file has all."""
+    ``record_into`` (when given) until after it is closed, so that the file has all.
+    The recording is kept only once the caller says the run ``began()``."""
     from busarm.view.live import RobotView
 
     running = RobotView(robot, view_settings)
+    recorder = None
     if record_into is not None:
-        _record_into(running, record_into, stack, settings)
+        recorder = Recorder(running, record_into, settings, per_topic)
+        stack.push(recorder)
     stack.callback(running.close)  # last in, first out: before the recording finishes
-    return running.start()
+    running.start()
+    return running, recorder
 
 
-def _record_into(running: RobotView, path: Path, stack: ExitStack,
-                 settings: Settings) -> None:
-    """Record ``running`` into ``path`` until the stack closes, then say what it holds."""
-    from busarm.view.recording import McapRecording
+def say_view_errors(settings: Settings, running: RobotView, said: int = 0, *,
+                    failure: bool = True) -> int:
+    """What went wrong in the view (each once, from the ``said``-th on), on stderr; the
+    error that stopped a loop too unless not ``failure`` (the command's own error line
+    says it). Returns how many there were."""
+    errors = list(running.errors)
+    for error in errors[said:]:
+        if failure or error != running.failure:
+            settings.err.print(f"warning: Foxglove view: {error}", highlight=False,
+                               markup=False, soft_wrap=True)
+    return len(errors)
 
-    recording = McapRecording(running, path)
 
-    def finish() -> None:
-        done = recording.close()
-        counts = dict(sorted(running.counts.items()))
-        for topic, count in counts.items():
-            settings.out.print(f"{topic}: {count} messages", highlight=False, markup=False)
-        settings.err.print(f"recorded {sum(counts.values())} messages on {len(counts)} "
-                           f"channels into {done}", highlight=False, markup=False)
-    stack.callback(finish)
+def _port_free(ctx: click.Context, param: click.Parameter, port: int | None) -> int | None:
+    """--foxglove's port is refused while argv is read, before the robot is opened."""
+    if port is not None:
+        from busarm.robot.listen import check_can_listen
+
+        check_can_listen("127.0.0.1", port, "--foxglove")
+    return port
+
+
+def _writable(ctx: click.Context, param: click.Parameter, path: Path | None) -> Path | None:
+    if path is not None:
+        from busarm.cli.common import check_writable
+
+        check_writable(path)
+    return path
 
 
 def view_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """--foxglove N (a TCP port) and --mcap FILE, for a job: watch it live, record its
     run."""
     func = click.option(
-        "--mcap", "mcap_file", default=None, metavar="OUT.mcap",
+        "--mcap", "mcap_file", default=None, metavar="OUT.mcap", callback=_writable,
         type=click.Path(dir_okay=False, path_type=Path),
-        help="Record the run (the robot, the map, the plan, the path) into this MCAP "
-             "file, which Foxglove replays  [default: none]")(func)
+        help="Record the run into this MCAP file, which Foxglove replays: the robot and "
+             "what the job shows (as --foxglove)  [default: none]")(func)
     return click.option(
         "--foxglove", "foxglove_port", type=click.IntRange(0, 65535), default=None,
+        callback=_port_free,
         help="Serve the run live to Foxglove on ws://127.0.0.1:N, this TCP port (8765 is "
-             "Foxglove's default)  [default: none]")(func)
+             "Foxglove's default; 0: any free port)  [default: none]")(func)
 
 
 JOB_VIEW_FPS = 5.0
@@ -98,26 +183,31 @@ JOB_VIEW_HZ = 20.0
 def watching(settings: Settings, robot: Robot, foxglove_port: int | None,
              mcap_file: Path | None) -> Iterator[RobotView | None]:
     """A RobotView of ``robot`` served on ``foxglove_port`` (loopback) and/or recorded
-    into ``mcap_file`` while the body runs (None when neither is asked for)."""
+    into ``mcap_file`` while the body runs (None when neither is asked for). What went
+    wrong in the view is said when it ends."""
     if foxglove_port is None and mcap_file is None:
         yield None
         return
     need_view()
-    from busarm.cli.common import check_writable
     from busarm.view.live import ViewSettings
     from busarm.view.server import serve_view
 
-    if mcap_file is not None:
-        check_writable(mcap_file)
     with ExitStack() as stack:
-        running = start_view(robot, ViewSettings(state_hz=JOB_VIEW_HZ, camera_fps=JOB_VIEW_FPS),
-                             stack, settings, mcap_file)
+        running, recorder = start_view(
+            robot, ViewSettings(state_hz=JOB_VIEW_HZ, camera_fps=JOB_VIEW_FPS), stack,
+            settings, mcap_file, per_topic=False)
         if foxglove_port is not None:
-            server = serve_view(running, "127.0.0.1", foxglove_port)
+            server = serve_view(running, "127.0.0.1", foxglove_port, option="--foxglove")
             stack.callback(server.stop)
             settings.err.print(f"Foxglove: open a connection to {server.url}",
                                highlight=False, markup=False, soft_wrap=True)
-        yield running
+        if recorder is not None:
+            recorder.began()
+        try:
+            yield running
+        finally:
+            running.close()  # (again, from the stack: harmless) so that all is said
+            say_view_errors(settings, running)
 
 
 def explore_hook(view: RobotView | None) -> Callable[[Explorer], None] | None:

@@ -5,12 +5,15 @@ A job calls its hook at each Lidar revolution (about 10 a second); the map and t
 picture of the path go out at most ``MAP_EVERY_S`` and ``PATH_EVERY_S`` apart (of the
 view's stamps: a twin in simulated time records at its own pace), the base's place on
 the map at every revolution (it is one transform).
+
+A hook runs in the job's own loop: whatever fails in it (a sink, the odometry read) is
+noted once in the view's ``errors`` and the job goes on; the view only watches.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 from busarm.nav.grid import cropped
 from busarm.nav.points import NamedPoints
@@ -35,6 +38,18 @@ __all__ = [
 
 MAP_EVERY_S = 2.0
 PATH_EVERY_S = 0.5
+_Hook = TypeVar("_Hook", bound=Callable[..., None])
+
+
+def _harmless(view: RobotView, hook: _Hook) -> _Hook:
+    """``hook`` that never raises into the job calling it: an error is noted once in
+    ``view.errors`` (a Ctrl+C or a signal still stops the job)."""
+    def run(*args: Any) -> None:
+        try:
+            hook(*args)
+        except Exception as exc:  # the view only watches: its failure is never the job's
+            view.note(f"a job's view: {type(exc).__name__}: {exc}")
+    return cast(_Hook, run)
 
 
 class _Every:
@@ -69,11 +84,8 @@ def navigation_hook(view: RobotView, points: NamedPoints | None = None,
         view.show_pose_on_map(nav.pose, sensed.odometry_now)
         if not path_due():
             return
-        trips = nav.trips
-        driven = [(p.x_m, p.y_m) for trip in trips for p in trip.path]
-        planned = list(trips[-1].plans[-1]) if trips and trips[-1].plans else []
-        view.show_path(planned, driven, marks)
-    return hook
+        view.show_path(nav.latest_plan(), nav.path_driven(), marks)
+    return _harmless(view, hook)
 
 
 def explore_hook(view: RobotView) -> Callable[[Explorer], None]:
@@ -82,16 +94,15 @@ def explore_hook(view: RobotView) -> Callable[[Explorer], None]:
     map_due, path_due = _Every(view, MAP_EVERY_S), _Every(view, PATH_EVERY_S)
 
     def hook(explorer: Explorer) -> None:
-        base = view.robot.base
-        if base is not None:
-            view.show_pose_on_map(explorer.pose, base.odometry().pose)
+        # The Explorer keeps no odometry of its own: read now, as its pose was just set.
+        view.show_pose_on_map(explorer.pose, explorer.base.odometry().pose)
         if map_due():
             view.show_map(cropped(explorer.builder.grid))
         if path_due():
             driven = [(p.x_m, p.y_m) for p in explorer.builder.poses]
             marks = {"frontier": explorer.goal} if explorer.goal is not None else {}
             view.show_path((), driven, marks)
-    return hook
+    return _harmless(view, hook)
 
 
 def line_follow_hook(view: RobotView) -> Callable[[LineFollowJob], None]:
@@ -106,4 +117,4 @@ def line_follow_hook(view: RobotView) -> Callable[[LineFollowJob], None]:
         marks = {f"{i + 1} {b.color}": b.found_m for i, b in enumerate(r.blocks)}
         marks |= {f"stop {i + 1}": (s.at.x_m, s.at.y_m) for i, s in enumerate(r.stops)}
         view.show_path((), [(p.x_m, p.y_m) for p in r.path], marks, frame_id=ODOM_FRAME)
-    return hook
+    return _harmless(view, hook)

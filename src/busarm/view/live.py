@@ -2,8 +2,8 @@
 knows, handed in by the job's caller.
 
 ``RobotView(robot).start()`` reads the robot in threads of its own and logs each value on
-a channel of its ``context``: a Foxglove WebSocket server (busarm.view.server) and an
-MCAP recording (busarm.view.recording) attached to that context get every message. A
+its channels: a Foxglove WebSocket server (busarm.view.server) and an MCAP recording
+(busarm.view.recording) attached to the view get every message. A
 channel nobody watches costs nothing: the camera is not rendered, the blocks are not
 located, and the Lidar is not read for it.
 
@@ -39,7 +39,16 @@ topic                           schema                       when
 
 Stamps are seconds since the epoch: the wall clock's on hardware and on a twin in real
 time; on a twin in simulated time, the start's wall time plus the robot's clock since,
-so that a recording replays at the robot's pace.
+so that a recording replays at the robot's pace. A scan is stamped when its revolution
+began (the Lidar's own stamp, on the robot's clock), not when the view got it.
+
+Two contexts: servers attach to ``live_context``, recordings to ``record_context``; each
+message goes to both, but what a new subscriber is sent again (the URDF, the map, the
+path) goes to the live one only, so a recording holds each once however many watch.
+
+The view only watches: an error of its own (a read that failed, a sink that refused a
+message) is noted once in ``errors`` and skips that tick; it never reaches a job whose
+hooks feed it. A loop that fails for ``GIVE_UP_S`` on end stops, and ``failure`` says why.
 """
 
 from __future__ import annotations
@@ -51,6 +60,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import foxglove
@@ -88,11 +98,14 @@ from busarm.view import messages as fm
 
 __all__ = [
     "BLOCKS_HZ",
+    "GIVE_UP_S",
     "GRIPPER_JOINT",
     "MAP_FRAME",
+    "MAX_ERRORS",
     "SCAN_IDLE_S",
     "TOPICS",
     "RobotView",
+    "Topic",
     "ViewSettings",
 ]
 
@@ -104,6 +117,12 @@ GRIPPER_JOINT = "gripper"
 BLOCKS_HZ = 3.0
 SCAN_IDLE_S = 0.5
 """The view reads the Lidar itself only when no job has for this long."""
+GIVE_UP_S = 5.0
+"""A loop whose every tick failed for this long (the robot gone) stops."""
+MAX_ERRORS = 20
+"""Distinct errors kept (and logged); more are counted only."""
+MAX_SCAN_AGE_S = 5.0
+"""A scan stamped longer ago than this (or in the future) is stamped when it came."""
 STRING_SCHEMA = foxglove.Schema(
     name="std_msgs/msg/String", encoding="jsonschema",
     data=json.dumps({"type": "object", "properties": {"data": {"type": "string"}}}).encode())
@@ -128,23 +147,66 @@ class ViewSettings:
     """A saved map to show on /map from the start."""
 
 
-class RobotView:
-    """``robot``'s channels on ``context`` (a new one by default); ``start()``,
-    ``close()``. The ``show_*`` calls are for a job's caller, from any thread."""
+class Topic:
+    """One topic's channel on the live context (servers) and on the recording one."""
 
-    def __init__(self, robot: Robot, settings: ViewSettings | None = None,
-                 context: foxglove.Context | None = None) -> None:
+    def __init__(self, make: Callable[..., Any], topic: str, live: foxglove.Context,
+                 record: foxglove.Context) -> None:
+        self.name = topic
+        self.live = make(topic, context=live)
+        self.record = make(topic, context=record)
+
+    def topic(self) -> str:
+        return self.name
+
+    def has_sinks(self) -> bool:
+        """Whether anyone takes its messages (a client subscribed, a recording)."""
+        return bool(self.live.has_sinks() or self.record.has_sinks())
+
+
+class _Streak:
+    """A loop's failed ticks in a row: each error noted (once), the last raised when
+    nothing but failures came for GIVE_UP_S."""
+
+    def __init__(self, view: RobotView, what: str) -> None:
+        self.view, self.what = view, what
+        self.since: float | None = None
+
+    def ok(self) -> None:
+        self.since = None
+
+    def failed(self, exc: BusArmError) -> None:
+        self.view.note(f"{self.what}: {exc}")
+        now = time.monotonic()
+        if self.since is None:
+            self.since = now
+        elif now - self.since > GIVE_UP_S:
+            raise exc
+
+
+class RobotView:
+    """``robot``'s channels; ``start()``, ``close()``. The ``show_*`` calls are for a
+    job's caller, from any thread."""
+
+    def __init__(self, robot: Robot, settings: ViewSettings | None = None) -> None:
         self.robot = robot
         self.settings = settings or ViewSettings()
-        self.context = context or foxglove.Context()
+        self.live_context = foxglove.Context()
+        """Where servers attach (busarm.view.server)."""
+        self.record_context = foxglove.Context()
+        """Where recordings attach (busarm.view.recording)."""
         self.camera = robot.has_camera and self.settings.camera
         self.errors: list[str] = []
+        """Each distinct problem the view met, once (it went on)."""
+        self.failure: str | None = None
+        """Why a loop of the view stopped (None while they all run)."""
         self.counts: dict[str, int] = {}
-        """Messages logged on each topic (for a recording's summary)."""
+        """Messages recorded on each topic (a recording's summary)."""
         self.started = False
         self._closed = threading.Event()
         self._threads: list[threading.Thread] = []
         self._lock = threading.Lock()
+        self._more_errors = 0
         self._map: OccupancyGrid | None = self.settings.map_grid
         self._path: tuple[str, Sequence[fm.Point2], Sequence[fm.Point2],
                           dict[str, fm.Point2]] | None = None
@@ -157,21 +219,21 @@ class RobotView:
         """A twin on simulated time: stamps follow its clock, and the view never reads
         the Lidar itself (a read would move the job's time)."""
         self.joint_names = [j.name for j in robot.config.joints]
-        ctx = self.context
-        self.tf = FrameTransformsChannel("/tf", context=ctx)
-        self.joints = JointStatesChannel("/joint_states", context=ctx)
-        self.description = foxglove.Channel("/robot_description", schema=STRING_SCHEMA,
-                                            message_encoding="json", context=ctx)
-        self.image = (CompressedImageChannel("/wrist_camera/compressed", context=ctx)
-                      if self.camera else None)
         calibrated = self.camera and robot.camera_calibration is not None
-        self.calibration = (CameraCalibrationChannel("/wrist_camera/calibration", context=ctx)
+        topic = partial(Topic, live=self.live_context, record=self.record_context)
+        self.tf = topic(FrameTransformsChannel, "/tf")
+        self.joints = topic(JointStatesChannel, "/joint_states")
+        self.description = topic(partial(foxglove.Channel, schema=STRING_SCHEMA,
+                                         message_encoding="json"), "/robot_description")
+        self.image = (topic(CompressedImageChannel, "/wrist_camera/compressed")
+                      if self.camera else None)
+        self.calibration = (topic(CameraCalibrationChannel, "/wrist_camera/calibration")
                             if calibrated else None)
-        self.blocks = (SceneUpdateChannel("/blocks", context=ctx)
+        self.blocks = (topic(SceneUpdateChannel, "/blocks")
                        if calibrated and self.settings.blocks else None)
-        self.scan = LaserScanChannel("/scan", context=ctx) if robot.lidar is not None else None
-        self.map = GridChannel("/map", context=ctx)
-        self.path = SceneUpdateChannel("/path", context=ctx)
+        self.scan = topic(LaserScanChannel, "/scan") if robot.lidar is not None else None
+        self.map = topic(GridChannel, "/map")
+        self.path = topic(SceneUpdateChannel, "/path")
         self.urdf = urdf_from_config(robot.config)
         self._state = StateReader(robot.arm)
 
@@ -180,8 +242,8 @@ class RobotView:
     @property
     def topics(self) -> list[str]:
         """The topics this robot's view has."""
-        channels: list[Any] = [self.tf, self.joints, self.description, self.image,
-                               self.calibration, self.blocks, self.scan, self.map, self.path]
+        channels = [self.tf, self.joints, self.description, self.image, self.calibration,
+                    self.blocks, self.scan, self.map, self.path]
         return [c.topic() for c in channels if c is not None]
 
     def start(self) -> RobotView:
@@ -220,13 +282,26 @@ class RobotView:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
+    def note(self, error: str) -> None:
+        """Keep ``error`` in ``errors`` and log it, the first time only."""
+        with self._lock:
+            if error in self.errors:
+                return
+            if len(self.errors) >= MAX_ERRORS:
+                self._more_errors += 1
+                return
+            self.errors.append(error)
+        log.info("the view: %s", error)  # the command says it (busarm.cli.job_view)
+
     def _guard(self, loop: Callable[[], None]) -> Callable[[], None]:
         def run() -> None:
             try:
                 loop()
             except Exception as exc:  # a loop that dies says so: the view is incomplete
-                self.errors.append(f"{type(exc).__name__}: {exc}")
-                log.exception("the view stopped publishing")
+                self.failure = f"{type(exc).__name__}: {exc}"
+                self.note(self.failure)
+                if not isinstance(exc, BusArmError):  # a bug: its traceback helps
+                    log.exception("the view stopped publishing")
         return run
 
     def _every(self, period_s: float) -> Callable[[], bool]:
@@ -246,11 +321,22 @@ class RobotView:
         wall0, clock0 = self._clock_origin
         return wall0 + self.robot.clock.now() - clock0 if self.simulated else time.time()
 
-    def _log(self, channel: Any, message: Any, t_s: float) -> None:
-        channel.log(message, log_time=round(t_s * 1e9))
-        topic = channel.topic()
-        with self._lock:
-            self.counts[topic] = self.counts.get(topic, 0) + 1
+    def stamp_at(self, clock_s: float) -> float:
+        """The stamp of the moment ``clock_s`` of the robot's clock (a sensor's own
+        time) on the view's timeline; now's if it is not a recent past one."""
+        age_s = self.robot.clock.now() - clock_s
+        now = self.now_s()
+        return now - age_s if 0.0 <= age_s <= MAX_SCAN_AGE_S else now
+
+    def _log(self, topic: Topic, message: Any, t_s: float, *, live: bool = True,
+             record: bool = True) -> None:
+        log_time = round(t_s * 1e9)
+        if live and topic.live.has_sinks():
+            topic.live.log(message, log_time=log_time)
+        if record and topic.record.has_sinks():
+            topic.record.log(message, log_time=log_time)
+            with self._lock:
+                self.counts[topic.name] = self.counts.get(topic.name, 0) + 1
 
     # ------------------------------------------------------------------ a job's values
 
@@ -282,22 +368,30 @@ class RobotView:
         self._map_to_odom = (MAP_FRAME, ODOM_FRAME, planar(offset.x_m, offset.y_m, 0.0,
                                                            offset.yaw_rad))
 
-    def publish_latched(self) -> None:
+    def publish_latched(self, *, live: bool = True, record: bool = True) -> None:
         """The values a late subscriber needs at once: the URDF, and the map and the
-        job's path when there are."""
+        job's path when there are; to the servers (``live``), the recordings
+        (``record``) or both."""
         t = self.now_s()
-        self._log(self.description, {"data": self.urdf}, t)
+        self._log(self.description, {"data": self.urdf}, t, live=live, record=record)
         if self._map is not None:
-            self._log(self.map, fm.map_grid(t, self._map, MAP_FRAME), t)
+            self._log(self.map, fm.map_grid(t, self._map, MAP_FRAME), t, live=live,
+                      record=record)
         if self._path is not None:
-            self._log(self.path, fm.path_scene(t, *self._path), t)
+            self._log(self.path, fm.path_scene(t, *self._path), t, live=live, record=record)
 
     # ------------------------------------------------------------------ loops
 
     def _state_loop(self) -> None:
         tick = self._every(1.0 / self.settings.state_hz)
+        streak = _Streak(self, "joint states or odometry not read")
         while tick():
-            self._publish_state()
+            try:  # one failed read skips this tick; the next may do
+                self._publish_state()
+            except BusArmError as exc:
+                streak.failed(exc)
+            else:
+                streak.ok()
 
     def frames(self, joints_deg: Sequence[float]) -> list[Frame]:
         """The transforms of /tf for these joint angles (and the base's odometry now)."""
@@ -313,14 +407,11 @@ class RobotView:
         return frames
 
     def _publish_state(self) -> None:
-        try:
-            reading = self._state.read()
-        except BusArmError as exc:
-            log.warning("joint states not read: %s", exc)
-            return
+        reading = self._state.read()
+        frames = self.frames(reading.joints_deg)
         t = self.now_s()
         gap_m = self.robot.config.gripper.gap_mm_at(reading.gripper_pulses) / 1000.0
-        self._log(self.tf, fm.frame_transforms(t, self.frames(reading.joints_deg)), t)
+        self._log(self.tf, fm.frame_transforms(t, frames), t)
         self._log(self.joints, fm.joint_states(
             t, [*self.joint_names, GRIPPER_JOINT],
             [*(math.radians(v) for v in reading.joints_deg), gap_m]), t)
@@ -336,12 +427,18 @@ class RobotView:
         source = sim.live_camera("arm") if sim is not None else self.robot.camera
         cal = self.robot.camera_calibration
         tick = self._every(1.0 / self.settings.camera_fps)
+        streak = _Streak(self, "no camera frame")
         try:
             while tick():
                 if not (self.image.has_sinks() or (
                         self.blocks is not None and self.blocks.has_sinks())):
                     continue  # nobody watches: nothing rendered
-                frame = source.read()
+                try:
+                    frame = source.read()
+                except BusArmError as exc:
+                    streak.failed(exc)
+                    continue
+                streak.ok()
                 t = self.now_s()
                 joints = self._joints_deg
                 if joints is not None:
@@ -364,18 +461,32 @@ class RobotView:
         locator = self.robot.locator()
         tick = self._every(1.0 / BLOCKS_HZ)
         seen: float | None = None
+        streak = _Streak(self, "blocks not located")
         while tick():
             latest = self._latest
             if latest is None or latest[2] == seen or not self.blocks.has_sinks():
                 continue
             image, joints, seen = latest
-            self._log(self.blocks, fm.block_scene(seen, locator.locate(image, joints)), seen)
+            try:
+                sightings = locator.locate(image, joints)
+            except BusArmError as exc:
+                streak.failed(exc)
+                continue
+            streak.ok()
+            self._log(self.blocks, fm.block_scene(seen, sightings), seen)
 
     def _on_scan(self, scan: LaserScan) -> None:
-        """Each revolution anyone reads (in the reader's thread: kept short)."""
-        if self.scan is not None and self.scan.has_sinks() and not self._closed.is_set():
-            t = self.now_s()
+        """Each revolution anyone reads (in the reader's thread, a job's: kept short,
+        and nothing of the view's raises into it)."""
+        if self.scan is None or self._closed.is_set():
+            return
+        try:
+            if not self.scan.has_sinks():
+                return
+            t = self.stamp_at(scan.stamp_s)
             self._log(self.scan, fm.laser_scan(t, scan, LASER_FRAME), t)
+        except Exception as exc:  # the view only watches: never the job's error
+            self.note(f"a scan not shown: {type(exc).__name__}: {exc}")
 
     def _scan_loop(self) -> None:
         """Reads a revolution only while no job does (its scans come through
@@ -388,5 +499,5 @@ class RobotView:
             try:
                 lidar.read_when_idle(SCAN_IDLE_S, timeout_s=1.0)
             except BusArmError as exc:
-                log.warning("no scan: %s", exc)
+                self.note(f"no scan: {exc}")
                 self._closed.wait(0.5)

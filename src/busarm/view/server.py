@@ -14,7 +14,12 @@ printed), as the dashboard's rule is. foxglove-sdk's server checks no token itse
 then it listens on loopback only, at a port of its own, and a relay (``TokenRelay``)
 listens on HOST:PORT: it checks the token of each connection's request (``?token=`` in
 the URL, or ``Authorization: Bearer``) and passes the frames of the ones that carry it
-both ways, refusing the others (HTTP 401) before any data goes out.
+both ways, refusing the others (HTTP 401) before any data goes out. That inner server
+takes no token: any program on this computer may reach it at its port (a known limit).
+
+A latched topic (the URDF, the map, the path) is sent again when a client subscribes to
+it, by one thread, at most once a second, to the live clients only (never into a
+recording: busarm.view.live's two contexts).
 """
 
 from __future__ import annotations
@@ -37,18 +42,20 @@ from foxglove.websocket import Capability, ChannelView, Client, ServerListener
 from websockets.typing import Subprotocol
 
 from busarm.errors import ConfigError
+from busarm.robot.listen import check_can_listen
 from busarm.view.live import RobotView
 
 __all__ = [
     "DEFAULT_PORT",
+    "LATCHED_EVERY_S",
     "MIN_TOKEN_CHARS",
     "SUBPROTOCOL",
     "URDF_ASSET",
     "TokenRelay",
     "ViewServer",
-    "check_can_listen",
     "is_loopback",
     "serve_view",
+    "this_hosts",
 ]
 
 
@@ -61,6 +68,9 @@ SUBPROTOCOL = "foxglove.sdk.v1"
 URDF_ASSET = "package://busarm/robot.urdf"
 MIN_TOKEN_CHARS = 16
 LATCHED = ("/robot_description", "/map", "/path")
+LATCHED_EVERY_S = 1.0
+"""The latched topics are sent again at most this often (however many subscribe)."""
+WILDCARDS = ("0.0.0.0", "::", "")
 
 
 def is_loopback(host: str) -> bool:
@@ -73,30 +83,66 @@ def is_loopback(host: str) -> bool:
         return False
 
 
-def check_can_listen(host: str, port: int) -> None:
-    """ConfigError now, before the robot is opened, when ``host``:``port`` is taken or
-    not this computer's (port 0 is always free)."""
+def this_hosts() -> list[str]:
+    """The names another computer may reach this one by: its hostname, then each of its
+    addresses that is not loopback (as the hostname resolves here)."""
+    name = socket.gethostname()
     try:
-        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
-        with socket.socket(infos[0][0], socket.SOCK_STREAM) as sock:
-            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-            sock.bind(infos[0][4])
-    except OSError as exc:
-        raise ConfigError(f"cannot serve on {host}:{port}: {exc.strerror or exc}") from exc
+        infos = socket.getaddrinfo(name, None, type=socket.SOCK_STREAM)
+    except OSError:
+        infos = []
+    addresses = [str(info[4][0]) for info in infos]
+    return list(dict.fromkeys([name, *(a for a in addresses if not is_loopback(a))]))
+
+
+class _Latched:
+    """Sends the view's latched topics again to the live clients when one subscribes
+    to one: from one thread of its own (not the server's, into which the log goes
+    back), at most once every LATCHED_EVERY_S."""
+
+    def __init__(self, view: RobotView) -> None:
+        self.view = view
+        self._wanted = threading.Event()
+        self._stopping = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="busarm-view-latched",
+                                        daemon=True)
+
+    def want(self) -> None:
+        self._wanted.set()
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stopping.set()
+        self._wanted.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=5.0)
+
+    def _run(self) -> None:
+        while True:
+            self._wanted.wait()
+            if self._stopping.is_set():
+                return
+            self._wanted.clear()
+            try:
+                self.view.publish_latched(record=False)
+            except Exception as exc:  # the view only watches: noted, it goes on
+                self.view.note(f"latched topics not sent: {type(exc).__name__}: {exc}")
+            if self._stopping.wait(LATCHED_EVERY_S):
+                return
 
 
 class _Listener(ServerListener):
     """A new subscriber to a latched topic gets its value at once (foxglove-sdk keeps no
     last message); ``/robot_description`` is also a parameter."""
 
-    def __init__(self, view: RobotView) -> None:
-        self.view = view
+    def __init__(self, view: RobotView, latched: _Latched) -> None:
+        self.view, self.latched = view, latched
 
     def on_subscribe(self, client: Client, channel: ChannelView) -> None:
         if channel.topic in LATCHED:
-            # Off the server's thread: the log goes back into the server.
-            threading.Thread(target=self.view.publish_latched, name="busarm-view-latched",
-                             daemon=True).start()
+            self.latched.want()
 
     def on_get_parameters(self, client: Client, param_names: list[str],
                           request_id: str | None = None) -> list[Parameter]:
@@ -114,52 +160,80 @@ class ViewServer:
     port: int
     token: str | None
     relay: TokenRelay | None
+    latched: _Latched
 
     @property
-    def url(self) -> str:
-        """The WebSocket URL a client opens (with the token, when one is needed)."""
-        host = f"[{self.host}]" if ":" in self.host else self.host
+    def wildcard(self) -> bool:
+        """Bound to every address of this computer (``0.0.0.0``, ``::``)."""
+        return self.host in WILDCARDS
+
+    def url_at(self, host: str) -> str:
+        """The WebSocket URL a client opens to reach this server as ``host``."""
+        host = f"[{host}]" if ":" in host else host
         query = "" if self.token is None else f"/?token={quote(self.token)}"
         return f"ws://{host}:{self.port}{query}"
 
     @property
+    def url(self) -> str:
+        """The WebSocket URL a client opens (with the token, when one is needed); bound
+        to every address, the one with this computer's name."""
+        return self.urls[0]
+
+    @property
+    def urls(self) -> list[str]:
+        """Every URL that reaches it: bound to every address, one by this computer's
+        name and one by each of its addresses not loopback; else the one bound."""
+        return [self.url_at(h) for h in (this_hosts() if self.wildcard else [self.host])]
+
+    @property
     def app_url(self) -> str:
-        """Foxglove's web app opened on this server."""
+        """Foxglove's web app opened on this server, from a browser on this computer
+        only (an https page may open a plain ws:// to this computer, not to another)."""
+        here = "127.0.0.1" if self.host in ("0.0.0.0", "") else (
+            "::1" if self.host == "::" else self.host)
         return ("https://app.foxglove.dev/?ds=foxglove-websocket&ds.url="
-                + quote(self.url, safe=""))
+                + quote(self.url_at(here), safe=""))
 
     def stop(self) -> None:
         if self.relay is not None:
             self.relay.stop()
         self.server.stop()
+        self.latched.stop()
 
 
 def serve_view(view: RobotView, host: str = "127.0.0.1", port: int = DEFAULT_PORT,
-               token: str | None = None, *, name: str = "busarm") -> ViewServer:
+               token: str | None = None, *, name: str = "busarm",
+               option: str = "--ws-port") -> ViewServer:
     """Serve ``view`` on ``host``:``port`` (0: any free port). Off loopback a token is
     needed: ``token``, else a new one (``ViewServer.token``); on loopback ``token`` is
-    needed when given. ConfigError when the port is taken or the token is too short."""
+    needed when given. ConfigError when the port (given as ``option``) is taken or the
+    token is too short."""
     if token is not None and len(token) < MIN_TOKEN_CHARS:
         raise ConfigError(f"--token of {len(token)} characters: give at least "
                           f"{MIN_TOKEN_CHARS} (or none, and one is made)")
+    check_can_listen(host, port, option)
     if token is None and not is_loopback(host):
         token = secrets.token_urlsafe(24)
     inner_host, inner_port = (host, port) if token is None else ("127.0.0.1", 0)
+    latched = _Latched(view)
     try:
         server = foxglove.start_server(
-            name=name, host=inner_host, port=inner_port, context=view.context,
-            capabilities=[Capability.Parameters], server_listener=_Listener(view),
+            name=name, host=inner_host, port=inner_port, context=view.live_context,
+            capabilities=[Capability.Parameters], server_listener=_Listener(view, latched),
             asset_handler=lambda uri: view.urdf.encode() if uri == URDF_ASSET else None)
     except RuntimeError as exc:
-        raise ConfigError(f"cannot serve on {inner_host}:{inner_port}: {exc}") from exc
+        raise ConfigError(f"cannot serve on {inner_host}:{inner_port} ({option}): "
+                          f"{exc}") from exc
+    latched.start()
     if token is None:
-        return ViewServer(server, host, server.port, None, None)
+        return ViewServer(server, host, server.port, None, None, latched)
     try:
         relay = TokenRelay(host, port, server.port, token).start()
     except BaseException:
         server.stop()
+        latched.stop()
         raise
-    return ViewServer(server, host, relay.port, token, relay)
+    return ViewServer(server, host, relay.port, token, relay, latched)
 
 
 class TokenRelay:
