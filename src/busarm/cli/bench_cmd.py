@@ -437,7 +437,7 @@ def _print_mobile_page(settings: Settings, report: MobilePageReport) -> None:
         f"key released -> wheels told 0, {report.tries} tries: p50 "
         f"{report.key_release_ms['p50']:.1f} ms, p99 {release_p99:.1f} ms, max "
         f"{report.key_release_ms['max']:.1f} ms ({ok(release_p99 <= 300)} p99 <= 300)\n"
-        f"heartbeat lost -> wheels told 0: p50 {report.deadman_ms['p50']:.0f} ms, max "
+        f"drives stop coming -> wheels told 0: p50 {report.deadman_ms['p50']:.0f} ms, max "
         f"{report.deadman_ms['max']:.0f} ms ({ok(report.deadman_ms['max'] <= 300)} <= 300)\n"
         f"e-stop sent -> wheels told 0: p50 {report.estop_ms['p50']:.1f} ms, p99 "
         f"{report.estop_ms['p99']:.1f} ms ({ok(report.estop_ms['p99'] <= 100)} p99 <= 100)")
