@@ -243,13 +243,18 @@
   let mapShown = -1;     // the number of the map picture shown
   let mapLoading = false;
   let mapInfo = null;    // GET /api/map: where the picture's metres are
+  let mapSize = null;    // the shown picture's size (px): kept while the next one loads
 
   /** The map picture numbered ``n`` (GET /map.png), unless shown or on its way. */
   function loadMap(n) {
     if (n === mapShown || mapLoading) return;
     const img = $('map-view');
     mapLoading = true;
-    img.onload = () => { mapLoading = false; mapShown = n; img.dataset.map = String(n); loadMapInfo(); };
+    img.onload = () => {
+      mapLoading = false; mapShown = n; img.dataset.map = String(n);
+      mapSize = [img.naturalWidth, img.naturalHeight];
+      loadMapInfo();
+    };
     img.onerror = () => { mapLoading = false; };  // the next state tries again
     img.src = B.withToken('/map.png', { n: String(n) });
   }
@@ -269,12 +274,13 @@
   let pointAt = null;
   $('map-view').addEventListener('click', (ev) => {
     const img = ev.currentTarget;
-    if (!mapInfo || mapInfo.frame !== 'map' || !img.clientWidth) return;
+    if (!mapInfo || mapInfo.frame !== 'map' || !img.clientWidth || !mapSize) return;
     // The picture is fitted into the element (object-fit: contain), centred.
-    const k = Math.min(img.clientWidth / img.naturalWidth, img.clientHeight / img.naturalHeight);
-    const u = (ev.offsetX - (img.clientWidth - k * img.naturalWidth) / 2) / k;
-    const v = (ev.offsetY - (img.clientHeight - k * img.naturalHeight) / 2) / k;
-    if (u < 0 || v < 0 || u > img.naturalWidth || v > img.naturalHeight) return;
+    const [w, h] = mapSize;
+    const k = Math.min(img.clientWidth / w, img.clientHeight / h);
+    const u = (ev.offsetX - (img.clientWidth - k * w) / 2) / k;
+    const v = (ev.offsetY - (img.clientHeight - k * h) / 2) / k;
+    if (!(u >= 0 && v >= 0 && u <= w && v <= h)) return;
     pointAt = [mapInfo.origin_x_m + u / mapInfo.px_per_m,
       mapInfo.origin_y_m + (mapInfo.height_px - v) / mapInfo.px_per_m];
     $('point-at').textContent = `x ${pointAt[0].toFixed(2)} m, y ${pointAt[1].toFixed(2)} m`;
