@@ -3,9 +3,11 @@
 0: done. 1: a bus error (timeouts, garbled replies, a port that cannot be opened), or a
 job not done though the command ran to its end (``JobNotDone``: blocks left unsorted, a
 benchmark target missed; its output is printed first). 2: bad input (usage errors,
-ConfigError, the input ending at a question). 130: interrupted (Ctrl+C); the servers
-(``sim serve``, ``twin serve``, ``dashboard``), whose way to stop is SIGINT or SIGTERM, end 0. 141:
-stdout's reader went away (``busarm ... | head``), quietly, as Unix tools do.
+ConfigError, the input ending at a question). 130: interrupted (Ctrl+C), 143 by SIGTERM,
+129 by SIGHUP, each stopping as Ctrl+C does; the servers (``sim serve``, ``twin serve``,
+``dashboard``, ``view``), whose way to stop is SIGINT or SIGTERM, end 0 (``ros bridge``
+and ``record`` end 0 on Ctrl+C only). 141: stdout's reader went away (``busarm ... |
+head``), quietly, as Unix tools do.
 """
 
 from __future__ import annotations

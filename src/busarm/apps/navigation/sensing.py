@@ -91,8 +91,8 @@ class ScanReader:
 
     def __init__(self, robot: Robot, timeout_s: float = SCAN_TIMEOUT_S) -> None:
         if robot.base is None or robot.lidar is None:
-            missing = " and ".join(n for n, p in (("a base", robot.base),
-                                                  ("a Lidar", robot.lidar)) if p is None)
+            missing = " and no ".join(n for n, p in (("base", robot.base),
+                                                     ("Lidar", robot.lidar)) if p is None)
             raise ConfigError(f"{robot!r} has no {missing}: a mobile job needs both "
                               "(board://twin?family=arena&seed=N, or --chassis and --lidar)")
         self.base: Base = robot.base
