@@ -12,7 +12,6 @@ Endpoints are Zenoh locators: ``tcp/127.0.0.1:7447``, ``tcp/[::1]:7447``,
 
 from __future__ import annotations
 
-import ipaddress
 import json
 import os
 import tempfile
@@ -21,6 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from busarm.errors import ConfigError, TransportError
+from busarm.netaddr import is_loopback
 
 if TYPE_CHECKING:
     import zenoh
@@ -72,15 +72,6 @@ def endpoint_host(endpoint: str) -> tuple[str, int]:
     if not 1 <= port <= 65535:
         raise ConfigError(f"endpoint {endpoint!r}: port {port_text!r}; allowed: 1..65535")
     return host.strip("[]"), port
-
-
-def is_loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
 
 
 def session_config(*, listen: Sequence[str] = (), connect: Sequence[str] = (),

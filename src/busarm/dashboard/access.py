@@ -14,13 +14,13 @@ rebinding attack names another host).
 
 from __future__ import annotations
 
-import ipaddress
 import secrets
 from collections.abc import Mapping
 from dataclasses import dataclass
 from urllib.parse import urlsplit
 
 from busarm.errors import ConfigError
+from busarm.netaddr import is_loopback
 
 __all__ = [
     "COOKIE",
@@ -32,16 +32,6 @@ __all__ = [
 
 COOKIE = "busarm_token"
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "[::1]", "::1")
-
-
-def is_loopback(host: str) -> bool:
-    """Whether ``host`` (an address or ``localhost``) is this computer only."""
-    if host.strip("[]") == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,6 @@ recording: busarm.view.live's two contexts).
 from __future__ import annotations
 
 import asyncio
-import ipaddress
 import logging
 import secrets
 import socket
@@ -42,6 +41,7 @@ from foxglove.websocket import Capability, ChannelView, Client, ServerListener
 from websockets.typing import Subprotocol
 
 from busarm.errors import ConfigError
+from busarm.netaddr import is_loopback
 from busarm.robot.listen import check_can_listen
 from busarm.view.live import RobotView
 
@@ -71,16 +71,6 @@ LATCHED = ("/robot_description", "/map", "/path")
 LATCHED_EVERY_S = 1.0
 """The latched topics are sent again at most this often (however many subscribe)."""
 WILDCARDS = ("0.0.0.0", "::", "")
-
-
-def is_loopback(host: str) -> bool:
-    """Whether ``host`` (an address or ``localhost``) is this computer only."""
-    if host.strip("[]") == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False
 
 
 def this_hosts() -> list[str]:
