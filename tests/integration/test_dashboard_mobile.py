@@ -168,7 +168,10 @@ def test_base_drive_is_checked_held_and_stopped_through_the_server(
             while not any(wheel_targets(board_robot)) and time.monotonic() < deadline:
                 time.sleep(0.01)
             assert any(wheel_targets(board_robot))
-            assert receive(ws, "state")["base"]["driving"]["vx_m_s"] == 0.2
+            deadline = time.monotonic() + 5
+            while (driving := receive(ws, "state")["base"]["driving"]) is None:
+                assert time.monotonic() < deadline, "no state says the base drives"
+            assert driving["vx_m_s"] == 0.2  # (states sent before the drive came first)
             ws.send('{"type": "base_stop"}')
             while "base stopped (released)" not in receive(ws, "log")["text"]:
                 pass  # "base: driving at ..." first

@@ -10,6 +10,7 @@ import json
 import math
 import os
 import queue
+import secrets
 import signal
 import subprocess
 import sys
@@ -25,7 +26,15 @@ from busarm.arm.config import load_arm_config
 from busarm.arm.urdf import urdf_from_config
 from busarm.bench.ros import free_port
 from busarm.bus.zenoh_session import open_session
-from busarm.protocol.rmw_zenoh import Attachment, History, Qos, gid_of, topic_key
+from busarm.protocol.rmw_zenoh import (
+    ROSOUT,
+    Attachment,
+    Entity,
+    History,
+    Qos,
+    gid_of,
+    topic_key,
+)
 from busarm.ros import messages as m
 from busarm.ros.graph import read_graph
 from busarm.ros.node import Received, RosNode
@@ -393,3 +402,72 @@ def test_a_recording_is_an_mcap_file_ros_2_tools_read(bridge: str, tmp_path: Pat
     assert channel.message_encoding == "cdr"
     assert all(a[2].log_time <= b[2].log_time for a, b in itertools.pairwise(states))
     assert f"/joint_states: {len(states)} messages" in out.stdout
+
+
+# ------------------------------------------------------------------ issue 31: ROS 2 fidelity
+
+
+def test_rosout_keeps_its_log_for_late_joiners_as_rcl_does(peer: RosNode, bridge: str) -> None:
+    rosout = next(e for e in read_graph(peer.session, 0).entities
+                  if e.kind == "MP" and e.topic == "/rosout")
+    assert rosout.qos == ROSOUT  # rcl's logging QoS, as the token says it
+    assert rosout.token().endswith("/:1:,1000:,:10,:,,")  # transient local, 1000, 10 s
+    # A line logged now (a refused sample naming a made-up type hash) ...
+    live = Inbox(peer, "/rosout", m.ROSOUT_LOG)
+    time.sleep(0.3)
+    marker = secrets.token_hex(32)
+    _put_raw(peer, "/joint_trajectory", m.JOINT_TRAJECTORY, "RIHS01_" + marker,
+             m.encode(trajectory([(1.0, {"base_yaw": 0.0})]), m.JOINT_TRAJECTORY),
+             Attachment(1, time.time_ns(), b"\x01" * 16).encode())
+    live.until(lambda msg: marker[:13] in msg.msg)
+    # ... reaches a node that joins after it, subscribing as rmw_zenoh's transient-local
+    # subscriptions do (querying the publisher's cache); a volatile one gets none of it.
+    session = open_session(connect=[bridge])
+    late = RosNode(session, "late_joiner")
+    try:
+        kept, volatile = queue.Queue[str](), queue.Queue[str]()
+        late.subscribe("/rosout", m.ROSOUT_LOG, lambda msg, _: kept.put(msg.msg), ROSOUT)
+        late.subscribe("/rosout", m.ROSOUT_LOG, lambda msg, _: volatile.put(msg.msg))
+        end = time.monotonic() + 15.0
+        while marker[:13] not in kept.get(timeout=max(0.01, end - time.monotonic())):
+            pass
+        time.sleep(0.5)
+        assert all(marker[:13] not in line for line in volatile.queue)
+    finally:
+        late.close()
+        session.close()
+
+
+def test_a_third_party_senders_trajectory_stops_when_its_token_goes(peer: RosNode) -> None:
+    states = Inbox(peer, "/joint_states", m.JOINT_STATE)
+    rosout = Inbox(peer, "/rosout", m.ROSOUT_LOG)
+    # Another Zenoh SDK's publisher: an rmw_zenoh token, but GIDs of its own making.
+    entity = Entity(0, "0123456789abcdef0123456789abcdef", 0, 7, "MP", "third_party",
+                    topic="/joint_trajectory", ros_type=m.JOINT_TRAJECTORY,
+                    type_hash=m.ros_type(m.JOINT_TRAJECTORY).type_hash, qos=Qos())
+    gid = b"\x5a" * 16
+    assert gid != gid_of(entity.token())
+    token = peer.session.liveliness().declare_token(entity.token())
+    publisher = peer.session.declare_publisher(topic_key(
+        0, "/joint_trajectory", m.JOINT_TRAJECTORY, m.ros_type(m.JOINT_TRAJECTORY).type_hash))
+    try:
+        time.sleep(0.5)  # the bridge hears of the token before the trajectory
+        start = joints_deg(states.next()[0])["base_yaw"]
+        target = start + 60.0 if start < 0 else start - 60.0
+        publisher.put(m.encode(trajectory([(4.0, {"base_yaw": target})]), m.JOINT_TRAJECTORY),
+                      attachment=Attachment(1, time.time_ns(), gid).encode())
+        states.until(lambda msg: abs(joints_deg(msg)["base_yaw"] - start) > 10.0)
+        token.undeclare()  # it leaves about 1 s into 4
+        rosout.until(lambda msg: "its sender left" in msg.msg)
+        time.sleep(0.5)
+        stopped = joints_deg(states.latest()[0])["base_yaw"]
+        time.sleep(1.0)
+        later = joints_deg(states.latest()[0])["base_yaw"]
+        assert abs(later - stopped) < 0.5  # held (MOVE_STOP) ...
+        assert abs(stopped - start) < 40.0  # ... well short of the 60 deg it was sent
+    finally:
+        publisher.undeclare()
+    send = peer.publisher("/joint_trajectory", m.JOINT_TRAJECTORY)
+    time.sleep(0.3)
+    send.publish(trajectory([(2.0, {"base_yaw": start})]))
+    states.until(lambda msg: abs(joints_deg(msg)["base_yaw"] - start) < 1.0)

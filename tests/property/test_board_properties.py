@@ -157,7 +157,8 @@ def sbus_frames(draw: st.DrawFn) -> tuple[bytes, SbusState]:
     digital = draw(st.tuples(st.integers(*U8), st.integers(*U8)))
     lost, fail_safe = draw(st.integers(*U8)), draw(st.integers(*U8))
     raw = oracle_frame(9, struct.pack("<16hBBBB", *channels, *digital, lost, fail_safe))
-    return raw, SbusState(channels, bool(lost), bool(fail_safe))
+    return raw, SbusState(channels, bool(lost), bool(fail_safe), bool(digital[0]),
+                          bool(digital[1]))
 
 
 def assert_same_request(got: BoardRequest, sent: BoardRequest) -> None:

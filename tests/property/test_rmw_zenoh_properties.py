@@ -28,7 +28,7 @@ TYPE = st.tuples(NAME, st.from_regex(r"[A-Z][A-Za-z0-9]{0,8}", fullmatch=True)).
 HASH = st.one_of(st.just("TypeHashNotSupported"),
                  st.from_regex(r"RIHS01_[0-9a-f]{64}", fullmatch=True))
 QOS = st.builds(Qos, st.sampled_from(Reliability), st.sampled_from(Durability),
-                st.sampled_from(History), st.integers(1, 10_000))
+                st.sampled_from(History), st.integers(1, 10_000), st.integers(0, 10**12))
 
 
 @given(INT64, INT64, st.binary(min_size=16, max_size=16))

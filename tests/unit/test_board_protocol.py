@@ -292,7 +292,8 @@ def test_frame_longer_than_255_data_bytes_is_not_encoded() -> None:
     (Func.LED, "01 64 00 c8 00 03"),
     (Func.BUZZER, "60 09 64 00 32 00 01 00 00"),
     (Func.IMU, ""),
-    (Func.PWM_SERVO, "01 f4 01 01 01 dc 05"),
+    (Func.PWM_SERVO, "01 f4 01 02 01 dc 05"),  # PWM move announcing 2 ports, carrying 1
+    (Func.PWM_SERVO, "01 f4 01 01 05 dc 05"),  # PWM port 5: the board has 4
 ])
 def test_bad_request_is_one_protocol_error_naming_its_bytes(func: Func, data: str) -> None:
     raw = bytes.fromhex(data)

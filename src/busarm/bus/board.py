@@ -48,17 +48,23 @@ from busarm.protocol.board import (
     LedBlink,
     MotorEncoders,
     MotorSpeeds,
+    PwmServoMove,
+    PwmServoRead,
+    PwmServoReply,
+    PwmSub,
     ServoRead,
     ServoReply,
     ServoSub,
     decode_report,
 )
-from busarm.units import check_range, range_text
+from busarm.units import check_int_range, check_range, range_text
 
 __all__ = [
     "BOARD_SERVO_WAIT_S",
     "DEFAULT_MARGIN_S",
     "DEFAULT_RETRIES",
+    "PWM_MAX_US",
+    "PWM_MIN_US",
     "REPORT_MAX_DATA",
     "SERVO_LINE_BAUDRATE",
     "WHEEL_LIMIT_REV_S",
@@ -78,6 +84,10 @@ WHEEL_LIMIT_REV_S = 1.5
 """The firmware's wheel speed limit (about 1.5 rev/s): faster commands are refused."""
 REPORT_MAX_DATA = 64
 """The longest frame the board sends (an SBUS report has 36 data bytes)."""
+PWM_MIN_US = 500
+PWM_MAX_US = 2500
+"""The hobby servo pulse range the PWM headers are driven in (us): the vendor's SDK
+examples stay within it; the firmware itself passes any uint16 on."""
 _READ_CHUNK = 4096
 _POLL_MAX_BYTES = 16 * _READ_CHUNK
 
@@ -178,6 +188,38 @@ class BoardLink:
         check_range("led_id", led_id, 1, 255)
         self.write(LedBlink(int(led_id), _ms("on_s", on_s), _ms("off_s", off_s),
                             _count(repeat)))
+
+    def pwm_move(self, pulses_us: dict[int, int], duration_s: float = 0.0) -> None:
+        """PWM servos on ports 1..4 to these pulse widths (us) in ``duration_s``; every
+        value is checked first (a bad one raises, naming it and its range; nothing sent)."""
+        if not pulses_us:
+            raise ConfigError("PWM move of no port: give at least one of ports 1..4")
+        targets = tuple((check_int_range("PWM port", port, 1, 4),
+                         check_int_range(f"PWM port {port} pulse_us", pulse_us, PWM_MIN_US,
+                                         PWM_MAX_US, "us"))
+                        for port, pulse_us in sorted(pulses_us.items()))
+        self.write(PwmServoMove(_ms("duration_s", duration_s), targets))
+
+    def pwm_read_us(self, port: int, *, retries: int | None = None) -> int:
+        """The pulse (us) the board drives PWM port ``port`` with now (mid-move: on the
+        way); BusTimeoutError if no answer came in ``retries + 1`` attempts."""
+        check_int_range("PWM port", port, 1, 4)
+        data = PwmServoRead(PwmSub.READ_POSITION, port).encode()
+        attempt_s = (self._host_byte_s * (2 * FRAME_OVERHEAD + 6) + BOARD_SERVO_WAIT_S
+                     + self.transport.latency_s + self.timeout_margin_s)
+        attempts = (self.retries if retries is None else retries) + 1
+        with self._held():
+            for _ in range(attempts):
+                self.poll()
+                self.transport.write(data)
+                deadline = self.clock.now() + attempt_s
+                while (remaining := deadline - self.clock.now()) > 0:
+                    for report in self._take(self.transport.read(_READ_CHUNK, remaining)):
+                        if (isinstance(report, PwmServoReply) and report.port == port
+                                and report.sub is PwmSub.READ_POSITION):
+                            return report.value
+        raise BusTimeoutError(f"PWM servo port {port} through the controller board: no "
+                              f"answer in {attempts} attempt(s)", timeout_s=attempt_s)
 
     # ------------------------------------------------------------------ reading
 

@@ -1,8 +1,8 @@
-"""``board info | beep``: the vendor's controller board itself (``--port board://...``).
+"""``board info | beep | pwm``: the vendor's controller board itself (``--port board://...``).
 
 The servos behind the board are driven by every other command with the same port; these
-commands show and use what is the board's own: its battery sense, its IMU, its buttons
-and its buzzer.
+commands show and use what is the board's own: its battery sense, its IMU, its buttons,
+its buzzer and its four PWM servo headers.
 """
 
 from __future__ import annotations
@@ -12,10 +12,11 @@ import math
 import click
 from rich.table import Table
 
-from busarm.bus.board import BoardLink
+from busarm.bus.board import PWM_MAX_US, PWM_MIN_US, BoardLink
 from busarm.cli.common import RangeType, Settings, pass_settings
+from busarm.errors import ConfigError
 from busarm.protocol.board import ImuSample
-from busarm.units import fixed_number
+from busarm.units import check_int_range, fixed_number
 
 __all__ = [
     "COMMANDS",
@@ -23,6 +24,8 @@ __all__ = [
     "beep",
     "board",
     "info",
+    "parse_pwm_targets",
+    "pwm",
 ]
 
 
@@ -32,10 +35,16 @@ SAMPLE_S = 1.0
 
 @click.group()
 def board() -> None:
-    """The vendor's controller board: battery, IMU, buttons, buzzer (--port board://...).
+    """The vendor's controller board: battery, IMU, buttons, buzzer, PWM servos
+    (--port board://...).
 
     Every servo command works through the board with the same port (e.g. `busarm --port
     board:///dev/ttyACM0 arm pose`); `busarm sim serve --board` simulates one.
+
+    Coming from the vendor's Python SDK: its bus_servo_enable_torque(id, 1) sends
+    sub-command 0x0B, which the firmware runs as "unload" (serial_servo_load_unload(...,
+    0)): it switches the servo's torque OFF; 0x0C switches it on. busarm names them by
+    what the firmware does (`busarm torque off` sends 0x0B). See docs/board.md.
     """
 
 
@@ -100,6 +109,44 @@ def beep(settings: Settings, freq_hz: float, on_s: float) -> None:
         link.beep(round(freq_hz), on_s)
     settings.out.print(f"sent the board a {round(freq_hz)} Hz beep of {on_s:g} s (it does not "
                        "acknowledge it)")
+
+
+def parse_pwm_targets(texts: tuple[str, ...]) -> dict[int, int]:
+    """``PORT=US`` pairs (``1=1500``) as {port: pulse us}, each checked: ConfigError naming
+    the bad one and its range."""
+    if not texts:
+        raise ConfigError("give at least one PORT=US pair, e.g. 1=1500 (ports 1..4, "
+                          f"{PWM_MIN_US}..{PWM_MAX_US} us)")
+    out: dict[int, int] = {}
+    for text in texts:
+        port_text, sep, us_text = text.partition("=")
+        if not sep or not port_text.strip().isdigit() or not us_text.strip().lstrip(
+                "-").isdigit():
+            raise ConfigError(f"{text!r} is not PORT=US (e.g. 1=1500: port 1..4, pulse "
+                              f"{PWM_MIN_US}..{PWM_MAX_US} us)")
+        port = check_int_range("PWM port", int(port_text), 1, 4)
+        out[port] = check_int_range(f"PWM port {port} pulse_us", int(us_text), PWM_MIN_US,
+                                    PWM_MAX_US, "us")
+    return out
+
+
+@board.command()
+@click.argument("targets", nargs=-1, metavar="[PORT=US]...")
+@click.option("--time", "time_s", type=RangeType("time", 0.0, 30.0, "s"), default=0.5,
+              show_default=True, help="How long the move takes, in s.")
+@pass_settings
+def pwm(settings: Settings, targets: tuple[str, ...], time_s: float) -> None:
+    """Hobby (PWM) servos on the board's headers 1..4: move them (`busarm board pwm
+    1=1500 3=2000`: port=pulse in us, 500..2500), wait out the move, and show the
+    pulse each port is driven with; with no PORT=US, only show the four."""
+    wanted = parse_pwm_targets(targets) if targets else {}  # checked before the board opens
+    with settings.open_board() as link:
+        if wanted:
+            link.pwm_move(wanted, time_s)
+            link.clock.sleep(time_s)
+        pulses = {port: link.pwm_read_us(port) for port in (sorted(wanted) or range(1, 5))}
+    for port, pulse_us in pulses.items():
+        settings.out.print(f"PWM port {port}: {pulse_us} us")
 
 
 COMMANDS = [board]

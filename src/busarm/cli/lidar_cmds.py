@@ -30,6 +30,7 @@ __all__ = [
     "COMMANDS",
     "LIDAR_OPTION",
     "lidar",
+    "modes",
     "scan",
     "serve",
 ]
@@ -56,21 +57,21 @@ def lidar() -> None:
               help="Print the device, the summary and every beam as JSON.")
 @click.option("--timeout", "timeout_s", type=RangeType("timeout", 0.2, 30.0, "s"), default=2.0,
               show_default=True, help="How long to wait for a complete revolution, in s.")
+@click.option("--express", is_flag=True,
+              help="Read the express scan (capsules; 4,000 samples/s on an A1) instead of "
+                   "the standard one (2,000).")
 @pass_settings
 def scan(settings: Settings, lidar_port: str | None, png: Path | None, as_json: bool,
-         timeout_s: float) -> None:
+         timeout_s: float, express: bool) -> None:
     """Read one 360-degree scan: how many returns, the rate, the nearest return and its
     bearing (degrees counter-clockwise from the Lidar's forward axis). Without --lidar:
     the Lidar of --robot's robot file, or of the twin --port names (with an arena)."""
     from busarm.robot.lidar_port import open_lidar_port
-    from busarm.robot.port_url import parse_lidar_port
 
-    where = _robots_lidar(settings) if lidar_port is None else None
-    if where is None:
-        lidar_port = lidar_port_or_default(lidar_port)
-        where = parse_lidar_port(lidar_port)
+    where = _lidar_port(settings, lidar_port)
     lidar_port = where.name
     with open_lidar_port(where) as device:
+        device.use_express(express)
         one = device.read_scan(timeout_s)
         info, health = device.info, device.health
     returns = int(one.valid.sum())
@@ -103,6 +104,35 @@ def scan(settings: Settings, lidar_port: str | None, png: Path | None, as_json: 
                    "deg (counter-clockwise from forward)")
     if png is not None:
         click.echo(f"polar picture written to {png}")
+
+
+@lidar.command()
+@LIDAR_OPTION
+@pass_settings
+def modes(settings: Settings, lidar_port: str | None) -> None:
+    """The Lidar's sample rate and scan modes (GET_SAMPLERATE, GET_LIDAR_CONF, as
+    Slamtec's SDK asks them; an A1 answers from firmware 1.24 on)."""
+    from busarm.robot.lidar_port import open_lidar_port
+
+    where = _lidar_port(settings, lidar_port)
+    with open_lidar_port(where) as device:
+        rate = device.sample_rate()
+        found, typical = device.scan_modes()
+    click.echo(f"sample time: standard {rate.standard_us} us, express {rate.express_us} us")
+    for mode in found:
+        click.echo(f"mode {mode.id} {mode.name}: {mode.sample_hz:,.0f} samples/s, up to "
+                   f"{mode.max_distance_m:g} m, answers type 0x{mode.answer_type:02X}"
+                   f"{' (typical)' if mode.id == typical else ''}")
+
+
+def _lidar_port(settings: Settings, lidar_port: str | None) -> LidarPort:
+    """The Lidar --lidar names, else the robot's, else the default."""
+    from busarm.robot.port_url import parse_lidar_port
+
+    where = _robots_lidar(settings) if lidar_port is None else None
+    if where is None:
+        where = parse_lidar_port(lidar_port_or_default(lidar_port))
+    return where
 
 
 def _number(value: float) -> float | None:

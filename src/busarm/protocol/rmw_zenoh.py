@@ -34,6 +34,7 @@ __all__ = [
     "GID_SIZE",
     "LATCHED",
     "RELIABLE",
+    "ROSOUT",
     "SENSOR_DATA",
     "TYPE_HASH_NOT_SUPPORTED",
     "Attachment",
@@ -92,37 +93,46 @@ class History(IntEnum):
 
 @dataclass(frozen=True)
 class Qos:
-    """The QoS a token announces (rmw_zenoh's defaults: reliable, volatile, keep last 42)."""
+    """The QoS a token announces (rmw_zenoh's defaults: reliable, volatile, keep last 42,
+    no lifespan)."""
 
     reliability: Reliability = Reliability.RELIABLE
     durability: Durability = Durability.VOLATILE
     history: History = History.KEEP_LAST
     depth: int = 42
+    lifespan_ns: int = 0
+    """How long a sample stays valid; 0: for ever (rmw's default)."""
 
     def key(self) -> str:
         """The token's QoS field: each value that differs from the default, else empty.
 
-        Deadline, lifespan and liveliness lease are always the defaults here (infinite),
-        so their fields are empty: ``rel:dur:hist,depth:,:,:,,``."""
+        Deadline and liveliness lease are always the defaults here (infinite), so their
+        fields are empty: ``rel:dur:hist,depth:,:lifespan_s,lifespan_ns:,,``."""
         default = Qos()
         rel = "" if self.reliability == default.reliability else str(int(self.reliability))
         dur = "" if self.durability == default.durability else str(int(self.durability))
         hist = "" if self.history == default.history else str(int(self.history))
         depth = "" if self.depth == default.depth else str(self.depth)
-        return f"{rel}:{dur}:{hist},{depth}:,:,:,,"
+        # rmw_zenoh writes the seconds and the nanoseconds apart, each only if not 0.
+        sec, nsec = divmod(self.lifespan_ns, 1_000_000_000)
+        life = f"{sec or ''},{nsec or ''}"
+        return f"{rel}:{dur}:{hist},{depth}:,:{life}:,,"
 
     @classmethod
     def parse(cls, text: str) -> Qos:
         """The QoS in a token's field; ProtocolError when it is not one."""
         parts = text.split(":")
-        if len(parts) != 6 or len(parts[2].split(",")) != 2:
+        if len(parts) != 6 or len(parts[2].split(",")) != 2 \
+                or len(parts[4].split(",")) != 2:
             raise ProtocolError(f"not an rmw_zenoh QoS field: {text!r}")
         hist, depth = parts[2].split(",")
+        sec, nsec = parts[4].split(",")
         try:
             return cls(reliability=Reliability(int(parts[0])) if parts[0] else cls.reliability,
                        durability=Durability(int(parts[1])) if parts[1] else cls.durability,
                        history=History(int(hist)) if hist else cls.history,
-                       depth=int(depth) if depth else cls.depth)
+                       depth=int(depth) if depth else cls.depth,
+                       lifespan_ns=int(sec or 0) * 1_000_000_000 + int(nsec or 0))
         except ValueError as exc:
             raise ProtocolError(f"bad value in the QoS field {text!r}: {exc}") from exc
 
@@ -130,6 +140,10 @@ class Qos:
 RELIABLE = Qos()
 LATCHED = Qos(durability=Durability.TRANSIENT_LOCAL, depth=1)
 """``/robot_description`` and ``/map``: a late subscriber still gets the last one."""
+ROSOUT = Qos(durability=Durability.TRANSIENT_LOCAL, depth=1000, lifespan_ns=10_000_000_000)
+"""``/rosout``, as rcl's logging publishes it (rcl_qos_profile_rosout_default): reliable,
+transient local, keep last 1000, a lifespan of 10 s; a late ``ros2 topic echo`` or
+rqt_console sees the lines logged before it joined."""
 SENSOR_DATA = Qos(reliability=Reliability.BEST_EFFORT, depth=5)
 """Camera frames and scans: a late frame is worth less than the next one."""
 

@@ -1,4 +1,5 @@
-"""A pure codec of the Slamtec RPLIDAR A1 serial protocol (the standard scan).
+"""A pure codec of the Slamtec RPLIDAR A1 serial protocol (the standard scan,
+the sample rate and the scan modes' configuration).
 
 Bytes only: no I/O, no clock. From the public protocol document:
 
@@ -11,7 +12,14 @@ Bytes only: no I/O, no clock. From the public protocol document:
   hardware, 16-byte serial number. GET_HEALTH (0x52) answers type 0x06 with 3 bytes:
   status (0 good, 1 warning, 2 error) and a 16-bit error code. SCAN (0x20) answers type
   0x81 in stream mode, then 5-byte measurement nodes until STOP (0x25) or RESET (0x40),
-  which have no reply.
+  which have no reply. GET_SAMPLERATE (0x59) answers type 0x15 with 4 bytes: the
+  standard and the express scan's time per sample, in us (16 bits each).
+- GET_LIDAR_CONF (0x84) carries a 32-bit little-endian configuration type (0x70 scan mode
+  count, 0x71 a mode's us per sample, 0x74 its max distance, 0x75 its answer type, 0x7C
+  the typical mode, 0x7F a mode's name), then for a mode's entry its 16-bit id; the
+  answer (type 0x20) repeats the type, then the value: a 16-bit count or id, a 32-bit
+  Q8 number (us, m), a byte, or the name's characters (NUL-terminated).
+- EXPRESS_SCAN (0x82): busarm.protocol.rplidar_express.
 - A measurement node: byte 0 = quality (6 bits) << 2 | not-S << 1 | S, where S = 1 marks
   the first node of a new revolution; bytes 1-2 (little-endian) = angle_q6 (15 bits,
   degrees x 64) << 1 | C, the check bit, always 1; bytes 3-4 = distance_q2 (mm x 4),
@@ -40,9 +48,11 @@ __all__ = [
     "NODE_SIZE",
     "REPLY_SYNC",
     "RPLIDAR_BAUDRATE",
+    "SAMPLERATE_DESCRIPTOR",
     "SCAN_DESCRIPTOR",
     "SYNC",
     "Cmd",
+    "ConfType",
     "DataType",
     "Descriptor",
     "DeviceInfo",
@@ -52,11 +62,18 @@ __all__ = [
     "NodeParser",
     "Request",
     "RequestParser",
+    "SampleRate",
+    "ScanMode",
     "SendMode",
+    "conf_descriptor",
+    "conf_payload",
+    "decode_conf",
     "decode_descriptor",
     "decode_health",
     "decode_info",
     "decode_node",
+    "decode_q8",
+    "decode_samplerate",
     "encode_request",
     "find_descriptor",
     "is_node",
@@ -89,8 +106,11 @@ class Cmd(IntEnum):
     STOP = 0x25
     RESET = 0x40
     SCAN = 0x20
+    EXPRESS_SCAN = 0x82
     GET_INFO = 0x50
     GET_HEALTH = 0x52
+    GET_SAMPLERATE = 0x59
+    GET_LIDAR_CONF = 0x84
 
 
 class DataType(IntEnum):
@@ -98,7 +118,11 @@ class DataType(IntEnum):
 
     INFO = 0x04
     HEALTH = 0x06
+    SAMPLERATE = 0x15
+    LIDAR_CONF = 0x20
     MEASUREMENT = 0x81
+    CAPSULE = 0x82
+    ULTRA_CAPSULE = 0x84
 
 
 class SendMode(IntEnum):
@@ -191,6 +215,7 @@ class Descriptor:
 INFO_DESCRIPTOR = Descriptor(INFO_SIZE, SendMode.SINGLE, DataType.INFO)
 HEALTH_DESCRIPTOR = Descriptor(HEALTH_SIZE, SendMode.SINGLE, DataType.HEALTH)
 SCAN_DESCRIPTOR = Descriptor(NODE_SIZE, SendMode.MULTIPLE, DataType.MEASUREMENT)
+SAMPLERATE_DESCRIPTOR = Descriptor(4, SendMode.SINGLE, DataType.SAMPLERATE)
 
 
 def decode_descriptor(data: bytes) -> Descriptor:
@@ -235,6 +260,27 @@ def decode_info(data: bytes) -> DeviceInfo:
     if len(data) != INFO_SIZE:
         raise ProtocolError(f"device info is {INFO_SIZE} bytes, got {len(data)}", data)
     return DeviceInfo(data[0], (data[2], data[1]), data[3], bytes(data[4:]))
+
+
+@dataclass(frozen=True)
+class SampleRate:
+    """GET_SAMPLERATE's answer: the time of one sample (us) in the standard scan and in
+    the express scan, two 16-bit little-endian words."""
+
+    standard_us: int
+    express_us: int
+
+    def encode(self) -> bytes:
+        if not (0 < self.standard_us <= 0xFFFF and 0 < self.express_us <= 0xFFFF):
+            raise ConfigError(f"sample times {self.standard_us}, {self.express_us} us out of "
+                              "range 1..65535")
+        return self.standard_us.to_bytes(2, "little") + self.express_us.to_bytes(2, "little")
+
+
+def decode_samplerate(data: bytes) -> SampleRate:
+    if len(data) != 4:
+        raise ProtocolError(f"a sample rate is 4 bytes, got {len(data)}", data)
+    return SampleRate(int.from_bytes(data[0:2], "little"), int.from_bytes(data[2:4], "little"))
 
 
 @dataclass(frozen=True)
@@ -347,3 +393,84 @@ class NodeParser:
 
     def reset(self) -> None:
         self._buf.clear()
+
+
+class ConfType(IntEnum):
+    """GET_LIDAR_CONF's configuration types (the scan modes)."""
+
+    SCAN_MODE_COUNT = 0x70
+    SCAN_MODE_US_PER_SAMPLE = 0x71
+    SCAN_MODE_MAX_DISTANCE = 0x74
+    SCAN_MODE_ANS_TYPE = 0x75
+    SCAN_MODE_TYPICAL = 0x7C
+    SCAN_MODE_NAME = 0x7F
+
+
+_PER_MODE = frozenset((ConfType.SCAN_MODE_US_PER_SAMPLE, ConfType.SCAN_MODE_MAX_DISTANCE,
+                       ConfType.SCAN_MODE_ANS_TYPE, ConfType.SCAN_MODE_NAME))
+
+
+def conf_payload(conf: ConfType, mode: int | None = None) -> bytes:
+    """GET_LIDAR_CONF's payload: the type, and the mode's id for a per-mode entry."""
+    if (mode is not None) != (conf in _PER_MODE):
+        raise ConfigError(f"{conf.name} {'needs' if conf in _PER_MODE else 'takes no'} a "
+                          "scan mode id")
+    body = int(conf).to_bytes(4, "little")
+    if mode is None:
+        return body
+    if not 0 <= mode <= 0xFFFF:
+        raise ConfigError(f"scan mode id {mode} is out of range 0..65535")
+    return body + mode.to_bytes(2, "little")
+
+
+def conf_descriptor(value_size: int) -> Descriptor:
+    """The descriptor of a GET_LIDAR_CONF answer whose value is ``value_size`` bytes."""
+    return Descriptor(4 + value_size, SendMode.SINGLE, DataType.LIDAR_CONF)
+
+
+@dataclass(frozen=True)
+class ScanMode:
+    """One scan mode as GET_LIDAR_CONF describes it."""
+
+    id: int
+    name: str
+    us_per_sample: float
+    max_distance_m: float
+    answer_type: int
+    """The data type its scan answers with (0x81 nodes, 0x82 capsules, ...)."""
+
+    @property
+    def sample_hz(self) -> float:
+        return 1e6 / self.us_per_sample
+
+    def value(self, conf: ConfType) -> bytes:
+        """The answer's value for a per-mode entry (Q8 numbers, as the wire has them)."""
+        if conf is ConfType.SCAN_MODE_US_PER_SAMPLE:
+            return round(self.us_per_sample * 256).to_bytes(4, "little")
+        if conf is ConfType.SCAN_MODE_MAX_DISTANCE:
+            return round(self.max_distance_m * 256).to_bytes(4, "little")
+        if conf is ConfType.SCAN_MODE_ANS_TYPE:
+            return bytes((self.answer_type,))
+        if conf is ConfType.SCAN_MODE_NAME:
+            return self.name.encode("ascii") + b"\0"
+        raise ConfigError(f"{conf.name} is not a scan mode's entry")
+
+
+def decode_conf(data: bytes, want: ConfType) -> bytes:
+    """The value of a GET_LIDAR_CONF answer to ``want`` (ProtocolError if it answers
+    another type)."""
+    if len(data) < 4:
+        raise ProtocolError(f"a configuration answer is at least 4 bytes, got {len(data)}",
+                            data)
+    got = int.from_bytes(data[:4], "little")
+    if got != want:
+        raise ProtocolError(f"asked configuration 0x{int(want):02X}, got 0x{got:02X}", data)
+    return bytes(data[4:])
+
+
+def decode_q8(value: bytes) -> float:
+    """A 32-bit little-endian Q8 number (us, m)."""
+    if len(value) != 4:
+        raise ProtocolError(f"a Q8 value is 4 bytes, got {len(value)}", value)
+    return int.from_bytes(value, "little") / 256.0
+

@@ -43,7 +43,7 @@ from busarm.arm.urdf import urdf_from_config
 from busarm.bus.driver import ServoBus
 from busarm.errors import BusArmError, ConfigError, HaltedError
 from busarm.nav.grid import OccupancyGrid
-from busarm.protocol.rmw_zenoh import LATCHED, SENSOR_DATA, gid_of
+from busarm.protocol.rmw_zenoh import LATCHED, SENSOR_DATA
 from busarm.robot import Robot
 from busarm.robot.frames import (
     CAMERA_FRAME,
@@ -56,7 +56,13 @@ from busarm.robot.frames import (
 from busarm.robot.remote import RobotServer
 from busarm.robot.state import StateReader
 from busarm.ros import messages as m
-from busarm.ros.commands import CLOSED_GAP_M, CmdVel, TrajectoryRunner, plan_trajectory
+from busarm.ros.commands import (
+    CLOSED_GAP_M,
+    CmdVel,
+    Publishers,
+    TrajectoryRunner,
+    plan_trajectory,
+)
 from busarm.ros.node import Received, RosNode
 from busarm.ros.rosout import RosoutHandler
 from busarm.ros.sensors import (
@@ -74,6 +80,7 @@ __all__ = [
     "BLOCKS_HZ",
     "DESCRIBE_EVERY_S",
     "GRIPPER_JOINT",
+    "SENDER_LEFT",
     "BridgeSettings",
     "RosBridge",
 ]
@@ -82,10 +89,12 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 DESCRIBE_EVERY_S = 2.0
-"""/robot_description again this often, for late subscribers (Zenoh has no latching of
-its own without a publication cache; a repeat every two seconds is cheap)."""
+"""/robot_description (and /map) again this often: a transient-local subscriber gets them
+from the publisher's cache, a volatile one (a plain Zenoh subscriber, a tool that does
+not query) from the next repeat; every two seconds is cheap."""
 BLOCKS_HZ = 3.0
 GRIPPER_JOINT = "gripper"
+SENDER_LEFT = "its sender left (the link dropped or the node ended)"
 
 
 @dataclass(frozen=True)
@@ -144,9 +153,11 @@ class RosBridge:
         on a controller board (its frames are not tunnelled yet)."""
         self._rosout = RosoutHandler(node)
         logging.getLogger("busarm.ros").addHandler(self._rosout)
-        self._subscribe()
+        self.trajectory_senders = Publishers("/joint_trajectory")
+        # history: the tokens already there are told too, so a sender that came first counts.
         self._watch_senders = node.session.liveliness().declare_subscriber(
-            f"@ros2_lv/{node.domain_id}/**", self._on_token)
+            f"@ros2_lv/{node.domain_id}/**", self._on_token, history=True)
+        self._subscribe()
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -326,8 +337,14 @@ class RosBridge:
         trajectory = m.parse_trajectory(msg, self.joint_names)
         self._check_armed()
         current = self._latest_deg or self.robot.arm.read_joints_deg()
-        plan = plan_trajectory(self.robot.arm, trajectory, current, received.gid)
+        tokens = self.trajectory_senders.of(received.gid)
+        if not tokens:
+            log.warning("a trajectory from a publisher with no liveliness token: it runs to "
+                        "its end even if its sender goes")
+        plan = plan_trajectory(self.robot.arm, trajectory, current, received.gid, tokens)
         self.runner.start(plan)
+        if not self.trajectory_senders.present(tokens):  # one left while it was planned
+            self.runner.cancel(SENDER_LEFT)
 
     def _on_gripper(self, msg: Any, received: Received) -> None:
         gap_mm = float(msg.data) * 1000.0
@@ -382,7 +399,7 @@ class RosBridge:
     def _on_token(self, sample: zenoh.Sample) -> None:
         import zenoh
 
-        if sample.kind != zenoh.SampleKind.DELETE:
-            return
-        self.runner.cancel_from(gid_of(str(sample.key_expr)),
-                                "its sender left (the link dropped or the node ended)")
+        key, alive = str(sample.key_expr), sample.kind != zenoh.SampleKind.DELETE
+        self.trajectory_senders.update(key, alive)
+        if not alive:
+            self.runner.sender_left(key, SENDER_LEFT)

@@ -5,7 +5,11 @@
   then the points are streamed on schedule (each a timed move to arrive on time). A new
   trajectory replaces the one running. The trajectory stops, and the arm holds where it
   is (MOVE_STOP), on an e-stop, when the bridge closes, and when its sender leaves:
-  its publisher's liveliness token goes (the link dropped, the process died).
+  its publisher's liveliness token goes (the link dropped, the process died). Which
+  token is the sender's is known when the message's GID is its token's hash (rmw_zenoh's
+  rule); when it is not (another Zenoh SDK's GIDs), every /joint_trajectory publisher
+  there when it came is a possible sender, and the first of them to leave ends it: a
+  stop too many holds the arm, a stop too few leaves it moving for nobody.
 - ``/cmd_vel``: the base goes at the latest twist, scaled to its limits, until no twist
   has come for ``CMD_VEL_TIMEOUT_S``; then the wheels stop.
 - ``/gripper/command``: the gripper's gap in m (0: close and grip).
@@ -24,7 +28,8 @@ from dataclasses import dataclass
 
 from busarm.arm.arm import Arm
 from busarm.base.base import Base
-from busarm.errors import BusArmError, ConfigError, LimitError
+from busarm.errors import BusArmError, ConfigError, LimitError, ProtocolError
+from busarm.protocol.rmw_zenoh import gid_of, parse_token
 from busarm.ros.messages import Trajectory
 
 __all__ = [
@@ -32,6 +37,7 @@ __all__ = [
     "CMD_VEL_TIMEOUT_S",
     "CmdVel",
     "Plan",
+    "Publishers",
     "TrajectoryRunner",
     "plan_trajectory",
 ]
@@ -52,11 +58,13 @@ class Plan:
     times_s: tuple[float, ...]
     joints_deg: tuple[tuple[float, ...], ...]
     sender: bytes
-    """The GID of the publisher that sent it."""
+    """The GID of the publisher that sent it (its attachment's)."""
+    tokens: frozenset[str] = frozenset()
+    """The liveliness tokens whose going ends it (Publishers.of)."""
 
 
 def plan_trajectory(arm: Arm, trajectory: Trajectory, current_deg: Sequence[float],
-                    sender: bytes) -> Plan:
+                    sender: bytes, tokens: frozenset[str] = frozenset()) -> Plan:
     """Every joint at every point (a joint not named stays where it is), checked against
     the arm's limits and speeds from ``current_deg``; LimitError or ConfigError naming
     the first bad point, nothing sent."""
@@ -82,7 +90,43 @@ def plan_trajectory(arm: Arm, trajectory: Trajectory, current_deg: Sequence[floa
                     f"{j.max_speed_deg_s:g} deg/s (from where the arm is, point to point)")
         rows.append(tuple(row))
         previous, t_before = tuple(row), t
-    return Plan(trajectory.times_s, tuple(rows), sender)
+    return Plan(trajectory.times_s, tuple(rows), sender, tokens)
+
+
+class Publishers:
+    """The publishers of ``topic`` alive now, by liveliness token (fed every token of the
+    domain, as they come and go)."""
+
+    def __init__(self, topic: str) -> None:
+        self.topic = topic
+        self._lock = threading.Lock()
+        self._tokens: set[str] = set()
+
+    def update(self, key: str, alive: bool) -> None:
+        try:
+            entity = parse_token(key)
+        except ProtocolError:
+            return  # not an rmw_zenoh entity: nothing to track
+        if entity.kind != "MP" or entity.topic != self.topic:
+            return
+        with self._lock:
+            if alive:
+                self._tokens.add(key)
+            else:
+                self._tokens.discard(key)
+
+    def of(self, gid: bytes) -> frozenset[str]:
+        """The tokens whose going ends what ``gid`` sent: its own, when ``gid`` is a
+        token's hash; else all there now (one of them sent it; which, no one can tell).
+        Empty when there is none: no departure can be seen."""
+        with self._lock:
+            mine = frozenset(t for t in self._tokens if gid_of(t) == gid)
+            return mine or frozenset(self._tokens)
+
+    def present(self, tokens: frozenset[str]) -> bool:
+        """Whether every one of ``tokens`` is still there."""
+        with self._lock:
+            return tokens <= self._tokens
 
 
 class TrajectoryRunner:
@@ -127,10 +171,12 @@ class TrajectoryRunner:
                     self.arm.stop()
         return was
 
-    def cancel_from(self, sender: bytes, why: str) -> bool:
-        """Stop the running plan if ``sender`` sent it."""
+    def sender_left(self, token: str, why: str) -> bool:
+        """Stop the running (or waiting) plan if the publisher of liveliness token
+        ``token`` may have sent it (Plan.tokens), or its GID is the token's hash."""
         plan = self._pending or self.running
-        return plan is not None and plan.sender == sender and self.cancel(why)
+        return plan is not None and (token in plan.tokens or plan.sender == gid_of(token)) \
+            and self.cancel(why)
 
     def close(self) -> None:
         """Stop the running plan (holding) and the worker."""

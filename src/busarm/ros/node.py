@@ -23,6 +23,7 @@ from busarm.protocol.rmw_zenoh import (
     RELIABLE,
     TYPE_HASH_NOT_SUPPORTED,
     Attachment,
+    Durability,
     Entity,
     History,
     Qos,
@@ -36,9 +37,11 @@ from busarm.ros.messages import decode, encode, ros_type
 
 if TYPE_CHECKING:
     import zenoh
+    import zenoh.ext
 
 __all__ = [
     "DEFAULT_NODE",
+    "MISS_HEARTBEAT_S",
     "Drops",
     "Received",
     "RosNode",
@@ -50,6 +53,9 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 DEFAULT_NODE = "busarm"
+MISS_HEARTBEAT_S = 0.5
+"""How often a reliable transient-local publisher tells its last sequence number, when it
+changed (rmw_zenoh's sporadic heartbeat)."""
 
 
 @dataclass(frozen=True)
@@ -95,18 +101,28 @@ class RosPublisher:
         # every message to arrive); express: no batching, the least latency.
         keep_all = (qos.reliability == Reliability.RELIABLE
                     and qos.history == History.KEEP_ALL)
-        self._publisher = node.session.declare_publisher(
-            self.key, express=True, congestion_control=(
-                zenoh.CongestionControl.BLOCK if keep_all else zenoh.CongestionControl.DROP),
-            reliability=(zenoh.Reliability.BEST_EFFORT
-                         if qos.reliability == Reliability.BEST_EFFORT
-                         else zenoh.Reliability.RELIABLE))
+        options: dict[str, Any] = {
+            "express": True,
+            "congestion_control": (zenoh.CongestionControl.BLOCK if keep_all
+                                   else zenoh.CongestionControl.DROP),
+            "reliability": (zenoh.Reliability.BEST_EFFORT
+                            if qos.reliability == Reliability.BEST_EFFORT
+                            else zenoh.Reliability.RELIABLE)}
+        self._publisher: zenoh.Publisher | zenoh.ext.AdvancedPublisher
+        if qos.durability == Durability.TRANSIENT_LOCAL:
+            self._publisher = _transient_local_publisher(node.session, self.key, qos, options)
+        else:
+            self._publisher = node.session.declare_publisher(self.key, **options)
         self._token = node.session.liveliness().declare_token(self.entity.token())
         self._closed = False
 
     @property
     def matched(self) -> bool:
         """Whether anyone subscribes (else a costly message need not be made at all)."""
+        import zenoh
+
+        if not isinstance(self._publisher, zenoh.Publisher):
+            return True  # a transient-local one caches for late joiners: always publish
         return bool(self._publisher.matching_status)
 
     def publish(self, message: Any) -> int:
@@ -126,7 +142,23 @@ class RosPublisher:
             return
         self._closed = True
         self._token.undeclare()
-        self._publisher.undeclare()
+        self._publisher.undeclare()  # type: ignore[no-untyped-call]  # zenoh.ext's stub
+
+
+def _transient_local_publisher(session: zenoh.Session, key: str, qos: Qos,
+                               options: dict[str, Any]) -> zenoh.ext.AdvancedPublisher:
+    """A publisher as rmw_zenoh makes a transient-local one: a cache of the last ``depth``
+    samples that late subscribers query, the publisher detectable (so a subscriber that
+    came first asks it when it appears), and, when reliable, sporadic heartbeats so a
+    subscriber notices a missed sample and fetches it from the cache."""
+    import zenoh.ext
+
+    miss = (zenoh.ext.MissDetectionConfig(heartbeat=None,
+                                          sporadic_heartbeat=MISS_HEARTBEAT_S)
+            if qos.reliability == Reliability.RELIABLE else None)
+    return zenoh.ext.declare_advanced_publisher(
+        session, key, cache=zenoh.ext.CacheConfig(max_samples=qos.depth),
+        publisher_detection=True, sample_miss_detection=miss, **options)
 
 
 class RosSubscription:
@@ -146,8 +178,18 @@ class RosSubscription:
         self.accepted = 0
         self._on_message = on_message
         # Every type and hash on the topic: a wrong one is heard, refused and counted.
-        self._subscriber = node.session.declare_subscriber(
-            topic_key_any_type(node.domain_id, topic), self._on_sample)
+        key = topic_key_any_type(node.domain_id, topic)
+        self._subscriber: zenoh.Subscriber[None] | zenoh.ext.AdvancedSubscriber[None]
+        if qos.durability == Durability.TRANSIENT_LOCAL:
+            import zenoh.ext
+
+            # As rmw_zenoh's transient-local subscription: ask the publishers' caches for
+            # what they kept (up to our depth), now and from any publisher that joins later.
+            self._subscriber = zenoh.ext.declare_advanced_subscriber(
+                node.session, key, self._on_sample, history=zenoh.ext.HistoryConfig(
+                    detect_late_publishers=True, max_samples=qos.depth))
+        else:
+            self._subscriber = node.session.declare_subscriber(key, self._on_sample)
         self._token = node.session.liveliness().declare_token(self.entity.token())
         self._closed = False
 
@@ -203,7 +245,7 @@ class RosSubscription:
             return
         self._closed = True
         self._token.undeclare()
-        self._subscriber.undeclare()
+        self._subscriber.undeclare()  # type: ignore[no-untyped-call]  # zenoh.ext's stub
 
 
 class RosNode:

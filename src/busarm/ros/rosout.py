@@ -1,5 +1,9 @@
 """The bridge's log on /rosout (rcl_interfaces/Log), where ROS 2 tools show a node's log:
-a refused command says why there, as well as in the bridge's own terminal."""
+a refused command says why there, as well as in the bridge's own terminal.
+
+Published with rcl's logging QoS (``ROSOUT``: reliable, transient local, keep last 1000,
+lifespan 10 s), from a cache as rmw_zenoh keeps one: a ``ros2 topic echo /rosout`` or
+rqt_console started later still gets the last 1000 lines."""
 
 from __future__ import annotations
 
@@ -7,6 +11,7 @@ import logging
 import threading
 import time
 
+from busarm.protocol.rmw_zenoh import ROSOUT
 from busarm.ros.messages import ROSOUT_LOG, message_class, stamp
 from busarm.ros.node import RosNode, RosPublisher
 
@@ -21,7 +26,7 @@ class RosoutHandler(logging.Handler):
     def __init__(self, node: RosNode, level: int = logging.WARNING) -> None:
         super().__init__(level)
         self.node_name = node.name
-        self.publisher: RosPublisher = node.publisher("/rosout", ROSOUT_LOG)
+        self.publisher: RosPublisher = node.publisher("/rosout", ROSOUT_LOG, ROSOUT)
         self._inside = threading.local()
 
     def emit(self, record: logging.LogRecord) -> None:

@@ -28,7 +28,9 @@ from busarm.protocol.board import (
     BOARD_BAUDRATE,
     LX_COMMANDS,
     READ_FORMATS,
+    WRITE_FORMATS,
     Battery,
+    BatteryWarning,
     BoardFrameParser,
     BoardRequest,
     BuzzerBeep,
@@ -36,8 +38,16 @@ from busarm.protocol.board import (
     KeyEvent,
     KeyEventKind,
     LedBlink,
+    MotorDuties,
     MotorEncoders,
     MotorSpeeds,
+    OledText,
+    PwmServoMove,
+    PwmServoRead,
+    PwmServoReply,
+    PwmServoSetOffset,
+    PwmSub,
+    RgbSet,
     ServoMove,
     ServoRead,
     ServoReply,
@@ -47,6 +57,7 @@ from busarm.protocol.board import (
     decode_request,
 )
 from busarm.protocol.commands import SPECS
+from busarm.protocol.frames import Frame
 from busarm.sim.bus import DUE_EPS_S, SimBus, WireTiming
 
 __all__ = [
@@ -55,6 +66,7 @@ __all__ = [
     "HALF_SPREAD_M",
     "IMU_HZ",
     "OUT_CAP_BYTES",
+    "PWM_START_US",
     "SERVO_REPLY_WAIT_S",
     "TX_QUEUE_S",
     "WHEEL_DIAMETER_M",
@@ -63,6 +75,7 @@ __all__ = [
     "BoardFaults",
     "BoardLog",
     "SimBoard",
+    "SimPwmServo",
     "SimWheel",
 ]
 
@@ -85,6 +98,8 @@ TX_QUEUE_S = 0.002
 """The firmware's transmit queue, in line time: a streamed report that would wait longer
 for the line is skipped, so reports asked for faster than the line carries cost reports,
 not a backlog that delays every reply behind it."""
+PWM_START_US = 1500
+"""A PWM servo's pulse before its first move (this model's choice: the vendor does not say)."""
 _MAX_CATCH_UP_S = 0.2  # streams restart from now after a longer gap, not with a burst
 
 
@@ -120,6 +135,28 @@ class SimWheel:
 
 
 @dataclass
+class SimPwmServo:
+    """One PWM servo header: its pulse moves linearly to the target over the duration, as
+    the firmware's interpolation does; the offset is kept, as the firmware keeps it."""
+
+    start_us: int = PWM_START_US
+    target_us: int = PWM_START_US
+    start_s: float = 0.0
+    duration_s: float = 0.0
+    offset: int = 0
+
+    def pulse_us(self, now_s: float) -> int:
+        if self.duration_s <= 0.0 or now_s >= self.start_s + self.duration_s:
+            return self.target_us
+        share = max(0.0, now_s - self.start_s) / self.duration_s
+        return round(self.start_us + (self.target_us - self.start_us) * share)
+
+    def move(self, pulse_us: int, duration_s: float, now_s: float) -> None:
+        self.start_us, self.start_s = self.pulse_us(now_s), now_s
+        self.target_us, self.duration_s = pulse_us, duration_s
+
+
+@dataclass
 class _PendingRead:
     request: ServoRead
     command: Command
@@ -132,6 +169,12 @@ class BoardLog:
 
     led: list[LedBlink] = field(default_factory=list)
     buzzer: list[BuzzerBeep] = field(default_factory=list)
+    oled: dict[int, str] = field(default_factory=dict)
+    """The OLED's lines by number, as last set."""
+    rgb: dict[int, tuple[int, int, int]] = field(default_factory=dict)
+    """The RGB pixels by number (from 1), as last set."""
+    duties: list[MotorDuties] = field(default_factory=list)
+    battery_warning_v: float | None = None
     rejected_frames: int = 0
 
 
@@ -149,6 +192,8 @@ class SimBoard:
         self.timing = WireTiming(BOARD_BAUDRATE, turnaround_s=0.0)
         self.faults = faults or BoardFaults()
         self.wheels = [SimWheel() for _ in range(4)]
+        self.pwm_servos = [SimPwmServo() for _ in range(4)]
+        """The PWM servo headers, port 1 first."""
         self.battery_v = battery_v
         self.imu_gyro_rad_s = (0.0, 0.0, 0.0)
         """What the IMU's gyro measures now (before noise); a mobile twin sets it."""
@@ -266,7 +311,8 @@ class SimBoard:
             wire = (len(lx) + (spec.reply_length or 0) + 3) * self.servos.timing.byte_s
             self._read = _PendingRead(job, command, now + wire + SERVO_REPLY_WAIT_S)
         elif isinstance(job, ServoMove):
-            frames = [encode_request(sid, Command.MOVE_TIME_WRITE, pulses,
+            # The firmware clamps a position above 1000 to 1000 and moves every servo.
+            frames = [encode_request(sid, Command.MOVE_TIME_WRITE, min(pulses, 1000),
                                      min(job.duration_ms, 30000))
                       for sid, pulses in job.targets]  # all checked before any is sent
             for frame in frames:
@@ -282,19 +328,45 @@ class SimBoard:
                 if math.isfinite(rev_s):
                     clamped = max(-WHEEL_MAX_REV_S, min(WHEEL_MAX_REV_S, rev_s))
                     self.wheels[motor - 1].target_rev_s = clamped
-        elif isinstance(job, LedBlink):
+        elif isinstance(job, PwmServoMove | PwmServoRead | PwmServoSetOffset):
+            self._pwm(job, now)
+        else:
+            self._log(job)
+
+    def _log(self, job: BoardRequest) -> None:
+        """What the board shows or sounds: kept for tests to see."""
+        if isinstance(job, LedBlink):
             self.log.led.append(job)
         elif isinstance(job, BuzzerBeep):
             self.log.buzzer.append(job)
+        elif isinstance(job, OledText):
+            self.log.oled[job.line] = job.text
+        elif isinstance(job, RgbSet):
+            self.log.rgb.update({p: (r, g, b) for p, r, g, b in job.pixels})
+        elif isinstance(job, MotorDuties):
+            self.log.duties.append(job)  # open-loop drive is not modelled: wheels keep on
+        elif isinstance(job, BatteryWarning):
+            self.log.battery_warning_v = job.threshold_v
+
+    def _pwm(self, job: PwmServoMove | PwmServoRead | PwmServoSetOffset, now: float) -> None:
+        """The firmware's PWM handler: it answers every read for ports 1..4 at once."""
+        if isinstance(job, PwmServoMove):
+            for port, pulse_us in job.targets:
+                self.pwm_servos[port - 1].move(pulse_us, job.duration_ms / 1000.0, now)
+        elif isinstance(job, PwmServoSetOffset):
+            self.pwm_servos[job.port - 1].offset = job.offset
+        else:
+            servo = self.pwm_servos[job.port - 1]
+            value = servo.pulse_us(now) if job.sub is PwmSub.READ_POSITION else servo.offset
+            self._send(now, PwmServoReply(job.port, job.sub, value).encode(), stream=False)
 
     def _servo_write(self, job: ServoWrite) -> None:
-        command = LX_COMMANDS[job.sub]
-        args: tuple[int, ...] = job.values
-        if job.sub is ServoSub.TORQUE_OFF:
-            args = (0,)
-        elif job.sub is ServoSub.TORQUE_ON:
-            args = (1,)
-        self.servos.receive(encode_request(job.servo_id, command, *args))
+        """The LX write the firmware sends: its own clamping, no other check (what the
+        servo then does with a value its manual does not allow is the servo's business)."""
+        args = _firmware_args(job)
+        fmt = "<" + "B" * len(args) if job.sub in _TORQUE else "<" + WRITE_FORMATS[job.sub][2:]
+        frame = Frame(job.servo_id, int(LX_COMMANDS[job.sub]), struct.pack(fmt, *args))
+        self.servos.receive(frame.to_bytes())
 
     def _pump(self, now: float) -> None:
         """Relay a servo's answer, time out a read, move the wheels, stream reports."""
@@ -403,6 +475,28 @@ class SimBoard:
             if oldest is None:
                 break
             backlog -= len(self._out.pop(oldest)[1])
+
+
+_TORQUE = (ServoSub.TORQUE_OFF, ServoSub.TORQUE_ON)
+
+
+def _firmware_args(job: ServoWrite) -> tuple[int, ...]:
+    """The LX values the firmware writes for ``job``: it clamps and orders limits
+    (``serial_servo_set_temp_limit``, ``_set_angle_limit``, ``_set_vin_limit``)."""
+    sub, values = job.sub, job.values
+    if sub is ServoSub.TORQUE_OFF:
+        return (0,)
+    if sub is ServoSub.TORQUE_ON:
+        return (1,)
+    if sub is ServoSub.SET_TEMP_LIMIT:
+        return (min(values[0], 100),)
+    if sub is ServoSub.SET_ANGLE_LIMITS:
+        low, high = (min(v, 1000) for v in values)
+        return min(low, high), max(low, high)
+    if sub is ServoSub.SET_VOLTAGE_LIMITS:
+        low, high = max(values[0], 4500), min(values[1], 14000)
+        return min(low, high), max(low, high)
+    return values
 
 
 def _int32(ticks: int) -> int:

@@ -8,6 +8,7 @@ from busarm.errors import ProtocolError
 from busarm.protocol.board.frames import BoardFrame, Func
 from busarm.protocol.board.messages import (
     Battery,
+    BatteryWarning,
     BoardReport,
     BoardRequest,
     BuzzerBeep,
@@ -15,8 +16,15 @@ from busarm.protocol.board.messages import (
     ImuSample,
     KeyEvent,
     LedBlink,
+    MotorDuties,
     MotorEncoders,
     MotorSpeeds,
+    OledText,
+    PwmServoMove,
+    PwmServoRead,
+    PwmServoReply,
+    PwmServoSetOffset,
+    RgbSet,
     SbusState,
     ServoMove,
     ServoRead,
@@ -65,6 +73,16 @@ def _words(m: BoardRequest | BoardReport) -> str:
         return f"servo {m.servo_id} {what}: " + " ".join(map(str, m.values))
     if isinstance(m, MotorSpeeds):
         return ", ".join(f"motor {n} at {v:g} rev/s" for n, v in m.speeds)
+    if isinstance(m, PwmServoMove | PwmServoRead | PwmServoSetOffset | PwmServoReply):
+        return _pwm_words(m)
+    if isinstance(m, MotorDuties):
+        return ", ".join(f"motor {n} at duty {v:g} (open loop)" for n, v in m.duties)
+    if isinstance(m, OledText):
+        return f"OLED line {m.line}: {m.text!r}"
+    if isinstance(m, RgbSet):
+        return "RGB " + ", ".join(f"pixel {p} to ({r}, {g}, {b})" for p, r, g, b in m.pixels)
+    if isinstance(m, BatteryWarning):
+        return f"warn below battery {m.threshold_v:.3f} V"
     if isinstance(m, LedBlink):
         return f"LED {m.led_id}: on {m.on_ms} ms, off {m.off_ms} ms, {m.repeat} time(s)"
     if isinstance(m, BuzzerBeep):
@@ -82,6 +100,19 @@ def _words(m: BoardRequest | BoardReport) -> str:
         return f"key {m.key_id} {m.event.name}"
     if isinstance(m, GamepadState):
         return f"gamepad buttons {m.buttons:#06x}, hat {m.hat}, sticks {m.sticks}"
-    if isinstance(m, SbusState):
-        return f"SBUS {len(m.channels)} channels, signal {'lost' if m.signal_lost else 'ok'}"
-    return repr(m)
+    sbus: SbusState = m  # the last kind left
+    return (f"SBUS channels {' '.join(map(str, sbus.channels))}, signal "
+            f"{'lost' if sbus.signal_lost else 'ok'}{', fail-safe' if sbus.fail_safe else ''}")
+
+
+def _pwm_words(m: PwmServoMove | PwmServoRead | PwmServoSetOffset | PwmServoReply) -> str:
+    if isinstance(m, PwmServoMove):
+        moves = ", ".join(f"port {p} to {us} us" for p, us in m.targets)
+        return f"PWM servo move {moves} in {m.duration_ms} ms"
+    if isinstance(m, PwmServoRead):
+        return f"PWM servo {m.sub.name.lower().replace('_', ' ')} of port {m.port}"
+    if isinstance(m, PwmServoSetOffset):
+        return f"PWM servo set offset of port {m.port} to {m.offset} us"
+    what = m.sub.name.lower().replace("read_", "")
+    unit = " us" if what == "position" else ""
+    return f"PWM servo port {m.port} {what}: {m.value}{unit}"

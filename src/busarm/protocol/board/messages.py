@@ -1,8 +1,9 @@
 """The board's messages as typed values in the user's units, both ways, byte-exact.
 
 Host to board (requests): ``ServoMove``, ``ServoStop``, ``ServoRead``, ``ServoWrite``,
-``MotorSpeeds``, ``LedBlink``, ``BuzzerBeep``, ``PwmServoMove``, ``OledText``. Board to
-host (reports): ``ServoReply``, ``Battery``, ``ImuSample``, ``KeyEvent``,
+``MotorSpeeds``, ``LedBlink``, ``BuzzerBeep`` and (from ``peripherals``) the PWM servo,
+OLED, RGB, motor duty and battery-warning requests. Board to host (reports):
+``ServoReply``, ``PwmServoReply``, ``Battery``, ``ImuSample``, ``KeyEvent``,
 ``GamepadState``, ``SbusState``, and busarm's own ``MotorEncoders`` (not the stock
 firmware's). ``decode_request`` and ``decode_report`` turn a frame
 into one of them; anything else raises ProtocolError naming the bytes.
@@ -21,7 +22,20 @@ import struct
 from dataclasses import dataclass
 
 from busarm.errors import ConfigError, ProtocolError
+from busarm.protocol.board.fields import check_range, pack_fields
 from busarm.protocol.board.frames import BoardFrame, Func, encode_frame
+from busarm.protocol.board.peripherals import (
+    BatteryWarning,
+    MotorDuties,
+    OledText,
+    PwmServoMove,
+    PwmServoRead,
+    PwmServoReply,
+    PwmServoSetOffset,
+    RgbSet,
+    decode_peripheral_report,
+    decode_peripheral_request,
+)
 from busarm.protocol.commands import Command
 
 __all__ = [
@@ -37,6 +51,7 @@ __all__ = [
     "SYS_BATTERY",
     "WRITE_FORMATS",
     "Battery",
+    "BatteryWarning",
     "BoardReport",
     "BoardRequest",
     "BuzzerBeep",
@@ -45,10 +60,15 @@ __all__ = [
     "KeyEvent",
     "KeyEventKind",
     "LedBlink",
+    "MotorDuties",
     "MotorEncoders",
     "MotorSpeeds",
     "OledText",
     "PwmServoMove",
+    "PwmServoRead",
+    "PwmServoReply",
+    "PwmServoSetOffset",
+    "RgbSet",
     "SbusState",
     "ServoMove",
     "ServoRead",
@@ -161,17 +181,8 @@ class KeyEventKind(enum.IntFlag):
     TRIPLE_CLICK = 0x80
 
 
-def _pack(what: str, fmt: str, *values: int | float) -> bytes:
-    try:
-        return struct.pack(fmt, *values)
-    except struct.error as exc:
-        raise ConfigError(f"{what}: {values} do not fit the board's fields ({exc})") from None
-
-
-def _check(name: str, value: int, lo: int, hi: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-        raise ConfigError(f"{name} = {value!r}; allowed: {lo}..{hi}")
-    return value
+_pack = pack_fields
+_check = check_range
 
 
 # ---------------------------------------------------------------------- requests
@@ -287,38 +298,9 @@ class BuzzerBeep:
                                                self.off_ms, self.repeat))
 
 
-@dataclass(frozen=True)
-class PwmServoMove:
-    """Hobby (PWM) servos on the board's four headers: (port 1..4, pulse width us) pairs."""
-
-    duration_ms: int
-    targets: tuple[tuple[int, int], ...]
-
-    def encode(self) -> bytes:
-        _check("PWM servo count", len(self.targets), 1, 83)  # as many as fit one frame
-        data = bytearray(_pack("PWM move", "<BHB", PWM_SERVO_MOVE, self.duration_ms,
-                               len(self.targets)))
-        for port, pulse_us in self.targets:
-            data += _pack("PWM move", "<BH", _check("PWM port", port, 1, 4), pulse_us)
-        return encode_frame(Func.PWM_SERVO, data)
-
-
-@dataclass(frozen=True)
-class OledText:
-    """A line of text on the board's OLED."""
-
-    line: int
-    text: str
-
-    def encode(self) -> bytes:
-        raw = self.text.encode()
-        _check("OLED text bytes (UTF-8)", len(raw), 0, 253)  # 2 + 253 data bytes fill a frame
-        return encode_frame(Func.OLED, bytes((_check("OLED line", self.line, 0, 255),
-                                              len(raw))) + raw)
-
-
 BoardRequest = (ServoMove | ServoStop | ServoRead | ServoWrite | MotorSpeeds | LedBlink
-                | BuzzerBeep | PwmServoMove | OledText)
+                | BuzzerBeep | PwmServoMove | PwmServoRead | PwmServoSetOffset | OledText
+                | RgbSet | MotorDuties | BatteryWarning)
 
 
 def decode_request(frame: BoardFrame) -> BoardRequest:
@@ -327,6 +309,9 @@ def decode_request(frame: BoardFrame) -> BoardRequest:
     try:
         if frame.func == Func.BUS_SERVO:
             return _decode_servo_request(data)
+        peripheral = decode_peripheral_request(frame)
+        if peripheral is not None:
+            return peripheral
         if frame.func == Func.MOTOR and data[:1] == bytes((MOTOR_SET_SPEEDS,)):
             _expect_len(frame, 2 + 5 * data[1])
             pairs = list(struct.iter_unpack("<Bf", data[2:]))
@@ -439,14 +424,31 @@ class GamepadState:
     hat: int
     sticks: tuple[int, int, int, int]
 
+    def encode(self) -> bytes:
+        sticks = [_check("gamepad stick", v, -128, 127) for v in self.sticks]
+        return encode_frame(Func.GAMEPAD, _pack("gamepad", "<HB4b", _check(
+            "gamepad buttons", self.buttons, 0, 0xFFFF), _check("gamepad hat", self.hat, 0, 255),
+            *sticks))
+
 
 @dataclass(frozen=True)
 class SbusState:
     """An RC receiver on the board's SBUS input."""
 
     channels: tuple[int, ...]
+    """16 channels as the receiver sends them (about 192..1792)."""
     signal_lost: bool
     fail_safe: bool
+    channel_17: bool = False
+    channel_18: bool = False
+    """The two digital channels."""
+
+    def encode(self) -> bytes:
+        _check("SBUS channel count", len(self.channels), 16, 16)
+        values = [_check("SBUS channel", v, -32768, 32767) for v in self.channels]
+        return encode_frame(Func.SBUS, struct.pack(
+            "<16hBBBB", *values, self.channel_17, self.channel_18, self.signal_lost,
+            self.fail_safe))
 
 
 @dataclass(frozen=True)
@@ -466,8 +468,8 @@ class MotorEncoders:
         return encode_frame(Func.MOTOR, struct.pack("<B4i", MOTOR_ENCODERS, *self.ticks))
 
 
-BoardReport = (ServoReply | Battery | ImuSample | KeyEvent | GamepadState | SbusState
-               | MotorEncoders)
+BoardReport = (ServoReply | PwmServoReply | Battery | ImuSample | KeyEvent | GamepadState
+               | SbusState               | MotorEncoders)
 
 
 def decode_report(frame: BoardFrame) -> BoardReport:
@@ -480,6 +482,9 @@ def decode_report(frame: BoardFrame) -> BoardReport:
             if len(data) != 3 + struct.calcsize(fmt):
                 raise struct.error("servo reply length")
             return ServoReply(sid, ServoSub(sub), status, struct.unpack_from(fmt, data, 3))
+        pwm = decode_peripheral_report(frame)
+        if pwm is not None:
+            return pwm
         if func == Func.SYS and len(data) == 3 and data[0] == SYS_BATTERY:
             return Battery(struct.unpack_from("<H", data, 1)[0] / 1000.0)
         if func == Func.IMU and len(data) == 24:
@@ -496,8 +501,9 @@ def decode_report(frame: BoardFrame) -> BoardReport:
             buttons, hat, *sticks = struct.unpack("<HB4b", data)
             return GamepadState(buttons, hat, (sticks[0], sticks[1], sticks[2], sticks[3]))
         if func == Func.SBUS and len(data) == 36:
-            *channels, _ch17, _ch18, lost, fail_safe = struct.unpack("<16hBBBB", data)
-            return SbusState(tuple(channels), bool(lost), bool(fail_safe))
+            *channels, ch17, ch18, lost, fail_safe = struct.unpack("<16hBBBB", data)
+            return SbusState(tuple(channels), bool(lost), bool(fail_safe), bool(ch17),
+                             bool(ch18))
     except (KeyError, ValueError, struct.error):
         pass
     raise ProtocolError(f"not a report the board sends: {frame.name} "
