@@ -145,7 +145,7 @@ def say_view_errors(settings: Settings, running: RobotView, said: int = 0, *,
 def _port_free(ctx: click.Context, param: click.Parameter, port: int | None) -> int | None:
     """--foxglove's port is refused while argv is read, before the robot is opened."""
     if port is not None:
-        from busarm.robot.listen import check_can_listen
+        from busarm.netaddr import check_can_listen
 
         check_can_listen("127.0.0.1", port, "--foxglove")
     return port

@@ -162,7 +162,7 @@ def view(settings: Settings, scene_file: Path | None, seed: int | None, blocks: 
     the robot. Ctrl+C (or --seconds) stops it.
     """
     need_view()
-    from busarm.robot.listen import check_can_listen
+    from busarm.netaddr import check_can_listen
     from busarm.view.server import MIN_TOKEN_CHARS, serve_view
 
     view_settings, _ = _settings(no_camera, camera_src, fps, state_hz, map_file)

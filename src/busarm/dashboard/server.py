@@ -40,7 +40,7 @@ from busarm.dashboard.feeds import Feed
 from busarm.dashboard.protocol import message, parse_request, request_type
 from busarm.dashboard.service import RobotService
 from busarm.errors import BusArmError, ConfigError
-from busarm.robot.listen import bind_socket
+from busarm.netaddr import bind_socket
 
 __all__ = [
     "LIVE",

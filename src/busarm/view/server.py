@@ -41,8 +41,7 @@ from foxglove.websocket import Capability, ChannelView, Client, ServerListener
 from websockets.typing import Subprotocol
 
 from busarm.errors import ConfigError
-from busarm.netaddr import is_loopback
-from busarm.robot.listen import check_can_listen
+from busarm.netaddr import check_can_listen, is_loopback
 from busarm.view.live import RobotView
 
 __all__ = [

@@ -22,7 +22,7 @@ import struct
 from dataclasses import dataclass
 
 from busarm.errors import ConfigError, ProtocolError
-from busarm.protocol.board.fields import check_range, pack_fields
+from busarm.protocol.board.fields import FLOAT32_MAX, check_range, motor_floats, pack_fields
 from busarm.protocol.board.frames import BoardFrame, Func, encode_frame
 from busarm.protocol.board.peripherals import (
     BatteryWarning,
@@ -92,7 +92,6 @@ firmware that adds it should use this layout (``MotorEncoders``)."""
 PWM_SERVO_MOVE = 0x01
 MOTOR_COUNT = 4
 BROADCAST_SERVO_ID = 254
-FLOAT32_MAX = 3.4028234663852886e38
 
 
 class ServoSub(enum.IntEnum):
@@ -181,8 +180,6 @@ class KeyEventKind(enum.IntFlag):
     TRIPLE_CLICK = 0x80
 
 
-_pack = pack_fields
-_check = check_range
 
 
 # ---------------------------------------------------------------------- requests
@@ -197,12 +194,13 @@ class ServoMove:
     """(servo ID, position in pulses 0..1000) pairs."""
 
     def encode(self) -> bytes:
-        _check("duration_ms", self.duration_ms, 0, 0xFFFF)
-        _check("servo count", len(self.targets), 1, 83)  # 4 + 3 * 83 data bytes fit one frame
-        data = bytearray(_pack("move", "<BHB", ServoSub.MOVE, self.duration_ms, len(self.targets)))
+        check_range("duration_ms", self.duration_ms, 0, 0xFFFF)
+        check_range("servo count", len(self.targets), 1, 83)  # 4 + 3 * 83 data bytes fit one frame
+        data = bytearray(pack_fields("move", "<BHB", ServoSub.MOVE, self.duration_ms,
+                                     len(self.targets)))
         for sid, pulses in self.targets:
-            data += _pack("move", "<BH", _check("servo ID", sid, 0, BROADCAST_SERVO_ID),
-                          _check("position_pulses", pulses, 0, 1000))
+            data += pack_fields("move", "<BH", check_range("servo ID", sid, 0, BROADCAST_SERVO_ID),
+                          check_range("position_pulses", pulses, 0, 1000))
         return encode_frame(Func.BUS_SERVO, data)
 
 
@@ -213,8 +211,8 @@ class ServoStop:
     servo_ids: tuple[int, ...]
 
     def encode(self) -> bytes:
-        _check("servo count", len(self.servo_ids), 1, 253)
-        ids = [_check("servo ID", s, 0, BROADCAST_SERVO_ID) for s in self.servo_ids]
+        check_range("servo count", len(self.servo_ids), 1, 253)
+        ids = [check_range("servo ID", s, 0, BROADCAST_SERVO_ID) for s in self.servo_ids]
         return encode_frame(Func.BUS_SERVO, bytes((ServoSub.STOP, len(ids), *ids)))
 
 
@@ -228,7 +226,7 @@ class ServoRead:
     def encode(self) -> bytes:
         if self.sub not in READ_FORMATS:
             raise ConfigError(f"sub-command {self.sub!r} is not a read")
-        _check("servo ID", self.servo_id, 0, BROADCAST_SERVO_ID)
+        check_range("servo ID", self.servo_id, 0, BROADCAST_SERVO_ID)
         return encode_frame(Func.BUS_SERVO, bytes((self.sub, self.servo_id)))
 
 
@@ -247,8 +245,8 @@ class ServoWrite:
         if len(self.values) != len(fmt) - 2:
             raise ConfigError(f"{self.sub.name} takes {len(fmt) - 2} value(s) after the servo "
                               f"ID, got {len(self.values)}")
-        _check("servo ID", self.servo_id, 0, BROADCAST_SERVO_ID)
-        data = bytes((self.sub,)) + _pack(self.sub.name, fmt, self.servo_id, *self.values)
+        check_range("servo ID", self.servo_id, 0, BROADCAST_SERVO_ID)
+        data = bytes((self.sub,)) + pack_fields(self.sub.name, fmt, self.servo_id, *self.values)
         return encode_frame(Func.BUS_SERVO, data)
 
 
@@ -259,15 +257,8 @@ class MotorSpeeds:
     speeds: tuple[tuple[int, float], ...]
 
     def encode(self) -> bytes:
-        _check("motor count", len(self.speeds), 1, MOTOR_COUNT)
-        data = bytearray((MOTOR_SET_SPEEDS, len(self.speeds)))
-        for motor, rev_s in self.speeds:
-            _check("motor", motor, 1, MOTOR_COUNT)
-            if not math.isfinite(rev_s) or abs(rev_s) > FLOAT32_MAX:
-                raise ConfigError(f"motor {motor} speed = {rev_s!r} rev/s; allowed: a finite "
-                                  f"number within +-{FLOAT32_MAX:.4g} (float32)")
-            data += struct.pack("<Bf", motor - 1, rev_s)
-        return encode_frame(Func.MOTOR, data)
+        return encode_frame(Func.MOTOR, motor_floats(MOTOR_SET_SPEEDS, self.speeds,
+                                                     MOTOR_COUNT, "speed", " rev/s"))
 
 
 @dataclass(frozen=True)
@@ -280,8 +271,8 @@ class LedBlink:
     repeat: int = 1
 
     def encode(self) -> bytes:
-        return encode_frame(Func.LED, _pack("LED", "<BHHH", self.led_id, self.on_ms, self.off_ms,
-                                            self.repeat))
+        return encode_frame(Func.LED, pack_fields("LED", "<BHHH", self.led_id, self.on_ms,
+                                                  self.off_ms, self.repeat))
 
 
 @dataclass(frozen=True)
@@ -294,7 +285,7 @@ class BuzzerBeep:
     repeat: int = 1
 
     def encode(self) -> bytes:
-        return encode_frame(Func.BUZZER, _pack("buzzer", "<HHHH", self.freq_hz, self.on_ms,
+        return encode_frame(Func.BUZZER, pack_fields("buzzer", "<HHHH", self.freq_hz, self.on_ms,
                                                self.off_ms, self.repeat))
 
 
@@ -388,7 +379,7 @@ class Battery:
     voltage_v: float
 
     def encode(self) -> bytes:
-        mv = _check("battery mV", round(self.voltage_v * 1000), 0, 0xFFFF)
+        mv = check_range("battery mV", round(self.voltage_v * 1000), 0, 0xFFFF)
         return encode_frame(Func.SYS, struct.pack("<BH", SYS_BATTERY, mv))
 
 
@@ -425,10 +416,10 @@ class GamepadState:
     sticks: tuple[int, int, int, int]
 
     def encode(self) -> bytes:
-        sticks = [_check("gamepad stick", v, -128, 127) for v in self.sticks]
-        return encode_frame(Func.GAMEPAD, _pack("gamepad", "<HB4b", _check(
-            "gamepad buttons", self.buttons, 0, 0xFFFF), _check("gamepad hat", self.hat, 0, 255),
-            *sticks))
+        sticks = [check_range("gamepad stick", v, -128, 127) for v in self.sticks]
+        buttons = check_range("gamepad buttons", self.buttons, 0, 0xFFFF)
+        hat = check_range("gamepad hat", self.hat, 0, 255)
+        return encode_frame(Func.GAMEPAD, pack_fields("gamepad", "<HB4b", buttons, hat, *sticks))
 
 
 @dataclass(frozen=True)
@@ -444,8 +435,8 @@ class SbusState:
     """The two digital channels."""
 
     def encode(self) -> bytes:
-        _check("SBUS channel count", len(self.channels), 16, 16)
-        values = [_check("SBUS channel", v, -32768, 32767) for v in self.channels]
+        check_range("SBUS channel count", len(self.channels), 16, 16)
+        values = [check_range("SBUS channel", v, -32768, 32767) for v in self.channels]
         return encode_frame(Func.SBUS, struct.pack(
             "<16hBBBB", *values, self.channel_17, self.channel_18, self.signal_lost,
             self.fail_safe))
@@ -464,7 +455,7 @@ class MotorEncoders:
 
     def encode(self) -> bytes:
         for motor, ticks in enumerate(self.ticks, 1):
-            _check(f"motor {motor} encoder ticks", ticks, -(2**31), 2**31 - 1)
+            check_range(f"motor {motor} encoder ticks", ticks, -(2**31), 2**31 - 1)
         return encode_frame(Func.MOTOR, struct.pack("<B4i", MOTOR_ENCODERS, *self.ticks))
 
 

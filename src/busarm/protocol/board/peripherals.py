@@ -19,12 +19,11 @@ Layouts as the vendor's firmware (``packet_handle.c``) and Python SDK
 from __future__ import annotations
 
 import enum
-import math
 import struct
 from dataclasses import dataclass
 
 from busarm.errors import ConfigError
-from busarm.protocol.board.fields import check_range, pack_fields
+from busarm.protocol.board.fields import check_range, motor_floats, pack_fields
 from busarm.protocol.board.frames import BoardFrame, Func, encode_frame
 
 __all__ = [
@@ -51,7 +50,6 @@ PWM_PORTS = 4
 MOTOR_SET_DUTIES = 0x05
 RGB_SET = 0x01
 SYS_BATTERY_WARNING = 0x01
-_F32_MAX = 3.4028234663852886e38
 
 
 class PwmSub(enum.IntEnum):
@@ -169,15 +167,7 @@ class MotorDuties:
     duties: tuple[tuple[int, float], ...]
 
     def encode(self) -> bytes:
-        check_range("motor count", len(self.duties), 1, 4)
-        data = bytearray((MOTOR_SET_DUTIES, len(self.duties)))
-        for motor, duty in self.duties:
-            check_range("motor", motor, 1, 4)
-            if not math.isfinite(duty) or abs(duty) > _F32_MAX:
-                raise ConfigError(f"motor {motor} duty = {duty!r}; allowed: a finite number "
-                                  f"within +-{_F32_MAX:.4g} (float32)")
-            data += struct.pack("<Bf", motor - 1, duty)
-        return encode_frame(Func.MOTOR, data)
+        return encode_frame(Func.MOTOR, motor_floats(MOTOR_SET_DUTIES, self.duties, 4, "duty"))
 
 
 @dataclass(frozen=True)
