@@ -23,6 +23,7 @@ from busarm.protocol.board import (
     BoardFrameParser,
     BoardRequest,
     BuzzerBeep,
+    Func,
     GamepadState,
     ImuSample,
     KeyEvent,
@@ -393,6 +394,9 @@ def test_decoders_raise_only_protocol_errors(raw: bytes) -> None:
 
 @SETTINGS
 @given(st.integers(*U8), plausible_data)
+@example(func=int(Func.PWM_SERVO), data=b"")  # a PWM reply too short to name its port
+@example(func=int(Func.PWM_SERVO), data=b"\x01")
+@example(func=int(Func.OLED), data=b"")
 def test_decoders_take_any_frame_object(func: int, data: bytes) -> None:
     for decode in DECODERS:
         with contextlib.suppress(ProtocolError):

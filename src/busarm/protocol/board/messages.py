@@ -495,7 +495,7 @@ def decode_report(frame: BoardFrame) -> BoardReport:
             *channels, ch17, ch18, lost, fail_safe = struct.unpack("<16hBBBB", data)
             return SbusState(tuple(channels), bool(lost), bool(fail_safe), bool(ch17),
                              bool(ch18))
-    except (KeyError, ValueError, struct.error):
+    except (IndexError, KeyError, ValueError, struct.error):
         pass
     raise ProtocolError(f"not a report the board sends: {frame.name} "
                         f"{data.hex(' ') or '(no data)'}", frame.to_bytes())

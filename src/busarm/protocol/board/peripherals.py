@@ -237,6 +237,8 @@ def decode_peripheral_report(frame: BoardFrame) -> PwmServoReply | None:
     data = frame.data
     if frame.func != Func.PWM_SERVO:
         return None
+    if len(data) < 2:
+        raise struct.error("PWM reply length")
     port, sub = data[0], PwmSub(data[1])
     fmt = _PWM_READ_FORMATS[sub]
     if len(data) != 2 + struct.calcsize(fmt) or not 1 <= port <= PWM_PORTS:
