@@ -238,8 +238,9 @@ def test_distractors_and_lighting_round_trip_through_a_scene_file(tmp_path: Path
 
 @pytest.mark.parametrize(("change", "message"), [
     ({"shape": "cube"}, r"distractors\[0\]\.shape = 'cube'; allowed: cylinder, disc, bar"),
-    ({"color": "red"}, r"distractors\[0\]\.color = 'red'; allowed: grey, white, brown, purple"),
-    ({"height_mm": 30.0}, r"height_mm of a cylinder = 30\.0 is out of range 40\.\.120"),
+    ({"color": "pink"}, r"distractors\[0\]\.color = 'pink'; allowed: grey, white, brown, "
+                        r"purple, red, green, blue, yellow"),
+    ({"height_mm": 25.0}, r"height_mm of a cylinder = 25\.0 is out of range 30\.\.120"),
     ({"width_mm": 40.0}, r"width_mm = 40\.0: a cylinder is round"),
     ({"x_mm": 60.0, "y_mm": 0.0}, r"within 90 mm of the arm base"),
     ({"x_mm": 215.0, "y_mm": 0.0}, r"blocks\[0\].*distractors\[0\].*overlap"),

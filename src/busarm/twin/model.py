@@ -19,6 +19,7 @@ joint damping / armature    0.66 / 0.01  stall torque / no-load speed (the motor
 link masses                 0.10-0.25 kg a servo and a bracket per link (guess)
 gripper gap                 config       the arm config's gap_mm_per_pulse (0.1875: 30 mm at 540)
 block                       30 mm, 20 g  a wooden toy cube (density 0.74)
+block tag                   massless     a printed label, seen, never touching
 friction finger pad         1.2          rubber pad on wood (guess), rules its contacts
 friction everything else    0.5          wood on wood, desk laminate, plastic trays
 room light                  5 x 0.25     diffuse, one above and four from the sides
@@ -27,7 +28,9 @@ room light                  5 x 0.25     diffuse, one above and four from the si
 Body names a test may look up: ``block<i>`` and ``distractor<i>`` (each a free body whose
 free joint and geom have the same name; i is the index in ``scene.blocks`` or
 ``scene.distractors``), ``bin<i>``; the lights are ``top`` (the key light, which
-``Lighting`` aims) and ``side0``..``side3``.
+``Lighting`` aims) and ``side0``..``side3``. A block with a ``tag_id`` carries its tag's
+label and cells as geoms of its body (``busarm.twin.block_tags``). A distractor in a block
+colour (a look-alike) has the block's material: the same paint.
 """
 
 from __future__ import annotations
@@ -41,7 +44,8 @@ import numpy.typing as npt
 from busarm.arm.camera_mount import CameraMount
 from busarm.arm.config import ArmConfig
 from busarm.rotations import quaternion_wxyz
-from busarm.twin.scene import COLORS, DISTRACTOR_COLORS, Distractor, Lighting, Scene
+from busarm.twin.block_tags import TAG_BLACK_RGB, TAG_WHITE_RGB, tag_geoms
+from busarm.twin.scene import COLORS, DISTRACTOR_COLORS, Block, Distractor, Lighting, Scene
 
 __all__ = [
     "ARM_RGBA",
@@ -199,11 +203,28 @@ def _distractor_body(i: int, thing: Distractor, table_z_m: float) -> list[str]:
     yaw = math.radians(thing.yaw_deg)
     quat = (math.cos(yaw / 2), 0, 0, math.sin(yaw / 2))
     pos = (thing.x_mm * m, thing.y_mm * m, table_z_m + half_h)
+    material = thing.color if thing.color in COLORS else f"distractor_{thing.color}"
     return [f'    <body name="distractor{i}" pos="{_fmt(pos)}" quat="{_fmt(quat)}">',
             f'      <freejoint name="distractor{i}"/>',
             f'      <geom name="distractor{i}" class="object" {geom} '
-            f'material="distractor_{thing.color}" mass="{thing.mass_g / 1000:.6g}"/>',
+            f'material="{material}" mass="{thing.mass_g / 1000:.6g}"/>',
             '    </body>']
+
+
+def _block_body(i: int, block: Block, table_z_m: float) -> list[str]:
+    """A free body ``block<i>``: the cube, and its tag on top if it has one."""
+    m = M_PER_MM
+    half = block.size_mm / 2 * m
+    yaw = math.radians(block.yaw_deg)
+    quat = (math.cos(yaw / 2), 0, 0, math.sin(yaw / 2))
+    pos = (block.x_mm * m, block.y_mm * m, table_z_m + half)
+    out = [f'    <body name="block{i}" pos="{_fmt(pos)}" quat="{_fmt(quat)}">',
+           f'      <freejoint name="block{i}"/>',
+           f'      <geom name="block{i}" class="object" type="box" material="{block.color}" '
+           f'size="{_fmt((half, half, half))}" mass="{block.mass_g / 1000:.6g}"/>']
+    if block.tag_id is not None:
+        out += tag_geoms(block.tag_id, block.size_mm, '      ')
+    return [*out, '    </body>']
 
 
 @dataclass(frozen=True)
@@ -243,6 +264,11 @@ def _head(scene: Scene, spec: TwinModelSpec) -> list[str]:
         w(f'    <material name="{color}" rgba="{cr} {cg} {cb} 1" specular="0.05" '
           'shininess="0.1"/>')
     w('    <material name="tray" rgba="0.55 0.55 0.57 1" specular="0"/>')
+    if any(b.tag_id is not None for b in scene.blocks):  # else the model it always was
+        w(f'    <material name="tag_white" rgba="{_fmt(TAG_WHITE_RGB)} 1" specular="0" '
+          'shininess="0"/>')
+        w(f'    <material name="tag_black" rgba="{_fmt(TAG_BLACK_RGB)} 1" specular="0" '
+          'shininess="0"/>')
     for color, rgb in DISTRACTOR_COLORS.items():
         if all(d.color != color for d in scene.distractors):
             continue  # a scene without distractors builds the model it always did
@@ -284,15 +310,7 @@ def _table_and_things(scene: Scene, spec: TwinModelSpec, table_z: float) -> list
     for i, tray in enumerate(scene.bins):
         out += _bin_body(i, tray.x_mm, tray.y_mm, tray.size_mm, tray.wall_mm, table_z)
     for i, block in enumerate(scene.blocks):
-        half = block.size_mm / 2 * m
-        quat = (math.cos(math.radians(block.yaw_deg) / 2), 0, 0,
-                math.sin(math.radians(block.yaw_deg) / 2))
-        block_pos = (block.x_mm * m, block.y_mm * m, table_z + half)
-        w(f'    <body name="block{i}" pos="{_fmt(block_pos)}" quat="{_fmt(quat)}">')
-        w(f'      <freejoint name="block{i}"/>')
-        w(f'      <geom name="block{i}" class="object" type="box" material="{block.color}" '
-          f'size="{_fmt((half, half, half))}" mass="{block.mass_g / 1000:.6g}"/>')
-        w('    </body>')
+        out += _block_body(i, block, table_z)
     for i, thing in enumerate(scene.distractors):
         out += _distractor_body(i, thing, table_z)
     return out

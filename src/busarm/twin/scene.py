@@ -7,7 +7,9 @@ always validated: a block off the table, interpenetrating another one, a bin or 
 distractor, or of an unknown colour is refused with the key and the allowed range.
 Touching is allowed (``busarm.twin.footprints``). Positions are in the arm's base frame
 (x forward, y left, z up; the table top at the arm config's ``table_z_mm``). Blocks are
-cubes standing on the table, turned by ``yaw_deg`` about z.
+cubes standing on the table, turned by ``yaw_deg`` about z, an AprilTag on top if they
+have a ``tag_id`` (``busarm.twin.block_tags``). ``busarm.twin.lookalike`` draws tables of
+mixed sizes, tagged blocks and look-alikes.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ __all__ = [
     "BASE_CLEARANCE_MM",
     "BLOCK_SIZE_MM",
     "BOARD_KINDS",
+    "BOX_ASPECT_MAX",
     "COLORS",
     "DEFAULT_BINS",
     "DEFAULT_BLOCK_MM",
@@ -44,6 +47,8 @@ __all__ = [
     "SCENE_FORMAT",
     "SCENE_VERSION",
     "SCENE_WRITERS",
+    "SIZE_CLASSES_MM",
+    "TAG_IDS",
     "Bin",
     "Block",
     "Board",
@@ -86,21 +91,32 @@ DISTRACTOR_COLORS: dict[str, tuple[float, float, float]] = {
 }
 """Colours of things that are not blocks, none of them a block colour. Purple still lies
 inside busarm.vision's default blue threshold, as a violet pen would: only its shape
-tells it from a block."""
+tells it from a block. A distractor may also have a block colour (``COLORS``): a
+look-alike, in a block's colour but not a block."""
 
 DISTRACTOR_SIZES_MM: dict[str, dict[str, tuple[float, float]]] = {
-    "cylinder": {"length_mm": (20.0, 100.0), "height_mm": (40.0, 120.0)},
+    "cylinder": {"length_mm": (20.0, 100.0), "height_mm": (30.0, 120.0)},
     "disc": {"length_mm": (20.0, 120.0), "height_mm": (1.0, 8.0)},
     "bar": {"length_mm": (60.0, 250.0), "width_mm": (5.0, 25.0), "height_mm": (5.0, 25.0)},
+    "box": {"length_mm": (20.0, 40.0), "width_mm": (20.0, 40.0), "height_mm": (50.0, 90.0)},
 }
 """Distractor shapes and their sizes: an upright cylinder (a cup, a glue stick), a flat
-disc (a coaster, a coin), a bar lying down (a pen, a ruler); none looks like a cube. A
-round shape's footprint is a circle of diameter ``length_mm`` (= ``width_mm``)."""
+disc (a coaster, a coin), a bar lying down (a pen, a ruler), a small box standing up,
+taller than a block (a juice carton); none is a cube. A round shape's footprint is a
+circle of diameter ``length_mm`` (= ``width_mm``); a box's is square-ish (its longer side
+at most ``BOX_ASPECT_MAX`` times the shorter)."""
+BOX_ASPECT_MAX = 1.5
 
 DEFAULT_BLOCK_MM = 30.0
 BLOCK_SIZE_MM = (10.0, 60.0)
 """Block sides the twin builds (toy blocks are 25-40 mm)."""
 BOARD_KINDS = ("chessboard", "charuco", "tags")
+SIZE_CLASSES_MM: dict[str, tuple[float, float]] = {
+    "small": (BLOCK_SIZE_MM[0], 28.0), "medium": (28.0, 37.0), "large": (37.0, BLOCK_SIZE_MM[1])}
+"""Block size classes by side (small < 28 mm, medium 28-37, large > 37); a bin's
+``color`` may be a class's name instead of a colour (a tray for sorting by size)."""
+TAG_IDS = (0, 586)
+"""The AprilTag 36h11 ids a block may carry (``Block.tag_id``)."""
 
 
 @dataclass(frozen=True)
@@ -119,7 +135,8 @@ class Table:
 
 @dataclass(frozen=True)
 class Block:
-    """A cube of ``size_mm`` standing on the table, centred at (x, y), turned by yaw."""
+    """A cube of ``size_mm`` standing on the table, centred at (x, y), turned by yaw;
+    ``tag_id``: the AprilTag 36h11 printed on its top face (None: a plain block)."""
 
     color: str
     x_mm: float
@@ -127,6 +144,7 @@ class Block:
     yaw_deg: float = 0.0
     size_mm: float = DEFAULT_BLOCK_MM
     mass_g: float = 20.0
+    tag_id: int | None = None
 
     @property
     def radius_mm(self) -> float:
@@ -141,7 +159,8 @@ class Block:
 
 @dataclass(frozen=True)
 class Bin:
-    """An open tray for blocks of ``color``: outer side ``size_mm``, walls ``wall_mm`` high."""
+    """An open tray for blocks of ``color`` (or of a ``SIZE_CLASSES_MM`` size class): outer
+    side ``size_mm``, walls ``wall_mm`` high."""
 
     color: str
     x_mm: float
@@ -174,8 +193,9 @@ class Distractor:
     """Something on the table that is not a block, for a sorter to leave alone.
 
     ``shape`` is one of ``DISTRACTOR_SIZES_MM`` (its sizes' ranges), ``color`` one of
-    ``DISTRACTOR_COLORS``. ``length_mm`` x ``width_mm`` is its footprint, centred at
-    (x, y) and turned by ``yaw_deg``; a cylinder's or a disc's diameter is both.
+    ``DISTRACTOR_COLORS`` or of ``COLORS`` (a look-alike). ``length_mm`` x ``width_mm``
+    is its footprint, centred at (x, y) and turned by ``yaw_deg``; a cylinder's or a
+    disc's diameter is both.
     In the twin it is a free body named ``distractor<i>`` (i its index in the scene).
     """
 
@@ -311,6 +331,9 @@ def _check_blocks(scene: Scene) -> list[tuple[str, Footprint]]:
         _finite(scene, f"{key}.size_mm", b.size_mm, *BLOCK_SIZE_MM)
         _finite(scene, f"{key}.mass_g", b.mass_g, 1.0, 500.0)
         _finite(scene, f"{key}.yaw_deg", b.yaw_deg, -360.0, 360.0)
+        if b.tag_id is not None:
+            check_int_range(_where(scene, f"{key}.tag_id (AprilTag 36h11)"), b.tag_id,
+                            *TAG_IDS)
         x = _finite(scene, f"{key}.x_mm", b.x_mm, -2000.0, 2000.0)
         y = _finite(scene, f"{key}.y_mm", b.y_mm, -2000.0, 2000.0)
         if not t.contains(x, y, b.radius_mm):
@@ -327,7 +350,7 @@ def _check_bins(scene: Scene) -> list[tuple[str, Footprint]]:
     out = []
     for i, bin_ in enumerate(scene.bins):
         key = f"bins[{i}]"
-        _check_color(scene, key, bin_.color, COLORS)
+        _check_color(scene, key, bin_.color, {**COLORS, **SIZE_CLASSES_MM})
         size = _finite(scene, f"{key}.size_mm", bin_.size_mm, 40.0, 200.0)
         _finite(scene, f"{key}.wall_mm", bin_.wall_mm, 2.0, 60.0)
         x = _finite(scene, f"{key}.x_mm", bin_.x_mm, -2000.0, 2000.0)
@@ -352,9 +375,14 @@ def _check_distractors(scene: Scene) -> list[tuple[str, Footprint]]:
         if d.shape not in DISTRACTOR_SIZES_MM:
             raise ConfigError(_where(scene, f"{key}.shape = {d.shape!r}; allowed: "
                                             f"{', '.join(DISTRACTOR_SIZES_MM)}"))
-        _check_color(scene, key, d.color, DISTRACTOR_COLORS)
+        _check_color(scene, key, d.color, {**DISTRACTOR_COLORS, **COLORS})
         for name, (lo, hi) in DISTRACTOR_SIZES_MM[d.shape].items():
             _finite(scene, f"{key}.{name} of a {d.shape}", getattr(d, name), lo, hi)
+        if d.shape == "box" and max(d.length_mm, d.width_mm) > BOX_ASPECT_MAX * min(
+                d.length_mm, d.width_mm):
+            raise ConfigError(_where(scene, f"{key} is a box of {d.length_mm!r} x "
+                                            f"{d.width_mm!r} mm: its longer side may be at most "
+                                            f"{BOX_ASPECT_MAX:g} x the shorter"))
         if d.is_round and d.width_mm != d.length_mm:
             raise ConfigError(_where(scene, f"{key}.width_mm = {d.width_mm!r}: a {d.shape} is "
                                             f"round, give its diameter as both length_mm and "
@@ -553,6 +581,11 @@ def _toml_value(value: object) -> str:
     return repr(value)
 
 
+def _fields(item: Any) -> dict[str, Any]:
+    """A dataclass's fields but those that are None (TOML has no null; absent = None)."""
+    return {k: v for k, v in asdict(item).items() if v is not None}
+
+
 def scene_to_toml(scene: Scene) -> str:
     """The scene as a file that ``scene_from_toml`` reads back identically."""
     lines = [f'format = "{SCENE_FORMAT}"', f"version = {SCENE_VERSION}"]
@@ -569,8 +602,7 @@ def scene_to_toml(scene: Scene) -> str:
                        ("distractors", scene.distractors)):
         for item in items:
             lines += ["", f"[[{key}]]"]
-            lines += [f"{k} = {_toml_value(getattr(item, k))}"
-                      for k in type(item).__dataclass_fields__]
+            lines += [f"{k} = {_toml_value(v)}" for k, v in _fields(item).items()]
     return "\n".join(lines) + "\n"
 
 
@@ -585,7 +617,7 @@ def scene_to_json(scene: Scene) -> str:
     for key, items in (("blocks", scene.blocks), ("bins", scene.bins), ("boards", scene.boards),
                        ("distractors", scene.distractors)):
         if items:
-            data[key] = [asdict(item) for item in items]
+            data[key] = [_fields(item) for item in items]
     return json.dumps(data, indent=1) + "\n"
 
 
