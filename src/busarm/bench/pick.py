@@ -32,7 +32,8 @@ from busarm.errors import BusArmError, ConfigError
 from busarm.robot import Robot
 from busarm.robot.description import CameraSpec, RobotConfig
 from busarm.twin.clutter import clutter_scene
-from busarm.twin.scene import REACH_RADIUS_MM, random_scene
+from busarm.twin.lookalike import lookalike_scene
+from busarm.twin.scene import REACH_RADIUS_MM, Scene, random_scene
 from busarm.twin.spec import TwinSpec
 from busarm.twin.twin import BlockState
 from busarm.units import check_int_range
@@ -66,10 +67,14 @@ MAX_FAILURES = 20
 MAX_WORKERS = 64
 DISTRACTOR_MOVED_MM = 5.0
 """A thing that is not a block and moved further than this was disturbed by the run."""
-FAMILIES = {"random": (3, 6), "clutter": (6, 12)}
+FAMILIES = {"random": (3, 6), "clutter": (6, 12), "lookalike": (3, 6)}
 """Scene families and the blocks a scene of each has by default: ``random`` (spaced out,
-``busarm.twin.scene.random_scene``) and ``clutter`` (rows, clusters, touching groups,
-things that are not blocks, lamp or window light: ``busarm.twin.clutter``)."""
+``busarm.twin.scene.random_scene``), ``clutter`` (rows, clusters, touching groups,
+things that are not blocks, lamp or window light: ``busarm.twin.clutter``) and
+``lookalike`` (cubes of 20-45 mm among cylinders, discs, bars and tall boxes in block
+colours: ``busarm.twin.lookalike``)."""
+LOOKALIKE_NEAR_MM = 20.0
+"""A run's record found this near a thing that is not a block (and no block) is about it."""
 
 
 @dataclass(frozen=True)
@@ -101,6 +106,10 @@ class SceneResult:
     slipped_s: float
     distractors_moved_mm: list[float] = field(default_factory=list)
     """How far each thing that is not a block moved during the run."""
+    not_blocks_binned: int = 0
+    """Things that are not blocks in a bin at the end (the twin's truth)."""
+    not_blocks_reported: int = 0
+    """The run's records of blocks found where a thing that is not a block stood."""
 
     def placed(self, in_bin_mm: float) -> list[bool]:
         return [math.hypot(t.x_mm - self.bins[t.color][0], t.y_mm - self.bins[t.color][1])
@@ -170,6 +179,10 @@ class PickBenchReport:
     """Things on the tables that are not blocks, for the sorter to leave alone."""
     distractors_moved: int
     """Of them, how many the run moved more than ``DISTRACTOR_MOVED_MM``."""
+    not_blocks_binned: int
+    """Of them, how many ended in a bin."""
+    not_blocks_reported: int
+    """The runs' records of blocks where such a thing stood (and no block)."""
     failures: list[PickFailure]
     """The first ``MAX_FAILURES``."""
     cycles_s: list[float] = field(default_factory=list, repr=False)
@@ -188,6 +201,8 @@ def run_scene(task: SceneTask) -> SceneResult:
     wall = time.monotonic()
     if task.family == "clutter":
         scene = clutter_scene(task.scene_seed, task.blocks, task.colors)
+    elif task.family == "lookalike":
+        scene = lookalike_scene(task.scene_seed, task.blocks)
     else:
         scene = random_scene(task.scene_seed, task.blocks, list(task.colors),
                              radius_mm=REACH_RADIUS_MM)
@@ -209,11 +224,29 @@ def run_scene(task: SceneTask) -> SceneResult:
             error = ""
         except BusArmError as exc:  # a failed run is a result too: score what is there
             error = f"{type(exc).__name__}: {exc}"
-        moved = [math.dist(a[:2], b[:2]) for a, b in
-                 zip(distractors_before, twin.distractor_positions_mm(), strict=True)]
-        return SceneResult(task, dict(robot.bins), twin.blocks(), list(sorter.report.blocks),
+        after = twin.distractor_positions_mm()
+        moved = [math.dist(a[:2], b[:2]) for a, b in zip(distractors_before, after, strict=True)]
+        outcomes = list(sorter.report.blocks)
+        return SceneResult(task, dict(robot.bins), twin.blocks(), outcomes,
                            error, survey_errors, twin.sim_time_s, time.monotonic() - wall,
-                           twin.slipped_s, moved)
+                           twin.slipped_s, moved, _in_bins(after, robot.bins),
+                           _about_not_blocks(outcomes, scene, distractors_before))
+
+
+def _in_bins(things: list[tuple[float, float, float]], bins: dict[str, tuple[float, float]]
+             ) -> int:
+    from busarm.apps.pick_sort.sorter import IN_BIN_MM
+
+    return sum(any(math.dist(t[:2], b) < IN_BIN_MM for b in bins.values()) for t in things)
+
+
+def _about_not_blocks(outcomes: list[BlockOutcome], scene: Scene,
+                      things: list[tuple[float, float, float]]) -> int:
+    """The run's records found near a thing that is not a block and near no block."""
+    starts = [(b.x_mm, b.y_mm) for b in scene.blocks]
+    return sum(any(math.dist(o.found_mm, t[:2]) < LOOKALIKE_NEAR_MM for t in things)
+               and all(math.dist(o.found_mm, b) >= LOOKALIKE_NEAR_MM for b in starts)
+               for o in outcomes)
 
 
 def _results(tasks: list[SceneTask], workers: int, progress: Progress) -> list[SceneResult]:
@@ -321,7 +354,8 @@ def _score(results: list[SceneResult], calibration: CalibrationSummary, seconds:
         tilted += sum(b.outcome == "sorted" and b.grasp_pitch_deg not in (None, -90.0)
                       for b in r.outcomes)
         survey_errors += r.survey_errors_mm
-        disturbed = any(m > DISTRACTOR_MOVED_MM for m in r.distractors_moved_mm)
+        disturbed = any(m > DISTRACTOR_MOVED_MM for m in r.distractors_moved_mm) \
+            or r.not_blocks_binned or r.not_blocks_reported
         if not all(placed) or r.error or sorted_here != sum(placed) or disturbed:
             failures.append(PickFailure(
                 scene_seed=r.task.scene_seed, blocks=r.task.blocks, error=r.error,
@@ -349,4 +383,6 @@ def _score(results: list[SceneResult], calibration: CalibrationSummary, seconds:
         distractors=sum(len(r.distractors_moved_mm) for r in results),
         distractors_moved=sum(m > DISTRACTOR_MOVED_MM for r in results
                               for m in r.distractors_moved_mm),
+        not_blocks_binned=sum(r.not_blocks_binned for r in results),
+        not_blocks_reported=sum(r.not_blocks_reported for r in results),
         failures=failures[:MAX_FAILURES], cycles_s=[round(c, 3) for c in cycles])

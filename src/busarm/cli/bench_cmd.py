@@ -2,22 +2,18 @@
 
 from __future__ import annotations
 
-import io
 import json
-from collections.abc import Callable
-from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import click
-from rich.console import Console
 from rich.table import Table
 
 from busarm.bench.bus import BusBenchReport, run_bench, sim_pty_server
 from busarm.bench.common import machine_line
+from busarm.cli.bench_report import judged, said, seeded_world_options, verdict
 from busarm.cli.common import (
     IdListType,
-    JobNotDone,
     RangeType,
     Settings,
     no_servos,
@@ -171,59 +167,7 @@ def bench_ik(
     from busarm.bench.ik import run_ik_bench  # numpy only when asked for
 
     report = run_ik_bench(n=n, batch_n=batch_n, seed=seed, peers=peers)
-    _judged(settings, as_json, report.to_dict(), lambda shown: _print_ik(shown, report))
-
-
-def _said(settings: Settings) -> Callable[[str], None]:
-    """A benchmark's progress, said on stderr."""
-    return lambda text: settings.err.print(text, highlight=False)
-
-
-def _seeded_world_options(name: str, default: int, help_text: str
-                          ) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """A benchmark over seeded twin worlds: ``--NAME`` (how many, 1..1000), --seed (the
-    first one's), --workers, --json; the settings passed, no servos."""
-    world = name.removesuffix("s")
-
-    def options(func: Callable[..., Any]) -> Callable[..., Any]:
-        func = pass_settings(no_servos(func))
-        for option in (  # the last applied is the first listed
-                click.option("--json", "as_json", is_flag=True,
-                             help="Print the report as JSON."),
-                click.option("--workers", type=click.IntRange(1, 8), default=1,
-                             show_default=True, help=f"{world.capitalize()}s run side by "
-                             "side, each in its own process."),
-                click.option("--seed", type=click.IntRange(0, 2**32 - 1), default=0,
-                             show_default=True, help=f"Seed of the first {world}."),
-                click.option(f"--{name}", type=click.IntRange(1, 1000), default=default,
-                             show_default=True, help=help_text)):
-            func = option(func)
-        return func
-    return options
-
-
-_MISSED = "busarm.bench.missed"
-"""ctx.meta key: how many targets the report just judged missed."""
-
-
-def _verdict(good: bool) -> str:
-    """ok or FAIL, as the report shows it; a FAIL is counted (``_judged``)."""
-    if not good:
-        meta = click.get_current_context().meta
-        meta[_MISSED] = meta.get(_MISSED, 0) + 1
-    return "[green]ok[/]" if good else "[red]FAIL[/]"
-
-
-def _judged(settings: Settings, as_json: bool, data: dict[str, Any],
-            show: Callable[[Settings], None]) -> None:
-    """Print the report, as text (``show``) or JSON, and judge it by the targets the text
-    gives: a target missed (FAIL) makes the exit code 1, after the whole report."""
-    show(replace(settings, out=Console(file=io.StringIO())) if as_json else settings)
-    if as_json:
-        click.echo(json.dumps(data, indent=2))
-    missed = click.get_current_context().meta.get(_MISSED, 0)
-    if missed:
-        raise JobNotDone(f"{missed} target(s) missed: FAIL in the report")
+    judged(settings, as_json, report.to_dict(), lambda shown: _print_ik(shown, report))
 
 
 def _ik_table(report: IkBenchReport) -> Table:
@@ -236,11 +180,11 @@ def _ik_table(report: IkBenchReport) -> Table:
     for t in report.single:
         target = ""
         if t.name.startswith("ik_best"):
-            target = f"<= {TARGET_SINGLE_US:g} us {_verdict(t.median_us <= TARGET_SINGLE_US)}"
+            target = f"<= {TARGET_SINGLE_US:g} us {verdict(t.median_us <= TARGET_SINGLE_US)}"
         table.add_row(f"busarm {t.name}", str(t.n), f"{t.median_us:.2f}", f"{t.p90_us:.2f}",
                       f"{1e6 / t.median_us:,.0f}/s", target)
     b = report.batch
-    batch_ok = _verdict(b.solves_per_s >= TARGET_BATCH_PER_S)
+    batch_ok = verdict(b.solves_per_s >= TARGET_BATCH_PER_S)
     table.add_row(f"busarm ik_batch{'' if b.all_ok else ' (NOT all ok)'}", f"{b.n:,}",
                   "", "", f"{b.solves_per_s:,.0f}/s", f">= {TARGET_BATCH_PER_S:,.0f}/s {batch_ok}")
     for p in report.peers:
@@ -263,10 +207,10 @@ def _print_ik(settings: Settings, report: IkBenchReport) -> None:
         f"pose; table check OFF (pure geometry: some put the tool under the table)\n"
         f"  ik: {a.solutions} solutions, failures {a.failures} (no solution {a.no_solution}, "
         f"pose > {POS_TOL_MM} mm / {ROT_TOL_DEG} deg {a.wrong_pose}, out of limits "
-        f"{a.out_of_limits}) {_verdict(a.failures == 0)}; worst {a.worst_pos_mm:.2e} mm, "
+        f"{a.out_of_limits}) {verdict(a.failures == 0)}; worst {a.worst_pos_mm:.2e} mm, "
         f"{a.worst_rot_deg:.2e} deg\n"
-        f"  ik_best failures {a.best_failures} {_verdict(a.best_failures == 0)}; ik_batch "
-        f"failures {a.batch_failures} {_verdict(a.batch_failures == 0)}, worst "
+        f"  ik_best failures {a.best_failures} {verdict(a.best_failures == 0)}; ik_batch "
+        f"failures {a.batch_failures} {verdict(a.batch_failures == 0)}, worst "
         f"{a.batch_worst_pos_mm:.2e} mm, {a.batch_worst_rot_deg:.2e} deg"
     )
     refused = o.accepted_ik + o.accepted_batch + o.accepted_ik_no_limits \
@@ -275,9 +219,9 @@ def _print_ik(settings: Settings, report: IkBenchReport) -> None:
         f"just outside: {o.n} targets with the wrist {o.margin_mm} mm beyond full stretch: "
         f"accepted by ik {o.accepted_ik}, ik_batch {o.accepted_batch}; with no joint limits "
         f"and free roll {o.accepted_ik_no_limits} / {o.accepted_batch_no_limits} "
-        f"{_verdict(refused)}\n"
+        f"{verdict(refused)}\n"
         f"  control, {o.margin_mm} mm inside, no limits: accepted {o.inside_accepted_no_limits}"
-        f"/{o.n} {_verdict(o.inside_accepted_no_limits == o.n)}"
+        f"/{o.n} {verdict(o.inside_accepted_no_limits == o.n)}"
     )
     out.print(_ik_table(report))
     out.print(f"timing: {report.timing_method}; timer overhead {report.timer_overhead_ns:g} ns")
@@ -312,8 +256,8 @@ def bench_locate(settings: Settings, placements: int, seed: int, keep: Path | No
     from busarm.bench.locate import run_locate_bench
 
     report = run_locate_bench(placements=placements, seed=seed, work_dir=keep,
-                              progress=_said(settings))
-    _judged(settings, as_json, report.to_dict(), lambda shown: _print_locate(shown, report))
+                              progress=said(settings))
+    judged(settings, as_json, report.to_dict(), lambda shown: _print_locate(shown, report))
 
 
 def _print_locate(settings: Settings, report: LocateBenchReport) -> None:
@@ -332,8 +276,8 @@ def _print_locate(settings: Settings, report: LocateBenchReport) -> None:
         f"placements {a.placements}: located {a.located}, missed {a.missed}, wrong "
         f"colour {a.wrong_color}, in {a.pictures} pictures\n"
         f"location error: median {a.median_mm:.2f} mm "
-        f"({_verdict(ok_median)} <= {TARGET_MEDIAN_MM:g}), "
-        f"p95 {a.p95_mm:.2f} mm ({_verdict(ok_p95)} "
+        f"({verdict(ok_median)} <= {TARGET_MEDIAN_MM:g}), "
+        f"p95 {a.p95_mm:.2f} mm ({verdict(ok_p95)} "
         f"<= {TARGET_P95_MM:g}), max {a.max_mm:.2f} mm")
 
 
@@ -354,7 +298,7 @@ def bench_vision(settings: Settings, pictures: int, seconds: float, seed: int,
     from busarm.bench.vision import run_vision_bench
 
     report = run_vision_bench(pictures=pictures, seed=seed, seconds_per_case=seconds)
-    _judged(settings, as_json, report.to_dict(), lambda shown: _print_vision(shown, report))
+    judged(settings, as_json, report.to_dict(), lambda shown: _print_vision(shown, report))
 
 
 def _print_vision(settings: Settings, report: VisionBenchReport) -> None:
@@ -367,11 +311,11 @@ def _print_vision(settings: Settings, report: VisionBenchReport) -> None:
         f"[bold]busarm bench vision[/]: {report.pictures} twin pictures "
         f"{d.width_px}x{d.height_px}, one core\n"
         f"vendor-style pipeline {d.vendor_fps:.0f} frames/s, ours {d.ours_fps:.0f} "
-        f"frames/s: {d.speedup:.2f}x ({_verdict(ok_speed)} "
+        f"frames/s: {d.speedup:.2f}x ({verdict(ok_speed)} "
         f">= {TARGET_SPEEDUP:g}x); same blocks in {d.agreement.same_counts_frames}/{d.frames} "
         f"pictures\n"
         f"detect + localise: {report.detect_and_locate_fps:.0f} frames/s "
-        f"({_verdict(ok_loc)} >= {TARGET_LOCATE_FPS:g}), "
+        f"({verdict(ok_loc)} >= {TARGET_LOCATE_FPS:g}), "
         f"{report.blocks_located} blocks located")
 
 
@@ -396,18 +340,18 @@ def bench_dashboard(settings: Settings, seconds: float, tries: int, mobile: bool
 
         mobile_report = run_mobile_page_bench(seconds=seconds, tries=tries,
                                               progress=settings.err.print)
-        _judged(settings, as_json, mobile_report.as_dict(),
+        judged(settings, as_json, mobile_report.as_dict(),
                 lambda shown: _print_mobile_page(shown, mobile_report))
         return
     from busarm.bench.dashboard import run_dashboard_bench
 
     report = run_dashboard_bench(seconds=seconds, tries=tries, progress=lambda text: None
                                  if " view " in text else settings.err.print(text))
-    _judged(settings, as_json, report.as_dict(), lambda shown: _print_dashboard(shown, report))
+    judged(settings, as_json, report.as_dict(), lambda shown: _print_dashboard(shown, report))
 
 
 def _print_dashboard(settings: Settings, report: DashboardBenchReport) -> None:
-    ok = _verdict
+    ok = verdict
     hz, fps = min(report.state_hz, default=0.0), min(report.camera_fps, default=0.0)
     settings.out.print(
         f"[bold]busarm bench dashboard[/] on the twin in real time ({report.machine['cpu']}, "
@@ -424,7 +368,7 @@ def _print_dashboard(settings: Settings, report: DashboardBenchReport) -> None:
 
 
 def _print_mobile_page(settings: Settings, report: MobilePageReport) -> None:
-    ok = _verdict
+    ok = verdict
     hz, scan_hz = min(report.state_hz, default=0.0), min(report.scan_hz, default=0.0)
     release_p99 = report.key_release_ms["p99"]
     settings.out.print(
@@ -450,10 +394,12 @@ def _print_mobile_page(settings: Settings, report: MobilePageReport) -> None:
               help="Seed of the first scene (scene i uses seed + i).")
 @click.option("--workers", type=click.IntRange(1, 64), default=1, show_default=True,
               help="Scenes sorted side by side, each in its own process.")
-@click.option("--family", type=click.Choice(["random", "clutter"]), default="random",
-              show_default=True,
+@click.option("--family", type=click.Choice(["random", "clutter", "lookalike"]),
+              default="random", show_default=True,
               help="random: 3-6 blocks spaced out; clutter: 6-12 blocks in rows, clusters "
-                   "and touching groups, things that are not blocks, lamp or window light.")
+                   "and touching groups, things that are not blocks, lamp or window light; "
+                   "lookalike: 3-6 cubes of 20-45 mm among cups, discs, bars and tall "
+                   "boxes in block colours.")
 @click.option("--realtime", is_flag=True,
               help="Run each twin on the wall clock (as `twin serve` does) instead of as "
                    "fast as the CPU allows: to compare the two.")
@@ -473,8 +419,8 @@ def bench_pick(settings: Settings, scenes: int, seed: int, workers: int, family:
 
     report = run_pick_bench(scenes=scenes, seed=seed, workers=workers, realtime=realtime,
                             family=family,
-                            progress=_said(settings))
-    _judged(settings, as_json, report.to_dict(), lambda shown: _print_pick(shown, report))
+                            progress=said(settings))
+    judged(settings, as_json, report.to_dict(), lambda shown: _print_pick(shown, report))
 
 
 def _print_pick(settings: Settings, report: PickBenchReport) -> None:
@@ -490,10 +436,10 @@ def _print_pick(settings: Settings, report: PickBenchReport) -> None:
         + (f"; {report.beyond_bins} more than their bins hold (left with \"bin full\"): "
            f"{report.in_their_bins} of the {report.blocks - report.beyond_bins} that fit "
            f"({report.fitting_sorted_fraction:.1%})" if report.beyond_bins else "")
-        + f" {_verdict(ok_sorted)} >= {TARGET_SORTED:.0%}; "
+        + f" {verdict(ok_sorted)} >= {TARGET_SORTED:.0%}; "
         f"reported sorted but not: {report.reported_sorted_but_not}\n"
         f"cycle per block (twin time): median {cycle} s "
-        f"({_verdict(ok_cycle)} <= {TARGET_CYCLE_S:g}; the vendor's "
+        f"({verdict(ok_cycle)} <= {TARGET_CYCLE_S:g}; the vendor's "
         f"fixed grasp sequence alone takes about 5 s), "
         f"p95 {report.p95_cycle_s} s"
         + ("" if report.clock != "wall" else
@@ -501,12 +447,13 @@ def _print_pick(settings: Settings, report: PickBenchReport) -> None:
         + "\nsurvey error median "
         f"{report.survey_error_median_mm} mm, p95 {report.survey_error_p95_mm} mm\n"
         + (f"things that are not blocks: {report.distractors}, moved by the runs: "
-           f"{report.distractors_moved}\n" if report.distractors else "")
+           f"{report.distractors_moved}, in a bin: {report.not_blocks_binned}, reported "
+           f"as blocks: {report.not_blocks_reported}\n" if report.distractors else "")
         + f"time: {report.sim_seconds} s of twin time in {report.seconds} s on this computer "
         f"({report.calibration_seconds} s of it calibrating), {report.workers} worker(s), "
         f"{report.clock} clock: {report.speedup:.1f}x real time"
         + ("" if report.clock == "wall" else
-           f" ({_verdict(report.speedup >= TARGET_SPEEDUP)} "
+           f" ({verdict(report.speedup >= TARGET_SPEEDUP)} "
            f">= {TARGET_SPEEDUP:g}x)"))
 
 
@@ -536,8 +483,8 @@ def bench_mobile(settings: Settings, squares: int, scans: int, seconds: float, s
 
     report = run_mobile_bench(squares=squares, scans=scans, seconds=seconds, seed=seed,
                               picture=png,
-                              progress=_said(settings))
-    _judged(settings, as_json, report.to_dict(), lambda shown: _print_mobile(shown, report))
+                              progress=said(settings))
+    judged(settings, as_json, report.to_dict(), lambda shown: _print_mobile(shown, report))
 
 
 def _print_mobile(settings: Settings, report: MobileBenchReport) -> None:
@@ -560,9 +507,9 @@ def _print_mobile(settings: Settings, report: MobileBenchReport) -> None:
     for run in report.squares:
         table.add_row(str(run.seed), f"{run.driven_m:g} m", f"{run.position_error_m * 100:.1f} cm",
                       f"{run.position_share:.2%} "
-                      f"{_verdict(run.position_share <= TARGET_POSITION_SHARE)}",
+                      f"{verdict(run.position_share <= TARGET_POSITION_SHARE)}",
                       f"{run.heading_error_deg:.2f} deg "
-                      f"{_verdict(run.heading_error_deg <= TARGET_HEADING_DEG)}",
+                      f"{verdict(run.heading_error_deg <= TARGET_HEADING_DEG)}",
                       f"{run.worst_corner_share:.2%}")
     out.print(table)
     out.print(f"targets: position <= {TARGET_POSITION_SHARE:.0%} of the distance, heading <= "
@@ -573,14 +520,14 @@ def _print_mobile(settings: Settings, report: MobileBenchReport) -> None:
     a, r = report.lidar, report.realtime
     out.print(f"Lidar (seeded arena {a.seed}, robot standing, {a.scans} scans, {a.beams} beams "
               f"with a surface in reach): noise off, largest error {a.max_error_m * 1000:.2f} mm "
-              f"({_verdict(a.max_error_m <= TARGET_LIDAR_M)} <= {TARGET_LIDAR_M * 1000:g} mm); "
+              f"({verdict(a.max_error_m <= TARGET_LIDAR_M)} <= {TARGET_LIDAR_M * 1000:g} mm); "
               f"noise on, residual RMS {a.sigma_ratio:.2f} x the model's sigma, dropouts "
               f"{a.dropout_share:.1%}")
     out.print(f"real time: {r.sim_s:.1f} simulated s in {r.wall_s:.1f} s: {r.factor:.1f}x "
-              f"({_verdict(r.factor >= TARGET_REALTIME)} >= {TARGET_REALTIME:g}x) with the base "
+              f"({verdict(r.factor >= TARGET_REALTIME)} >= {TARGET_REALTIME:g}x) with the base "
               f"driving, the arm moving, the wrist camera streamed {r.camera_fps:.1f} frames "
               f"and the Lidar {r.lidar_hz:.1f} scans a simulated second "
-              f"({_verdict(r.lidar_hz >= TARGET_LIDAR_HZ)} >= {TARGET_LIDAR_HZ:g} Hz)")
+              f"({verdict(r.lidar_hz >= TARGET_LIDAR_HZ)} >= {TARGET_LIDAR_HZ:g} Hz)")
     v = report.realtime_vision
     out.print(f"with the camera drawn as vision's pictures (antialiased) instead: "
               f"{v.factor:.1f}x ({v.camera_fps:.1f} frames, {v.lidar_hz:.1f} scans a "
@@ -588,7 +535,7 @@ def _print_mobile(settings: Settings, report: MobileBenchReport) -> None:
 
 
 @bench.command("transport")
-@_seeded_world_options("arenas", 30, "Seeded twin arenas (arena i uses seed + i).")
+@seeded_world_options("arenas", 30, "Seeded twin arenas (arena i uses seed + i).")
 def bench_transport(settings: Settings, arenas: int, seed: int, workers: int,
                     as_json: bool) -> None:
     """Navigation transport over seeded twin arenas, against the twin's truth: each arena
@@ -597,13 +544,13 @@ def bench_transport(settings: Settings, arenas: int, seed: int, workers: int,
     from busarm.bench.transport import run_transport_bench
 
     report = run_transport_bench(arenas=arenas, seed=seed, workers=workers,
-                                 progress=_said(settings))
-    _judged(settings, as_json, report.to_dict(),
+                                 progress=said(settings))
+    judged(settings, as_json, report.to_dict(),
             lambda shown: _print_seeded(shown, "transport", report))
 
 
 @bench.command("line")
-@_seeded_world_options("layouts", 20, "Seeded line layouts (layout i uses seed + i): 0-3 "
+@seeded_world_options("layouts", 20, "Seeded line layouts (layout i uses seed + i): 0-3 "
                        "blocks, 0-2 obstacles.")
 def bench_line(settings: Settings, layouts: int, seed: int, workers: int,
                as_json: bool) -> None:
@@ -613,8 +560,8 @@ def bench_line(settings: Settings, layouts: int, seed: int, workers: int,
     from busarm.bench.line import run_line_bench
 
     report = run_line_bench(layouts=layouts, seed=seed, workers=workers,
-                            progress=_said(settings))
-    _judged(settings, as_json, report.to_dict(), lambda shown: _print_seeded(shown, "line", report))
+                            progress=said(settings))
+    judged(settings, as_json, report.to_dict(), lambda shown: _print_seeded(shown, "line", report))
 
 
 @bench.command("ros")
@@ -641,13 +588,13 @@ def bench_ros(settings: Settings, seconds: float, drops: int, blocks: int, seed:
     from busarm.bench.ros import run_ros_bench
 
     report = run_ros_bench(seconds=seconds, drops=drops, blocks=blocks, seed=seed,
-                           out_dir=out_dir, progress=_said(settings))
-    _judged(settings, as_json, report.as_dict(), lambda shown: shown.out.print(
-        "[bold]busarm bench ros[/]: " + report.text(_verdict), highlight=False))
+                           out_dir=out_dir, progress=said(settings))
+    judged(settings, as_json, report.as_dict(), lambda shown: shown.out.print(
+        "[bold]busarm bench ros[/]: " + report.text(verdict), highlight=False))
 
 
 def _print_seeded(settings: Settings, name: str,
                   report: TransportBenchReport | LineBenchReport) -> None:
     """A benchmark over seeded twin worlds: its report's text, the targets judged."""
-    settings.out.print(f"[bold]busarm bench {name}[/]: {report.text(_verdict)}",
+    settings.out.print(f"[bold]busarm bench {name}[/]: {report.text(verdict)}",
                        highlight=False)

@@ -26,6 +26,7 @@ from busarm.cli import (
     actions_cmds,
     arm_cmds,
     base_cmds,
+    bench_games_cmd,
     board_cmds,
     bus_cmds,
     camera_cmds,
@@ -47,6 +48,8 @@ from busarm.cli import (
     samples_cmd,
     servo_cmds,
     sim_cmds,
+    stack_cmd,
+    track_cmd,
     transport_cmd,
     twin_cmds,
     view_cmds,
@@ -272,11 +275,14 @@ for _module in (
     bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, actions_cmds, twin_cmds,
     camera_cmds, vision_cmds, pick_cmd, demo, motor_cmd, dashboard_cmd, board_cmds, base_cmds,
     lidar_cmds, map_cmds, line_follow_cmd, transport_cmd, ros_cmds, robot_cmds, view_cmds,
+    track_cmd, stack_cmd,
 ):
     for _command in _module.COMMANDS:
         cli.add_command(_command)
 
 cli.add_command(bench)
+bench.add_command(bench_games_cmd.bench_track)
+bench.add_command(bench_games_cmd.bench_stack)
 # `vision locate` needs the arm; the rest of `vision` does not.
 vision_cmds.vision.add_command(locate_cmd.locate)
 # `arm poses` and `actions list` are kept out of arm_cmds and actions_cmds.

@@ -22,8 +22,15 @@ import numpy.typing as npt
 from busarm.arm.config import CAMERA_JOINT_INDEX
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import ConfigError, UnreachableError, VisionError
-from busarm.perception.obstacles import Obstacle, find_obstacles
-from busarm.perception.split import top_faces_mm
+from busarm.perception.obstacles import Obstacle, cast_obstacle, find_obstacles
+from busarm.perception.shape import (
+    ROUND_FROM_PX,
+    WHOLE_SHARE,
+    Shape,
+    cubes_explain,
+    judge_blobs,
+)
+from busarm.perception.split import Grid, cast_cube_extent, edge_yaw_deg, top_faces_mm
 from busarm.units import check_range
 from busarm.vision.calibration import CameraIntrinsics, HandEyeResult
 from busarm.vision.color import ColorDetector, Detection
@@ -42,14 +49,20 @@ __all__ = [
     "CAMERA_LINK",
     "CAMERA_LINK_NAME",
     "CUT_AREA_FRACTION",
+    "HIDDEN_SIZE_MM",
+    "JUDGED_SHARE",
+    "MATCH_PX",
     "MATCH_RADIUS_MM",
     "MAX_CAMERA_OFFSET_MM",
     "MAX_SPLIT",
     "NOT_BLOCK_COLORS",
     "SIDES_SHOWN",
+    "SPLIT_EXPLAINS",
     "SPLIT_MIN_AREA",
     "BlockLocator",
     "FloatArray",
+    "Found",
+    "NotBlock",
     "Sighting",
     "link2base",
 ]
@@ -86,6 +99,17 @@ BIN_MARGIN_MM = 5.0
 """A tray is taken this much wider a side, not to see its rim's shadow as a thing."""
 MATCH_RADIUS_MM = 20.0
 """Sightings of one block in several pictures are closer than this."""
+MATCH_PX = 6.0
+"""... or, in pictures from one pose, their blobs' centroids are."""
+HIDDEN_SIZE_MM = 4.0
+"""A partly hidden block whose cube is this near the locator's size is taken at that size
+and located as before; one further off, as the cube that fits what shows of it."""
+JUDGED_SHARE = 0.8
+"""Things are judged by their shape in this share of the picture about its middle only
+(near its edge, the lens's calibration and the steep view measure worst)."""
+SPLIT_EXPLAINS = 0.8
+"""Touching blocks split out of one blob are kept if their silhouettes cover the blob's
+outline this well (intersection over union): a thing of another shape is not them."""
 
 
 @dataclass(frozen=True)
@@ -106,6 +130,9 @@ class Sighting:
     reason: str = ""
     detections: tuple[Detection, ...] = field(default=(), repr=False)
     whole: bool = True
+    shape: Shape | None = field(default=None, repr=False)
+    """What its outline says it is (``busarm.perception.shape``; None: not judged, e.g.
+    one of several touching blocks, or cut by the picture's edge)."""
 
     def to_dict(self) -> dict[str, object]:
         loc = self.location
@@ -115,7 +142,31 @@ class Sighting:
             "frames": loc.frames, "spread_max_mm": round(loc.spread_max_mm, 2),
             "reachable": self.reachable, "top_down": self.top_down, "reason": self.reason,
             "centroid_px": [round(v, 2) for v in loc.centroid_px], "whole": self.whole,
+            "size_mm": round(loc.size_mm, 1),
+            "shape": None if self.shape is None else self.shape.verdict,
         }
+
+
+@dataclass(frozen=True)
+class NotBlock:
+    """A thing in a block's colour that its outline says is not a block (a cup, a pen)."""
+
+    color: str
+    shape: Shape
+    detection: Detection | None = field(default=None, repr=False)
+
+    @property
+    def xy_mm(self) -> tuple[float, float]:
+        return (self.shape.box.x_mm, self.shape.box.y_mm)
+
+
+@dataclass(frozen=True)
+class Found:
+    """What pictures show: the blocks (and things that may be: ``shape`` unsure), and the
+    things in a block's colour that are not blocks."""
+
+    blocks: list[Sighting]
+    not_blocks: list[NotBlock]
 
 
 def link2base(kin: ArmKinematics, joints_deg: Sequence[float]) -> FloatArray:
@@ -169,49 +220,166 @@ class BlockLocator:
             yaws.append((math.degrees(math.atan2(dy, dx)) + 45.0) % 90.0 - 45.0)
         return yaws
 
-    def locate(self, image: npt.NDArray[np.uint8], joints_deg: Sequence[float]
-               ) -> list[Sighting]:
-        """Every block in ``image``, taken with the arm at the measured ``joints_deg``."""
+    def locate(self, image: npt.NDArray[np.uint8], joints_deg: Sequence[float], *,
+               judge: bool = True) -> list[Sighting]:
+        """Every block in ``image``, taken with the arm at the measured ``joints_deg``;
+        ``judge``: each block seen whole and alone judged by its outline's shape and
+        measured (``busarm.perception.shape``): things that are not blocks left out."""
+        return self.find_in(image, joints_deg, judge=judge).blocks
+
+    def find_in(self, image: npt.NDArray[np.uint8], joints_deg: Sequence[float], *,
+                judge: bool = True, trays: Sequence[tuple[float, float, float]] = ()
+                ) -> Found:
+        """The blocks in ``image`` and (``judge``) the things in a block's colour that
+        are not blocks; what lies in ``trays`` (x, y, radius mm: sorted already, the
+        walls hiding it) is not judged."""
         h, w = image.shape[:2]
         detections = [d for d in self.detector.detect(image) if d.color not in NOT_BLOCK_COLORS]
         cam2base = self.cam2base(joints_deg)
         if not detections:
-            return []
+            return Found([], [])
         # Blocks of one colour that touch make one blob: such a blob is split into its
         # blocks by its size on the table, and each is located on its own.
         out: list[Sighting] = []
-        single = []
+        single, big = [], []
         # Only a blob larger than one block's top face can be (is split, costly) is tried.
         centres = _all_or_each(lambda ds: list(table_points_from_pixels(
             np.array([d.centroid_px for d in ds]), self.intrinsics, cam2base,
             self.table_z_mm + self.block_size_mm)), detections)
         for d, centre in zip(detections, centres, strict=True):
-            big = centre is not None and d.area_px > SPLIT_MIN_AREA * self._top_face_px(
-                centre, cam2base)
-            parts = self._split(d, cam2base) if big and not _touches_edge(d, w, h) else None
+            if centre is not None and not _touches_edge(d, w, h) and d.area_px > \
+                    SPLIT_MIN_AREA * self._top_face_px(centre, cam2base):
+                big.append(d)
+            else:
+                single.append(d)
+        if judge:
+            return self._judged_all(image, detections, single, big, cam2base, trays)
+        for d in big:
+            parts = self._split(d, cam2base)
             if parts is None:
                 single.append(d)
             else:
                 out += [self._sighting(d.color, loc, d) for loc in parts]
-        return out + self._locate_single(single, cam2base, w, h)
+        return Found(out + self._locate_single(single, cam2base, w, h), [])
+
+    def _judged_all(self, image: npt.NDArray[np.uint8], detections: Sequence[Detection],
+                    single: list[Detection], big: list[Detection], cam2base: FloatArray,
+                    trays: Sequence[tuple[float, float, float]]) -> Found:
+        """Every blob judged as one thing first (a block may be larger than the size
+        this locator was given); a large blob that is not one measured block may be
+        several touching ones: split, and the parts kept if cubes there explain its
+        outline (else it stays as judged: no block, or one not measured)."""
+        h, w = image.shape[:2]
+        first = self._judged(image, detections, self._locate_single(single + big, cam2base, w, h),
+                             cam2base, trays)
+        large = {id(d) for d in big}
+        blocks: list[Sighting] = []
+        not_blocks: list[NotBlock] = []
+        done: set[int] = set()
+        for s in first.blocks:
+            measured = s.shape is not None and s.shape.verdict != "hidden"
+            if id(s.detection) in large and not measured and s.detection is not None:
+                done.add(id(s.detection))
+                outline = s.detection.contour_px if s.shape is None \
+                    else s.shape.views[-1].outline_px
+                parts = self._explained_parts(s.detection, outline, cam2base)
+                blocks += [s] if parts is None else parts
+            else:
+                blocks.append(s)
+        for n in first.not_blocks:
+            parts = None
+            if n.detection is not None and id(n.detection) in large:
+                done.add(id(n.detection))
+                parts = self._explained_parts(n.detection, n.shape.views[-1].outline_px,
+                                              cam2base)
+            if parts is not None:
+                blocks += parts
+            elif id(n.detection) not in large or _a_thing(n.shape):
+                not_blocks.append(n)
+            # (else a crowd of touching blocks no split makes out: looked at again later)
+        for d in big:  # too large to be taken for one block at all
+            if id(d) not in done and all(s.detection is not d for s in first.blocks):
+                blocks += self._explained_parts(d, d.contour_px, cam2base) or []
+        return Found(blocks, not_blocks)
+
+    def _explained_parts(self, d: Detection, outline: npt.NDArray[np.int32],
+                         cam2base: FloatArray) -> list[Sighting] | None:
+        """The touching blocks split out of blob ``d`` if cubes of this locator's size
+        there explain the thing's ``outline``; else None."""
+        parts = self._split(d, cam2base)
+        size = self.block_size_mm
+        if parts is None or cubes_explain(
+                outline, [(p.x_mm, p.y_mm, p.yaw_deg, size) for p in parts], self.intrinsics,
+                cam2base, self.table_z_mm) < SPLIT_EXPLAINS:
+            return None
+        return [self._sighting(d.color, loc, d) for loc in parts]
+
+    def _judged(self, image: npt.NDArray[np.uint8], detections: Sequence[Detection],
+                found: list[Sighting], cam2base: FloatArray,
+                trays: Sequence[tuple[float, float, float]]) -> Found:
+        """``found`` with each whole blob of one block judged by its shape and measured
+        (located as the cube that fits its outline); things that are not blocks apart."""
+        blobs = [id(s.detection) for s in found]
+        h, w = image.shape[:2]
+        targets = [s for s in found if s.whole and s.detection is not None
+                   and blobs.count(id(s.detection)) == 1 and _inner(s.detection, w, h)
+                   and not any(math.hypot(s.location.x_mm - x, s.location.y_mm - y) < r
+                               for x, y, r in trays)]
+        shapes = judge_blobs(image, detections, [
+            (s.detection, (s.location.x_mm, s.location.y_mm, s.location.yaw_deg,
+                           s.location.size_mm)) for s in targets if s.detection is not None],
+            self.intrinsics, cam2base, self.table_z_mm)
+        judged = {id(s): shape for s, shape in zip(targets, shapes, strict=True)}
+        blocks, not_blocks = [], []
+        for s in found:
+            shape = judged.get(id(s))
+            if shape is None:
+                blocks.append(s)
+            elif shape.verdict == "hidden":
+                # What shows of it fits a cube: that cube, if its size is not the usual
+                # one (a block partly hidden among others is most likely the usual size).
+                usual = abs(shape.cube.length_mm - self.block_size_mm) <= HIDDEN_SIZE_MM
+                blocks.append(replace(s, shape=shape) if usual else self.measured(s, shape))
+            elif shape.verdict == "not a block":
+                not_blocks.append(NotBlock(s.color, shape, s.detection))
+            else:
+                blocks.append(self.measured(s, shape))
+        return Found(blocks, not_blocks)
+
+    def measured(self, seen: Sighting, shape: Shape) -> Sighting:
+        """``seen`` located and sized as the cube that fits ``shape``'s outlines best."""
+        cube = shape.cube
+        loc = replace(seen.location, x_mm=cube.x_mm, y_mm=cube.y_mm,
+                      z_mm=self.table_z_mm + cube.length_mm, size_mm=cube.length_mm,
+                      yaw_deg=(cube.yaw_deg + 45.0) % 90.0 - 45.0)
+        return replace(self._sighting(seen.color, loc, seen.detection, seen.detections),
+                       whole=seen.whole, shape=shape)
 
     def obstacles(self, image: npt.NDArray[np.uint8], joints_deg: Sequence[float],
                   bins: Sequence[tuple[float, float, float]] = (),
-                  blocks: Sequence[Sighting] = ()) -> list[Obstacle]:
+                  blocks: Sequence[Sighting] = (), not_blocks: Sequence[NotBlock] = ()
+                  ) -> list[Obstacle]:
         """Things in ``image`` that are not blocks (``busarm.perception.obstacles``), cast onto
         the table; ``bins``: (x, y, side mm) of each tray, and ``blocks``: the blocks
-        located in it, are not things (a block's side face in shade looks like no colour).
+        located in it, are not things (a block's side face in shade looks like no colour);
+        ``not_blocks``: things in a block's colour found in it that are not blocks.
         """
         cam2base = self.cam2base(joints_deg)
         outlines = [d.contour_px for d in self.detector.detect(image)]
-        boxes = [(b.location.x_mm, b.location.y_mm, self.block_size_mm, b.location.yaw_deg,
-                  self.block_size_mm) for b in blocks]
+        boxes = [(b.location.x_mm, b.location.y_mm, b.location.size_mm, b.location.yaw_deg,
+                  b.location.size_mm) for b in blocks]
         boxes += [(x, y, side + 2 * BIN_MARGIN_MM, 0.0, BIN_WALL_MM) for x, y, side in bins]
         for box in boxes:
             outline = self._box_outline_px(*box, cam2base)
             if outline is not None:
                 outlines.append(outline)
-        return find_obstacles(image, outlines, self.intrinsics, cam2base, self.table_z_mm)
+        found = find_obstacles(image, outlines, self.intrinsics, cam2base, self.table_z_mm)
+        for thing in not_blocks:
+            cast = cast_obstacle(thing.shape.views[-1].outline_px, self.intrinsics, cam2base,
+                                 self.table_z_mm)
+            if cast is not None:
+                found.append(cast)
+        return found
 
     def _box_outline_px(self, x_mm: float, y_mm: float, side_mm: float, yaw_deg: float,
                         height_mm: float, cam2base: FloatArray) -> npt.NDArray[np.int32] | None:
@@ -257,9 +425,9 @@ class BlockLocator:
                 out.append(replace(self._sighting(d.color, loc, d), whole=whole))
         return out
 
-    def _outline_grid(self, d: Detection, cam2base: FloatArray) -> _Grid | None:
+    def _outline_grid(self, d: Detection, cam2base: FloatArray) -> Grid | None:
         """The blob's outline cast onto the blocks' top plane, read as a grid of touching
-        blocks (see ``_Grid``); None if the outline cannot be cast.
+        blocks (see ``Grid``); None if the outline cannot be cast.
 
         Cast onto that plane, one block covers its top face plus the side faces the
         camera sees; n in a row cover n - 1 sides more. Lit from the side, a block's dark
@@ -278,13 +446,13 @@ class BlockLocator:
                                            cam2base, top)[:, :2]
         except VisionError:
             return None
-        yaw = _edge_yaw_deg(pts)
+        yaw = edge_yaw_deg(pts)
         a = math.radians(yaw)
         axes = np.array([[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]])
         rel = pts @ axes.T
         lo_blob, hi_blob = rel.min(axis=0), rel.max(axis=0)
         centre = ((lo_blob + hi_blob) / 2) @ axes
-        lo, hi = _cast_cube_extent(centre, axes, yaw, size, self.table_z_mm, cam2base[:3, 3])
+        lo, hi = cast_cube_extent(centre, axes, yaw, size, self.table_z_mm, cam2base[:3, 3])
         sides = (hi - lo) - size
         counts = tuple(max(1, round((ext - side / 2) / size))
                        for ext, side in zip(hi_blob - lo_blob, sides, strict=True))
@@ -293,7 +461,7 @@ class BlockLocator:
         first = lo_blob + size / 2 + shown * (-lo - size / 2)  # the first top face's centre
         # The sides reach out from a top face on the camera's side only: lo or hi is
         # the top's half side, and their sum is how far the sides reach, signed.
-        return _Grid(yaw, axes, (counts[0], counts[1]), first, shown, (lo_blob, hi_blob),
+        return Grid(yaw, axes, (counts[0], counts[1]), first, shown, (lo_blob, hi_blob),
                      lo + hi)
 
     def _split(self, d: Detection, cam2base: FloatArray) -> list[BlockLocation] | None:
@@ -345,7 +513,7 @@ class BlockLocator:
 
     def _sighting(self, color: str, loc: BlockLocation, detection: Detection | None,
                   detections: tuple[Detection, ...] = ()) -> Sighting:
-        z_grasp = self.table_z_mm + self.block_size_mm / 2
+        z_grasp = self.table_z_mm + loc.size_mm / 2
         top_down, reachable, reason = True, True, ""
         try:
             self.kin.ik_best(loc.x_mm, loc.y_mm, z_grasp, -90.0)
@@ -361,82 +529,65 @@ class BlockLocator:
                         ) -> list[Sighting]:
         """Blocks seen in several pictures, each located once per picture and averaged
         (a block seen in fewer than half of them is dropped as a glimpse)."""
+        return self.find(pictures).blocks
+
+    def find(self, pictures: Sequence[tuple[npt.NDArray[np.uint8], Sequence[float]]], *,
+             trays: Sequence[tuple[float, float, float]] = ()) -> Found:
+        """``locate_averaged``'s blocks, judged by their shapes in the last picture (a
+        block's location and size then the measured cube's), and the things in a block's
+        colour that are not blocks (``trays`` as ``find_in``)."""
         if not pictures:
             raise ConfigError("locate_averaged needs at least one picture")
         groups: list[list[Sighting]] = []
-        for image, joints in pictures:
-            for s in self.locate(image, joints):
+        last = Found([], [])
+        for k, (image, joints) in enumerate(pictures):
+            last = self.find_in(image, joints, judge=k == len(pictures) - 1, trays=trays)
+            for s in last.blocks:
                 for group in groups:
+                    # The same block in another picture from the same pose: about the
+                    # same place, or (one measured, one taken at the usual size) the same
+                    # place in the picture.
                     ref = group[0].location
-                    if group[0].color == s.color and math.hypot(
+                    if group[0].color == s.color and (math.hypot(
                             ref.x_mm - s.location.x_mm, ref.y_mm - s.location.y_mm
-                    ) < MATCH_RADIUS_MM:
+                    ) < MATCH_RADIUS_MM or math.dist(ref.centroid_px, s.location.centroid_px)
+                            < MATCH_PX):
                         group.append(s)
                         break
                 else:
                     groups.append([s])
         out = []
         for group in groups:
-            if 2 * len(group) < len(pictures):
+            if 2 * len(group) < len(pictures) or any(
+                    n.color == group[0].color and math.hypot(
+                        n.xy_mm[0] - group[0].location.x_mm, n.xy_mm[1] - group[0].location.y_mm)
+                    < MATCH_RADIUS_MM for n in last.not_blocks):
+                continue
+            dets = tuple(s.detection for s in group if s.detection is not None)
+            judged = [s for s in group if s.shape is not None]
+            if judged:  # measured: its own size and place (the others assumed a size)
+                out.append(replace(judged[-1], detections=dets,
+                                   location=replace(judged[-1].location, frames=len(group))))
                 continue
             loc = average_locations([s.location for s in group])
-            dets = tuple(s.detection for s in group if s.detection is not None)
             out.append(replace(self._sighting(group[0].color, loc, dets[-1] if dets else None,
                                               dets), whole=all(s.whole for s in group)))
-        return out
+        return Found(out, last.not_blocks)
 
 
-@dataclass(frozen=True)
-class _Grid:
-    """A blob's outline on the blocks' top plane read as ``counts`` touching blocks
-    along its ``axes`` (rows: unit vectors, base frame): the first top face's centre
-    (``first``, in the axes' coordinates) and how much of the side faces the camera sees
-    along each axis is in the blob (``shown``, 0..1)."""
-
-    yaw_deg: float
-    axes: FloatArray
-    counts: tuple[int, int]
-    first: FloatArray
-    shown: FloatArray
-    extent_uv_mm: tuple[FloatArray, FloatArray]
-    """The outline's (lowest, highest) place along the axes."""
-    cast_uv_mm: FloatArray
-    """How far the side faces the camera sees reach out from a top face, along the axes."""
-
-    def centre_mm(self, i: int, j: int, size_mm: float) -> tuple[float, float]:
-        """The centre (base frame) of the top face at place (i, j) of the grid."""
-        u, v = self.first + np.array([i * size_mm, j * size_mm])
-        x, y = u * self.axes[0] + v * self.axes[1]
-        return float(x), float(y)
+def _a_thing(shape: Shape) -> bool:
+    """Whether a large blob judged no block is one thing (seen whole, box-shaped or
+    round), not a crowd of touching blocks of one colour."""
+    return all(v.trusted_share >= WHOLE_SHARE for v in shape.views) and (
+        shape.box.fit_px <= ROUND_FROM_PX or shape.why.startswith("round"))
 
 
-def _edge_yaw_deg(points: FloatArray) -> float:
-    """The direction (deg, -45..45) most of an outline's length runs along, modulo 90:
-    a row of cubes' sides, whatever the row's own shape."""
-    edges = np.roll(points, -1, axis=0) - points
-    length = np.hypot(edges[:, 0], edges[:, 1])
-    angle4 = 4.0 * np.arctan2(edges[:, 1], edges[:, 0])
-    mean = math.atan2(float(np.sum(length * np.sin(angle4))),
-                      float(np.sum(length * np.cos(angle4))))
-    return (math.degrees(mean / 4.0) + 45.0) % 90.0 - 45.0
-
-
-def _cast_cube_extent(centre: FloatArray, axes: FloatArray, yaw_deg: float, size: float,
-                      table_z: float, camera: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """How far a cube at ``centre`` (turned ``yaw_deg``) reaches along each of ``axes``,
-    cast from the ``camera`` onto its top plane: (lowest, highest) per axis, from the
-    centre (mm)."""
-    a = math.radians(yaw_deg)
-    u, v = np.array([math.cos(a), math.sin(a)]), np.array([-math.sin(a), math.cos(a)])
-    top = table_z + size
-    corners = [centre + su * size / 2 * u + sv * size / 2 * v for su in (-1, 1)
-               for sv in (-1, 1)]
-    cast = list(corners)
-    for c in corners:  # a bottom corner, seen from the camera, lands further out on top
-        scale = (camera[2] - top) / (camera[2] - table_z)
-        cast.append(camera[:2] + (c - camera[:2]) * scale)
-    rel = (np.array(cast) - centre) @ axes.T
-    return rel.min(axis=0), rel.max(axis=0)
+def _inner(d: Detection, width_px: int, height_px: int) -> bool:
+    """Whether blob ``d`` lies in the picture's inner part (``JUDGED_SHARE`` of it), where
+    a lens calibrated to a fraction of a pixel measures a thing's sides well."""
+    u, v = d.centroid_px
+    return (abs(u - width_px / 2) <= JUDGED_SHARE * width_px / 2
+            and abs(v - height_px / 2) <= JUDGED_SHARE * height_px / 2)
 
 
 def _touches_edge(d: Detection, width_px: int, height_px: int) -> bool:

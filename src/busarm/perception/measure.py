@@ -33,17 +33,30 @@ import numpy.typing as npt
 from scipy.optimize import least_squares
 
 from busarm.errors import VisionError
+from busarm.perception.obstacles import (
+    ARM_DARK,
+    BRIGHT,
+    DARK,
+    TABLE_SATURATION,
+    WHITE_SATURATION,
+)
 from busarm.vision.calibration import CameraIntrinsics
 
 __all__ = [
+    "COLOURED",
     "GOOD_FIT_PX",
     "HULL_POINTS",
+    "KEPT_SHARE",
     "OUTLINE_POINTS",
+    "ROBUST_PX",
     "BoxFit",
+    "CylinderFit",
     "FloatArray",
+    "OutlineView",
+    "TablePixels",
     "fit_box",
-    "side_pixels",
-    "table_mask",
+    "fit_cylinder",
+    "table_pixels",
     "thing_outline",
 ]
 
@@ -51,6 +64,12 @@ FloatArray = npt.NDArray[np.float64]
 
 OUTLINE_POINTS = 64
 """Points taken along each view's outline (evenly by arc length)."""
+ROBUST_PX = 0.7
+"""Outline distances beyond this count less and less in the fit (a robust loss)."""
+KEPT_SHARE = 0.9
+"""The share of outline distances a fit is judged by (the rest may be a neighbour's)."""
+COLOURED = 60
+"""A pixel this much more saturated (0-255) than the table is something on it."""
 GOOD_FIT_PX = 0.6
 """A fit this close (RMS px) is taken as found; a worse one is tried from another start."""
 HULL_POINTS = 32
@@ -78,6 +97,9 @@ class BoxFit:
     fit_px: float
     """RMS distance (px) between the measured outlines and the box's."""
     views: int
+    view_fit_px: tuple[float, ...] = ()
+    """``fit_px`` of each view alone (a view from the side tells heights apart that one
+    from above cannot: together they would blur it)."""
 
     @property
     def sides_mm(self) -> tuple[float, float, float]:
@@ -90,11 +112,30 @@ class BoxFit:
 
 
 @dataclass(frozen=True)
+class OutlineView:
+    """One picture's outline of a thing (px, in order) and where the camera was
+    (``cam2base``); ``trusted``: per outline point, False where the outline borders
+    another thing (a neighbour hides the thing there: the outline is the neighbour's)."""
+
+    outline_px: npt.NDArray[np.int32]
+    cam2base: FloatArray
+    trusted: npt.NDArray[np.bool_] | None = None
+
+    def __repr__(self) -> str:
+        kept = "" if self.trusted is None else f", {int(self.trusted.sum())} trusted"
+        return f"OutlineView({len(self.outline_px)} outline points{kept})"
+
+    @property
+    def trusted_share(self) -> float:
+        return 1.0 if self.trusted is None else float(np.mean(self.trusted))
+
+
+@dataclass(frozen=True)
 class _View:
     outline: FloatArray
-    """(N, 2) outline points, undistorted normalised."""
-    segments: tuple[FloatArray, FloatArray]
-    """The outline as a closed polyline: starts and ends (M, 2)."""
+    """(N, 2) outline points, undistorted normalised, evenly along it (a closed polyline)."""
+    weight: FloatArray
+    """(N,) 1 where the outline point (and the segment from it) is the thing's, else 0."""
     base2cam: FloatArray
     scale_px: float
     """Pixels per normalised unit (fx)."""
@@ -109,25 +150,45 @@ def _resample(contour: FloatArray, count: int) -> FloatArray:
     return np.column_stack([np.interp(at, arc, closed[:, 0]), np.interp(at, arc, closed[:, 1])])
 
 
-def _view(contour_px: npt.ArrayLike, cam2base: FloatArray, intr: CameraIntrinsics) -> _View:
-    c = np.asarray(contour_px, dtype=np.float64).reshape(-1, 2)
+def _view(view: OutlineView, intr: CameraIntrinsics) -> _View:
+    c = np.asarray(view.outline_px, dtype=np.float64).reshape(-1, 2)
     if c.shape[0] < 4:
         raise VisionError(f"an outline of {c.shape[0]} points is too short to fit a box to")
-    poly = cv2.approxPolyDP(c.astype(np.float32).reshape(-1, 1, 2), 1.0, True).reshape(-1, 2)
-    poly_n = intr.normalized_from_pixels(poly.astype(np.float64))
-    pts = intr.normalized_from_pixels(_resample(c, OUTLINE_POINTS))
-    base2cam: FloatArray = np.linalg.inv(cam2base)
-    return _View(pts, (poly_n, np.roll(poly_n, -1, axis=0)), base2cam, float(intr.fx))
+    samples = _outward(_resample(c, OUTLINE_POINTS), 0.5)
+    weight: FloatArray = np.ones(OUTLINE_POINTS)
+    if view.trusted is not None:
+        # Each sample takes its nearest outline point's trust.
+        nearest = np.argmin(((samples[:, None, :] - c[None]) ** 2).sum(axis=2), axis=1)
+        own: FloatArray = np.asarray(view.trusted, dtype=np.float64)[nearest]
+        weight = np.asarray(np.minimum(own, np.roll(own, -1)), dtype=np.float64)  # both ends
+    base2cam = np.asarray(np.linalg.inv(np.asarray(view.cam2base, dtype=np.float64)), np.float64)
+    return _View(intr.normalized_from_pixels(samples), weight, base2cam, float(intr.fx))
 
 
-def _segment_distances(points: FloatArray, starts: FloatArray, ends: FloatArray) -> FloatArray:
-    """Each point's distance to the nearest of the segments (starts -> ends)."""
+def _outward(points: FloatArray, by_px: float) -> FloatArray:
+    """A closed outline moved ``by_px`` outward: a traced outline runs through its edge
+    pixels' centres, half a pixel inside the thing's edge."""
+    tangent = np.roll(points, -1, axis=0) - np.roll(points, 1, axis=0)
+    normal = np.column_stack([tangent[:, 1], -tangent[:, 0]])
+    normal /= np.maximum(np.hypot(normal[:, 0], normal[:, 1]), 1e-9)[:, None]
+    x, y = points[:, 0], points[:, 1]
+    area = 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+    # (dy, -dx) points outward for a counter-clockwise outline in y-up terms; image rows
+    # run down, so the sign of the area decides.
+    out: FloatArray = points + (-by_px if area < 0 else by_px) * normal
+    return out
+
+
+def _segment_distances(points: FloatArray, starts: FloatArray, ends: FloatArray
+                       ) -> tuple[FloatArray, npt.NDArray[np.intp]]:
+    """Each point's distance to the nearest of the segments (starts -> ends), and which."""
     d = ends - starts
     rel = points[:, None, :] - starts[None]
     t = np.clip((rel * d).sum(axis=2) / np.maximum((d * d).sum(axis=1), 1e-18), 0.0, 1.0)
     gap = rel - t[..., None] * d
-    out: FloatArray = np.sqrt((gap * gap).sum(axis=2).min(axis=1))
-    return out
+    squared = (gap * gap).sum(axis=2)
+    nearest = squared.argmin(axis=1)
+    return np.sqrt(squared[np.arange(len(points)), nearest]), nearest
 
 
 def _box_corners(p: FloatArray, table_z_mm: float) -> FloatArray:
@@ -141,8 +202,20 @@ def _box_corners(p: FloatArray, table_z_mm: float) -> FloatArray:
 
 
 def _residuals(p: FloatArray, views: Sequence[_View], table_z_mm: float) -> FloatArray:
-    corners = _box_corners(p, table_z_mm)
-    out = []
+    return _weighted(p, views, table_z_mm)[0]
+
+
+def _weighted(p: FloatArray, views: Sequence[_View], table_z_mm: float
+              ) -> tuple[FloatArray, FloatArray]:
+    """The fit's residuals (px) for box ``p``, and each one's weight (0: untrusted)."""
+    return _outline_misfit(_box_corners(p, table_z_mm), views)
+
+
+def _outline_misfit(corners: FloatArray, views: Sequence[_View]
+                    ) -> tuple[FloatArray, FloatArray]:
+    """How far each view's outline is from the outline (convex hull) of a convex thing
+    with these ``corners`` (N x 3, mm, base frame): residuals (px) and weights."""
+    out, weights = [], []
     for v in views:
         cam = corners @ v.base2cam[:3, :3].T + v.base2cam[:3, 3]
         z = np.maximum(cam[:, 2], 1.0)  # a corner behind the camera: no fit (kept finite)
@@ -151,65 +224,210 @@ def _residuals(p: FloatArray, views: Sequence[_View], table_z_mm: float) -> Floa
         # float64, so that the fit's small steps are not lost to rounding.
         index = cv2.convexHull(img.astype(np.float32), returnPoints=False).ravel()
         hull = img[index]
-        out.append(_segment_distances(v.outline, hull, np.roll(hull, -1, axis=0)) * v.scale_px)
-        out.append(_segment_distances(_resample(hull, HULL_POINTS), *v.segments) * v.scale_px)
-    return np.concatenate(out)
+        ends = np.roll(hull, -1, axis=0)
+        to_hull, _ = _segment_distances(v.outline, hull, ends)
+        # Where the outline is a neighbour's, the thing may go on behind the neighbour:
+        # the box must reach the outline there (no point of it outside the box), but may
+        # reach beyond it; the box's outline there says nothing.
+        edge = ends - hull
+        rel = v.outline[:, None, :] - hull[None]
+        cross = edge[None, :, 0] * rel[..., 1] - edge[None, :, 1] * rel[..., 0]
+        turn = float(np.sum(hull[:, 0] * ends[:, 1] - ends[:, 0] * hull[:, 1]))
+        outside = (cross * turn < 0).any(axis=1)
+        out.append(to_hull * np.where(v.weight > 0, 1.0, outside) * v.scale_px)
+        to_outline, nearest = _segment_distances(_resample(hull, HULL_POINTS), v.outline,
+                                                 np.roll(v.outline, -1, axis=0))
+        out.append(to_outline * v.weight[nearest] * v.scale_px)
+        weights += [v.weight, v.weight[nearest]]
+    return np.concatenate(out), np.concatenate(weights)
 
 
-def fit_box(views: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]], intrinsics: CameraIntrinsics,
-            table_z_mm: float, guess: tuple[float, float, float, float]) -> BoxFit:
+def fit_box(views: Sequence[OutlineView], intrinsics: CameraIntrinsics,
+            table_z_mm: float, guess: tuple[float, float, float, float], *,
+            aspect: float | None = None) -> BoxFit:
     """The box (standing on the table at ``table_z_mm``) whose outline matches each
-    ``(outline_px, cam2base)`` view; ``guess``: (x mm, y mm, yaw deg, side mm) to start
-    from. VisionError if an outline cannot be used."""
+    view's (its trusted part); ``guess``: (x mm, y mm, yaw deg, side mm) to start
+    from. ``aspect``: None for any box; else a square footprint and the height this
+    times its side (1: a cube). VisionError if an outline cannot be used."""
     if not views:
         raise VisionError("fit_box needs at least one view")
-    prepared = [_view(c, np.asarray(t, dtype=np.float64), intrinsics) for c, t in views]
+    prepared = [_view(v, intrinsics) for v in views]
     x0, y0, yaw0, side0 = guess
+    side0 = min(max(side0, 2.0), 399.0)
+    if aspect is None:
+        def residuals(q: FloatArray) -> FloatArray:
+            return _residuals(q, prepared, table_z_mm)
+        lower, upper, scale = _LOWER, _UPPER, _SCALE
+    else:
+        ratio = float(aspect)
+
+        def residuals(q: FloatArray) -> FloatArray:
+            return _residuals(np.array([*q, q[3], ratio * q[3]]), prepared, table_z_mm)
+        lower, upper, scale = _LOWER[:4], _UPPER[:4], _SCALE[:4]
     fit = None
     # A square's yaw is known modulo 90 deg only: a start 45 deg off can settle on a
     # box turned the wrong way, so a poor fit is tried again from the other diagonal.
     for turn_deg in (0.0, 45.0):
         start = np.array([x0, y0, math.radians(yaw0 + turn_deg), side0, side0, side0])
-        start[3:] = np.clip(start[3:], 2.0, 399.0)
-        tried = least_squares(_residuals, start, args=(prepared, table_z_mm),
-                              bounds=(_LOWER, _UPPER), x_scale=_SCALE, max_nfev=200)
+        tried = least_squares(residuals, start[:len(lower)], bounds=(lower, upper),
+                              x_scale=scale, max_nfev=200, loss="soft_l1", f_scale=ROBUST_PX)
         if fit is None or tried.cost < fit.cost:
             fit = tried
-        if math.sqrt(2.0 * fit.cost / fit.fun.size) < GOOD_FIT_PX:
+        if _fit_px(fit.fun) < GOOD_FIT_PX:
             break
     assert fit is not None
-    x, y, yaw, a, b, h = fit.x
-    rms = float(np.sqrt(np.mean(fit.fun ** 2)))
+    q = fit.x if aspect is None else np.array([*fit.x, fit.x[3], float(aspect) * fit.x[3]])
+    x, y, yaw, a, b, h = q
+    res, weight = _weighted(q, prepared, table_z_mm)
+    rms = _fit_px(res[weight > 0])
+    each = OUTLINE_POINTS + HULL_POINTS  # residuals per view, in order
+    per_view = tuple(_fit_px(r[w > 0]) for r, w in zip(
+        np.split(res, len(prepared)), np.split(weight, len(prepared)), strict=True))
+    assert res.size == each * len(prepared)
     if a < b:
         a, b, yaw = b, a, yaw + math.pi / 2
     yaw_deg = (math.degrees(yaw) + 90.0) % 180.0 - 90.0
-    return BoxFit(float(x), float(y), yaw_deg, float(a), float(b), float(h), rms, len(prepared))
+    return BoxFit(float(x), float(y), yaw_deg, float(a), float(b), float(h), rms, len(prepared),
+                  per_view)
 
 
-def table_mask(image: npt.NDArray[np.uint8], saturation: int = 40, dark: float = 0.55,
-               bright: float = 1.12) -> npt.NDArray[np.uint8]:
-    """255 where a pixel is not the table: saturated, or much darker or brighter than the
-    table's median brightness (busarm.perception.obstacles uses the same rule)."""
-    hsv = cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
-    s, v = hsv[..., 1], hsv[..., 2]
-    grey = v[s < saturation].astype(np.float64)
-    med = float(np.median(grey)) if grey.size else 128.0
-    mask = (s >= saturation) | (v < dark * med) | ((v > bright * med) & (s < saturation))
-    return mask.astype(np.uint8) * 255
+@dataclass(frozen=True)
+class CylinderFit:
+    """The upright cylinder that best explains a thing's outlines (mm, base frame)."""
+
+    x_mm: float
+    y_mm: float
+    diameter_mm: float
+    height_mm: float
+    fit_px: float
+
+    def __repr__(self) -> str:
+        return (f"CylinderFit({self.diameter_mm:.1f} mm across, {self.height_mm:.1f} mm tall"
+                f" at ({self.x_mm:.1f}, {self.y_mm:.1f}), fit {self.fit_px:.2f} px)")
+
+
+_CIRCLE = np.array([[math.cos(a), math.sin(a)]
+                    for a in np.linspace(0.0, 2 * math.pi, 24, endpoint=False)])
+
+
+def _cylinder_points(q: FloatArray, table_z_mm: float) -> FloatArray:
+    x, y, radius, height = q
+    ring = _CIRCLE * radius + (x, y)
+    out: FloatArray = np.vstack([np.column_stack([ring, np.full(len(ring), z)])
+                                 for z in (table_z_mm, table_z_mm + height)])
+    return out
+
+
+def fit_cylinder(views: Sequence[OutlineView], intrinsics: CameraIntrinsics,
+                 table_z_mm: float, guess: tuple[float, float, float]) -> CylinderFit:
+    """The upright cylinder (a cup, a disc) whose outline matches each view's best;
+    ``guess``: (x mm, y mm, diameter mm). A box's outline is straight-edged and a
+    cylinder's curved: which of the two fits better says which it is."""
+    if not views:
+        raise VisionError("fit_cylinder needs at least one view")
+    prepared = [_view(v, intrinsics) for v in views]
+    x0, y0, d0 = guess
+
+    def residuals(q: FloatArray) -> FloatArray:
+        return _outline_misfit(_cylinder_points(q, table_z_mm), prepared)[0]
+
+    start = np.array([x0, y0, min(max(d0 / 2, 1.0), 199.0), min(max(d0, 1.0), 399.0)])
+    fit = least_squares(residuals, start, bounds=([-np.inf, -np.inf, 0.5, 0.5],
+                                                  [np.inf, np.inf, 200.0, 400.0]),
+                        x_scale=[5.0, 5.0, 5.0, 5.0], max_nfev=200, loss="soft_l1",
+                        f_scale=ROBUST_PX)
+    res, weight = _outline_misfit(_cylinder_points(fit.x, table_z_mm), prepared)
+    x, y, radius, height = (float(v) for v in fit.x)
+    return CylinderFit(x, y, 2 * radius, height, _fit_px(res[weight > 0]))
+
+
+def _fit_px(residuals_px: FloatArray) -> float:
+    """How far an outline is from a box's: the RMS of the closest ``KEPT_SHARE`` of the
+    distances (where a thing's shadow joins it, the outline there is not the thing's; a
+    round thing is off all round)."""
+    if residuals_px.size == 0:
+        return math.inf
+    d = np.sort(np.abs(residuals_px))[:max(1, int(KEPT_SHARE * residuals_px.size))]
+    return float(np.sqrt(np.mean(d * d)))
+
+
+@dataclass(frozen=True)
+class TablePixels:
+    """A picture's pixels sorted against the table under them (255 masks)."""
+
+    shaded: npt.NDArray[np.uint8]
+    """Much darker than the table (a side in shade; a shadow is lighter) or much brighter
+    and unsaturated (something white), but not black (the arm's own links)."""
+    coloured: npt.NDArray[np.uint8]
+    """Much more coloured than the table (a warm lamp tints it: not saturation alone)."""
+    black: npt.NDArray[np.uint8]
+    hue: npt.NDArray[np.uint8]
+    """OpenCV's hue, 0..179."""
+
+    @property
+    def something(self) -> npt.NDArray[np.uint8]:
+        """Everything that is not the table."""
+        out: npt.NDArray[np.uint8] = self.shaded | self.coloured | self.black
+        return out
+
+
+def table_pixels(image: npt.NDArray[np.uint8]) -> TablePixels:
+    """``image``'s pixels against the table's brightness and tint, by
+    busarm.perception.obstacles' rules."""
+    hsv: npt.NDArray[np.uint8] = np.asarray(cv2.cvtColor(image, cv2.COLOR_BGR2HSV), np.uint8)
+    s, v = hsv[..., 1], hsv[..., 2].astype(np.float64)
+    table = _table_brightness(hsv)
+    black = v < ARM_DARK * table
+    shaded = ((v < DARK * table) | ((v > BRIGHT * table) & (s < WHITE_SATURATION))) & ~black
+    near = np.abs(v - table) < 0.1 * table
+    tint = float(np.median(s[near].astype(np.float64))) if near.any() else 0.0
+    coloured = (s > tint + COLOURED) & ~shaded & ~black
+
+    def u8(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.uint8]:
+        return mask.astype(np.uint8) * 255
+
+    return TablePixels(u8(shaded), u8(coloured), u8(black), np.asarray(hsv[..., 0]))
+
+
+def _table_brightness(hsv: npt.NDArray[np.uint8]) -> float:
+    """The table's brightness: the commonest brightness of the picture's pixels that are
+    not strongly coloured (the table fills most of a picture of it; a warm lamp tints it,
+    and the floor beyond its edge, dark, may fill a good part too)."""
+    plain = hsv[..., 2][hsv[..., 1] < 3 * TABLE_SATURATION]
+    if plain.size == 0:
+        plain = hsv[..., 2].ravel()
+    counts = np.bincount(plain.ravel(), minlength=256).astype(np.float64)
+    smooth = np.convolve(counts, np.ones(9) / 9.0, mode="same")
+    return float(max(int(np.argmax(smooth)), 1))
 
 
 def thing_outline(blob_contour_px: npt.ArrayLike, sides: npt.NDArray[np.uint8],
-                  grow_px: int) -> npt.NDArray[np.int32] | None:
+                  toward_px: tuple[float, float], grow_px: int) -> npt.NDArray[np.int32] | None:
     """The whole thing's outline: the colour blob with the ``sides`` pixels (255: not the
-    table and in no colour blob: a side in shade) within ``grow_px`` of it that connect to
-    it; None if the picture's edge cuts it."""
+    table and in no colour blob: a side in shade) that connect to it, swept up to
+    ``grow_px`` from it toward ``toward_px`` (the picture's point below the camera: a
+    thing's sides show on that side of its top); None if the picture's edge cuts it."""
     h, w = sides.shape[:2]
-    blob = np.zeros((h, w), np.uint8)
-    cv2.drawContours(blob, [np.asarray(blob_contour_px, np.int32).reshape(-1, 1, 2)], -1, 255,
-                     cv2.FILLED)
-    size = 2 * max(1, grow_px) + 1
-    near = cv2.dilate(blob, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size)))
-    thing = cv2.bitwise_or(blob, cv2.bitwise_and(near, sides))
+    c = np.asarray(blob_contour_px, np.int32).reshape(-1, 2)
+    x0, y0, bw, bh = cv2.boundingRect(c)
+    # Work in a window round the blob (the picture may be large, the blob is not).
+    pad = grow_px + 2
+    left, top = max(0, x0 - pad), max(0, y0 - pad)
+    right, bottom = min(w, x0 + bw + pad), min(h, y0 + bh + pad)
+    blob = np.zeros((bottom - top, right - left), np.uint8)
+    cv2.drawContours(blob, [(c - (left, top)).reshape(-1, 1, 2)], -1, 255, cv2.FILLED)
+    centre = np.array([x0 + bw / 2, y0 + bh / 2])
+    way = np.asarray(toward_px, dtype=np.float64) - centre
+    way = way / max(float(np.hypot(*way)), 1e-9)
+    swept: npt.NDArray[np.uint8] = blob.copy()
+    steps = max(1, grow_px // 2)
+    for k in range(1, steps + 1):
+        dx, dy = way * grow_px * k / steps
+        shift = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]], dtype=np.float32)
+        swept |= np.asarray(cv2.warpAffine(blob, shift, (blob.shape[1], blob.shape[0])),
+                            np.uint8)
+    swept = np.asarray(cv2.dilate(swept, np.ones((3, 3), np.uint8)), np.uint8)
+    thing = blob | (swept & sides[top:bottom, left:right])
     _, labels = cv2.connectedComponents(thing)
     inside = labels[blob > 0]
     keep = np.bincount(inside[inside > 0]).argmax() if inside.size else 0
@@ -217,18 +435,8 @@ def thing_outline(blob_contour_px: npt.ArrayLike, sides: npt.NDArray[np.uint8],
     contours, _ = cv2.findContours(part, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     if not contours:
         return None
-    c = max(contours, key=cv2.contourArea).reshape(-1, 2)
-    if c[:, 0].min() <= 0 or c[:, 1].min() <= 0 or c[:, 0].max() >= w - 1 \
-            or c[:, 1].max() >= h - 1:
+    out = max(contours, key=cv2.contourArea).reshape(-1, 2) + np.array([left, top])
+    if out[:, 0].min() <= 0 or out[:, 1].min() <= 0 or out[:, 0].max() >= w - 1 \
+            or out[:, 1].max() >= h - 1:
         return None
-    return np.asarray(c, np.int32)
-
-
-def side_pixels(image: npt.NDArray[np.uint8], blob_contours: Sequence[npt.ArrayLike]
-                ) -> npt.NDArray[np.uint8]:
-    """255 where a pixel may be a thing's side in shade: not the table, and in none of the
-    colour blobs (a neighbour's blob is the neighbour, not this thing's side)."""
-    mask = table_mask(image)
-    cv2.drawContours(mask, [np.asarray(c, np.int32).reshape(-1, 1, 2) for c in blob_contours],
-                     -1, 0, cv2.FILLED)
-    return mask
+    return np.asarray(out, np.int32)

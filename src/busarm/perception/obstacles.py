@@ -43,6 +43,7 @@ __all__ = [
     "FloatArray",
     "Obstacle",
     "View",
+    "cast_obstacle",
     "find_obstacles",
     "near_convex",
     "refine",
@@ -159,18 +160,32 @@ def find_obstacles(image: npt.NDArray[np.uint8], known: Sequence[npt.NDArray[np.
         cv2.drawContours(inside, [c], -1, 1, -1)
         if float(np.median(val[(inside > 0) & (mask > 0)])) < ARM_DARK * table:
             continue  # black: the arm itself
-        hull = cv2.convexHull(c).reshape(-1, 2).astype(np.float64)
-        try:
-            cast = table_points_from_pixels(hull, intrinsics, cam2base, table_z_mm)[:, :2]
-        except VisionError:
-            continue  # part of it above the horizon: no thing on the table
-        if math.hypot(*cast.mean(axis=0)) < BASE_KEEP_OUT_MM:
-            continue  # the arm's own base
         whole = not (pts[:, 0].min() <= 0 or pts[:, 1].min() <= 0 or pts[:, 0].max() >= w - 1)
-        out.append(Obstacle(_hull_mm(cast), whole))
+        thing = cast_obstacle(np.asarray(pts, np.int32), intrinsics, cam2base, table_z_mm,
+                              whole=whole)
+        if thing is not None:
+            out.append(thing)
     camera = np.asarray(cam2base[:3, 3], dtype=np.float64)
     return [replace(o, views=(View(o.corners, camera, table_z_mm),)) if o.whole else o
             for o in _merged(out)]
+
+
+def cast_obstacle(outline_px: npt.NDArray[np.int32], intrinsics: CameraIntrinsics,
+                  cam2base: FloatArray, table_z_mm: float, *, whole: bool = True
+                  ) -> Obstacle | None:
+    """A thing whose outline in the picture is ``outline_px``, cast onto the table (seen
+    from this camera, if ``whole``); None if it reaches above the horizon or is the arm's
+    own base."""
+    hull = cv2.convexHull(outline_px.reshape(-1, 1, 2)).reshape(-1, 2).astype(np.float64)
+    try:
+        cast = table_points_from_pixels(hull, intrinsics, cam2base, table_z_mm)[:, :2]
+    except VisionError:
+        return None  # part of it above the horizon: no thing on the table
+    if math.hypot(*cast.mean(axis=0)) < BASE_KEEP_OUT_MM:
+        return None  # the arm's own base
+    corners = _hull_mm(cast)
+    camera = np.asarray(cam2base[:3, 3], dtype=np.float64)
+    return Obstacle(corners, whole, (View(corners, camera, table_z_mm),) if whole else ())
 
 
 def refine(seen: Sequence[Obstacle], new: Sequence[Obstacle]) -> list[Obstacle]:

@@ -29,7 +29,10 @@ __all__ = [
     "RESOLUTION_MM",
     "SIDE_SHARES",
     "FloatArray",
+    "Grid",
     "TopPlane",
+    "cast_cube_extent",
+    "edge_yaw_deg",
     "top_faces_mm",
 ]
 
@@ -175,3 +178,56 @@ def _centred(left: npt.NDArray[np.float32], row: int, col: int, side: int) -> Fl
             break
         centre = centre + np.clip(shift, -side / 4, side / 4)
     return centre
+
+
+@dataclass(frozen=True)
+class Grid:
+    """A blob's outline on the blocks' top plane read as ``counts`` touching blocks
+    along its ``axes`` (rows: unit vectors, base frame): the first top face's centre
+    (``first``, in the axes' coordinates) and how much of the side faces the camera sees
+    along each axis is in the blob (``shown``, 0..1)."""
+
+    yaw_deg: float
+    axes: FloatArray
+    counts: tuple[int, int]
+    first: FloatArray
+    shown: FloatArray
+    extent_uv_mm: tuple[FloatArray, FloatArray]
+    """The outline's (lowest, highest) place along the axes."""
+    cast_uv_mm: FloatArray
+    """How far the side faces the camera sees reach out from a top face, along the axes."""
+
+    def centre_mm(self, i: int, j: int, size_mm: float) -> tuple[float, float]:
+        """The centre (base frame) of the top face at place (i, j) of the grid."""
+        u, v = self.first + np.array([i * size_mm, j * size_mm])
+        x, y = u * self.axes[0] + v * self.axes[1]
+        return float(x), float(y)
+
+
+def edge_yaw_deg(points: FloatArray) -> float:
+    """The direction (deg, -45..45) most of an outline's length runs along, modulo 90:
+    a row of cubes' sides, whatever the row's own shape."""
+    edges = np.roll(points, -1, axis=0) - points
+    length = np.hypot(edges[:, 0], edges[:, 1])
+    angle4 = 4.0 * np.arctan2(edges[:, 1], edges[:, 0])
+    mean = math.atan2(float(np.sum(length * np.sin(angle4))),
+                      float(np.sum(length * np.cos(angle4))))
+    return (math.degrees(mean / 4.0) + 45.0) % 90.0 - 45.0
+
+
+def cast_cube_extent(centre: FloatArray, axes: FloatArray, yaw_deg: float, size: float,
+                      table_z: float, camera: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """How far a cube at ``centre`` (turned ``yaw_deg``) reaches along each of ``axes``,
+    cast from the ``camera`` onto its top plane: (lowest, highest) per axis, from the
+    centre (mm)."""
+    a = math.radians(yaw_deg)
+    u, v = np.array([math.cos(a), math.sin(a)]), np.array([-math.sin(a), math.cos(a)])
+    top = table_z + size
+    corners = [centre + su * size / 2 * u + sv * size / 2 * v for su in (-1, 1)
+               for sv in (-1, 1)]
+    cast = list(corners)
+    for c in corners:  # a bottom corner, seen from the camera, lands further out on top
+        scale = (camera[2] - top) / (camera[2] - table_z)
+        cast.append(camera[:2] + (c - camera[:2]) * scale)
+    rel = (np.array(cast) - centre) @ axes.T
+    return rel.min(axis=0), rel.max(axis=0)

@@ -155,6 +155,10 @@ class Twin:
         self._renderers = Renderers(self.mujoco)
         self._closed = False
         self.slipped_s = 0.0
+        self.physics_hooks: list[Callable[[float, float], None]] = []
+        """Called as ``hook(t_s, chunk_s)`` under the twin's lock before each physics chunk
+        (``t_s``: the simulation's time, ``chunk_s``: how long the chunk lasts): what moves
+        on the twin's own clock and is not a servo (busarm.twin.mover's hand)."""
         self._find_parts()
 
         # Start: arm at rest in the start pose, servos holding it, blocks settled.
@@ -379,6 +383,8 @@ class Twin:
                 done += n
                 for act, start, end, lead in ramps:
                     d.ctrl[act] = start + (end - start) * done / steps + lead
+                for hook in self.physics_hooks:
+                    hook(float(d.time), n * m.opt.timestep)
                 mj.mj_step(m, d, nstep=n)
             self._read_sensors()
             if self.mobile is not None:

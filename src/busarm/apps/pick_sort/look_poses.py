@@ -55,11 +55,12 @@ def _plane_grid(kin: ArmKinematics) -> FloatArray:
 
 def look_pose(kin: ArmKinematics, cam2link: FloatArray, surface_z_mm: float,
               distance_mm: float, camera_mm: float, max_tilt_deg: float,
-              deck: tuple[float, float] = (0.0, 0.0)) -> Joints:
+              deck: tuple[float, float] = (0.0, 0.0), *, tilt_deg: float = 0.0) -> Joints:
     """Joints (base yaw 0, wrist roll 0) that aim the camera at the point ``distance_mm``
     straight ahead of the arm's axis on the surface at ``surface_z_mm``, from about
     ``camera_mm`` over it, the axis at most ``max_tilt_deg`` from straight down.
     ``deck``: (its reach from the axis, mm; the tool's least height over it, z 0).
+    ``tilt_deg``: the tilt preferred (0: straight down; more to see things' sides).
     UnreachableError if no pose on the grid does."""
     q = _plane_grid(kin)
     q2, q3, q4 = np.radians(q).T
@@ -94,7 +95,7 @@ def look_pose(kin: ArmKinematics, cam2link: FloatArray, surface_z_mm: float,
         raise UnreachableError(
             f"no look pose aims the camera at {distance_mm:.0f} mm ahead on the surface at "
             f"z {surface_z_mm:.0f} mm within {max_tilt_deg:g} deg of straight down")
-    cost = np.abs(height - camera_mm) + TILT_WEIGHT_MM * tilt + aim
+    cost = np.abs(height - camera_mm) + TILT_WEIGHT_MM * np.abs(tilt - tilt_deg) + aim
     best = int(np.argmin(np.where(ok, cost, math.inf)))
     shoulder, elbow, wrist = (float(v) for v in q[best])
     return 0.0, shoulder, elbow, wrist, 0.0

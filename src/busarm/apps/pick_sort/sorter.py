@@ -26,6 +26,7 @@ from __future__ import annotations
 import contextlib
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import numpy as np
 import numpy.typing as npt
@@ -107,11 +108,13 @@ class PickSorter:
         self.planner = GraspPlanner(arm.kin, locator.table_z_mm, locator.block_size_mm,
                                     self.settings.approach_mm, self.settings.carry_mm,
                                     pad_mm=arm.config.gripper.pad_mm)
-        self.pusher = PushPlanner(self.planner, [Footprint.square(x, y, 2 * BIN_RADIUS_MM, 0.0)
-                                                 for x, y in self.bins.values()])
+        self._bin_squares = [Footprint.square(x, y, 2 * BIN_RADIUS_MM, 0.0)
+                             for x, y in self.bins.values()]
+        self._planners: dict[float, GraspPlanner] = {}
         self.places = BinPlaces(self.bins, self.planner)
         self.view = TableView(arm, self.camera, locator, self.bins, self.survey_poses,
-                              self.settings, lambda step: self.on_step(step))
+                              self.settings, lambda step: self.on_step(step),
+                              lambda line: self.progress(line))
         self.records = BlockRecords()
         # The colour of the block in the fingers, from a good grip to its release.
         self._holding: str | None = None
@@ -176,7 +179,7 @@ class PickSorter:
         the next joint move sweeps over what stands on the table."""
         arm, s = self.arm, self.settings
         tool = arm.read_pose()
-        up = self.locator.table_z_mm + s.carry_mm + self.locator.block_size_mm
+        up = self.locator.table_z_mm + s.carry_mm + self.view.tallest_mm
         if tool.z_mm < up:
             try:
                 arm.move_line(tool.x_mm, tool.y_mm, up, tool.pitch_deg, tool.roll_deg,
@@ -191,8 +194,9 @@ class PickSorter:
         moved) if the arm cannot push it anywhere."""
         arm, s = self.arm, self.settings
         loc = target.location
-        push = self.pusher.plan(loc.x_mm, loc.y_mm, loc.yaw_deg, self._neighbours(target),
-                                self._gaps(), self.view.obstacles)
+        pusher = PushPlanner(self._planner_for(loc.size_mm), self._bin_squares)
+        push = pusher.plan(loc.x_mm, loc.y_mm, loc.yaw_deg, self._neighbours(target),
+                           self._gaps(loc.size_mm), self.view.obstacles)
         if push is None:
             return None
         how = "" if push.frees else " (a grasp may not clear it even there)"
@@ -246,7 +250,7 @@ class PickSorter:
             if stage is not None:
                 self._set_down(plan, stage, plan.gap_mm)
                 raise Restaged(stage)
-        placed = self._put_in_bin(target.color, plan)
+        placed = self._put_in_bin(target.color, plan, target.location.size_mm)
         if placed is None:
             return False, "the block slipped out during the carry", None, plan
         return True, "", placed, plan
@@ -262,7 +266,7 @@ class PickSorter:
         if self.view.thing_on_the_way((tool.x_mm, tool.y_mm), plan.above[:2]):
             # Over the thing that is not a block first, then down to the approach.
             over = (*plan.above[:2],
-                    self.locator.table_z_mm + OVER_THINGS_MM + self.locator.block_size_mm)
+                    self.locator.table_z_mm + OVER_THINGS_MM + self.view.tallest_mm)
             with contextlib.suppress(UnreachableError):
                 arm.move_to(*over, pitch, roll, speed_deg_s=s.joint_speed_deg_s)
         try:
@@ -274,14 +278,15 @@ class PickSorter:
         self.on_step("above")
         return ""
 
-    def _put_in_bin(self, color: str, plan: GraspPlan) -> tuple[float, float] | None:
+    def _put_in_bin(self, color: str, plan: GraspPlan, size_mm: float
+                    ) -> tuple[float, float] | None:
         """Carry the block held at ``plan``'s lift to its bin and let it go there; where it
         was put, or None if it slipped out on the way (the fingers opened again)."""
         arm, s = self.arm, self.settings
         z0, gap = self.locator.table_z_mm, plan.gap_mm
         # A second layer: carried higher over the first, set down just above it (a drop
         # from the first layer's height would bounce it off).
-        size, layer = self.locator.block_size_mm, self.places.next_layer(color)
+        size, layer = size_mm, self.places.next_layer(color)
         carry_z = z0 + s.carry_mm + layer * size
         release_z = z0 + (s.release_mm if layer == 0 else size + STACK_DROP_MM + size / 2)
         bx, by, _, square = self.places.next_spot(color, self.view.obstacles, gap, release_z)
@@ -301,15 +306,15 @@ class PickSorter:
 
     def _staging_spot(self, held: Sighting) -> tuple[float, float] | None:
         """Where to set ``held`` down to take it again straight down (``staging_spot``)."""
-        size = self.locator.block_size_mm
         loc = held.location
-        others = [Footprint.square(v.location.x_mm, v.location.y_mm, size,
+        size = loc.size_mm
+        others = [Footprint.square(v.location.x_mm, v.location.y_mm, v.location.size_mm,
                                    v.location.yaw_deg) for v in self.view.seen
                   if off_mm(v, loc.x_mm, loc.y_mm) > size / 2]
         bins = [Footprint.square(x, y, 2 * BIN_RADIUS_MM, 0.0) for x, y in self.bins.values()]
         room = size + 2 * (self.planner.pad_mm[0] + self.settings.finger_clearance_mm)
-        return staging_spot(self.planner, others, [*self.view.obstacles, *bins],
-                            self.view.things, self._gaps(), room)
+        return staging_spot(self._planner_for(size), others, [*self.view.obstacles, *bins],
+                            self.view.things, self._gaps(size), room)
 
     def _carry(self, plan: GraspPlan, end: tuple[float, float], carry_z: float,
                end_roll_deg: float) -> float:
@@ -319,7 +324,7 @@ class PickSorter:
         arm, s = self.arm, self.settings
         if self.view.thing_on_the_way(plan.lift[:2], end):
             carry_z = max(carry_z, self.locator.table_z_mm + OVER_THINGS_MM
-                          + self.locator.block_size_mm / 2)
+                          + self.view.tallest_mm / 2)
             # (Not straight up from here: it rises on the way over.)
             with contextlib.suppress(UnreachableError):
                 arm.move_line(*plan.lift[:2], carry_z, plan.pitch_deg, plan.roll_deg,
@@ -391,6 +396,9 @@ class PickSorter:
                     why = "not seen again"
                     break
                 looking_for = missing
+            # A record made before its thing was found to be no block is no block's.
+            report.blocks[:] = [o for o in report.blocks if o.outcome != "pending"
+                                or not self.view.is_not_block_at(o.color, o.found_mm)]
             for outcome in report.blocks:
                 if outcome.outcome == "pending":
                     outcome.outcome, outcome.reason = "failed", why
@@ -419,9 +427,15 @@ class PickSorter:
         self.check_servos()
         t0 = self.clock.now()
         closer = self.look_closer(target)
+        if closer is not None:
+            confirmed = self.view.confirm(closer)
+            if confirmed is None:  # not a block after all: no record, never touched
+                report.blocks.remove(outcome)
+                return True
+            closer = confirmed
         loc = target.location  # seen in part, even facing it: it may be farther out
         reason = self._why_not(closer) if closer is not None else self.planner.out_of_reach(
-            loc.x_mm, loc.y_mm, loc.yaw_deg, self.locator.block_size_mm / 2)
+            loc.x_mm, loc.y_mm, loc.yaw_deg, loc.size_mm / 2)
         if reason:  # seen better, it is out of reach after all
             outcome.outcome, outcome.reason = "skipped", reason
             self.progress(f"skip {target.color} at {_mm(outcome.found_mm)}: {reason}")
@@ -544,7 +558,7 @@ class PickSorter:
         if abs(pulses - g.closed_pulses) <= g.holding_margin_pulses:
             lost = f", the {self._holding} block lost" if self._holding else ""
             return f"closed on nothing{lost} ({said})"
-        if gap_mm > self.locator.block_size_mm + HOLD_SLACK_MM:
+        if gap_mm > self.view.tallest_mm + HOLD_SLACK_MM:
             return f"open ({said})"
         # Fingers a block's width apart: the block it took (kept until the gripper has
         # opened past it), or none it knows of.
@@ -573,20 +587,32 @@ class PickSorter:
     def _plan(self, target: Sighting) -> GraspPlan:
         """A grasp of ``target`` that keeps the fingers off every other block seen."""
         loc = target.location
-        return self.planner.plan(loc.x_mm, loc.y_mm, loc.yaw_deg, self._neighbours(target),
-                                 self._gaps(), self.view.things)
+        return self._planner_for(loc.size_mm).plan(
+            loc.x_mm, loc.y_mm, loc.yaw_deg, self._neighbours(target),
+            self._gaps(loc.size_mm), self.view.things)
+
+    def _planner_for(self, size_mm: float) -> GraspPlanner:
+        """Grasps of a block ``size_mm`` wide (the run's planner if it is that size)."""
+        size = round(size_mm, 1)
+        if abs(size - self.planner.block_mm) < 0.05:
+            return self.planner
+        if size not in self._planners:
+            self._planners[size] = replace(self.planner, block_mm=size)
+        return self._planners[size]
 
     def _neighbours(self, target: Sighting) -> list[Footprint]:
         """The footprints of every other block the last survey saw."""
-        loc, size = target.location, self.locator.block_size_mm
-        return [Footprint.square(v.location.x_mm, v.location.y_mm, size, v.location.yaw_deg)
+        loc, size = target.location, target.location.size_mm
+        return [Footprint.square(v.location.x_mm, v.location.y_mm, v.location.size_mm,
+                                 v.location.yaw_deg)
                 for v in self.view.seen
                 if not same_block(target.color, loc.x_mm, loc.y_mm, v)
                 and off_mm(v, loc.x_mm, loc.y_mm) > size / 2]
 
-    def _gaps(self) -> list[float]:
-        """How far apart the fingers may open for a grasp, widest first."""
-        return self.settings.gaps_mm(self.locator.block_size_mm)
+    def _gaps(self, size_mm: float) -> list[float]:
+        """How far apart the fingers may open for a grasp of a block ``size_mm`` wide,
+        widest first."""
+        return self.settings.gaps_mm(size_mm)
 
 
 def _mm(xy: tuple[float, float]) -> str:

@@ -9,25 +9,32 @@ from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import replace
 
 import numpy as np
 import numpy.typing as npt
 
 from busarm.apps.pick_sort.bins import BIN_RADIUS_MM
 from busarm.apps.pick_sort.footprint import Footprint
+from busarm.apps.pick_sort.look_poses import look_pose
 from busarm.apps.pick_sort.settings import PickSortSettings
 from busarm.arm import Arm
 from busarm.errors import ConfigError, UnreachableError
-from busarm.perception.locate import BlockLocator, Sighting
+from busarm.perception.locate import BlockLocator, NotBlock, Sighting
 from busarm.perception.obstacles import Obstacle, refine
+from busarm.perception.shape import judge
+from busarm.units import place_text
 from busarm.vision.camera import CameraSource
 
 __all__ = [
     "CARRY_CLEARANCE_MM",
     "MAX_EXTRA_LOOKS",
+    "OBLIQUE_CAMERA_MM",
+    "OBLIQUE_TILT_DEG",
     "OVER_THINGS_MM",
     "SAME_BLOCK_MM",
+    "SECOND_VIEW_DEG",
     "TableView",
     "off_mm",
     "same_block",
@@ -43,6 +50,14 @@ CARRY_CLEARANCE_MM = 25.0
 """A carry passing this close to such a thing goes over it."""
 MAX_EXTRA_LOOKS = 3
 """A survey looks this many more times at most, facing blocks cut by its pictures' edges."""
+OBLIQUE_TILT_DEG = 35.0
+"""A thing whose shape one picture leaves unsure is seen again from the side first, the
+camera this far from looking straight down (from above, a box's sides hide its height)."""
+OBLIQUE_CAMERA_MM = 230.0
+"""... from about this high over the thing."""
+SECOND_VIEW_DEG = 15.0
+"""A thing whose shape one picture leaves unsure is seen again with the base turned this
+far from facing it (well in the picture, its sides seen anew)."""
 
 
 class TableView:
@@ -50,12 +65,14 @@ class TableView:
 
     def __init__(self, arm: Arm, camera: CameraSource, locator: BlockLocator,
                  bins: Mapping[str, tuple[float, float]], survey_poses: Sequence[Sequence[float]],
-                 settings: PickSortSettings, on_step: Callable[[str], None]) -> None:
+                 settings: PickSortSettings, on_step: Callable[[str], None],
+                 on_note: Callable[[str], None] = lambda _: None) -> None:
         self.arm, self.camera, self.locator = arm, camera, locator
         self.bins = dict(bins)
         self.survey_poses = list(survey_poses)
         self.settings = settings
         self.on_step = on_step
+        self.on_note = on_note  # a line for the person watching
         self.clock = arm.clock
         # The last survey's pictures and what was found in each (for reports).
         self.last_survey: list[tuple[npt.NDArray[np.uint8], list[Sighting]]] = []
@@ -64,15 +81,17 @@ class TableView:
         # Things seen since the last survey began that are not blocks (cast on the table).
         self.obstacles: list[Footprint] = []
         self.things: list[Obstacle] = []  # the same, as seen (refined by each look)
+        # Things in a block's colour found not to be blocks (by their shape), kept for good.
+        self.not_blocks: list[NotBlock] = []
 
     def survey(self, facing: Sequence[tuple[float, float]] = ()) -> list[Sighting]:
         """Every block seen from the survey poses, merged (averaged per pose), then from
         poses turned to face what was cut by a picture's edge (the table may reach beyond
         the survey's pictures) and the points ``facing`` (x, y mm: where blocks were
         that the survey may not make out, a cluster of several seen from afar). A block
-        seen from several poses keeps its best sighting: whole rather than cut, then the
-        one nearest the middle of its picture (in bearing)."""
-        seen: list[tuple[tuple[bool, float], Sighting]] = []
+        seen from several poses keeps its best sighting: whole rather than cut, measured
+        rather than not, then the one nearest the middle of its picture (in bearing)."""
+        seen: list[tuple[tuple[bool, bool, float], Sighting]] = []
         self.last_survey = []
         looked: list[float] = []
         for k, pose in enumerate(self.survey_poses):
@@ -97,13 +116,15 @@ class TableView:
         self.seen = [sighting for _, sighting in seen]
         return self.seen
 
-    def _merge(self, seen: list[tuple[tuple[bool, float], Sighting]],
+    def _merge(self, seen: list[tuple[tuple[bool, bool, float], Sighting]],
                pose: Sequence[float], *, fresh: bool = False) -> None:
         """Look from ``pose`` and merge what is found into ``seen`` (see ``survey``)."""
         image, found = self.look(pose, fresh=fresh)
         self.last_survey.append((image, found))
         for new in found:
-            rank = (not new.whole, abs(_bearing_deg(new) - pose[0]))
+            # Whole before cut, measured (its size known) before not, then nearest the
+            # picture's middle.
+            rank = (not new.whole, not _judged(new), abs(_bearing_deg(new) - pose[0]))
             # A cut blob's location is rough: it may lie further from the whole one.
             radius = SAME_BLOCK_MM if new.whole else 2 * SAME_BLOCK_MM
             for i, (old_rank, old) in enumerate(seen):
@@ -115,6 +136,11 @@ class TableView:
             else:
                 seen.append((rank, new))
 
+    @property
+    def tallest_mm(self) -> float:
+        """The largest block seen (or the locator's size): what is carried is no taller."""
+        return max([self.locator.block_size_mm, *(v.location.size_mm for v in self.seen)])
+
     def thing_on_the_way(self, start: Sequence[float], end: Sequence[float]) -> bool:
         """Whether a thing that is not a block lies near the way from ``start`` to ``end``
         (x, y mm), taken as the base turns: bearing and radius changing evenly."""
@@ -122,7 +148,7 @@ class TableView:
             return False
         (r0, a0), (r1, a1) = ((math.hypot(x, y), math.atan2(y, x)) for x, y in (start, end))
         turn = (a1 - a0 + math.pi) % (2 * math.pi) - math.pi
-        size = self.locator.block_size_mm
+        size = self.tallest_mm
         for t in np.linspace(0.0, 1.0, 40):
             r, a = r0 + (r1 - r0) * t, a0 + turn * t
             here = Footprint.square(r * math.cos(a), r * math.sin(a), size, 0.0)
@@ -135,7 +161,7 @@ class TableView:
         from where the tool is to ``end`` (x, y mm) and the tool is lower than that."""
         arm, s = self.arm, self.settings
         tool = arm.read_pose()
-        over = self.locator.table_z_mm + OVER_THINGS_MM + self.locator.block_size_mm
+        over = self.locator.table_z_mm + OVER_THINGS_MM + self.tallest_mm
         if tool.z_mm >= over or not self.thing_on_the_way((tool.x_mm, tool.y_mm), end):
             return
         try:
@@ -159,12 +185,101 @@ class TableView:
         pictures = [(self.camera.read().image, arm.read_joints_deg())
                     for _ in range(s.survey_frames)]
         # Things that are not blocks, for the fingers and pushes to keep off.
-        found = self.locator.locate_averaged(pictures)
+        found = self.locator.find(pictures, trays=[(x, y, BIN_RADIUS_MM)
+                                                   for x, y in self.bins.values()])
+        for thing in found.not_blocks:
+            self.not_block(thing)
         self.things = refine([] if fresh else self.things, self.locator.obstacles(
             *pictures[-1], [(x, y, 2 * BIN_RADIUS_MM) for x, y in self.bins.values()],
-            found))
+            found.blocks, found.not_blocks))
         self.obstacles = [Footprint(o.corners) for o in self.things]
-        return pictures[-1][0], found
+        blocks = [v for v in found.blocks if not self.is_not_block(v)]
+        return pictures[-1][0], blocks
+
+    def not_block(self, thing: NotBlock) -> None:
+        """Remember ``thing`` as no block (said once)."""
+        if not any(old.color == thing.color and math.dist(old.xy_mm, thing.xy_mm)
+                   < SAME_BLOCK_MM for old in self.not_blocks):
+            self.not_blocks.append(thing)
+            self.on_note(f"the {thing.color} thing at {place_text(thing.xy_mm)} is not a "
+                         f"block ({thing.shape.why}): left alone")
+
+    def is_not_block(self, seen: Sighting) -> bool:
+        """Whether ``seen`` is where a thing found not to be a block was."""
+        return self.is_not_block_at(seen.color, (seen.location.x_mm, seen.location.y_mm))
+
+    def is_not_block_at(self, color: str, xy_mm: tuple[float, float]) -> bool:
+        """Whether a thing of ``color`` found not to be a block is at ``xy_mm``."""
+        return any(n.color == color and math.dist(n.xy_mm, xy_mm) < SAME_BLOCK_MM
+                   for n in self.not_blocks)
+
+    def confirm(self, target: Sighting) -> Sighting | None:
+        """``target`` if its outline showed a cube; else seen again from other poses
+        (``_other_looks``: its sides seen anew) until two pictures judge it: the block
+        (measured from both), or None if it is no block (or its shape stays unsure). A
+        thing hidden by its neighbours in every picture is taken as located (a block of
+        the usual size in a crowd of blocks)."""
+        if target.shape is not None and target.shape.verdict == "cube":
+            return target
+        seen = [target] if _judged(target) else []
+        last: Sighting | None = None
+        for again in self._other_looks(target):
+            if self.is_not_block(target):
+                return None
+            if again is None:
+                continue
+            last = again
+            if again.shape is not None and again.shape.verdict == "cube" and not seen:
+                return again
+            if _judged(again):
+                seen.append(again)
+            if len(seen) == 2:
+                return self._judged_twice(seen[0], seen[1])
+        if seen:  # one picture unsure and no other to settle it: not touched
+            assert seen[0].shape is not None
+            self.not_block(NotBlock(target.color, replace(
+                seen[0].shape, why=f"its shape is not sure ({seen[0].shape.why})")))
+            return None
+        return target if last is None else last
+
+    def _other_looks(self, target: Sighting) -> Iterator[Sighting | None]:
+        """``target`` seen from other poses (None where not seen there): from the side,
+        the camera tilted ``OBLIQUE_TILT_DEG`` (a thing's height shows in how much of
+        its sides a picture holds), then with the base turned ``SECOND_VIEW_DEG`` past
+        facing it."""
+        loc, arm = target.location, self.arm
+        bearing = math.degrees(math.atan2(loc.y_mm, loc.x_mm))
+        poses: list[tuple[float, ...]] = []
+        with contextlib.suppress(UnreachableError):
+            oblique = look_pose(arm.kin, self.locator.cam2link,
+                                self.locator.table_z_mm + loc.size_mm / 2,
+                                math.hypot(loc.x_mm, loc.y_mm), OBLIQUE_CAMERA_MM,
+                                OBLIQUE_TILT_DEG + 15.0, tilt_deg=OBLIQUE_TILT_DEG)
+            poses.append((bearing, *oblique[1:]))
+        survey = self.survey_poses[0]
+        poses += [(bearing + SECOND_VIEW_DEG, *survey[1:]),
+                  (bearing - SECOND_VIEW_DEG, *survey[1:])]
+        for pose in poses:
+            try:
+                seen_from = arm.config.check_joints(pose)
+            except ConfigError:
+                continue
+            _, found = self.look(seen_from)
+            again = [v for v in found if same_block(target.color, loc.x_mm, loc.y_mm, v,
+                                                    2 * SAME_BLOCK_MM)]
+            yield min(again, key=lambda v: off_mm(v, loc.x_mm, loc.y_mm)) if again else None
+
+    def _judged_twice(self, first: Sighting, second: Sighting) -> Sighting | None:
+        assert first.shape is not None and second.shape is not None
+        loc = second.location
+        shape = judge([*first.shape.views, *second.shape.views], self.locator.intrinsics,
+                      self.locator.table_z_mm, (loc.x_mm, loc.y_mm, loc.yaw_deg, loc.size_mm))
+        if shape.verdict != "cube":
+            verdict = shape if shape.verdict == "not a block" else replace(
+                shape, why=f"its shape is not sure from two views ({shape.why})")
+            self.not_block(NotBlock(first.color, verdict))
+            return None
+        return self.locator.measured(second, shape)
 
     def look_closer(self, target: Sighting, *, always: bool = False) -> Sighting | None:
         """The block as seen with the camera turned to face it, if the survey saw it more
@@ -202,6 +317,11 @@ class TableView:
     def in_a_bin(self, sighting: Sighting) -> bool:
         return any(math.hypot(sighting.location.x_mm - bx, sighting.location.y_mm - by)
                    < BIN_RADIUS_MM for bx, by in self.bins.values())
+
+
+def _judged(seen: Sighting) -> bool:
+    """Whether one picture measured ``seen`` whole (a cube, or unsure of its height)."""
+    return seen.shape is not None and seen.shape.verdict in ("cube", "unsure")
 
 
 def same_block(color: str, x_mm: float, y_mm: float, seen: Sighting,
