@@ -15,8 +15,13 @@ __all__ = [
     "BIN_RADIUS_MM",
     "BIN_SLOTS_MM",
     "IN_BIN_MM",
+    "SLOT_GAP_MM",
     "STACK_DROP_MM",
+    "TOP_SLACK_MM",
+    "TRAY_INSIDE_MM",
+    "WALL_CLEARANCE_MM",
     "BinPlaces",
+    "slot_offset_mm",
 ]
 
 
@@ -36,47 +41,99 @@ first, three blocks: a fourth would have a neighbour on both sides of both finge
 and the camera's view of it."""
 STACK_DROP_MM = 3.0
 """A block for the second layer is let go this far above the first layer's tops."""
+TRAY_INSIDE_MM = 41.0
+"""Half the inside of a tray (90 mm, 2 mm walls): a block's side stays this near its centre."""
+WALL_CLEARANCE_MM = 1.5
+"""... less this, not to lean on the wall."""
+SLOT_GAP_MM = 1.0
+"""Blocks side by side in a bin stand at least this far apart."""
+TOP_SLACK_MM = 6.0
+"""A block on the second layer is at most this much wider than the one it stands on."""
+
+
+def slot_offset_mm(slot: int, size_mm: float) -> tuple[float, float]:
+    """Where a block ``size_mm`` wide goes in ``slot`` (``BIN_SLOTS_MM``), from the bin's
+    centre: the slot's place, drawn in if the block would otherwise reach the wall."""
+    reach = min(1.0, (TRAY_INSIDE_MM - WALL_CLEARANCE_MM - size_mm / 2) / 20.0)
+    dx, dy = BIN_SLOTS_MM[slot]
+    return dx * max(reach, 0.0), dy * max(reach, 0.0)
 
 
 class BinPlaces:
     """Places in the ``bins`` (colour -> centre x, y mm), filled in ``BIN_PLACES``
-    order, for blocks set down by ``planner``'s arm."""
+    order, for blocks set down by ``planner``'s arm. A block too large for a place (it
+    would lean on a wall, or on the block beside it) takes the next that fits it; one on
+    the second layer stands on a block no smaller than itself less ``TOP_SLACK_MM``."""
 
     def __init__(self, bins: Mapping[str, tuple[float, float]], planner: GraspPlanner) -> None:
         self.bins = dict(bins)
         self.planner = planner
-        self._placed: dict[str, int] = {}
+        self._placed: dict[str, list[tuple[int, int, float]]] = {}
+        """Per colour, the places taken in order: (slot, layer, block size mm)."""
 
     @property
     def capacity(self) -> int:
-        """How many blocks a bin takes (``BIN_PLACES``)."""
+        """How many blocks of the usual size a bin takes (``BIN_PLACES``)."""
         return len(BIN_PLACES)
 
-    def is_full(self, color: str) -> bool:
-        return self._placed.get(color, 0) >= self.capacity
+    def count(self, color: str) -> int:
+        """How many blocks have been put in ``color``'s bin."""
+        return len(self._placed.get(color, []))
 
-    def next_layer(self, color: str) -> int:
-        """The layer the next block of ``color`` goes to (0, 1)."""
-        return BIN_PLACES[min(self._placed.get(color, 0), self.capacity - 1)][1]
+    def is_full(self, color: str, size_mm: float = 30.0) -> bool:
+        """Whether no place is left in ``color``'s bin for a block ``size_mm`` wide."""
+        return self._place(color, size_mm) is None
+
+    def next_layer(self, color: str, size_mm: float = 30.0) -> int:
+        """The layer the next block of ``color``, ``size_mm`` wide, goes to (0, 1)."""
+        place = self._place(color, size_mm)
+        return 1 if place is None else place[1]
+
+    def below_mm(self, color: str, size_mm: float = 30.0) -> float:
+        """The size of the block the next one of ``color`` stands on (0: the floor)."""
+        place = self._place(color, size_mm)
+        if place is None or place[1] == 0:
+            return 0.0
+        return next(size for slot, layer, size in self._placed[color]
+                    if slot == place[0] and layer == 0)
 
     def take_back(self, color: str) -> None:
         """The last place taken for ``color`` is free again (its block did not get there)."""
-        self._placed[color] -= 1
+        self._placed[color].pop()
+
+    def _place(self, color: str, size_mm: float) -> tuple[int, int] | None:
+        """The first free place of ``BIN_PLACES`` that a block ``size_mm`` wide fits."""
+        taken = self._placed.get(color, [])
+        for slot, layer in BIN_PLACES:
+            if any(s == slot and lay == layer for s, lay, _ in taken):
+                continue
+            if layer == 1 and not any(s == slot and lay == 0 and size + TOP_SLACK_MM >= size_mm
+                                      for s, lay, size in taken):
+                continue
+            dx, dy = slot_offset_mm(slot, size_mm)
+            if any(lay == layer and abs(dx - ox) < (size_mm + size) / 2 + SLOT_GAP_MM
+                   and abs(dy - oy) < (size_mm + size) / 2 + SLOT_GAP_MM
+                   for s, lay, size in taken for ox, oy in (slot_offset_mm(s, size),)):
+                continue
+            return slot, layer
+        return None
 
     def next_spot(self, color: str, things: Sequence[Footprint] = (), gap_mm: float = 0.0,
-                  release_z_mm: float = 0.0) -> tuple[float, float, int, float]:
-        """Where in the bin the next block of ``color`` goes (``BIN_PLACES``): x, y, its
-        layer (0, 1), and the wrist roll that squares it to the bin's walls with the
+                  release_z_mm: float = 0.0, size_mm: float = 30.0
+                  ) -> tuple[float, float, int, float]:
+        """Where in the bin the next block of ``color`` (``size_mm`` wide) goes: x, y,
+        its layer (0, 1), and the wrist roll that squares it to the bin's walls with the
         fingers clear of the blocks already beside it in that layer, and, opened
         ``gap_mm`` to let go at ``release_z_mm``, of ``things`` beside the bin."""
         bx, by = self.bins[color]
-        k = self._placed.get(color, 0)
-        if k >= self.capacity:
-            raise ConfigError(f"the {color} bin is full ({self.capacity} blocks)")
-        self._placed[color] = k + 1
-        slot, layer = BIN_PLACES[k]
-        dx, dy = BIN_SLOTS_MM[slot]
-        beside = [BIN_SLOTS_MM[other] for other, lay in BIN_PLACES[:k] if lay == layer]
+        place = self._place(color, size_mm)
+        if place is None:
+            raise ConfigError(f"the {color} bin is full ({self.count(color)} blocks)")
+        slot, layer = place
+        dx, dy = slot_offset_mm(slot, size_mm)
+        beside = [slot_offset_mm(other, size) for other, lay, size in self._placed.get(color, [])
+                  if lay == layer]
+        self._placed.setdefault(color, []).append((slot, layer, size_mm))
         square = self.planner.roll_squared_deg(bx + dx, by + dy, 0.0)
 
         def along_neighbours(roll: float) -> float:

@@ -243,7 +243,8 @@ class PickSorter:
             return False, missed, None, plan
         arm.move_line(*plan.lift, pitch, roll, speed_mm_s=s.line_speed_mm_s)
         self.on_step("lift")
-        if pitch != -90.0 and self.places.next_layer(target.color) == 1:
+        if pitch != -90.0 and self.places.next_layer(target.color,
+                                                     target.location.size_mm) == 1:
             # Taken tilted, it turns with the tool and would lean when set down straight:
             # a first layer forgives that, a second does not. Put down to be taken again.
             stage = self._staging_spot(target)
@@ -286,10 +287,12 @@ class PickSorter:
         z0, gap = self.locator.table_z_mm, plan.gap_mm
         # A second layer: carried higher over the first, set down just above it (a drop
         # from the first layer's height would bounce it off).
-        size, layer = size_mm, self.places.next_layer(color)
-        carry_z = z0 + s.carry_mm + layer * size
-        release_z = z0 + (s.release_mm if layer == 0 else size + STACK_DROP_MM + size / 2)
-        bx, by, _, square = self.places.next_spot(color, self.view.obstacles, gap, release_z)
+        size, layer = size_mm, self.places.next_layer(color, size_mm)
+        below = self.places.below_mm(color, size_mm)
+        carry_z = z0 + s.carry_mm + layer * below
+        release_z = z0 + (s.release_mm if layer == 0 else below + STACK_DROP_MM + size / 2)
+        bx, by, _, square = self.places.next_spot(color, self.view.obstacles, gap, release_z,
+                                                  size)
         carry_z = self._carry(plan, (bx, by), carry_z, square)
         self.on_step("carry")
         if not still_holding(arm):
@@ -570,8 +573,9 @@ class PickSorter:
         """Why this block is not to be picked ("" if it is)."""
         if sighting.color not in self.bins:
             return f"no bin for {sighting.color}"
-        if self.places.is_full(sighting.color):
-            return f"bin full: the {sighting.color} bin holds {self.places.capacity} blocks"
+        if self.places.is_full(sighting.color, sighting.location.size_mm):
+            held = self.places.count(sighting.color)
+            return f"bin full: the {sighting.color} bin holds {held} blocks"
         if not sighting.whole:
             return ""  # where it is, and so whether it is reached, is known after a closer look
         if not sighting.reachable:
