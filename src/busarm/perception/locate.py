@@ -322,9 +322,14 @@ class BlockLocator:
         blobs = [id(s.detection) for s in found]
         h, w = image.shape[:2]
         targets = [s for s in found if s.whole and s.detection is not None
-                   and blobs.count(id(s.detection)) == 1 and _inner(s.detection, w, h)
+                   and blobs.count(id(s.detection)) == 1
                    and not any(math.hypot(s.location.x_mm - x, s.location.y_mm - y) < r
                                for x, y, r in trays)]
+        # Near the picture's edge a thing is measured (a block's size and place), never
+        # judged: what looks like no block there is taken as before, and a cube is only
+        # a cube the sorter looks at again.
+        edge = {id(s) for s in targets if s.detection is not None
+                and not _inner(s.detection, w, h)}
         shapes = judge_blobs(image, detections, [
             (s.detection, (s.location.x_mm, s.location.y_mm, s.location.yaw_deg,
                            s.location.size_mm)) for s in targets if s.detection is not None],
@@ -333,6 +338,9 @@ class BlockLocator:
         blocks, not_blocks = [], []
         for s in found:
             shape = judged.get(id(s))
+            if shape is not None and id(s) in edge:
+                shape = None if shape.verdict in ("not a block", "hidden") else replace(
+                    shape, verdict="unsure", why=f"seen near the picture's edge: {shape.why}")
             if shape is None:
                 blocks.append(s)
             elif shape.verdict == "hidden":

@@ -23,7 +23,7 @@ from busarm.arm import Arm
 from busarm.errors import ConfigError, UnreachableError
 from busarm.perception.locate import BlockLocator, NotBlock, Sighting
 from busarm.perception.obstacles import Obstacle, refine
-from busarm.perception.shape import judge
+from busarm.perception.shape import Shape, judge
 from busarm.units import place_text
 from busarm.vision.camera import CameraSource
 
@@ -32,7 +32,9 @@ __all__ = [
     "MAX_EXTRA_LOOKS",
     "OBLIQUE_CAMERA_MM",
     "OBLIQUE_TILT_DEG",
+    "OVER_CAMERA_MM",
     "OVER_THINGS_MM",
+    "OVER_TILT_DEG",
     "SAME_BLOCK_MM",
     "SECOND_VIEW_DEG",
     "TableView",
@@ -55,6 +57,9 @@ OBLIQUE_TILT_DEG = 35.0
 camera this far from looking straight down (from above, a box's sides hide its height)."""
 OBLIQUE_CAMERA_MM = 230.0
 """... from about this high over the thing."""
+OVER_CAMERA_MM, OVER_TILT_DEG = 260.0, 15.0
+"""Then from over it, the camera this high and about this tilted: it in the middle of the
+picture, its size measured best."""
 SECOND_VIEW_DEG = 15.0
 """A thing whose shape one picture leaves unsure is seen again with the base turned this
 far from facing it (well in the picture, its sides seen anew)."""
@@ -215,32 +220,44 @@ class TableView:
 
     def confirm(self, target: Sighting) -> Sighting | None:
         """``target`` if its outline showed a cube; else seen again from other poses
-        (``_other_looks``: its sides seen anew) until two pictures judge it: the block
-        (measured from both), or None if it is no block (or its shape stays unsure). A
-        thing hidden by its neighbours in every picture is taken as located (a block of
-        the usual size in a crowd of blocks)."""
+        (``_other_looks``: its sides seen anew) and judged from every picture that
+        measured it, until they say: the block (measured from all), or None if it is no
+        block (or its shape stays unsure). A thing hidden by its neighbours in every
+        picture is taken as located (a block of the usual size in a crowd of blocks)."""
         if target.shape is not None and target.shape.verdict == "cube":
             return target
         seen = [target] if _judged(target) else []
         last: Sighting | None = None
+        verdict: Shape | None = None
         for again in self._other_looks(target):
             if self.is_not_block(target):
                 return None
             if again is None:
                 continue
             last = again
-            if again.shape is not None and again.shape.verdict == "cube" and not seen:
-                return again
-            if _judged(again):
-                seen.append(again)
-            if len(seen) == 2:
-                return self._judged_twice(seen[0], seen[1])
-        if seen:  # one picture unsure and no other to settle it: not touched
-            assert seen[0].shape is not None
+            if not _judged(again):
+                continue
+            seen.append(again)
+            assert again.shape is not None
+            verdict = again.shape if len(seen) == 1 else self._judged_all(seen)
+            if verdict.verdict == "cube":
+                return again if len(seen) == 1 else self.locator.measured(again, verdict)
+            if verdict.verdict == "not a block":
+                self.not_block(NotBlock(target.color, verdict))
+                return None
+        if verdict is not None:  # unsure from every picture: not touched
             self.not_block(NotBlock(target.color, replace(
-                seen[0].shape, why=f"its shape is not sure ({seen[0].shape.why})")))
+                verdict, why=f"its shape is not sure from {len(seen)} picture(s) "
+                             f"({verdict.why})")))
             return None
         return target if last is None else last
+
+    def _judged_all(self, seen: Sequence[Sighting]) -> Shape:
+        """The verdict on one thing from every picture that measured it."""
+        views = [view for v in seen if v.shape is not None for view in v.shape.views]
+        loc = seen[-1].location
+        return judge(views, self.locator.intrinsics, self.locator.table_z_mm,
+                     (loc.x_mm, loc.y_mm, loc.yaw_deg, loc.size_mm))
 
     def _other_looks(self, target: Sighting) -> Iterator[Sighting | None]:
         """``target`` seen from other poses (None where not seen there): from the side,
@@ -256,6 +273,12 @@ class TableView:
                                 math.hypot(loc.x_mm, loc.y_mm), OBLIQUE_CAMERA_MM,
                                 OBLIQUE_TILT_DEG + 15.0, tilt_deg=OBLIQUE_TILT_DEG)
             poses.append((bearing, *oblique[1:]))
+        with contextlib.suppress(UnreachableError):  # over it, a little from the side
+            over = look_pose(arm.kin, self.locator.cam2link,
+                             self.locator.table_z_mm + loc.size_mm / 2,
+                             math.hypot(loc.x_mm, loc.y_mm), OVER_CAMERA_MM,
+                             OBLIQUE_TILT_DEG + 15.0, tilt_deg=OVER_TILT_DEG)
+            poses.append((bearing, *over[1:]))
         survey = self.survey_poses[0]
         poses += [(bearing + SECOND_VIEW_DEG, *survey[1:]),
                   (bearing - SECOND_VIEW_DEG, *survey[1:])]
@@ -268,18 +291,6 @@ class TableView:
             again = [v for v in found if same_block(target.color, loc.x_mm, loc.y_mm, v,
                                                     2 * SAME_BLOCK_MM)]
             yield min(again, key=lambda v: off_mm(v, loc.x_mm, loc.y_mm)) if again else None
-
-    def _judged_twice(self, first: Sighting, second: Sighting) -> Sighting | None:
-        assert first.shape is not None and second.shape is not None
-        loc = second.location
-        shape = judge([*first.shape.views, *second.shape.views], self.locator.intrinsics,
-                      self.locator.table_z_mm, (loc.x_mm, loc.y_mm, loc.yaw_deg, loc.size_mm))
-        if shape.verdict != "cube":
-            verdict = shape if shape.verdict == "not a block" else replace(
-                shape, why=f"its shape is not sure from two views ({shape.why})")
-            self.not_block(NotBlock(first.color, verdict))
-            return None
-        return self.locator.measured(second, shape)
 
     def look_closer(self, target: Sighting, *, always: bool = False) -> Sighting | None:
         """The block as seen with the camera turned to face it, if the survey saw it more
