@@ -11,7 +11,7 @@ import math
 
 import cv2
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from busarm.apps.pick_sort.look_poses import look_pose
@@ -139,6 +139,7 @@ def test_round_things_fit_a_cylinder_better_than_any_box(
 
 @settings(max_examples=15, deadline=None)
 @given(places, st.floats(-45.0, 45.0), st.floats(20.0, 45.0))
+@example(where=(190.0, -16.75), yaw_deg=0.0, side=25.0)  # right below the camera
 def test_a_cube_is_judged_a_cube_from_two_views(where: tuple[float, float], yaw_deg: float,
                                                 side: float) -> None:
     """From one view a cube is a cube or unsure (never no block); with the sorter's

@@ -157,7 +157,7 @@ class NotBlock:
 
     @property
     def xy_mm(self) -> tuple[float, float]:
-        return (self.shape.box.x_mm, self.shape.box.y_mm)
+        return self.shape.xy_mm
 
 
 @dataclass(frozen=True)
@@ -288,7 +288,7 @@ class BlockLocator:
                 blocks.append(s)
         for n in first.not_blocks:
             parts = None
-            if n.detection is not None and id(n.detection) in large:
+            if n.detection is not None and id(n.detection) in large and n.shape.crowd:
                 done.add(id(n.detection))
                 parts = self._explained_parts(n.detection, n.shape.views[-1].outline_px,
                                               cam2base)

@@ -21,7 +21,7 @@ the same square) and says:
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import cv2
@@ -31,6 +31,7 @@ import numpy.typing as npt
 from busarm.errors import VisionError
 from busarm.perception.measure import (
     BoxFit,
+    CylinderFit,
     FloatArray,
     OutlineView,
     TablePixels,
@@ -71,10 +72,12 @@ ROUNDER_PX = 0.2
 """A cylinder that fits this much better than any box makes the thing round."""
 SQUARE_MIN = 0.8
 """A block's footprint: its shorter side at least this share of its longer."""
-HEIGHT_TOLERANCE = (0.35, 0.2)
+HEIGHT_TOLERANCE = (0.55, 0.2)
 """A block's height is its side within this share: as one picture measures it (the
-height is the least sure of its sizes: a camera's pose known to a fraction of a degree
-moves it most), and as two do. A box taller than a block is 1.4 times its side or more."""
+height is the least sure of its sizes: seen from above it hardly shows, and a camera's
+pose known to a fraction of a degree moves it most: a disc or a box twice a block's
+height is told at once, the rest is left unsure), and as two do. A box taller than a
+block is 1.4 times its side or more."""
 DECISIVE_PX = 0.3
 """One fit is clearly better than another when this much closer (RMS px)."""
 TALL, FLAT = 1.45, 0.6
@@ -106,6 +109,25 @@ class Shape:
     cube: BoxFit
     """The best cube."""
     views: tuple[OutlineView, ...]
+    crowd: bool = False
+    """Whether touching blocks could look so (irregular, not square, too big): a round
+    thing, or one of the wrong height, is no crowd of blocks."""
+    cylinder: CylinderFit | None = None
+    """The upright cylinder that fits a round thing."""
+
+    @property
+    def xy_mm(self) -> tuple[float, float]:
+        """Where the thing stands (its cylinder's centre if it is round)."""
+        if self.cylinder is not None:
+            return (self.cylinder.x_mm, self.cylinder.y_mm)
+        return (self.box.x_mm, self.box.y_mm)
+
+    @property
+    def reach_mm(self) -> float:
+        """How far the thing reaches from ``xy_mm`` on the table."""
+        if self.cylinder is not None:
+            return self.cylinder.diameter_mm / 2
+        return float(np.hypot(self.box.length_mm, self.box.width_mm)) / 2
 
     def __repr__(self) -> str:
         return f"Shape({self.verdict}: {self.why})"
@@ -120,32 +142,33 @@ def judge(views: Sequence[OutlineView], intrinsics: CameraIntrinsics, table_z_mm
     start = (box.x_mm, box.y_mm, box.yaw_deg, (box.length_mm + box.width_mm) / 2)
     cube = fit_box(pairs, intrinsics, table_z_mm, start, aspect=1.0)
 
-    def shape(verdict: Verdict, why: str) -> Shape:
-        return Shape(verdict, why, cube.length_mm, box, cube, tuple(views))
+    def shape(verdict: Verdict, why: str, crowd: bool = False) -> Shape:
+        return Shape(verdict, why, cube.length_mm, box, cube, tuple(views), crowd)
 
     side0 = (box.length_mm + box.width_mm) / 2
     footprint = f"{box.length_mm:.0f} x {box.width_mm:.0f} mm"
-    if box.fit_px > FIT_MAX_PX:
-        return shape("not a block", f"irregular: no box's outline is within "
-                                    f"{FIT_MAX_PX:g} px of it ({box.fit_px:.1f} px)")
-    if box.fit_px > ROUND_FROM_PX:
+    if box.fit_px > ROUND_FROM_PX:  # a round thing first: it is no crowd of blocks
         round_ = fit_cylinder(pairs, intrinsics, table_z_mm, (box.x_mm, box.y_mm, side0))
         if round_.fit_px < box.fit_px - ROUNDER_PX:
-            return shape("not a block", f"round: {round_!r} fits better than any box "
-                                        f"({box.fit_px:.2f} px)")
+            return replace(shape("not a block", f"round: {round_!r} fits better than any "
+                                                f"box ({box.fit_px:.2f} px)"), cylinder=round_)
+    if box.fit_px > FIT_MAX_PX:
+        return shape("not a block", f"irregular: no box's outline is within "
+                                    f"{FIT_MAX_PX:g} px of it ({box.fit_px:.1f} px)", True)
     if any(v.trusted_share < WHOLE_SHARE for v in views):
         # What shows may go on behind the neighbour: only a cube that cannot explain
         # what shows (of a block's size) rules it out.
         lo, hi = CUBE_SIDES_MM
         if cube.fit_px > FIT_MAX_PX or not lo <= cube.length_mm <= hi:
             return shape("not a block", f"no block's cube explains what shows of it "
-                                        f"(partly hidden: {cube!r})")
+                                        f"(partly hidden: {cube!r})", True)
         return shape("hidden", "partly hidden by a neighbour: not measured")
     if box.width_mm < SQUARE_MIN * box.length_mm:
-        return shape("not a block", f"not square: {footprint}")
+        return shape("not a block", f"not square: {footprint}", True)
     lo, hi = CUBE_SIDES_MM
     if not lo <= cube.length_mm <= hi:
-        return shape("not a block", f"{cube.length_mm:.0f} mm: blocks are {lo:g}-{hi:g} mm")
+        return shape("not a block", f"{cube.length_mm:.0f} mm: blocks are {lo:g}-{hi:g} mm",
+                     cube.length_mm > hi)
     side = (box.length_mm + box.width_mm) / 2
     tolerance = HEIGHT_TOLERANCE[0 if len(views) == 1 else 1]
     if abs(box.height_mm / side - 1.0) > tolerance and cube.fit_px - box.fit_px > DECISIVE_PX:

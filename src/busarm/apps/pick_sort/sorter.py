@@ -400,7 +400,7 @@ class PickSorter:
                     break
                 looking_for = missing
             # A record made before its thing was found to be no block is no block's.
-            report.blocks[:] = [o for o in report.blocks if o.outcome != "pending"
+            report.blocks[:] = [o for o in report.blocks if o.outcome == "sorted"
                                 or not self.view.is_not_block_at(o.color, o.found_mm)]
             for outcome in report.blocks:
                 if outcome.outcome == "pending":

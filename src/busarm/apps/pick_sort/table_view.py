@@ -215,8 +215,10 @@ class TableView:
 
     def is_not_block_at(self, color: str, xy_mm: tuple[float, float]) -> bool:
         """Whether a thing of ``color`` found not to be a block is at ``xy_mm``."""
-        return any(n.color == color and math.dist(n.xy_mm, xy_mm) < SAME_BLOCK_MM
-                   for n in self.not_blocks)
+        # Within the thing's own footprint (a disc is wider than a block), or as near as
+        # two sightings of a block are.
+        return any(n.color == color and math.dist(n.xy_mm, xy_mm)
+                   < max(SAME_BLOCK_MM, n.shape.reach_mm) for n in self.not_blocks)
 
     def confirm(self, target: Sighting) -> Sighting | None:
         """``target`` if its outline showed a cube; else seen again from other poses
