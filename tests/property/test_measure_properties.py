@@ -87,7 +87,7 @@ def _cylinder_surface(x: float, y: float, diameter: float, height: float) -> np.
 places = st.tuples(st.floats(130.0, 270.0), st.floats(-60.0, 60.0))
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=12, deadline=None)
 @given(places, st.floats(-45.0, 45.0), st.floats(20.0, 45.0))
 def test_a_cube_is_measured_from_its_outlines(where: tuple[float, float], yaw_deg: float,
                                               side: float) -> None:
@@ -109,7 +109,7 @@ def test_a_cube_is_measured_from_its_outlines(where: tuple[float, float], yaw_de
     assert abs(two.height_mm - side) < max(2.0, 0.12 * side), two
 
 
-@settings(max_examples=15, deadline=None)
+@settings(max_examples=8, deadline=None)
 @given(places, st.floats(-45.0, 45.0), st.floats(20.0, 40.0), st.floats(50.0, 90.0))
 def test_a_tall_box_is_measured_tall(where: tuple[float, float], yaw_deg: float,
                                      side: float, height: float) -> None:
@@ -124,7 +124,7 @@ def test_a_tall_box_is_measured_tall(where: tuple[float, float], yaw_deg: float,
     assert abs(fit.height_mm - height) < 3.0, fit
 
 
-@settings(max_examples=15, deadline=None)
+@settings(max_examples=8, deadline=None)
 @given(places, st.floats(30.0, 60.0), st.sampled_from([4.0, 35.0, 60.0]))
 def test_round_things_fit_a_cylinder_better_than_any_box(
         where: tuple[float, float], diameter: float, height: float) -> None:
@@ -137,7 +137,7 @@ def test_round_things_fit_a_cylinder_better_than_any_box(
     assert verdict.verdict == "not a block", verdict
 
 
-@settings(max_examples=15, deadline=None)
+@settings(max_examples=8, deadline=None)
 @given(places, st.floats(-45.0, 45.0), st.floats(20.0, 45.0))
 @example(where=(190.0, -16.75), yaw_deg=0.0, side=25.0)  # right below the camera
 def test_a_cube_is_judged_a_cube_from_two_views(where: tuple[float, float], yaw_deg: float,
@@ -154,7 +154,7 @@ def test_a_cube_is_judged_a_cube_from_two_views(where: tuple[float, float], yaw_
     assert shape.verdict == "cube" and abs(shape.side_mm - side) < 1.0, shape
 
 
-@settings(max_examples=15, deadline=None)
+@settings(max_examples=8, deadline=None)
 @given(places, st.floats(-45.0, 45.0),
        st.sampled_from([(30.0, 30.0, 70.0), (22.0, 22.0, 55.0), (100.0, 15.0, 15.0),
                         (40.0, 40.0, 6.0)]))

@@ -24,6 +24,7 @@ from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import ConfigError, UnreachableError, VisionError
 from busarm.perception.obstacles import Obstacle, cast_obstacle, find_obstacles
 from busarm.perception.shape import (
+    MIN_TRUSTED,
     ROUND_FROM_PX,
     WHOLE_SHARE,
     Shape,
@@ -280,7 +281,9 @@ class BlockLocator:
             measured = s.shape is not None and s.shape.verdict != "hidden"
             if id(s.detection) in large and not measured and s.detection is not None:
                 done.add(id(s.detection))
+                # (A crowd mostly hidden: its own blob, as before there was measuring.)
                 outline = s.detection.contour_px if s.shape is None \
+                    or s.shape.views[-1].trusted_share < MIN_TRUSTED \
                     else s.shape.views[-1].outline_px
                 parts = self._explained_parts(s.detection, outline, cam2base)
                 blocks += [s] if parts is None else parts
@@ -346,7 +349,8 @@ class BlockLocator:
             elif shape.verdict == "hidden":
                 # What shows of it fits a cube: that cube, if its size is not the usual
                 # one (a block partly hidden among others is most likely the usual size).
-                usual = abs(shape.cube.length_mm - self.block_size_mm) <= HIDDEN_SIZE_MM
+                usual = (abs(shape.cube.length_mm - self.block_size_mm) <= HIDDEN_SIZE_MM
+                         or shape.views[-1].trusted_share < MIN_TRUSTED)
                 blocks.append(replace(s, shape=shape) if usual else self.measured(s, shape))
             elif shape.verdict == "not a block":
                 not_blocks.append(NotBlock(s.color, shape, s.detection))

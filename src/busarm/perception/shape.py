@@ -86,7 +86,7 @@ WHOLE_SHARE = 0.97
 """An outline this much its own (not bordering another thing) shows the whole thing."""
 MIN_TRUSTED = 0.6
 """A thing is judged only if this share of its outline is its own (not bordering another
-thing); one hidden more by its neighbours is taken as the locator always took it."""
+thing); one hidden more by its neighbours is "hidden" (in a crowd of blocks)."""
 SIDE_HUE = 12
 """A side in shade keeps its colour's hue within this (OpenCV hue, 0..179)."""
 SIDE_GROW = 0.5
@@ -213,10 +213,15 @@ def judge_blobs(image: npt.NDArray[np.uint8], blobs: Sequence[Detection],
             continue
         view = OutlineView(outline, cam2base, _own_outline(outline, something))
         try:
-            out.append(judge([view], intrinsics, table_z_mm, guess)
-                       if view.trusted_share >= MIN_TRUSTED else None)
+            shape = judge([view], intrinsics, table_z_mm, guess)
         except VisionError:
             out.append(None)
+            continue
+        if view.trusted_share < MIN_TRUSTED and shape.verdict != "hidden":
+            # Mostly hidden by its neighbours: in a crowd, whatever the fit says.
+            shape = replace(shape, verdict="hidden",
+                            why="mostly hidden by its neighbours: not measured")
+        out.append(shape)
     return out
 
 

@@ -88,6 +88,8 @@ class TableView:
         self.things: list[Obstacle] = []  # the same, as seen (refined by each look)
         # Things in a block's colour found not to be blocks (by their shape), kept for good.
         self.not_blocks: list[NotBlock] = []
+        # Things no picture made out (colour, where): not touched, not reported.
+        self.unknown: list[tuple[str, tuple[float, float]]] = []
 
     def survey(self, facing: Sequence[tuple[float, float]] = ()) -> list[Sighting]:
         """Every block seen from the survey poses, merged (averaged per pose), then from
@@ -218,7 +220,8 @@ class TableView:
         # Within the thing's own footprint (a disc is wider than a block), or as near as
         # two sightings of a block are.
         return any(n.color == color and math.dist(n.xy_mm, xy_mm)
-                   < max(SAME_BLOCK_MM, n.shape.reach_mm) for n in self.not_blocks)
+                   < max(SAME_BLOCK_MM, n.shape.reach_mm) for n in self.not_blocks) or any(
+            c == color and math.dist(xy, xy_mm) < SAME_BLOCK_MM for c, xy in self.unknown)
 
     def confirm(self, target: Sighting) -> Sighting | None:
         """``target`` if its outline showed a cube; else seen again from other poses
@@ -252,7 +255,21 @@ class TableView:
                 verdict, why=f"its shape is not sure from {len(seen)} picture(s) "
                              f"({verdict.why})")))
             return None
+        if not any(self._in_a_crowd(v) for v in (target, last) if v is not None):
+            # No picture made it out, and no neighbour hides it: it is not touched.
+            self.on_note(f"the {target.color} thing at {place_text(target.location.xy_mm)} "
+                         f"could not be made out from any pose: left alone")
+            self.unknown.append((target.color, target.location.xy_mm))
+            return None
         return target if last is None else last
+
+    def _in_a_crowd(self, seen: Sighting) -> bool:
+        """Whether ``seen`` is hidden by its neighbours, or one of several touching blocks
+        split from one blob: a block of the usual size among others."""
+        if seen.shape is not None and seen.shape.verdict == "hidden":
+            return True
+        return seen.detection is not None and sum(
+            v.detection is seen.detection for v in self.seen) > 1
 
     def _judged_all(self, seen: Sequence[Sighting]) -> Shape:
         """The verdict on one thing from every picture that measured it."""
