@@ -138,6 +138,7 @@ __all__ = [
     "Terminated",
     "add_detail",
     "arm_options",
+    "calibration_options",
     "calibration_store",
     "check_writable",
     "halt_motor",
@@ -487,6 +488,22 @@ def check_writable(path: Path) -> None:
 
 
 DEFAULT_COLORS = "red,green,blue"
+
+
+def calibration_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """--intrinsics and --hand-eye: the wrist camera's calibration files (the robot's kept
+    ones by default; on the twin made first if there are none)."""
+    func = click.option("--hand-eye", "hand_eye",
+                        type=click.Path(dir_okay=False, exists=True, path_type=Path),
+                        default=None, help="Hand-eye calibration  [default: the one kept for "
+                                           "this robot; on the twin made first if there is "
+                                           "none]")(func)
+    func = click.option("--intrinsics",
+                        type=click.Path(dir_okay=False, exists=True, path_type=Path),
+                        default=None, help="Camera intrinsics  [default: the ones kept for "
+                                           "this robot; on the twin made first if there are "
+                                           "none]")(func)
+    return func
 
 
 def scene_options(func: Callable[..., Any]) -> Callable[..., Any]:

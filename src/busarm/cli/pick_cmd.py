@@ -23,6 +23,7 @@ from busarm.cli.common import (
     JobNotDone,
     Settings,
     add_detail,
+    calibration_options,
     calibration_store,
     check_writable,
     find_session,
@@ -97,13 +98,7 @@ def parse_survey(text: str, config: ArmConfig) -> list[tuple[float, ...]]:
 @scene_options
 @click.option("--camera", "camera_src", default=None,
               help="Camera source (on hardware: required)  [default: the twin's]")
-@click.option("--intrinsics", type=click.Path(dir_okay=False, exists=True, path_type=Path),
-              default=None, help="Camera intrinsics  [default: the ones kept for this robot; "
-                                 "on the twin made first if there are none]")
-@click.option("--hand-eye", "hand_eye", type=click.Path(dir_okay=False, exists=True,
-                                                         path_type=Path),
-              default=None, help="Hand-eye calibration  [default: the one kept for this "
-                                 "robot; on the twin made first if there is none]")
+@calibration_options
 @click.option("--bins", "bins_text", default=None,
               help="Where each colour goes, COLOUR=X,Y;... in mm  [default on the twin: its "
                    "trays]")

@@ -23,6 +23,7 @@ from busarm.cli.common import (
     ArmContext,
     RangeType,
     Settings,
+    calibration_options,
     calibration_store,
     keeping_what_was_done,
     pass_settings,
@@ -66,13 +67,7 @@ __all__ = [
               help="With --twin-mover walk: the walk's seed.")
 @click.option("--camera", "camera_src", default=None,
               help="Camera source (on hardware: required)  [default: the twin's]")
-@click.option("--intrinsics", type=click.Path(dir_okay=False, exists=True, path_type=Path),
-              default=None, help="Camera intrinsics  [default: the ones kept for this robot; "
-                                 "on the twin made first if there are none]")
-@click.option("--hand-eye", "hand_eye", type=click.Path(dir_okay=False, exists=True,
-                                                         path_type=Path),
-              default=None, help="Hand-eye calibration  [default: the one kept for this "
-                                 "robot; on the twin made first if there is none]")
+@calibration_options
 @click.option("--config", default="jetauto_pro", show_default=True,
               help="Arm description: a shipped name or a TOML file.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
