@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from busarm.errors import ConfigError
@@ -167,6 +167,7 @@ def test_a_seeded_arena_is_valid_and_the_same_for_the_same_seed(seed: int) -> No
 
 
 @given(SEEDS)
+@example(seed=5284)  # a long narrow room: the oval filling it turned too tight at its ends
 @FEW
 def test_boxes_and_tables_keep_clear_of_the_tape(seed: int) -> None:
     arena = random_arena(seed)

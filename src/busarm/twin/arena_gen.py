@@ -97,10 +97,16 @@ def distance_to_line_m(line: FloorLine, x_m: float, y_m: float) -> float:
 def _draw_loop(rng: random.Random, room: Room) -> FloorLine:
     cx, cy = (room.x_min_m + room.x_max_m) / 2, (room.y_min_m + room.y_max_m) / 2
     w, h = room.size_m
-    for _ in range(TRIES):
-        radii = (w / 2 - LOOP_MARGIN_M, h / 2 - LOOP_MARGIN_M)
-        pts = loop_points((cx, cy), (radii[0] / 1.15, radii[1] / 1.15), rng.choice((2, 3)),
-                          rng.uniform(0.05, 0.15), rng.uniform(0, 2 * math.pi))
+    radii = ((w / 2 - LOOP_MARGIN_M) / 1.15, (h / 2 - LOOP_MARGIN_M) / 1.15)
+    for attempt in range(2 * TRIES):
+        if attempt == TRIES:
+            # A long narrow room: an oval filling it turns tighter than the robot can follow
+            # at its ends (an ellipse's tightest radius is short**2 / long), so shorten it.
+            short = min(radii)
+            long_most = short * short / (1.3 * MIN_CURVE_RADIUS_M)
+            radii = (min(radii[0], long_most), min(radii[1], long_most))
+        pts = loop_points((cx, cy), radii, rng.choice((2, 3)), rng.uniform(0.05, 0.15),
+                          rng.uniform(0, 2 * math.pi))
         if min_curve_radius_m(pts) >= MIN_CURVE_RADIUS_M:
             return FloorLine(tuple(pts), 0.03, closed=True)
     raise ConfigError("no loop with gentle enough curves fits this room")  # pragma: no cover
