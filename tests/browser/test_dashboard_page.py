@@ -314,6 +314,16 @@ def test_pick_sort_runs_stops_and_links_its_report(page: Page, dashboard: Dashbo
     expect(page.locator("#job-last")).to_contain_text("move to look done", timeout=15_000)
 
 
+def test_sorting_by_size_without_bins_for_the_classes_is_refused_and_nothing_stops(
+        page: Page, dashboard: Dashboard) -> None:
+    open_page(page, dashboard)
+    page.locator("#pick-by").select_option("size")
+    page.locator("#pick-run").click()  # the twin's trays are named for colours
+    expect(page.locator("#toasts")).to_contain_text(
+        "sorting by size needs a bin named as a size class (small, medium, large)")
+    assert dashboard.api("state")["halted"] is None and dashboard.api("state")["job"] is None
+
+
 def test_page_reconnects_after_a_lost_connection(page: Page, dashboard: Dashboard) -> None:
     sockets: list[tuple[WebSocketRoute, WebSocketRoute]] = []
 

@@ -203,7 +203,8 @@ def test_a_block_that_failed_makes_pick_sort_exit_1_after_its_report(
     from busarm.apps.pick_sort.sorter import PickSorter
 
     keep_twin_calibration(Path(os.environ["XDG_CONFIG_HOME"]), twin_calibration)  # this test's
-    def missed(self: PickSorter, target: Any) -> tuple[bool, str, None, Any]:
+    def missed(self: PickSorter, target: Any, place: str | None = None
+               ) -> tuple[bool, str, None, Any]:
         return False, "the test's grasp missed", None, self._plan(target)
 
     monkeypatch.setattr(PickSorter, "pick_and_place", missed)
@@ -499,6 +500,19 @@ def test_a_bin_for_a_colour_not_sorted_is_said(home: dict[str, str]) -> None:
     assert result.stderr.splitlines()[0] == (
         "warning: --bins purple: not one of the colours to sort (red, green, blue; --colors "
         "chooses them); no block goes there"), result.stderr
+
+
+def test_sorting_rules_refuse_bad_options_before_anything_opens(home: dict[str, str]) -> None:
+    line = one_error(run("pick-sort", "--by", "size", "--bins", "red=60,180"), 2)
+    assert line == ("error: sorting by size needs a bin named as a size class (small, "
+                    "medium, large); bins given: red (--bins NAME=X,Y;...)"), line
+    line = one_error(run("pick-sort", "--tag-places", "0=red"), 2)
+    assert line == "error: --tag-places is for --by tag (not --by color)", line
+    line = one_error(run("pick-sort", "--by", "tag", "--tag-places", "0,x=red"), 2)
+    assert line == ("error: tag places '0,x=red': 'x' is not a tag id or a range of them "
+                    "(0..586)"), line
+    line = one_error(run("pick-sort", "--by", "size", "--blocks", "3"), 2)
+    assert line.startswith("error: --blocks 3: the seeded table for --by size has 4-6"), line
 
 
 @pytest.mark.wallclock("a network camera refused at once, in wall-clock time")

@@ -160,6 +160,7 @@ def test_state_streams_and_the_first_page_drives(server: Server) -> None:
     ('{"type": "play", "group": "../../etc/passwd"}', "expected 1..64 letters"),
     ('{"type": "gripper", "action": "crush"}', 'action = "crush"; allowed: open, close'),
     ('{"type": "rearm"}', "the robot is not stopped"),
+    ('{"type": "pick_sort", "by": "weight"}', 'by = "weight"; allowed: color, size, tag'),
     ("x" * 5000, "at most 4096"),
 ])
 def test_bad_requests_are_refused_and_nothing_moves(server: Server, text: str,

@@ -12,6 +12,7 @@ from click.testing import CliRunner
 
 from busarm.apps.stack.job import StackJob, check_ids
 from busarm.apps.stack.settings import StackSettings
+from busarm.apps.stack.tag_view import Keepout
 from busarm.bench.stack import MAX_OFF_MM, score_tower
 from busarm.cli.main import cli
 from busarm.errors import ConfigError
@@ -39,22 +40,38 @@ def _unmoved(before: list[BlockState], after: list[BlockState]) -> bool:
                for a, b in zip(before, after, strict=True))
 
 
-def test_three_tagged_blocks_are_stacked_in_id_order(
+def test_five_tagged_blocks_are_stacked_in_id_order_with_the_last_beyond_the_tower(
         twin_calibration: tuple[Path, Path]) -> None:
-    scene = tagged_scene(0, 3)
+    # Seed 16: every free spot stands in the arm's way to some block; the tower goes at
+    # (140, 0) mm and the last block lies beyond it. The look at that block keeps the tool
+    # over the four-high tower (the look chosen without it has the fingers in the tower),
+    # each block rises as high as straight up reaches before it is carried over the
+    # tower (a slanting rise went through it), and the tower stands whole.
+    scene = tagged_scene(16)
     ids = sorted(b.tag_id for b in scene.blocks if b.tag_id is not None)
     with _robot(twin_calibration, scene) as robot:
         lines: list[str] = []
-        report = StackJob(robot, progress=lines.append).run()
+        job = StackJob(robot, progress=lines.append)
+        report = job.run()
         truth = _truth(robot)
-        home = robot.config.pose("home")
         at_home = all(abs(a - b) < 2.0 for a, b in
-                      zip(robot.arm.read_joints_deg(), home, strict=True))
+                      zip(robot.arm.read_joints_deg(), robot.config.pose("home"), strict=True))
+        last, place = report.tower[-1], report.place_mm
+        assert place is not None and len(report.tower) == 5, report.text()
+        top_z = robot.config.table_z_mm + sum(b.size_mm for b in report.tower[:-1])
+        tower = Keepout(*place, 60.0, top_z + 25.0)
+        assert tower.deck(*last.found_mm)[0] > 0.0  # the tower stands in the way
+        surface_z = robot.config.table_z_mm + last.size_mm
+        kin, look_mm = robot.arm.kin, job.settings.look_mm
+        plain = kin.fk(job.view.pose_for(*last.found_mm, surface_z, look_mm))
+        kept = kin.fk(job.view.pose_for(*last.found_mm, surface_z, look_mm, tower))
+    assert math.hypot(plain.x_mm - place[0], plain.y_mm - place[1]) < tower.radius_mm
+    assert plain.z_mm < top_z
+    assert kept.z_mm >= tower.clear_z_mm
     assert report.end == "complete", report.text()
     assert report.order == ids and report.ids == ids
     complete, errors = score_tower(truth, [b.tag_id for b in scene.blocks], 0.0)
-    assert complete, (errors, truth)
-    assert max(errors) < MAX_OFF_MM / 2
+    assert complete and max(errors) < MAX_OFF_MM / 2, (errors, truth)
     # What it looked at agrees with the truth: the height is the sides added up, each
     # block within the re-placing tolerance of the axis, each side measured to a mm.
     assert report.height_mm == pytest.approx(sum(b.size_mm for b in scene.blocks), abs=2.0)
@@ -62,8 +79,7 @@ def test_three_tagged_blocks_are_stacked_in_id_order(
     assert all(b.size_mm == pytest.approx(scene.blocks[0].size_mm, abs=1.0)
                for b in report.tower)
     bottom = next(t for t in truth if scene.blocks[t.index].tag_id == ids[0])
-    assert report.place_mm is not None
-    assert math.hypot(bottom.x_mm - report.place_mm[0], bottom.y_mm - report.place_mm[1]) < 5.0
+    assert math.hypot(bottom.x_mm - place[0], bottom.y_mm - place[1]) < 5.0
     assert at_home and any("on the tower" in line for line in lines)
     data = report.to_dict()
     assert data["order"] == ids and data["end"] == "complete"

@@ -28,7 +28,7 @@ def _result(seed: int, in_bin: int, on_table: int, moved_mm: list[float]) -> Sce
                              "" if i < in_bin else "bin full", seconds=4.0)
                 for i in range(in_bin + on_table)]
     return SceneResult(task, {"red": BIN}, truth, outcomes, "", [0.5], 40.0, 4.0, 0.0,
-                       moved_mm)
+                       distractors_moved_mm=moved_mm)
 
 
 def test_blocks_beyond_a_full_bin_are_counted_apart() -> None:

@@ -32,14 +32,14 @@ from busarm.errors import BusArmError, ConfigError
 from busarm.robot import Robot
 from busarm.robot.description import CameraSpec, RobotConfig
 from busarm.twin.clutter import clutter_scene
-from busarm.twin.lookalike import lookalike_scene
+from busarm.twin.lookalike import lookalike_scene, sized_scene, tagged_scene
 from busarm.twin.scene import REACH_RADIUS_MM, Scene, random_scene
 from busarm.twin.spec import TwinSpec
 from busarm.twin.twin import BlockState
 from busarm.units import check_int_range
 
 if TYPE_CHECKING:
-    from busarm.apps.pick_sort.sorter import BlockOutcome
+    from busarm.apps.pick_sort.sorter import BlockOutcome, PickSorter
 
 __all__ = [
     "DISTRACTOR_MOVED_MM",
@@ -67,12 +67,17 @@ MAX_FAILURES = 20
 MAX_WORKERS = 64
 DISTRACTOR_MOVED_MM = 5.0
 """A thing that is not a block and moved further than this was disturbed by the run."""
-FAMILIES = {"random": (3, 6), "clutter": (6, 12), "lookalike": (3, 6)}
+FAMILIES = {"random": (3, 6), "clutter": (6, 12), "lookalike": (3, 6), "sized": (4, 6),
+            "tagged": (3, 5)}
 """Scene families and the blocks a scene of each has by default: ``random`` (spaced out,
 ``busarm.twin.scene.random_scene``), ``clutter`` (rows, clusters, touching groups,
-things that are not blocks, lamp or window light: ``busarm.twin.clutter``) and
+things that are not blocks, lamp or window light: ``busarm.twin.clutter``),
 ``lookalike`` (cubes of 20-45 mm among cylinders, discs, bars and tall boxes in block
-colours: ``busarm.twin.lookalike``)."""
+colours: ``busarm.twin.lookalike``), ``sized`` (cubes of 20-45 mm sorted by size class
+into trays named small, medium, large; the seed sets the count) and ``tagged`` (tagged
+cubes sorted by tag id, tag i into the i-th tray round the red, green, blue trays)."""
+SORTED_BY = {"sized": "size", "tagged": "tag"}
+"""The families not sorted by colour, and what they are sorted by."""
 LOOKALIKE_NEAR_MM = 20.0
 """A run's record found this near a thing that is not a block (and no block) is about it."""
 
@@ -104,6 +109,9 @@ class SceneResult:
     sim_s: float
     wall_s: float
     slipped_s: float
+    places: list[str] = field(default_factory=list)
+    """Each block's right bin, by the sorting rule on the twin's truth (its colour, size
+    class or tag id)."""
     distractors_moved_mm: list[float] = field(default_factory=list)
     """How far each thing that is not a block moved during the run."""
     not_blocks_binned: int = 0
@@ -112,8 +120,9 @@ class SceneResult:
     """The run's records of blocks found where a thing that is not a block stood."""
 
     def placed(self, in_bin_mm: float) -> list[bool]:
-        return [math.hypot(t.x_mm - self.bins[t.color][0], t.y_mm - self.bins[t.color][1])
-                < in_bin_mm for t in self.truth]
+        places = self.places or [t.color for t in self.truth]
+        return [p in self.bins and math.dist((t.x_mm, t.y_mm), self.bins[p]) < in_bin_mm
+                for t, p in zip(self.truth, places, strict=True)]
 
 
 @dataclass
@@ -150,8 +159,8 @@ class PickBenchReport:
     in_their_bins: int
     sorted_fraction: float
     beyond_bins: int
-    """Blocks more than their colour's bin holds (``busarm.apps.pick_sort.bins.BIN_PLACES``):
-    left on the table with "bin full", by design."""
+    """Blocks more than their bin holds at best (``busarm.apps.pick_sort.bins.bin_takes``:
+    seven of 30 mm, two of 41 mm): left on the table with "bin full", by design."""
     fitting_sorted_fraction: float
     """``in_their_bins`` / (``blocks`` - ``beyond_bins``): of the blocks the bins can take."""
     reported_sorted: int
@@ -196,41 +205,67 @@ class PickBenchReport:
 
 def run_scene(task: SceneTask) -> SceneResult:
     """Sort one seeded scene on a twin of its own (in this process)."""
+    from busarm.apps.pick_sort.rules import SortRule
     from busarm.apps.pick_sort.sorter import PickSorter
+    from busarm.apps.pick_sort.tag_sort import TagSortJob
 
     wall = time.monotonic()
-    if task.family == "clutter":
-        scene = clutter_scene(task.scene_seed, task.blocks, task.colors)
-    elif task.family == "lookalike":
-        scene = lookalike_scene(task.scene_seed, task.blocks)
-    else:
-        scene = random_scene(task.scene_seed, task.blocks, list(task.colors),
-                             radius_mm=REACH_RADIUS_MM)
+    scene = _scene(task)
+    rule = SortRule(SORTED_BY.get(task.family, "color"))
     with Robot.open(RobotConfig(TwinSpec(scene=scene, realtime=task.realtime), camera=CameraSpec(
             intrinsics=task.intrinsics, hand_eye=task.hand_eye))) as robot:
         twin = robot.twin
         assert twin is not None
         distractors_before = twin.distractor_positions_mm()
-        sorter = PickSorter(robot, colors=task.colors)
-        first = sorter.survey()
-        survey_errors = []
-        for t in twin.blocks():
-            near = [math.hypot(s.location.x_mm - t.x_mm, s.location.y_mm - t.y_mm)
-                    for s in first if s.color == t.color]
-            if near:
-                survey_errors.append(min(near))
+        if rule.reads_tags:
+            job: PickSorter | TagSortJob = TagSortJob(robot, rule=rule)
+            survey_errors: list[float] = []
+        else:
+            job = PickSorter(robot, colors=task.colors, rule=rule)
+            survey_errors = _survey_errors(job, twin.blocks())
         try:
-            sorter.run()
+            job.run()
             error = ""
         except BusArmError as exc:  # a failed run is a result too: score what is there
             error = f"{type(exc).__name__}: {exc}"
         after = twin.distractor_positions_mm()
         moved = [math.dist(a[:2], b[:2]) for a, b in zip(distractors_before, after, strict=True)]
-        outcomes = list(sorter.report.blocks)
-        return SceneResult(task, dict(robot.bins), twin.blocks(), outcomes,
+        outcomes = list(job.report.blocks)
+        truth = twin.blocks()
+        # The right bin of each block from the scene's truth (its tag, its side as built).
+        places = [rule.place_for(t.color, scene.blocks[t.index].size_mm,
+                                 scene.blocks[t.index].tag_id, list(job.bins)) or ""
+                  for t in truth]
+        return SceneResult(task, dict(robot.bins), truth, outcomes,
                            error, survey_errors, twin.sim_time_s, time.monotonic() - wall,
-                           twin.slipped_s, moved, _in_bins(after, robot.bins),
+                           twin.slipped_s, places, moved, _in_bins(after, robot.bins),
                            _about_not_blocks(outcomes, scene, distractors_before))
+
+
+def _survey_errors(sorter: PickSorter, truth: list[BlockState]) -> list[float]:
+    """How far the first survey saw each block from where it is (mm; those it saw)."""
+    first = sorter.survey()
+    out = []
+    for t in truth:
+        near = [math.hypot(s.location.x_mm - t.x_mm, s.location.y_mm - t.y_mm)
+                for s in first if s.color == t.color]
+        if near:
+            out.append(min(near))
+    return out
+
+
+def _scene(task: SceneTask) -> Scene:
+    """The seeded table of ``task``'s family."""
+    if task.family == "clutter":
+        return clutter_scene(task.scene_seed, task.blocks, task.colors)
+    if task.family == "lookalike":
+        return lookalike_scene(task.scene_seed, task.blocks)
+    if task.family == "sized":
+        return sized_scene(task.scene_seed)
+    if task.family == "tagged":
+        return tagged_scene(task.scene_seed, task.blocks)
+    return random_scene(task.scene_seed, task.blocks, list(task.colors),
+                        radius_mm=REACH_RADIUS_MM)
 
 
 def _in_bins(things: list[tuple[float, float, float]], bins: dict[str, tuple[float, float]]
@@ -334,7 +369,7 @@ def run_pick_bench(*, scenes: int = 50, seed: int = 0, blocks: tuple[int, int] |
 def _score(results: list[SceneResult], calibration: CalibrationSummary, seconds: float,
            calibration_s: float, workers: int, realtime: bool,
            family: str = "random") -> PickBenchReport:
-    from busarm.apps.pick_sort.bins import BIN_PLACES
+    from busarm.apps.pick_sort.bins import bin_takes
     from busarm.apps.pick_sort.sorter import IN_BIN_MM
 
     total = in_bin = false_sorted = reported_sorted = tilted = beyond = 0
@@ -345,8 +380,10 @@ def _score(results: list[SceneResult], calibration: CalibrationSummary, seconds:
         placed = r.placed(IN_BIN_MM)
         total += len(placed)
         in_bin += sum(placed)
-        colors = [t.color for t in r.truth]
-        beyond += sum(max(0, colors.count(c) - len(BIN_PLACES)) for c in set(colors))
+        places = r.places or [t.color for t in r.truth]
+        beyond += sum(places.count(p) - bin_takes([t.size_mm for t, q in
+                                                  zip(r.truth, places, strict=True) if q == p])
+                      for p in set(places))
         sorted_here = sum(b.outcome == "sorted" for b in r.outcomes)
         reported_sorted += sorted_here
         false_sorted += max(0, sorted_here - sum(placed))

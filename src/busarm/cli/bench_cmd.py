@@ -394,12 +394,14 @@ def _print_mobile_page(settings: Settings, report: MobilePageReport) -> None:
               help="Seed of the first scene (scene i uses seed + i).")
 @click.option("--workers", type=click.IntRange(1, 64), default=1, show_default=True,
               help="Scenes sorted side by side, each in its own process.")
-@click.option("--family", type=click.Choice(["random", "clutter", "lookalike"]),
+@click.option("--family", type=click.Choice(["random", "clutter", "lookalike", "sized",
+                                             "tagged"]),
               default="random", show_default=True,
               help="random: 3-6 blocks spaced out; clutter: 6-12 blocks in rows, clusters "
                    "and touching groups, things that are not blocks, lamp or window light; "
                    "lookalike: 3-6 cubes of 20-45 mm among cups, discs, bars and tall "
-                   "boxes in block colours.")
+                   "boxes in block colours; sized: 4-6 cubes of 20-45 mm sorted by size "
+                   "class; tagged: 3-5 tagged cubes sorted by tag id.")
 @click.option("--realtime", is_flag=True,
               help="Run each twin on the wall clock (as `twin serve` does) instead of as "
                    "fast as the CPU allows: to compare the two.")

@@ -1,6 +1,9 @@
-"""``pick-sort``: the main job. Look at the table, sort every block into its colour's bin.
+"""``pick-sort``: the main job. Look at the table, sort every block into its colour's bin
+(or, ``--by size``, its size class's bin; ``--by tag``, the bin its AprilTag's id goes to).
 
-Without ``--port`` it runs on the twin (``--scene FILE`` or ``--seed N``), with the
+Without ``--port`` it runs on the twin (``--scene FILE`` or ``--seed N``; sorting by size,
+a seeded table of blocks of every size class and trays named for them; by tag, a seeded
+table of tagged blocks), with the
 camera calibration kept for the robot (busarm.robot.calibration_store), made in the twin
 first if there is none or it is stale, unless calibration files are given; on hardware
 it needs the calibration (files, or kept by ``busarm camera calibrate|handeye``) and
@@ -36,8 +39,10 @@ from busarm.cli.text import place
 from busarm.errors import ConfigError
 
 if TYPE_CHECKING:
+    from busarm.apps.pick_sort.rules import SortRule
     from busarm.apps.pick_sort.sorter import RunReport
     from busarm.robot import Robot
+    from busarm.twin.scene import Scene
 
 __all__ = [
     "COMMANDS",
@@ -100,8 +105,16 @@ def parse_survey(text: str, config: ArmConfig) -> list[tuple[float, ...]]:
               help="Camera source (on hardware: required)  [default: the twin's]")
 @calibration_options
 @click.option("--bins", "bins_text", default=None,
-              help="Where each colour goes, COLOUR=X,Y;... in mm  [default on the twin: its "
-                   "trays]")
+              help="Where each colour goes, COLOUR=X,Y;... in mm (by size: small=X,Y;"
+                   "medium=X,Y;large=X,Y)  [default on the twin: its trays]")
+@click.option("--by", "sort_by", type=click.Choice(["color", "size", "tag"]),
+              default="color", show_default=True,
+              help="Sort by colour (a bin per colour), by size class (small < 28 mm, "
+                   "medium 28-37 mm, large > 37 mm: a bin named for each) or by the id of "
+                   "the AprilTag (36h11) on each block's top (--tag-places).")
+@click.option("--tag-places", "tag_places_text", default=None,
+              help="With --by tag: which bin each tag id goes to, IDS=BIN;... (e.g. "
+                   "'0,1=red;2-4=green')  [default: tag i to the i-th bin, round them]")
 @click.option("--survey", "survey_text", default="look", show_default=True,
               help="Where the camera looks from: poses of the arm config, comma separated; "
                    "NAME@BEARING turns the base to BEARING deg (e.g. look@-40,look,look@40).")
@@ -118,8 +131,8 @@ def parse_survey(text: str, config: ArmConfig) -> list[tuple[float, ...]]:
 def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
               blocks: int | None, colors: str | None, camera_src: str | None,
               intrinsics: Path | None, hand_eye: Path | None, bins_text: str | None,
-              survey_text: str, order: str, report_dir: Path, config: str,
-              as_json: bool) -> None:
+              sort_by: str, tag_places_text: str | None, survey_text: str, order: str,
+              report_dir: Path, config: str, as_json: bool) -> None:
     """Find the blocks, pick each and put it in its colour's bin, until the table is clear.
 
     Prints what happened to every block and the totals, and writes a report folder
@@ -127,16 +140,20 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
     Exit code 0 when every block was sorted or skipped for a reason it gives (bin full,
     out of reach, an unknown colour...), 1 when a block failed.
     """
+    from busarm.apps.pick_sort.rules import SortRule, parse_tag_places
     from busarm.vision.color_thresholds import parse_color_names
 
     names = parse_color_names(colors or DEFAULT_COLORS)
+    if tag_places_text is not None and sort_by != "tag":
+        raise ConfigError(f"--tag-places is for --by tag (not --by {sort_by})")
+    rule = SortRule(sort_by, parse_tag_places(tag_places_text) if tag_places_text else {})
     scene = None
     if scene_file is not None or seed is not None or blocks is not None or (
             not settings.port_given):
-        scene = make_scene(scene_file, seed, blocks, None if scene_file else colors)
+        scene = _scene_for(rule, scene_file, seed, blocks, colors)
     if not settings.port_given:
         _note_own_twin(settings, scene.source if scene is not None else "")
-    bins_given = _bins_for(settings, bins_text, names)
+    bins_given = _bins_for(settings, bins_text, names, rule)
     ac = ArmContext(settings, config, None)
     survey_poses = parse_survey(survey_text, ac.config)
     check_writable(report_dir / "report.json" if report_dir.is_dir() else report_dir)
@@ -151,7 +168,7 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
                              settings.err.print(text, highlight=False,
                                                 soft_wrap=True)) as robot:
         simulated = robot.clock.is_simulated
-        report, path = _run_job(settings, robot, report_dir, names, survey_poses, order)
+        report, path = _run_job(settings, robot, report_dir, names, survey_poses, order, rule)
     if as_json:
         click.echo(json.dumps(json.loads(path.read_text()), indent=2))
     else:
@@ -162,17 +179,44 @@ def pick_sort(settings: Settings, scene_file: Path | None, seed: int | None,
                          f"{report_dir}/report.json)")
 
 
-def _bins_for(settings: Settings, bins_text: str | None,
-              names: list[str]) -> dict[str, tuple[float, float]] | None:
-    """The bins --bins gives (None: the robot's): refused if none is for a colour to sort;
-    a bin for another colour is warned of."""
+def _scene_for(rule: SortRule, scene_file: Path | None, seed: int | None, blocks: int | None,
+               colors: str | None) -> Scene:
+    """The twin's table: a scene file, or seeded: by size, a table of every size class
+    with trays named for them (busarm.twin.lookalike.sized_scene); by tag, tagged blocks
+    (``tagged_scene``)."""
+    if rule.by == "color" or scene_file is not None:
+        return make_scene(scene_file, seed, blocks, None if scene_file else colors)
+    from busarm.twin.lookalike import sized_scene, tagged_scene
+
+    if rule.by == "tag":
+        if colors is not None:
+            raise ConfigError("--colors: the seeded table for --by tag has blocks of its own "
+                              "colours (give --scene for others)")
+        return tagged_scene(seed or 0, blocks)
+    if blocks is not None:
+        raise ConfigError(f"--blocks {blocks}: the seeded table for --by size has 4-6 blocks "
+                          "of its own (choose them with --seed, or give --scene)")
+    return sized_scene(seed or 0)
+
+
+def _bins_for(settings: Settings, bins_text: str | None, names: list[str],
+              rule: SortRule) -> dict[str, tuple[float, float]] | None:
+    """The bins --bins gives (None: the robot's): refused if none is one the rule sorts
+    into; a bin it does not is warned of."""
     bins_given = parse_bins(bins_text) if bins_text is not None else None
-    others = [c for c in bins_given or () if c not in names]
-    sorting = f"the colours to sort ({', '.join(names)}; --colors chooses them)"
-    if bins_given is not None and not set(bins_given) & set(names):
-        raise ConfigError(f"--bins has no bin for {sorting}: "
-                          + (f"{', '.join(others)} is not one of them; " if others else "")
-                          + "give COLOUR=X,Y for at least one of them")
+    if bins_given is None:
+        return None
+    if rule.by == "color":
+        others = [c for c in bins_given if c not in names]
+        sorting = f"the colours to sort ({', '.join(names)}; --colors chooses them)"
+        if not set(bins_given) & set(names):
+            raise ConfigError(f"--bins has no bin for {sorting}: "
+                              + (f"{', '.join(others)} is not one of them; " if others else "")
+                              + "give COLOUR=X,Y for at least one of them")
+    else:
+        used = rule.places(bins_given, names)  # ConfigError if none is one it sorts into
+        others = [c for c in bins_given if c not in used]
+        sorting = f"the places sorting by {rule.by} uses ({', '.join(used)})"
     if others:  # a typo, or a colour left out of --colors: said, not silently ignored
         settings.err.print(f"warning: --bins {', '.join(others)}: not one of {sorting}; "
                            "no block goes there", highlight=False, markup=False,
@@ -181,14 +225,15 @@ def _bins_for(settings: Settings, bins_text: str | None,
 
 
 def _run_job(settings: Settings, robot: Robot, report_dir: Path, names: list[str],
-             survey_poses: list[tuple[float, ...]], order: str) -> tuple[RunReport, Path]:
+             survey_poses: list[tuple[float, ...]], order: str, rule: SortRule
+             ) -> tuple[RunReport, Path]:
     """Sort the table with ``robot``: the report and its file. A stop's one line also
     says what the gripper holds and where the report is."""
     from busarm.apps.pick_sort.job import PickJob
     from busarm.apps.pick_sort.settings import PickSortSettings
 
     job = PickJob(robot, report_dir, colors=names, survey_poses=survey_poses,
-                  settings=PickSortSettings(order=order),
+                  settings=PickSortSettings(order=order), rule=rule,
                   progress=lambda text: settings.err.print(text, highlight=False))
     try:
         return job.run()
@@ -205,7 +250,8 @@ def _print_summary(report: RunReport, simulated: bool, wall_s: float,
     for b in report.blocks:
         where = place(b.found_mm)
         extra = f": {b.reason}" if b.reason else f", {b.attempts} attempt(s), {b.seconds:.1f} s"
-        click.echo(f"{b.color:7s} at {where:18s} {b.outcome}{extra}")
+        into = f" into {b.place}" if b.outcome == "sorted" and b.place != b.color else ""
+        click.echo(f"{b.color:7s} at {where:18s} {b.outcome}{into}{extra}")
     t = report.totals()
     unit = "s of twin time" if simulated else "s"
     moved = f", moved {t['moved']}" if t["moved"] else ""

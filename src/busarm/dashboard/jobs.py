@@ -13,6 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from busarm.apps.pick_sort.job import PickJob
+from busarm.apps.pick_sort.rules import SortRule
 from busarm.apps.pick_sort.settings import PickSortSettings
 from busarm.arm.actions import ActionGroup
 from busarm.arm.arm import Arm
@@ -60,7 +61,8 @@ def pick_sort(robot: Robot, request: PickSort, folder: Path,
     """Pick-and-sort with its report in ``folder``; a stop says what the gripper holds
     and where the report so far is."""
     job = PickJob(robot, folder, colors=request.colors,
-                  settings=PickSortSettings(order=request.order), progress=progress)
+                  settings=PickSortSettings(order=request.order), rule=SortRule(request.by),
+                  progress=progress)
     try:
         report, _ = job.run()
     except BusArmError as exc:

@@ -23,7 +23,8 @@ torque        ``servo`` (an arm servo's ID) and ``on`` (bool)
 play          ``group``: an action group (a shipped sample or a recorded one) by name
 record        ``action``: start, frame (the present pose, ``duration_ms`` after the last),
               save (``name``), or cancel
-pick_sort     ``colors`` (list), ``order`` (nearest, colors)
+pick_sort     ``colors`` (list), ``order`` (nearest, colors), ``by`` (color, size, tag:
+              what decides a block's bin)
 transport     ``pick``, ``place`` (named points; default pick, place), ``color``
               (optional): fetch a block from one point and deliver it to the other (a
               twin in an arena with no points file explores to map it first)
@@ -69,6 +70,7 @@ __all__ = [
     "MAX_MESSAGE_BYTES",
     "MIN_JOG_SPEED",
     "NAME_CHARS",
+    "PICK_BY",
     "PICK_ORDERS",
     "RECORD_ACTIONS",
     "BaseDrive",
@@ -97,6 +99,8 @@ JOG_AXES = ("x", "y", "z", "pitch")
 GRIPPER_ACTIONS = ("open", "close")
 RECORD_ACTIONS = ("start", "frame", "save", "cancel")
 PICK_ORDERS = ("nearest", "colors")
+PICK_BY = ("color", "size", "tag")
+"""What decides a block's bin (``busarm.apps.pick_sort.rules.SORT_BY``)."""
 LAPS_RANGE = (0.05, 100.0)
 LINE_SPEED_RANGE_M_S = (0.01, 0.5)
 DEFAULT_CLEAR_COLORS = ("red", "green", "blue")
@@ -186,6 +190,7 @@ class Record(Request):
 class PickSort(Request):
     colors: tuple[str, ...] = ("red", "green", "blue")
     order: str = "nearest"
+    by: str = "color"
 
 
 @dataclass(frozen=True)
@@ -358,14 +363,14 @@ def _record(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request:
 
 
 def _pick_sort(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request:
-    f = _take(fields, kind, ("colors", "order"))
+    f = _take(fields, kind, ("colors", "order", "by"))
     colors = f.get("colors", ["red", "green", "blue"])
     if not isinstance(colors, list) or not 0 < len(colors) <= 8:
         raise RequestError(f"pick_sort: colors = {_show(colors)}; expected a list of 1..8 "
                            "colour names")
     names = tuple(_name(kind, c, "colors") for c in colors)
-    return PickSort(kind, names, _choice(kind, "order", f.get("order", "nearest"),
-                                         PICK_ORDERS))
+    return PickSort(kind, names, _choice(kind, "order", f.get("order", "nearest"), PICK_ORDERS),
+                    _choice(kind, "by", f.get("by", "color"), PICK_BY))
 
 
 def _transport(kind: str, fields: dict[str, Any], _: tuple[str, ...]) -> Request:

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from busarm.apps.pick_sort.rules import SortRule
 from busarm.arm.action_samples import read_group_or_sample, sample_names
 from busarm.arm.named_poses import find_pose, list_poses, save_pose
 from busarm.dashboard import jobs
@@ -478,6 +479,8 @@ class RobotService:
             return (lambda job: jobs.play(self.arm, group, job.cancel, self._progress(job)),
                     f"play {what}")
         if isinstance(request, PickSort):
+            # Bins for the rule first (a refusal moves nothing, stops nothing).
+            SortRule(request.by).places(self.robot.bins, request.colors)
             folder = jobs.report_folder(self.reports)
             self.robot.require_camera_calibration()
 

@@ -24,6 +24,7 @@ import random
 from collections.abc import Callable, Sequence
 
 from busarm.errors import ConfigError
+from busarm.perception.size_classes import size_class as classify
 from busarm.twin.clutter import BIN_CLEARANCE_MM, clutter_lighting
 from busarm.twin.footprints import Footprint, penetration_mm
 from busarm.twin.scene import (
@@ -96,9 +97,7 @@ def block_mass_g(size_mm: float) -> float:
 def size_class(size_mm: float) -> str:
     """The ``SIZE_CLASSES_MM`` class of a block side (28 and 37 mm themselves are medium);
     ConfigError outside ``BLOCK_SIZE_MM``."""
-    side = check_range("block side", size_mm, *BLOCK_SIZE_MM, "mm")
-    small, large = SIZE_CLASSES_MM["small"][1], SIZE_CLASSES_MM["large"][0]
-    return "small" if side < small else "medium" if side <= large else "large"
+    return classify(check_range("block side", size_mm, *BLOCK_SIZE_MM, "mm"))
 
 
 def size_bins() -> tuple[Bin, ...]:

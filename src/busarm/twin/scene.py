@@ -25,6 +25,7 @@ from typing import Any
 
 from busarm.errors import ConfigError
 from busarm.fileio import write_text_atomic
+from busarm.perception.size_classes import SIZE_CLASSES_MM  # a bin's name may be a class's
 from busarm.twin.footprints import TOUCH_TOLERANCE_MM, Footprint, penetration_mm
 from busarm.units import check_int_range, check_range, listing
 
@@ -111,10 +112,6 @@ DEFAULT_BLOCK_MM = 30.0
 BLOCK_SIZE_MM = (10.0, 60.0)
 """Block sides the twin builds (toy blocks are 25-40 mm)."""
 BOARD_KINDS = ("chessboard", "charuco", "tags")
-SIZE_CLASSES_MM: dict[str, tuple[float, float]] = {
-    "small": (BLOCK_SIZE_MM[0], 28.0), "medium": (28.0, 37.0), "large": (37.0, BLOCK_SIZE_MM[1])}
-"""Block size classes by side (small < 28 mm, medium 28-37, large > 37); a bin's
-``color`` may be a class's name instead of a colour (a tray for sorting by size)."""
 TAG_IDS = (0, 586)
 """The AprilTag 36h11 ids a block may carry (``Block.tag_id``)."""
 

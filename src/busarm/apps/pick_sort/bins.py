@@ -21,6 +21,7 @@ __all__ = [
     "TRAY_INSIDE_MM",
     "WALL_CLEARANCE_MM",
     "BinPlaces",
+    "bin_takes",
     "slot_offset_mm",
 ]
 
@@ -59,6 +60,37 @@ def slot_offset_mm(slot: int, size_mm: float) -> tuple[float, float]:
     return dx * max(reach, 0.0), dy * max(reach, 0.0)
 
 
+def _first_free(taken: Sequence[tuple[int, int, float]], size_mm: float
+                ) -> tuple[int, int] | None:
+    """The first place of ``BIN_PLACES`` a block ``size_mm`` wide fits in a bin holding
+    ``taken`` (slot, layer, size mm): free, on a block no smaller than it less
+    ``TOP_SLACK_MM`` (the second layer), clear of its neighbours in the layer."""
+    for slot, layer in BIN_PLACES:
+        if any(s == slot and lay == layer for s, lay, _ in taken):
+            continue
+        if layer == 1 and not any(s == slot and lay == 0 and size + TOP_SLACK_MM >= size_mm
+                                  for s, lay, size in taken):
+            continue
+        dx, dy = slot_offset_mm(slot, size_mm)
+        if any(lay == layer and abs(dx - ox) < (size_mm + size) / 2 + SLOT_GAP_MM
+               and abs(dy - oy) < (size_mm + size) / 2 + SLOT_GAP_MM
+               for s, lay, size in taken for ox, oy in (slot_offset_mm(s, size),)):
+            continue
+        return slot, layer
+    return None
+
+
+def bin_takes(sizes_mm: Sequence[float]) -> int:
+    """How many of blocks with these sides (mm) one empty bin takes at best (the largest
+    set down first, each in the first place it fits)."""
+    taken: list[tuple[int, int, float]] = []
+    for size in sorted(sizes_mm, reverse=True):
+        place = _first_free(taken, size)
+        if place is not None:
+            taken.append((*place, size))
+    return len(taken)
+
+
 class BinPlaces:
     """Places in the ``bins`` (colour -> centre x, y mm), filled in ``BIN_PLACES``
     order, for blocks set down by ``planner``'s arm. A block too large for a place (it
@@ -79,6 +111,11 @@ class BinPlaces:
     def count(self, color: str) -> int:
         """How many blocks have been put in ``color``'s bin."""
         return len(self._placed.get(color, []))
+
+    def covered(self, color: str) -> int:
+        """How many blocks in ``color``'s bin stand under another (out of the camera's
+        sight)."""
+        return sum(layer == 1 for _, layer, _ in self._placed.get(color, []))
 
     def is_full(self, color: str, size_mm: float = 30.0) -> bool:
         """Whether no place is left in ``color``'s bin for a block ``size_mm`` wide."""
@@ -103,20 +140,7 @@ class BinPlaces:
 
     def _place(self, color: str, size_mm: float) -> tuple[int, int] | None:
         """The first free place of ``BIN_PLACES`` that a block ``size_mm`` wide fits."""
-        taken = self._placed.get(color, [])
-        for slot, layer in BIN_PLACES:
-            if any(s == slot and lay == layer for s, lay, _ in taken):
-                continue
-            if layer == 1 and not any(s == slot and lay == 0 and size + TOP_SLACK_MM >= size_mm
-                                      for s, lay, size in taken):
-                continue
-            dx, dy = slot_offset_mm(slot, size_mm)
-            if any(lay == layer and abs(dx - ox) < (size_mm + size) / 2 + SLOT_GAP_MM
-                   and abs(dy - oy) < (size_mm + size) / 2 + SLOT_GAP_MM
-                   for s, lay, size in taken for ox, oy in (slot_offset_mm(s, size),)):
-                continue
-            return slot, layer
-        return None
+        return _first_free(self._placed.get(color, []), size_mm)
 
     def next_spot(self, color: str, things: Sequence[Footprint] = (), gap_mm: float = 0.0,
                   release_z_mm: float = 0.0, size_mm: float = 30.0

@@ -17,10 +17,14 @@ import numpy as np
 import numpy.typing as npt
 
 from busarm.apps.pick_sort.report import write_report
+from busarm.apps.pick_sort.rules import SortRule
 from busarm.apps.pick_sort.settings import PickSortSettings
 from busarm.apps.pick_sort.sorter import PickSorter, RunReport
+from busarm.apps.pick_sort.tag_sort import TagSortJob
+from busarm.apps.stack.settings import StackSettings
 from busarm.errors import BusArmError
 from busarm.perception.locate import Sighting
+from busarm.progress import quiet
 from busarm.robot import Robot
 from busarm.units import place_text
 from busarm.vision.camera import CameraSource
@@ -69,6 +73,7 @@ class PickJob:
     def __init__(self, robot: Robot, report_dir: Path, *, colors: Sequence[str],
                  survey_poses: Sequence[Sequence[float]] | None = None,
                  settings: PickSortSettings | None = None,
+                 rule: SortRule | None = None,
                  progress: Callable[[str], None] | None = None,
                  on_pick: Callable[[Sighting], None] | None = None) -> None:
         self.robot, self.report_dir = robot, report_dir
@@ -79,9 +84,14 @@ class PickJob:
             self.pictures.on_pick(target)
             chained(target)
 
-        self.sorter = self.pictures.sorter = PickSorter(
-            robot, colors=colors, survey_poses=survey_poses, settings=settings,
-            progress=progress, on_step=self.pictures.on_step, on_pick=pick)
+        self.sorter: PickSorter | TagSortJob
+        if rule is not None and rule.reads_tags:  # blocks found by their tags
+            self.sorter = TagSortJob(robot, rule=rule, settings=StackSettings(
+                pick=settings or PickSortSettings()), progress=progress or quiet)
+        else:
+            self.sorter = self.pictures.sorter = PickSorter(
+                robot, colors=colors, survey_poses=survey_poses, settings=settings,
+                rule=rule, progress=progress, on_step=self.pictures.on_step, on_pick=pick)
         self.about: dict[str, Any] = {
             "port": robot.port, "clock": "simulated" if robot.clock.is_simulated else "wall",
             "camera_calibration": robot.require_camera_calibration().source}

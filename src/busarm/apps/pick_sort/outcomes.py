@@ -27,6 +27,8 @@ class BlockOutcome:
     seconds: float = 0.0
     grasp_pitch_deg: float | None = None
     """The tool's pitch at the last grasp: -90 straight down, else tilted."""
+    place: str = ""
+    """The bin it was taken to (by the sorting rule), once it is."""
 
     def to_dict(self) -> dict[str, object]:
         return {"color": self.color, "found_mm": [round(v, 1) for v in self.found_mm],
@@ -34,7 +36,7 @@ class BlockOutcome:
                 "placed_mm": None if self.placed_mm is None else
                 [round(v, 1) for v in self.placed_mm],
                 "attempts": self.attempts, "seconds": round(self.seconds, 2),
-                "grasp_pitch_deg": self.grasp_pitch_deg}
+                "grasp_pitch_deg": self.grasp_pitch_deg, "place": self.place}
 
 
 @dataclass

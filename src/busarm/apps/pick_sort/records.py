@@ -85,6 +85,15 @@ class BlockRecords:
             self._aliases.setdefault(id(outcome), []).append(outcome.found_mm)
         outcome.found_mm = here
 
+    def taken(self, outcome: BlockOutcome, size_mm: float, report: RunReport) -> None:
+        """``outcome``'s block, ``size_mm`` wide, was taken to its bin: a record still
+        waiting, never tried, of its colour and seen inside its top face was this block
+        seen in part (a large block's picture split in two): it goes."""
+        report.blocks[:] = [
+            o for o in report.blocks
+            if o is outcome or o.outcome != "pending" or o.attempts or o.color != outcome.color
+            or math.dist(o.found_mm, outcome.found_mm) >= size_mm / 2]
+
     def may_push(self, outcome: BlockOutcome, most: int) -> bool:
         """Whether the block may be pushed once more (``most`` pushes a record); counted."""
         if self._nudges.get(id(outcome), 0) >= most:

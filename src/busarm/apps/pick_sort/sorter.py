@@ -46,6 +46,7 @@ from busarm.apps.pick_sort.outcomes import BlockOutcome, RunReport
 from busarm.apps.pick_sort.push import Push, PushPlanner
 from busarm.apps.pick_sort.records import BlockRecords, mark_moved
 from busarm.apps.pick_sort.restage import Restaged, staging_spot
+from busarm.apps.pick_sort.rules import SortRule
 from busarm.apps.pick_sort.settings import ORDERS, PickSortSettings
 from busarm.apps.pick_sort.table_view import (
     OVER_THINGS_MM,
@@ -76,23 +77,26 @@ _Candidate = tuple[tuple[int, float], Sighting, BlockOutcome]
 
 class PickSorter:
     """Sorts the blocks of ``colors`` the robot's wrist camera sees into their bins (the
-    robot's, or ``bins``: colour -> (x, y) mm); a colour with no bin is left alone."""
+    robot's, or ``bins``: name -> (x, y) mm) by ``rule`` (by colour unless given: each
+    bin named as a colour); a block with no bin is left alone."""
 
     def __init__(self, robot: Robot, *, colors: Sequence[str] | None = None,
                  bins: dict[str, tuple[float, float]] | None = None,
                  survey_poses: Sequence[Sequence[float]] | None = None,
                  settings: PickSortSettings | None = None,
+                 rule: SortRule | None = None,
                  progress: Callable[[str], None] | None = None,
                  on_step: Callable[[str], None] | None = None,
                  on_pick: Callable[[Sighting], None] | None = None) -> None:
         arm = self.arm = robot.arm
         self.camera = robot.camera
         locator = self.locator = robot.locator(colors)
-        where = robot.bins if bins is None else bins
-        self.bins = {c: where[c] for c in locator.detector.colors if c in where}
-        if not self.bins:
-            raise ConfigError(f"no bin for any colour to sort ({', '.join(where) or 'none'} "
-                              f"given): give --bins COLOUR=X,Y;...")
+        self.rule = rule or SortRule()
+        if self.rule.reads_tags:
+            raise ConfigError("PickSorter sorts by colour or size; by tag, TagSortJob does "
+                              "(blocks found by their tags)")
+        self.bins = self.rule.places(robot.bins if bins is None else bins,
+                                     locator.detector.colors)
         self.settings = settings or PickSortSettings()
         poses = survey_poses if survey_poses is not None else [arm.config.pose("look")]
         self.survey_poses = [arm.config.check_joints(p) for p in poses]
@@ -222,11 +226,15 @@ class PickSorter:
         self.on_step("nudge")
         return push
 
-    def pick_and_place(self, target: Sighting
+    def pick_and_place(self, target: Sighting, place: str | None = None
                        ) -> tuple[bool, str, tuple[float, float] | None, GraspPlan]:
-        """One grasp-carry-release cycle; (holding was seen, why not, where it was put, the
-        grasp plan)."""
+        """One grasp-carry-release cycle into the bin ``place`` (by default the rule's for
+        ``target``); (holding was seen, why not, where it was put, the grasp plan)."""
         arm, s = self.arm, self.settings
+        place = place or self.place_of(target)
+        if place not in self.bins:
+            what = self.rule.what(target.color, target.location.size_mm, None)
+            raise ConfigError(f"no bin for {what} (bins: {', '.join(self.bins)})")
         plan = self._plan(target)
         pitch, roll = plan.pitch_deg, plan.roll_deg
         blocked = self._go_above(plan)
@@ -243,15 +251,14 @@ class PickSorter:
             return False, missed, None, plan
         arm.move_line(*plan.lift, pitch, roll, speed_mm_s=s.line_speed_mm_s)
         self.on_step("lift")
-        if pitch != -90.0 and self.places.next_layer(target.color,
-                                                     target.location.size_mm) == 1:
+        if pitch != -90.0 and self.places.next_layer(place, target.location.size_mm) == 1:
             # Taken tilted, it turns with the tool and would lean when set down straight:
             # a first layer forgives that, a second does not. Put down to be taken again.
             stage = self._staging_spot(target)
             if stage is not None:
                 self._set_down(plan, stage, plan.gap_mm)
                 raise Restaged(stage)
-        placed = self._put_in_bin(target.color, plan, target.location.size_mm)
+        placed = self._put_in_bin(place, plan, target.location.size_mm)
         if placed is None:
             return False, "the block slipped out during the carry", None, plan
         return True, "", placed, plan
@@ -279,26 +286,26 @@ class PickSorter:
         self.on_step("above")
         return ""
 
-    def _put_in_bin(self, color: str, plan: GraspPlan, size_mm: float
+    def _put_in_bin(self, place: str, plan: GraspPlan, size_mm: float
                     ) -> tuple[float, float] | None:
-        """Carry the block held at ``plan``'s lift to its bin and let it go there; where it
-        was put, or None if it slipped out on the way (the fingers opened again)."""
+        """Carry the block held at ``plan``'s lift to the bin ``place`` and let it go there;
+        where it was put, or None if it slipped out on the way (the fingers opened again)."""
         arm, s = self.arm, self.settings
         z0, gap = self.locator.table_z_mm, plan.gap_mm
         # A second layer: carried higher over the first, set down just above it (a drop
         # from the first layer's height would bounce it off).
-        size, layer = size_mm, self.places.next_layer(color, size_mm)
-        below = self.places.below_mm(color, size_mm)
+        size, layer = size_mm, self.places.next_layer(place, size_mm)
+        below = self.places.below_mm(place, size_mm)
         carry_z = z0 + s.carry_mm + layer * below
         release_z = z0 + (s.release_mm if layer == 0 else below + STACK_DROP_MM + size / 2)
-        bx, by, _, square = self.places.next_spot(color, self.view.obstacles, gap, release_z,
+        bx, by, _, square = self.places.next_spot(place, self.view.obstacles, gap, release_z,
                                                   size)
         carry_z = self._carry(plan, (bx, by), carry_z, square)
         self.on_step("carry")
         if not still_holding(arm):
             self._holding = None
             arm.open_gripper(wait=False, gap_mm=gap)
-            self.places.take_back(color)
+            self.places.take_back(place)
             return None
         # (Resting on something in the bin on the way down, it is let go there.)
         lower_and_release(arm, (bx, by, release_z), -90.0, square, gap, s.line_speed_mm_s)
@@ -352,8 +359,9 @@ class PickSorter:
         there (it bounced out, say) is reported failed instead."""
         arm = self.arm
         look = arm.config.pose("look")
-        for color, (bx, by) in self.bins.items():
-            sorted_here = [b for b in report.blocks if b.color == color and b.outcome == "sorted"]
+        for name, (bx, by) in self.bins.items():
+            sorted_here = [b for b in report.blocks if b.outcome == "sorted"
+                           and (b.place or b.color) == name]
             if not sorted_here:
                 continue
             bearing = math.degrees(math.atan2(by, bx))
@@ -363,15 +371,15 @@ class PickSorter:
             except ConfigError:
                 continue  # no look at it from here: the release is trusted
             _, found = self.view.look(pose)
-            inside = [v for v in found if v.color == color
+            inside = [v for v in found if (self.rule.by != "color" or v.color == name)
                       and math.hypot(v.location.x_mm - bx, v.location.y_mm - by) < IN_BIN_MM]
-            # A block of the second layer hides the one it stands on: the camera sees one
-            # block a place at most.
-            seen = len(inside) + max(0, len(sorted_here) - len(BIN_SLOTS_MM))
+            # A block of the second layer hides the one it stands on.
+            seen = len(inside) + self.places.covered(name)
             for missing in sorted_here[seen:]:
                 missing.outcome = "failed"
                 missing.reason = "not in its bin when the bins were checked (it fell out?)"
-                self.progress(f"{color} block from {_mm(missing.found_mm)}: not in its bin")
+                self.progress(f"{missing.color} block from {_mm(missing.found_mm)}: not in "
+                              "its bin")
 
     # ------------------------------------------------------------------ the job
 
@@ -447,6 +455,8 @@ class PickSorter:
         held, why, placed, restaged = self._attempt(outcome, closer)
         outcome.seconds += self.clock.now() - t0
         self._tell(target.color, outcome, held, why, placed, restaged)
+        if outcome.outcome == "sorted" and closer is not None:
+            self.records.taken(outcome, closer.location.size_mm, report)
         return True
 
     def _choices(self, report: RunReport, seen: Sequence[Sighting]
@@ -481,7 +491,9 @@ class PickSorter:
                     boxed_in.append((outcome, str(exc), sighting))
                     continue
             distance = math.hypot(sighting.location.x_mm, sighting.location.y_mm)
-            rank = list(self.bins).index(sighting.color) if self.settings.order == "colors" else 0
+            place = self.place_of(sighting)
+            rank = (list(self.bins).index(place) if place in self.bins else len(self.bins)) \
+                if self.settings.order == "colors" else 0
             candidates.append(((rank, distance), sighting, outcome))
         return candidates, boxed_in
 
@@ -510,8 +522,9 @@ class PickSorter:
             return False, "not seen whole when looked at closer", None, None
         self.records.seen_closer(outcome, (closer.location.x_mm, closer.location.y_mm))
         self.on_pick(closer)
+        place = outcome.place = self.place_of(closer) or ""
         try:
-            held, why, placed, plan = self.pick_and_place(closer)
+            held, why, placed, plan = self.pick_and_place(closer, place)
             outcome.grasp_pitch_deg = plan.pitch_deg
         except Restaged as exc:  # set down to be taken straight down: no attempt
             outcome.attempts -= 1
@@ -539,7 +552,8 @@ class PickSorter:
         elif held:
             self.records.boxed.clear()  # a neighbour gone may have freed them
             outcome.outcome, outcome.placed_mm = "sorted", placed
-            self.progress(f"{color} from {_mm(outcome.found_mm)} into its bin "
+            into = "its bin" if self.rule.by == "color" else f"the {outcome.place} bin"
+            self.progress(f"{color} from {_mm(outcome.found_mm)} into {into} "
                           f"({outcome.seconds:.1f} s)")
         elif outcome.attempts >= self.settings.max_attempts:
             outcome.outcome, outcome.reason = "failed", why
@@ -569,13 +583,19 @@ class PickSorter:
             return f"holding a {self._holding} block ({said})"
         return f"nearly closed, on no block it took ({said})"
 
+    def place_of(self, sighting: Sighting) -> str:
+        """The bin ``sighting`` goes to by the rule (its colour's, or its size class's)."""
+        return self.rule.place_for(sighting.color, sighting.location.size_mm, None,
+                                   list(self.bins)) or ""
+
     def _why_not(self, sighting: Sighting) -> str:
         """Why this block is not to be picked ("" if it is)."""
-        if sighting.color not in self.bins:
-            return f"no bin for {sighting.color}"
-        if self.places.is_full(sighting.color, sighting.location.size_mm):
-            held = self.places.count(sighting.color)
-            return f"bin full: the {sighting.color} bin holds {held} blocks"
+        size = sighting.location.size_mm
+        place = self.place_of(sighting)
+        if place not in self.bins:
+            return f"no bin for {self.rule.what(sighting.color, size, None)}"
+        if self.places.is_full(place, size):
+            return f"bin full: the {place} bin holds {self.places.count(place)} blocks"
         if not sighting.whole:
             return ""  # where it is, and so whether it is reached, is known after a closer look
         if not sighting.reachable:

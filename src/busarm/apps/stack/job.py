@@ -12,8 +12,11 @@ place on the table in tag-id order, the lowest id at the bottom.
    can set a block on (its reach over the tower, with clearance, and the camera's look
    at the new top); else look at the block closer, take it straight down with the
    fingers opened from its measured side (``GraspPlanner``, ``descend_and_grip``),
-   carry it over the tower, turned to the block below, lower it until it rests there
-   (``lower_and_release``) and let go;
+   lift it as high as straight up reaches, carry it over the tower, turned to the block
+   below, lower it until it rests there (``lower_and_release``) and let go. Where the
+   tower stands by the arm's way to a block, the look there and the way down to it keep
+   the tool ``TOWER_CLEAR_MM`` over the tower's top (``Keepout``), and the place is
+   chosen where those looks exist for every block (the tower as tall as it is by then);
 4. check by looking: the tower's top tag gives the top's height (the sides added up)
    and its offset from the tower's axis (the bottom block: from the place asked). A
    block off by more than ``max_offset_mm`` is taken from the top and placed again; one
@@ -37,7 +40,7 @@ from busarm.apps.pick_sort.grasp import GraspPlan, GraspPlanner
 from busarm.apps.pick_sort.gripping import descend_and_grip, lower_and_release, still_holding
 from busarm.apps.stack.report import StackedBlock, StackReport
 from busarm.apps.stack.settings import StackSettings
-from busarm.apps.stack.tag_view import TagSighting, TagView
+from busarm.apps.stack.tag_view import Keepout, TagSighting, TagView
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import BusArmError, ConfigError, UnreachableError, why_stopped
 from busarm.progress import Progress, quiet
@@ -67,6 +70,11 @@ SPOT_BEARINGS_DEG = (0.0, 12.0, -12.0, 24.0, -24.0, 36.0, -36.0, 48.0, -48.0, 60
 """Where a free place is looked for, the nearest to (160, 0) mm first (an easy reach)."""
 ARM_CLEAR_MM = 70.0
 """A free place for a tower keeps this far aside from the arm's way to a block beyond it."""
+TOWER_CLEAR_MM = 25.0
+"""Looking at or coming down to a block by the tower, the tool keeps this high over its
+top where it passes by (the fingers and the camera round the tool: ``_keepout``)."""
+RISE_STEP_MM = 5.0
+"""A carried block rises as high as straight up reaches, to this step."""
 HEIGHT_TOLERANCE = 1 / 3
 """A top seen further than this part of its block's side from where it should be: the
 block did not land on the tower (it fell, or leans)."""
@@ -204,16 +212,18 @@ class StackJob:
 
     # ------------------------------------------------------------------ seeing
 
-    def survey(self) -> dict[int, TagSighting]:
-        """Every upright tagged block seen from the survey's views, by id (the sighting
-        nearest the middle of its view kept), each one's side measured."""
+    def survey(self, keepout: Keepout | None = None) -> dict[int, TagSighting]:
+        """Every upright tagged block seen from the survey's views (the tool over
+        ``keepout``: the tower), by id (the sighting nearest the middle of its view kept),
+        each one's side measured."""
         s = self.settings
         found: dict[int, tuple[float, TagSighting]] = {}
         for bearing in s.survey_bearings_deg:
             a = math.radians(bearing)
             x, y = s.survey_radius_mm * math.cos(a), s.survey_radius_mm * math.sin(a)
             try:
-                pose = self.view.pose_for(x, y, self.table_z_mm + PLACE_PROBE_MM, s.survey_mm)
+                pose = self.view.pose_for(x, y, self.table_z_mm + PLACE_PROBE_MM, s.survey_mm,
+                                          keepout)
             except UnreachableError:
                 continue
             for t in self.view.look(pose):
@@ -280,14 +290,34 @@ class StackJob:
         return False
 
     def _whole_tower_fits(self, spot: tuple[float, float], ids: Sequence[int]) -> bool:
-        """Whether every block of ``ids`` can be set on a tower at ``spot``."""
+        """Whether every block of ``ids`` can be set on a tower at ``spot``, each looked at
+        on the table with the tool over the tower as tall as it is by then."""
         top_z = self.table_z_mm
         for tag in ids:
             size = self.view.sizes[tag]
             if self._too_tall(tag, size, spot, top_z):
                 return False
+            keepout, seen = self._keepout(spot, top_z), self.on_table[tag]
+            if keepout is not None and keepout.deck(seen.x_mm, seen.y_mm)[0]:
+                try:
+                    self.view.pose_for(seen.x_mm, seen.y_mm, seen.top_z_mm,
+                                       self.settings.look_mm, keepout)
+                except UnreachableError:
+                    return False
             top_z += size
         return True
+
+    def _keepout(self, axis: tuple[float, float], top_z: float) -> Keepout | None:
+        """What the tool keeps clear of by the tower topped at ``top_z`` (None: no tower
+        yet): its widest block's half diagonal, the open fingers round the tool and a
+        clearance; ``TOWER_CLEAR_MM`` over its top."""
+        if top_z <= self.table_z_mm:
+            return None
+        widest = max(self.view.sizes.values(), default=PLACE_PROBE_MM)
+        pick, pad = self.settings.pick, self.arm.config.gripper.pad_mm[0]
+        fingers = widest / 2 + pick.finger_clearance_mm + pad
+        return Keepout(*axis, widest * math.sqrt(0.5) + fingers + ROOM_MM / 2,
+                       top_z + TOWER_CLEAR_MM)
 
     def _blocked_by(self, spot: tuple[float, float], blocks: Mapping[int, TagSighting]
                     ) -> TagSighting | None:
@@ -345,8 +375,10 @@ class StackJob:
         placements."""
         s, tag = self.settings, block.tag_id
         source, stand_z = self.on_table[tag], self.table_z_mm
+        tower = self._keepout(axis, top_z)
         for _ in range(s.max_tries):
-            plan = self._take(block, source, stand_z)
+            plan = self._take(block, source, stand_z, None if stand_z > self.table_z_mm
+                              else tower)
             if stand_z == self.table_z_mm:
                 self.on_table.pop(tag, None)
             block.placements += 1
@@ -356,7 +388,7 @@ class StackJob:
             if seen is None or not seen.upright or abs(seen.top_z_mm - expected) > \
                     HEIGHT_TOLERANCE * block.size_mm:
                 self.progress(f"tag {tag} is not on the tower: looking for it on the table")
-                source, stand_z = self._fallen(tag), self.table_z_mm
+                source, stand_z = self._fallen(tag, tower), self.table_z_mm
                 continue
             block.seen_mm = (seen.x_mm, seen.y_mm, seen.top_z_mm)
             block.error_mm = seen.off_mm(*axis)
@@ -368,30 +400,39 @@ class StackJob:
         raise _Failed(f"tag {tag} was not set on the tower within {s.max_offset_mm:g} mm of "
                       f"its axis in {s.max_tries} placements (last {block.error_mm:.1f} mm off)")
 
-    def _fallen(self, tag: int) -> TagSighting:
-        """Block ``tag``, fallen off the tower, found upright on the table; _Failed if not."""
+    def _fallen(self, tag: int, tower: Keepout | None) -> TagSighting:
+        """Block ``tag``, fallen off the ``tower``, found upright on the table; _Failed if
+        not."""
         self.on_table = {**self.on_table, **{
-            t: v for t, v in self.survey().items() if t == tag or t in self.on_table}}
+            t: v for t, v in self.survey(tower).items() if t == tag or t in self.on_table}}
         seen = self.on_table.get(tag)
         if seen is None or abs(seen.top_z_mm - self.table_z_mm - seen.size_mm) > 3.0:
             raise _Failed(f"tag {tag} fell off the tower and is not seen upright on the table")
         return seen
 
-    def _take(self, block: StackedBlock, source: TagSighting, stand_z: float) -> GraspPlan:
-        """Look at the block closer and take it straight down (``max_grasps`` tries); the
-        plan it was taken by. _Failed if it is not seen or not held."""
+    def _take(self, block: StackedBlock, source: TagSighting, stand_z: float,
+              tower: Keepout | None) -> GraspPlan:
+        """Look at the block closer and take it straight down (``max_grasps`` tries), the
+        tool over the ``tower`` where it passes by; the plan it was taken by. _Failed if
+        it is not seen or not held."""
         s, tag = self.settings, block.tag_id
         pick = s.pick
         planner = replace(self.planner, table_z_mm=stand_z, block_mm=block.size_mm)
         missed = ""
         for _ in range(s.max_grasps):
-            closer = self.view.find(tag, source.x_mm, source.y_mm, stand_z + block.size_mm,
-                                    s.look_mm)
+            try:
+                closer = self.view.find(tag, source.x_mm, source.y_mm,
+                                        stand_z + block.size_mm, s.look_mm, tower)
+            except UnreachableError as exc:
+                raise _Failed(f"tag {tag} at {place_text((source.x_mm, source.y_mm))}: not "
+                              f"looked at with the tool over the tower: {exc}") from None
             if closer is None or not closer.upright:
                 raise _Failed(f"tag {tag} not seen upright at "
                               f"{place_text((source.x_mm, source.y_mm))} when looked at closer")
             others = [Footprint.square(t.x_mm, t.y_mm, t.size_mm, t.yaw_deg)
                       for t in self.on_table.values() if t.tag_id != tag]
+            if tower is not None:  # the fingers come down clear of it
+                others.append(Footprint.square(tower.x_mm, tower.y_mm, block.size_mm, 0.0))
             try:
                 plan = planner.plan(closer.x_mm, closer.y_mm, closer.yaw_deg, others,
                                     pick.gaps_mm(block.size_mm))
@@ -402,8 +443,7 @@ class StackJob:
                 raise _Failed(f"tag {tag} at {place_text((closer.x_mm, closer.y_mm))} is "
                               "taken only tilted: set it nearer the arm")
             self.arm.open_gripper(wait=False, gap_mm=plan.gap_mm)
-            self.arm.move_to(*plan.above, plan.pitch_deg, plan.roll_deg,
-                             speed_deg_s=pick.joint_speed_deg_s)
+            self._approach(plan, tower)
             self.arm.open_gripper(gap_mm=plan.gap_mm)
             block.grasps += 1
             missed = descend_and_grip(self.arm, plan, pick.line_speed_mm_s)
@@ -413,6 +453,22 @@ class StackJob:
             source = closer
         raise _Failed(f"tag {tag} not taken in {s.max_grasps} grasps: {missed}")
 
+    def _approach(self, plan: GraspPlan, tower: Keepout | None) -> None:
+        """The tool to ``plan``'s place above the block; by the ``tower`` (coming from the
+        look over it), as high as its clearance first, then straight down."""
+        pick = self.settings.pick
+        x, y, z = plan.above
+        if tower is not None and tower.clear_z_mm > z and \
+                math.hypot(x - tower.x_mm, y - tower.y_mm) < 2 * tower.radius_mm:
+            with contextlib.suppress(UnreachableError):  # (solved before anything moves)
+                self.arm.move_to(x, y, tower.clear_z_mm, plan.pitch_deg, plan.roll_deg,
+                                 speed_deg_s=pick.joint_speed_deg_s)
+                self.arm.move_line(x, y, z, plan.pitch_deg, plan.roll_deg,
+                                   speed_mm_s=pick.line_speed_mm_s)
+                return
+        self.arm.move_to(x, y, z, plan.pitch_deg, plan.roll_deg,
+                         speed_deg_s=pick.joint_speed_deg_s)
+
     def _put(self, block: StackedBlock, plan: GraspPlan, axis: tuple[float, float],
              top_z: float, yaw_deg: float) -> None:
         """Carry the block taken by ``plan`` over the tower, turned to ``yaw_deg``, lower
@@ -421,10 +477,16 @@ class StackJob:
         carry_z = self._carry_z(size, top_z)
         self.arm.move_line(*plan.lift, plan.pitch_deg, plan.roll_deg,
                            speed_mm_s=pick.line_speed_mm_s)
-        if plan.lift[2] < carry_z:  # as high as straight up reaches: it rises on the way
-            with contextlib.suppress(UnreachableError):  # (planned before anything moves)
-                self.arm.move_line(*plan.lift[:2], carry_z, plan.pitch_deg, plan.roll_deg,
+        # As high as straight up reaches (the rest on the way over: a tall tower may stand
+        # higher than the lift, and a slanting rise would carry the block through it).
+        z = carry_z
+        while z > plan.lift[2]:
+            try:  # (each line is planned before anything moves)
+                self.arm.move_line(*plan.lift[:2], z, plan.pitch_deg, plan.roll_deg,
                                    speed_mm_s=pick.line_speed_mm_s)
+                break
+            except UnreachableError:
+                z -= RISE_STEP_MM
         roll = self.planner.roll_squared_deg(*axis, yaw_deg)
         self.arm.move_to(*axis, carry_z, -90.0, roll, speed_deg_s=pick.joint_speed_deg_s)
         if not still_holding(self.arm):

@@ -38,6 +38,7 @@ __all__ = [
     "LABEL_MM",
     "MAX_UPRIGHT_TILT_DEG",
     "TAG_SIDE_FRACTION",
+    "Keepout",
     "TagSighting",
     "TagView",
     "measure_tag",
@@ -86,6 +87,32 @@ class TagSighting:
         return math.hypot(self.x_mm - x_mm, self.y_mm - y_mm)
 
 
+@dataclass(frozen=True)
+class Keepout:
+    """A column a look keeps the tool over (a tower): its axis (mm, base frame), how near
+    its axis the tool and the fingers round it may come (mm), and the least height of the
+    tool over it (mm, base frame z)."""
+
+    x_mm: float
+    y_mm: float
+    radius_mm: float
+    clear_z_mm: float
+
+    def deck(self, x_mm: float, y_mm: float) -> tuple[float, float]:
+        """``look_poses.look_pose``'s deck for a look at (x, y): the tool kept as high as
+        ``clear_z_mm`` out to beyond the column if the column stands by the arm's way
+        there (nearer than the point, within ``radius_mm`` of the arm's vertical plane);
+        else no deck."""
+        reach = math.hypot(x_mm, y_mm)
+        if reach == 0.0:
+            return 0.0, 0.0
+        ux, uy = x_mm / reach, y_mm / reach
+        along = self.x_mm * ux + self.y_mm * uy
+        if along > reach or abs(self.y_mm * ux - self.x_mm * uy) >= self.radius_mm:
+            return 0.0, 0.0
+        return along + self.radius_mm, self.clear_z_mm
+
+
 def measure_tag(detection: TagDetection, locator: BlockLocator, cam2base: npt.ArrayLike,
                 size_mm: float | None = None) -> TagSighting:
     """The block under a tag: at ``size_mm`` if its side is known, else its side measured
@@ -126,12 +153,14 @@ class TagView:
         self.sizes: dict[int, float] = {}
         self.last_image: npt.NDArray[np.uint8] | None = None
 
-    def pose_for(self, x_mm: float, y_mm: float, surface_z_mm: float, camera_mm: float
-                 ) -> tuple[float, ...]:
+    def pose_for(self, x_mm: float, y_mm: float, surface_z_mm: float, camera_mm: float,
+                 keepout: Keepout | None = None) -> tuple[float, ...]:
         """Joints aiming the camera at (x, y) on the plane ``surface_z_mm`` from about
-        ``camera_mm`` over it (tilted if need be); UnreachableError if none does."""
+        ``camera_mm`` over it (tilted if need be), the tool over ``keepout`` if it stands
+        in the way; UnreachableError if none does."""
         kin = self.arm.kin
         bearing = math.degrees(math.atan2(y_mm, x_mm))
+        deck = (0.0, 0.0) if keepout is None else keepout.deck(x_mm, y_mm)
         # Over a tall tower the camera cannot look down from as high as over the table
         # (a look keeps the tool ``TOOL_CLEAR_MM`` over the surface aimed at): it aims at
         # a plane below the top instead, its axis through nearly the same point (near
@@ -139,7 +168,7 @@ class TagView:
         for drop, tilt in itertools.product(DROPS_MM, (10.0, MAX_TILT_DEG)):
             with contextlib.suppress(UnreachableError):
                 joints = look_pose(kin, self.locator.cam2link, surface_z_mm - drop,
-                                   math.hypot(x_mm, y_mm), camera_mm + drop, tilt)
+                                   math.hypot(x_mm, y_mm), camera_mm + drop, tilt, deck)
                 try:
                     return self.arm.config.check_joints((bearing, *joints[1:]))
                 except ConfigError as exc:
@@ -164,15 +193,16 @@ class TagView:
         return out
 
     def find(self, tag_id: int, x_mm: float, y_mm: float, surface_z_mm: float,
-             camera_mm: float) -> TagSighting | None:
-        """Tag ``tag_id`` looked at closer about (x, y); its side measured if not known
-        yet. Not seen, it is looked at again from a little nearer and turned (a tag
-        whose edges lie along the pixel rows can be missed). None if it is not seen."""
-        base = self.pose_for(x_mm, y_mm, surface_z_mm, camera_mm)
+             camera_mm: float, keepout: Keepout | None = None) -> TagSighting | None:
+        """Tag ``tag_id`` looked at closer about (x, y) (the tool over ``keepout``); its
+        side measured if not known yet. Not seen, it is looked at again from a little
+        nearer and turned (a tag whose edges lie along the pixel rows can be missed).
+        None if it is not seen."""
+        base = self.pose_for(x_mm, y_mm, surface_z_mm, camera_mm, keepout)
         views: list[Sequence[float]] = [base]
         for nearer, turn in RELOOKS:
             with contextlib.suppress(UnreachableError, ConfigError):
-                pose = self.pose_for(x_mm, y_mm, surface_z_mm, camera_mm * nearer)
+                pose = self.pose_for(x_mm, y_mm, surface_z_mm, camera_mm * nearer, keepout)
                 views.append(self.arm.config.check_joints((pose[0] + turn, *pose[1:])))
         for joints in views:
             seen = [t for t in self.look(joints) if t.tag_id == tag_id]

@@ -568,7 +568,7 @@
   on('pick-run', () => {
     const colors = Array.from(document.querySelectorAll('#pick-colors input:checked'))
       .map((c) => c.dataset.color);
-    request({ type: 'pick_sort', colors, order: $('pick-order').value });
+    request({ type: 'pick_sort', colors, order: $('pick-order').value, by: $('pick-by').value });
   });
 
   // ------------------------------------------------------------------ cameras, report

@@ -1,0 +1,108 @@
+"""Sorting rules (busarm.apps.pick_sort.rules): which bin a block goes to by colour, size
+class or tag id; the bins a rule needs; tag places as a user writes them; and the bin
+places and run records the rules lean on."""
+
+from __future__ import annotations
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from busarm.apps.pick_sort.bins import BinPlaces, bin_takes
+from busarm.apps.pick_sort.grasp import GraspPlanner
+from busarm.apps.pick_sort.outcomes import BlockOutcome, RunReport
+from busarm.apps.pick_sort.records import BlockRecords
+from busarm.apps.pick_sort.rules import SortRule, parse_tag_places
+from busarm.arm.config import load_arm_config
+from busarm.arm.kinematics import ArmKinematics
+from busarm.errors import ConfigError
+from busarm.perception.size_classes import size_class
+
+TRAYS = {"red": (67.0, 183.0), "green": (67.0, -183.0), "blue": (-67.0, 183.0)}
+SIZED = {"small": (67.0, 183.0), "medium": (67.0, -183.0), "large": (-67.0, 183.0)}
+
+
+def test_each_rule_names_the_bin_a_block_goes_to() -> None:
+    assert SortRule().place_for("red", 44.0, None, list(TRAYS)) == "red"
+    assert [SortRule("size").place_for("red", s, None, list(SIZED))
+            for s in (20.0, 27.9, 28.0, 37.0, 37.1, 45.0)] == [
+        "small", "small", "medium", "medium", "large", "large"]
+    round_them = SortRule("tag")
+    assert [round_them.place_for("", 30.0, t, list(TRAYS)) for t in (0, 1, 2, 3, 586)] == [
+        "red", "green", "blue", "red", "green"]
+    assert round_them.place_for("", 30.0, None, list(TRAYS)) is None  # not read yet
+    mapped = SortRule("tag", {4: "blue", 7: "red"})
+    assert (mapped.place_for("", 30.0, 4, list(TRAYS)), mapped.place_for("", 30.0, 5, [])) == (
+        "blue", None)
+    assert repr(mapped) == "SortRule(tag, 4->blue, 7->red)"
+
+
+def test_a_rule_takes_the_bins_it_sorts_into_and_refuses_without_one() -> None:
+    assert SortRule().places(TRAYS, ["red", "yellow"]) == {"red": TRAYS["red"]}
+    assert SortRule("size").places({**TRAYS, **SIZED}, ["red"]) == SIZED
+    assert SortRule("tag", {1: "green"}).places(TRAYS, []) == {"green": TRAYS["green"]}
+    with pytest.raises(ConfigError, match=r"^sorting by size needs a bin named as a size "
+                       r"class \(small, medium, large\); bins given: red, green, blue"):
+        SortRule("size").places(TRAYS, ["red"])
+    with pytest.raises(ConfigError, match=r"^tag places purple: no such bin \(bins: red, "):
+        SortRule("tag", {1: "purple"}).places(TRAYS, [])
+    with pytest.raises(ConfigError, match=r"^sort by 'weight'; allowed: color, size, tag$"):
+        SortRule("weight")
+    with pytest.raises(ConfigError, match="tag places are for sorting by tag, not by size"):
+        SortRule("size", {1: "red"})
+    with pytest.raises(ConfigError, match="tag id"):
+        SortRule("tag", {587: "red"})
+
+
+@given(st.dictionaries(st.integers(0, 586), st.sampled_from(["red", "green", "bin_2"]),
+                       min_size=1, max_size=12))
+def test_tag_places_read_back_as_written(places: dict[int, str]) -> None:
+    by_place: dict[str, list[int]] = {}
+    for tag, place in places.items():
+        by_place.setdefault(place, []).append(tag)
+    text = ";".join(f"{','.join(map(str, ids))}={p}" for p, ids in by_place.items())
+    assert parse_tag_places(text) == places
+
+
+@pytest.mark.parametrize(("text", "says"), [
+    ("", "tag places are empty"),
+    ("0,1", "tag places '0,1': expected IDS=PLACE"),
+    ("x=red", "'x' is not a tag id or a range of them (0..586)"),
+    ("2-600=red", "tag id = 600"),
+    ("1=red;1=blue", "tag 1 goes to both red and blue"),
+])
+def test_bad_tag_places_name_the_bad_part(text: str, says: str) -> None:
+    with pytest.raises(ConfigError, match=says.replace("(", r"\(").replace(")", r"\)")):
+        parse_tag_places(text)
+    assert parse_tag_places(" 0-2 = left ; 5=right ") == {0: "left", 1: "left", 2: "left",
+                                                          5: "right"}
+
+
+def test_size_class_refuses_what_is_not_a_length() -> None:
+    assert size_class(28.0) == "medium"
+    for bad in (0.0, -3.0, float("nan"), float("inf")):
+        with pytest.raises(ConfigError, match="give a length in mm above 0"):
+            size_class(bad)
+
+
+def test_a_bin_of_large_blocks_stacks_them_and_knows_how_many_it_hides() -> None:
+    config = load_arm_config("jetauto_pro")
+    planner = GraspPlanner(ArmKinematics.from_config(config), 0.0, 30.0, 60.0, 75.0)
+    places = BinPlaces({"large": SIZED["large"]}, planner)
+    for size in (44.0, 41.0):
+        places.next_spot("large", size_mm=size)
+    # One 44 mm block fills a layer of a 90 mm tray: the 41 mm one stands on it.
+    assert (places.count("large"), places.covered("large")) == (2, 1)
+    assert places.is_full("large", 39.0)
+    # What a bin takes at best, for the benchmark's "more than their bins hold".
+    assert [bin_takes(s) for s in ([44.0, 41.0, 39.0], [30.0] * 8, [20.0] * 9)] == [2, 7, 7]
+
+
+def test_a_large_block_seen_as_two_leaves_one_record_once_it_is_taken() -> None:
+    report = RunReport()
+    taken = BlockOutcome("blue", (259.0, 90.0), "sorted")
+    half = BlockOutcome("blue", (255.0, 110.0))  # the same 43 mm block, seen in part
+    other = BlockOutcome("blue", (259.0, 135.0))  # its neighbour, beyond its top
+    report.blocks += [taken, half, other]
+    BlockRecords().taken(taken, 43.5, report)
+    assert report.blocks == [taken, other]
