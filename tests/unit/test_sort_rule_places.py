@@ -98,6 +98,18 @@ def test_a_bin_of_large_blocks_stacks_them_and_knows_how_many_it_hides() -> None
     assert [bin_takes(s) for s in ([44.0, 41.0, 39.0], [30.0] * 8, [20.0] * 9)] == [2, 7, 7]
 
 
+def test_a_bin_keeps_room_for_the_blocks_it_expects() -> None:
+    config = load_arm_config("jetauto_pro")
+    planner = GraspPlanner(ArmKinematics.from_config(config), 0.0, 30.0, 60.0, 75.0)
+    kept, first_fit = BinPlaces(TRAYS, planner), BinPlaces(TRAYS, planner)
+    sizes = [20.0, 25.0, 30.0, 44.0]  # nearest first: the largest comes last
+    kept.expect("red", sizes)
+    for size in sizes[:3]:
+        kept.next_spot("red", size_mm=size)
+        first_fit.next_spot("red", size_mm=size)
+    assert first_fit.is_full("red", 44.0) and not kept.is_full("red", 44.0)
+
+
 def test_a_large_block_seen_as_two_leaves_one_record_once_it_is_taken() -> None:
     report = RunReport()
     taken = BlockOutcome("blue", (259.0, 90.0), "sorted")

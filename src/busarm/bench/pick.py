@@ -1,6 +1,7 @@
 """``busarm bench pick``: pick-and-sort over seeded twin scenes, scored against the twin's
-truth: how many blocks end in their colour's bin, whether any run reports a block sorted
-that is not, the cycle time per block and the first survey's localisation error.
+truth: how many blocks end in their bin (the centre over the tray's inside), whether any
+run reports a block sorted that is not, the cycle time per block and the first survey's
+localisation error.
 
 The twin's camera is calibrated first by our own flows (as for ``busarm bench locate``),
 once, on the simulated clock like everything else. Each scene is a ``Robot`` on its own
@@ -119,9 +120,12 @@ class SceneResult:
     not_blocks_reported: int = 0
     """The run's records of blocks found where a thing that is not a block stood."""
 
-    def placed(self, in_bin_mm: float) -> list[bool]:
+    def placed(self) -> list[bool]:
+        """Whether each block is in its right bin: its centre over the tray's inside."""
+        from busarm.apps.pick_sort.bins import in_tray
+
         places = self.places or [t.color for t in self.truth]
-        return [p in self.bins and math.dist((t.x_mm, t.y_mm), self.bins[p]) < in_bin_mm
+        return [p in self.bins and in_tray(t.x_mm, t.y_mm, self.bins[p])
                 for t, p in zip(self.truth, places, strict=True)]
 
 
@@ -270,9 +274,9 @@ def _scene(task: SceneTask) -> Scene:
 
 def _in_bins(things: list[tuple[float, float, float]], bins: dict[str, tuple[float, float]]
              ) -> int:
-    from busarm.apps.pick_sort.sorter import IN_BIN_MM
+    from busarm.apps.pick_sort.bins import in_tray
 
-    return sum(any(math.dist(t[:2], b) < IN_BIN_MM for b in bins.values()) for t in things)
+    return sum(any(in_tray(t[0], t[1], b) for b in bins.values()) for t in things)
 
 
 def _about_not_blocks(outcomes: list[BlockOutcome], scene: Scene,
@@ -286,10 +290,9 @@ def _about_not_blocks(outcomes: list[BlockOutcome], scene: Scene,
 
 def _results(tasks: list[SceneTask], workers: int, progress: Progress) -> list[SceneResult]:
     """Every scene's result, in scene order; ``workers`` processes (1: this one)."""
-    from busarm.apps.pick_sort.sorter import IN_BIN_MM
 
     def report(done: int, r: SceneResult) -> None:
-        placed = r.placed(IN_BIN_MM)
+        placed = r.placed()
         stop = f"; the run stopped: {r.error}" if r.error else ""
         progress(f"scene {done}/{len(tasks)} (seed {r.task.scene_seed}): "
                  f"{sum(placed)}/{len(placed)} in their bins, {r.sim_s:.0f} s of twin time "
@@ -370,14 +373,12 @@ def _score(results: list[SceneResult], calibration: CalibrationSummary, seconds:
            calibration_s: float, workers: int, realtime: bool,
            family: str = "random") -> PickBenchReport:
     from busarm.apps.pick_sort.bins import bin_takes
-    from busarm.apps.pick_sort.sorter import IN_BIN_MM
-
     total = in_bin = false_sorted = reported_sorted = tilted = beyond = 0
     cycles: list[float] = []
     survey_errors: list[float] = []
     failures: list[PickFailure] = []
     for r in results:
-        placed = r.placed(IN_BIN_MM)
+        placed = r.placed()
         total += len(placed)
         in_bin += sum(placed)
         places = r.places or [t.color for t in r.truth]

@@ -24,6 +24,7 @@ from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import ConfigError, UnreachableError, VisionError
 from busarm.perception.obstacles import Obstacle, cast_obstacle, find_obstacles
 from busarm.perception.shape import (
+    CUBE_SIDES_MM,
     MIN_TRUSTED,
     ROUND_FROM_PX,
     WHOLE_SHARE,
@@ -79,7 +80,7 @@ CAMERA_LINK_NAME = "wrist_pitch"
 MAX_CAMERA_OFFSET_MM = 300.0
 NOT_BLOCK_COLORS = ("black", "white")
 """Colours the vendor's threshold file has for other jobs (lines, the table): never blocks."""
-AREA_RANGE = (0.35, 3.5)
+AREA_RANGE = (0.35, 4.5)
 """A blob counts as a block when its area is this many times the block's top face seen
 from where it is: less is a glimpse or a speck, more is not a block (a table, an arm)."""
 CUT_AREA_FRACTION = 0.25
@@ -311,10 +312,22 @@ class BlockLocator:
         there explain the thing's ``outline``; else None."""
         parts = self._split(d, cam2base)
         size = self.block_size_mm
-        if parts is None or cubes_explain(
-                outline, [(p.x_mm, p.y_mm, p.yaw_deg, size) for p in parts], self.intrinsics,
-                cam2base, self.table_z_mm) < SPLIT_EXPLAINS:
+
+        def explains(locs: Sequence[BlockLocation]) -> float:
+            return cubes_explain(outline, [(p.x_mm, p.y_mm, p.yaw_deg, size) for p in locs],
+                                 self.intrinsics, cam2base, self.table_z_mm)
+
+        if parts is None or (best := explains(parts)) < SPLIT_EXPLAINS:
             return None
+        # No more blocks than explain it: a part the others explain as well without (two
+        # blocks apart, seen as one blob through the gap, split in three) is none.
+        k = 0
+        while len(parts) > 1 and k < len(parts):
+            fewer = [*parts[:k], *parts[k + 1:]]
+            if (without := explains(fewer)) >= best:
+                parts, best = fewer, without
+            else:
+                k += 1
         return [self._sighting(d.color, loc, d) for loc in parts]
 
     def _judged(self, image: npt.NDArray[np.uint8], detections: Sequence[Detection],
@@ -584,7 +597,18 @@ class BlockLocator:
             loc = average_locations([s.location for s in group])
             out.append(replace(self._sighting(group[0].color, loc, dets[-1] if dets else None,
                                               dets), whole=all(s.whole for s in group)))
-        return Found(out, last.not_blocks)
+        return Found([s for s in out if s.shape is not None or not _part_of_measured(s, out)],
+                     last.not_blocks)
+
+
+def _part_of_measured(seen: Sighting, found: Sequence[Sighting]) -> bool:
+    """Whether ``seen`` (not measured: split from a blob at the usual size in a picture
+    not judged) stands nearer a measured block of its colour than another block can:
+    that block, taken for several in that picture."""
+    return any(m.shape is not None and m.shape.verdict in ("cube", "unsure")
+               and m.color == seen.color and math.hypot(
+                   m.location.x_mm - seen.location.x_mm, m.location.y_mm - seen.location.y_mm)
+               < (m.location.size_mm + CUBE_SIDES_MM[0]) / 2 - 2.0 for m in found)
 
 
 def _a_thing(shape: Shape) -> bool:

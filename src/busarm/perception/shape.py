@@ -141,6 +141,13 @@ def judge(views: Sequence[OutlineView], intrinsics: CameraIntrinsics, table_z_mm
     box = fit_box(pairs, intrinsics, table_z_mm, guess)
     start = (box.x_mm, box.y_mm, box.yaw_deg, (box.length_mm + box.width_mm) / 2)
     cube = fit_box(pairs, intrinsics, table_z_mm, start, aspect=1.0)
+    if cube.fit_px < box.fit_px:
+        # A cube is a box: the free fit stopped in a worse minimum (a small cube seen
+        # from the side fits a flat slab nearly as well). Started from the cube, it does
+        # at least as well.
+        again = fit_box(pairs, intrinsics, table_z_mm,
+                        (cube.x_mm, cube.y_mm, cube.yaw_deg, cube.length_mm))
+        box = again if again.fit_px < cube.fit_px else cube
 
     def shape(verdict: Verdict, why: str, crowd: bool = False) -> Shape:
         return Shape(verdict, why, cube.length_mm, box, cube, tuple(views), crowd)

@@ -4,7 +4,7 @@ roll that sets it down square with the fingers clear of the blocks beside it."""
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 
 from busarm.apps.pick_sort.footprint import Footprint
 from busarm.apps.pick_sort.grasp import GraspPlan, GraspPlanner
@@ -13,6 +13,7 @@ from busarm.errors import ConfigError, UnreachableError
 __all__ = [
     "BIN_PLACES",
     "BIN_RADIUS_MM",
+    "BIN_SEEN_MM",
     "BIN_SLOTS_MM",
     "IN_BIN_MM",
     "SLOT_GAP_MM",
@@ -22,12 +23,18 @@ __all__ = [
     "WALL_CLEARANCE_MM",
     "BinPlaces",
     "bin_takes",
+    "in_tray",
     "slot_offset_mm",
 ]
 
 
 BIN_RADIUS_MM = 45.0
 """A block seen this close to a bin's centre is in or at that bin: not to be picked."""
+BIN_SEEN_MM = 57.0
+"""A block seen this close to a bin's centre along both of the base's axes (a tray
+stands square to them) is in that bin: one on a tray's second layer, located as if it
+stood on the table, is seen up to about 12 mm beyond the tray's side (a block on the
+table keeps a finger's room off it)."""
 IN_BIN_MM = 35.0
 """A block whose centre is this close to its bin's centre is sorted: inside a 90 mm tray
 (a cube squared to the walls fits with its centre up to 28 mm off along each axis; the
@@ -52,6 +59,13 @@ TOP_SLACK_MM = 6.0
 """A block on the second layer is at most this much wider than the one it stands on."""
 
 
+def in_tray(x_mm: float, y_mm: float, bin_mm: tuple[float, float]) -> bool:
+    """Whether a block's centre at (x, y) lies over the inside of the tray at ``bin_mm``
+    (standing square to the base's axes): the block is in it (a block on a wall or
+    beyond has its centre over the wall or outside)."""
+    return abs(x_mm - bin_mm[0]) < TRAY_INSIDE_MM and abs(y_mm - bin_mm[1]) < TRAY_INSIDE_MM
+
+
 def slot_offset_mm(slot: int, size_mm: float) -> tuple[float, float]:
     """Where a block ``size_mm`` wide goes in ``slot`` (``BIN_SLOTS_MM``), from the bin's
     centre: the slot's place, drawn in if the block would otherwise reach the wall."""
@@ -60,11 +74,14 @@ def slot_offset_mm(slot: int, size_mm: float) -> tuple[float, float]:
     return dx * max(reach, 0.0), dy * max(reach, 0.0)
 
 
-def _first_free(taken: Sequence[tuple[int, int, float]], size_mm: float
-                ) -> tuple[int, int] | None:
-    """The first place of ``BIN_PLACES`` a block ``size_mm`` wide fits in a bin holding
-    ``taken`` (slot, layer, size mm): free, on a block no smaller than it less
-    ``TOP_SLACK_MM`` (the second layer), clear of its neighbours in the layer."""
+Taken = list[tuple[int, int, float]]
+"""A bin's places taken, in order: (slot, layer, block size mm)."""
+
+
+def _free_places(taken: Taken, size_mm: float) -> Iterator[tuple[int, int]]:
+    """The places of ``BIN_PLACES`` a block ``size_mm`` wide fits in a bin holding
+    ``taken``, in order: free, clear of its neighbours in the layer, and on the second
+    layer on a block no smaller than it less ``TOP_SLACK_MM``."""
     for slot, layer in BIN_PLACES:
         if any(s == slot and lay == layer for s, lay, _ in taken):
             continue
@@ -76,19 +93,36 @@ def _first_free(taken: Sequence[tuple[int, int, float]], size_mm: float
                and abs(dy - oy) < (size_mm + size) / 2 + SLOT_GAP_MM
                for s, lay, size in taken for ox, oy in (slot_offset_mm(s, size),)):
             continue
-        return slot, layer
-    return None
+        yield slot, layer
+
+
+def _fill(taken: Taken, sizes_mm: Sequence[float]) -> int:
+    """How many of blocks with these sides go into a bin holding ``taken``, the largest
+    set down first, each in the first place it fits."""
+    taken = list(taken)
+    for size in sorted(sizes_mm, reverse=True):
+        place = next(_free_places(taken, size), None)
+        if place is not None:
+            taken.append((*place, size))
+    return len(taken)
+
+
+def _best_place(taken: Taken, size_mm: float, coming_mm: Sequence[float]
+                ) -> tuple[int, int] | None:
+    """The place for a block ``size_mm`` wide that leaves the most room for the blocks
+    still ``coming_mm`` to the bin (the first such place, in ``BIN_PLACES`` order)."""
+    best, most = None, -1
+    for place in _free_places(taken, size_mm):
+        room = _fill([*taken, (*place, size_mm)], coming_mm) if coming_mm else 0
+        if room > most:
+            best, most = place, room
+    return best
 
 
 def bin_takes(sizes_mm: Sequence[float]) -> int:
     """How many of blocks with these sides (mm) one empty bin takes at best (the largest
     set down first, each in the first place it fits)."""
-    taken: list[tuple[int, int, float]] = []
-    for size in sorted(sizes_mm, reverse=True):
-        place = _first_free(taken, size)
-        if place is not None:
-            taken.append((*place, size))
-    return len(taken)
+    return _fill([], sizes_mm)
 
 
 class BinPlaces:
@@ -100,8 +134,10 @@ class BinPlaces:
     def __init__(self, bins: Mapping[str, tuple[float, float]], planner: GraspPlanner) -> None:
         self.bins = dict(bins)
         self.planner = planner
-        self._placed: dict[str, list[tuple[int, int, float]]] = {}
-        """Per colour, the places taken in order: (slot, layer, block size mm)."""
+        self._placed: dict[str, Taken] = {}
+        """Per colour, the places taken in order."""
+        self._coming: dict[str, list[float]] = {}
+        """Per colour, the sides of the blocks seen waiting to go there (``expect``)."""
 
     @property
     def capacity(self) -> int:
@@ -138,9 +174,18 @@ class BinPlaces:
         """The last place taken for ``color`` is free again (its block did not get there)."""
         self._placed[color].pop()
 
+    def expect(self, color: str, sizes_mm: Sequence[float]) -> None:
+        """The blocks seen waiting to go to ``color``'s bin, by side (mm): each block is
+        set down where it leaves them the most room."""
+        self._coming[color] = list(sizes_mm)
+
     def _place(self, color: str, size_mm: float) -> tuple[int, int] | None:
-        """The first free place of ``BIN_PLACES`` that a block ``size_mm`` wide fits."""
-        return _first_free(self._placed.get(color, []), size_mm)
+        """The place of ``BIN_PLACES`` for a block ``size_mm`` wide (``_best_place``;
+        the block itself is one of those expected, the nearest in size)."""
+        coming = list(self._coming.get(color, []))
+        if coming:
+            coming.remove(min(coming, key=lambda s: abs(s - size_mm)))
+        return _best_place(self._placed.get(color, []), size_mm, coming)
 
     def next_spot(self, color: str, things: Sequence[Footprint] = (), gap_mm: float = 0.0,
                   release_z_mm: float = 0.0, size_mm: float = 30.0

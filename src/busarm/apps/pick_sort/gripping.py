@@ -8,13 +8,14 @@ from collections.abc import Callable
 
 from busarm.apps.pick_sort.grasp import GraspPlan
 from busarm.arm import Arm
-from busarm.errors import ContactError, MotionTimeoutError
+from busarm.errors import BusArmError, ContactError, MotionTimeoutError
 from busarm.units import place_text
 
 __all__ = [
     "descend_and_grip",
     "lower_and_release",
     "still_holding",
+    "stop_and_read_gripper",
 ]
 
 
@@ -60,3 +61,27 @@ def lower_and_release(arm: Arm, point_mm: tuple[float, float, float], pitch_deg:
     except MotionTimeoutError:  # it rests on something: let go there
         arm.stop()
     arm.open_gripper(gap_mm=gap_mm)
+
+
+def stop_and_read_gripper(arm: Arm, holding: str | None, open_beyond_mm: float) -> str:
+    """Stop ``arm`` (a Ctrl+C between moves has stopped nothing yet); what the gripper
+    holds, judged from its position read back and the block it last took (``holding``:
+    its colour); fingers further apart than ``open_beyond_mm`` are open."""
+    g = arm.config.gripper
+    try:
+        arm.stop()
+        pulses = arm.read_gripper_pulses()
+    except (BusArmError, OSError) as exc:  # the port itself may be what failed
+        return f"unknown: the bus did not answer ({exc})"
+    gap_mm = g.gap_mm_at(pulses)
+    said = f"{gap_mm:.0f} mm apart, {pulses} pulses"
+    if abs(pulses - g.closed_pulses) <= g.holding_margin_pulses:
+        lost = f", the {holding} block lost" if holding else ""
+        return f"closed on nothing{lost} ({said})"
+    if gap_mm > open_beyond_mm:
+        return f"open ({said})"
+    # Fingers a block's width apart: the block it took (kept until the gripper has opened
+    # past it), or none it knows of.
+    if holding:
+        return f"holding a {holding} block ({said})"
+    return f"nearly closed, on no block it took ({said})"

@@ -12,6 +12,7 @@ import numpy as np
 from busarm.apps.pick_sort.outcomes import BlockOutcome, RunReport
 from busarm.apps.pick_sort.table_view import SAME_BLOCK_MM, off_mm, same_block
 from busarm.perception.locate import Sighting
+from busarm.perception.shape import CUBE_SIDES_MM
 
 __all__ = [
     "BlockRecords",
@@ -87,12 +88,13 @@ class BlockRecords:
 
     def taken(self, outcome: BlockOutcome, size_mm: float, report: RunReport) -> None:
         """``outcome``'s block, ``size_mm`` wide, was taken to its bin: a record still
-        waiting, never tried, of its colour and seen inside its top face was this block
-        seen in part (a large block's picture split in two): it goes."""
+        waiting, never tried, of its colour and nearer it than another block can stand
+        was this block seen in part (a large block's picture split in two): it goes."""
         report.blocks[:] = [
             o for o in report.blocks
-            if o is outcome or o.outcome != "pending" or o.attempts or o.color != outcome.color
-            or math.dist(o.found_mm, outcome.found_mm) >= size_mm / 2]
+            if o is outcome or o.outcome not in ("pending", "skipped") or o.attempts
+            or o.color != outcome.color
+            or math.dist(o.found_mm, outcome.found_mm) >= (size_mm + CUBE_SIDES_MM[0]) / 2 - 2]
 
     def may_push(self, outcome: BlockOutcome, most: int) -> bool:
         """Whether the block may be pushed once more (``most`` pushes a record); counted."""

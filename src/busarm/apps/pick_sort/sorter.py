@@ -31,6 +31,7 @@ from dataclasses import replace
 import numpy as np
 import numpy.typing as npt
 
+from busarm.apps.pick_sort.bin_check import check_bins
 from busarm.apps.pick_sort.bins import (
     BIN_PLACES,
     BIN_RADIUS_MM,
@@ -41,7 +42,12 @@ from busarm.apps.pick_sort.bins import (
 )
 from busarm.apps.pick_sort.footprint import Footprint
 from busarm.apps.pick_sort.grasp import GraspPlan, GraspPlanner, NoClearGrasp
-from busarm.apps.pick_sort.gripping import descend_and_grip, lower_and_release, still_holding
+from busarm.apps.pick_sort.gripping import (
+    descend_and_grip,
+    lower_and_release,
+    still_holding,
+    stop_and_read_gripper,
+)
 from busarm.apps.pick_sort.outcomes import BlockOutcome, RunReport
 from busarm.apps.pick_sort.push import Push, PushPlanner
 from busarm.apps.pick_sort.records import BlockRecords, mark_moved
@@ -53,9 +59,9 @@ from busarm.apps.pick_sort.table_view import (
     TableView,
     off_mm,
     same_block,
+    too_near_for_two,
 )
 from busarm.errors import (
-    BusArmError,
     ConfigError,
     HaltedError,
     MotionTimeoutError,
@@ -356,30 +362,9 @@ class PickSorter:
 
     def verify_bins(self, report: RunReport) -> None:
         """Look into each bin a block was put in: a block reported sorted but not found
-        there (it bounced out, say) is reported failed instead."""
-        arm = self.arm
-        look = arm.config.pose("look")
-        for name, (bx, by) in self.bins.items():
-            sorted_here = [b for b in report.blocks if b.outcome == "sorted"
-                           and (b.place or b.color) == name]
-            if not sorted_here:
-                continue
-            bearing = math.degrees(math.atan2(by, bx))
-            pose = (bearing, *look[1:])
-            try:
-                arm.config.check_joints(pose)
-            except ConfigError:
-                continue  # no look at it from here: the release is trusted
-            _, found = self.view.look(pose)
-            inside = [v for v in found if (self.rule.by != "color" or v.color == name)
-                      and math.hypot(v.location.x_mm - bx, v.location.y_mm - by) < IN_BIN_MM]
-            # A block of the second layer hides the one it stands on.
-            seen = len(inside) + self.places.covered(name)
-            for missing in sorted_here[seen:]:
-                missing.outcome = "failed"
-                missing.reason = "not in its bin when the bins were checked (it fell out?)"
-                self.progress(f"{missing.color} block from {_mm(missing.found_mm)}: not in "
-                              "its bin")
+        there (it bounced out, say) is reported failed instead (``check_bins``)."""
+        check_bins(report, self.view, self.places, any_color=self.rule.by != "color",
+                   progress=self.progress)
 
     # ------------------------------------------------------------------ the job
 
@@ -469,6 +454,12 @@ class PickSorter:
         # side in a bin can look like one blob).
         binned = {id(v.detection) for v in seen
                   if v.detection is not None and self.view.in_a_bin(v)}
+        coming: dict[str, list[float]] = {}  # where what waits goes: room kept for it
+        for v in seen:
+            if not self.view.in_a_bin(v) and id(v.detection) not in binned:
+                coming.setdefault(self.place_of(v), []).append(v.location.size_mm)
+        for place in self.bins:
+            self.places.expect(place, coming.get(place, []))
         for sighting in seen:
             if self.view.in_a_bin(sighting) or id(sighting.detection) in binned:
                 continue  # sorted already
@@ -563,25 +554,9 @@ class PickSorter:
 
     def _stop_and_read_gripper(self) -> str:
         """Stop the arm (a Ctrl+C between moves has stopped nothing yet); what the gripper
-        holds, judged from its position read back and the block it last took."""
-        g = self.arm.config.gripper
-        try:
-            self.arm.stop()
-            pulses = self.arm.read_gripper_pulses()
-        except (BusArmError, OSError) as exc:  # the port itself may be what failed
-            return f"unknown: the bus did not answer ({exc})"
-        gap_mm = g.gap_mm_at(pulses)
-        said = f"{gap_mm:.0f} mm apart, {pulses} pulses"
-        if abs(pulses - g.closed_pulses) <= g.holding_margin_pulses:
-            lost = f", the {self._holding} block lost" if self._holding else ""
-            return f"closed on nothing{lost} ({said})"
-        if gap_mm > self.view.tallest_mm + HOLD_SLACK_MM:
-            return f"open ({said})"
-        # Fingers a block's width apart: the block it took (kept until the gripper has
-        # opened past it), or none it knows of.
-        if self._holding:
-            return f"holding a {self._holding} block ({said})"
-        return f"nearly closed, on no block it took ({said})"
+        holds (``stop_and_read_gripper``)."""
+        return stop_and_read_gripper(self.arm, self._holding,
+                                     self.view.tallest_mm + HOLD_SLACK_MM)
 
     def place_of(self, sighting: Sighting) -> str:
         """The bin ``sighting`` goes to by the rule (its colour's, or its size class's)."""
@@ -625,13 +600,16 @@ class PickSorter:
         return self._planners[size]
 
     def _neighbours(self, target: Sighting) -> list[Footprint]:
-        """The footprints of every other block the last survey saw."""
+        """The footprints of every other block the last survey saw (not those standing
+        where a block measured whole stands: that block seen in part)."""
         loc, size = target.location, target.location.size_mm
+        whole = target.shape is not None and target.shape.verdict == "cube"
         return [Footprint.square(v.location.x_mm, v.location.y_mm, v.location.size_mm,
                                  v.location.yaw_deg)
                 for v in self.view.seen
                 if not same_block(target.color, loc.x_mm, loc.y_mm, v)
-                and off_mm(v, loc.x_mm, loc.y_mm) > size / 2]
+                and off_mm(v, loc.x_mm, loc.y_mm) > size / 2
+                and not (whole and too_near_for_two(size, loc.x_mm, loc.y_mm, v))]
 
     def _gaps(self, size_mm: float) -> list[float]:
         """How far apart the fingers may open for a grasp of a block ``size_mm`` wide,

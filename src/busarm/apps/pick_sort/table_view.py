@@ -15,7 +15,7 @@ from dataclasses import replace
 import numpy as np
 import numpy.typing as npt
 
-from busarm.apps.pick_sort.bins import BIN_RADIUS_MM
+from busarm.apps.pick_sort.bins import BIN_RADIUS_MM, BIN_SEEN_MM
 from busarm.apps.pick_sort.footprint import Footprint
 from busarm.apps.pick_sort.look_poses import look_pose
 from busarm.apps.pick_sort.settings import PickSortSettings
@@ -23,7 +23,7 @@ from busarm.arm import Arm
 from busarm.errors import ConfigError, UnreachableError
 from busarm.perception.locate import BlockLocator, NotBlock, Sighting
 from busarm.perception.obstacles import Obstacle, refine
-from busarm.perception.shape import Shape, judge
+from busarm.perception.shape import CUBE_SIDES_MM, Shape, judge
 from busarm.units import place_text
 from busarm.vision.camera import CameraSource
 
@@ -40,6 +40,7 @@ __all__ = [
     "TableView",
     "off_mm",
     "same_block",
+    "too_near_for_two",
 ]
 
 
@@ -345,8 +346,10 @@ class TableView:
         return same[0] if same else None
 
     def in_a_bin(self, sighting: Sighting) -> bool:
-        return any(math.hypot(sighting.location.x_mm - bx, sighting.location.y_mm - by)
-                   < BIN_RADIUS_MM for bx, by in self.bins.values())
+        """Whether ``sighting`` is a block in a bin (sorted: not to be picked)."""
+        x, y = sighting.location.x_mm, sighting.location.y_mm
+        return any(abs(x - bx) < BIN_SEEN_MM and abs(y - by) < BIN_SEEN_MM
+                   for bx, by in self.bins.values())
 
 
 def _judged(seen: Sighting) -> bool:
@@ -358,6 +361,13 @@ def same_block(color: str, x_mm: float, y_mm: float, seen: Sighting,
                 radius_mm: float = SAME_BLOCK_MM) -> bool:
     """Whether ``seen`` is the block of ``color`` seen at (x, y) before."""
     return seen.color == color and off_mm(seen, x_mm, y_mm) < radius_mm
+
+
+def too_near_for_two(size_mm: float, x_mm: float, y_mm: float, seen: Sighting) -> bool:
+    """Whether ``seen`` stands nearer a block ``size_mm`` wide at (x, y) than any block
+    can (half its side and half the smallest block's, less 2 mm): the same block, seen
+    in part (a large block's picture split in two)."""
+    return off_mm(seen, x_mm, y_mm) < (size_mm + CUBE_SIDES_MM[0]) / 2 - 2.0
 
 
 def off_mm(seen: Sighting, x_mm: float, y_mm: float) -> float:
