@@ -24,6 +24,7 @@ __all__ = [
     "BinPlaces",
     "bin_takes",
     "in_tray",
+    "place_offset_mm",
     "slot_offset_mm",
 ]
 
@@ -74,26 +75,44 @@ def slot_offset_mm(slot: int, size_mm: float) -> tuple[float, float]:
     return dx * max(reach, 0.0), dy * max(reach, 0.0)
 
 
-Taken = list[tuple[int, int, float]]
-"""A bin's places taken, in order: (slot, layer, block size mm)."""
+Place = tuple[int, int, float, float]
+"""A place in a bin: its slot (``BIN_SLOTS_MM``), layer (0, 1), and where the block's
+centre stands from the bin's centre (x, y mm)."""
+Taken = list[tuple[int, int, float, float, float]]
+"""A bin's places taken, in order: (slot, layer, block size mm, x, y mm from the centre)."""
 
 
-def _free_places(taken: Taken, size_mm: float) -> Iterator[tuple[int, int]]:
-    """The places of ``BIN_PLACES`` a block ``size_mm`` wide fits in a bin holding
-    ``taken``, in order: free, clear of its neighbours in the layer, and on the second
-    layer on a block no smaller than it less ``TOP_SLACK_MM``."""
+def place_offset_mm(slot: int, size_mm: float, corner: bool = False) -> tuple[float, float]:
+    """Where a block ``size_mm`` wide stands in ``slot``, from the bin's centre: the
+    slot's place (``slot_offset_mm``), or pushed out to both walls (``corner``: it leaves
+    the other slots more room)."""
+    if not corner:
+        return slot_offset_mm(slot, size_mm)
+    out = TRAY_INSIDE_MM - WALL_CLEARANCE_MM - size_mm / 2
+    dx, dy = BIN_SLOTS_MM[slot]
+    return math.copysign(out, dx), math.copysign(out, dy)
+
+
+def _free_places(taken: Taken, size_mm: float) -> Iterator[Place]:
+    """The places a block ``size_mm`` wide fits in a bin holding ``taken``, in
+    ``BIN_PLACES`` order (a slot's place before its corner): free, clear of its
+    neighbours in the layer; on the second layer centred on a block no smaller than it
+    less ``TOP_SLACK_MM``."""
     for slot, layer in BIN_PLACES:
-        if any(s == slot and lay == layer for s, lay, _ in taken):
+        if any(s == slot and lay == layer for s, lay, *_ in taken):
             continue
-        if layer == 1 and not any(s == slot and lay == 0 and size + TOP_SLACK_MM >= size_mm
-                                  for s, lay, size in taken):
-            continue
-        dx, dy = slot_offset_mm(slot, size_mm)
-        if any(lay == layer and abs(dx - ox) < (size_mm + size) / 2 + SLOT_GAP_MM
-               and abs(dy - oy) < (size_mm + size) / 2 + SLOT_GAP_MM
-               for s, lay, size in taken for ox, oy in (slot_offset_mm(s, size),)):
-            continue
-        yield slot, layer
+        if layer == 1:  # on the block below, as near its centre as the walls let it
+            most = TRAY_INSIDE_MM - WALL_CLEARANCE_MM - size_mm / 2
+            spots = [(math.copysign(min(abs(x), most), x), math.copysign(min(abs(y), most), y))
+                     for s, lay, size, x, y in taken
+                     if s == slot and lay == 0 and size + TOP_SLACK_MM >= size_mm][:1]
+        else:
+            spots = [place_offset_mm(slot, size_mm, corner) for corner in (False, True)]
+        for dx, dy in spots:
+            if not any(lay == layer and abs(dx - ox) < (size_mm + size) / 2 + SLOT_GAP_MM
+                       and abs(dy - oy) < (size_mm + size) / 2 + SLOT_GAP_MM
+                       for _, lay, size, ox, oy in taken):
+                yield slot, layer, dx, dy
 
 
 def _fill(taken: Taken, sizes_mm: Sequence[float]) -> int:
@@ -103,17 +122,18 @@ def _fill(taken: Taken, sizes_mm: Sequence[float]) -> int:
     for size in sorted(sizes_mm, reverse=True):
         place = next(_free_places(taken, size), None)
         if place is not None:
-            taken.append((*place, size))
+            taken.append((place[0], place[1], size, place[2], place[3]))
     return len(taken)
 
 
-def _best_place(taken: Taken, size_mm: float, coming_mm: Sequence[float]
-                ) -> tuple[int, int] | None:
+def _best_place(taken: Taken, size_mm: float, coming_mm: Sequence[float]) -> Place | None:
     """The place for a block ``size_mm`` wide that leaves the most room for the blocks
-    still ``coming_mm`` to the bin (the first such place, in ``BIN_PLACES`` order)."""
+    still ``coming_mm`` to the bin (the first such place, in ``_free_places`` order)."""
     best, most = None, -1
     for place in _free_places(taken, size_mm):
-        room = _fill([*taken, (*place, size_mm)], coming_mm) if coming_mm else 0
+        if not coming_mm:
+            return place
+        room = _fill([*taken, (place[0], place[1], size_mm, place[2], place[3])], coming_mm)
         if room > most:
             best, most = place, room
     return best
@@ -151,7 +171,7 @@ class BinPlaces:
     def covered(self, color: str) -> int:
         """How many blocks in ``color``'s bin stand under another (out of the camera's
         sight)."""
-        return sum(layer == 1 for _, layer, _ in self._placed.get(color, []))
+        return sum(layer == 1 for _, layer, *_ in self._placed.get(color, []))
 
     def is_full(self, color: str, size_mm: float = 30.0) -> bool:
         """Whether no place is left in ``color``'s bin for a block ``size_mm`` wide."""
@@ -167,7 +187,7 @@ class BinPlaces:
         place = self._place(color, size_mm)
         if place is None or place[1] == 0:
             return 0.0
-        return next(size for slot, layer, size in self._placed[color]
+        return next(size for slot, layer, size, *_ in self._placed[color]
                     if slot == place[0] and layer == 0)
 
     def take_back(self, color: str) -> None:
@@ -179,7 +199,7 @@ class BinPlaces:
         set down where it leaves them the most room."""
         self._coming[color] = list(sizes_mm)
 
-    def _place(self, color: str, size_mm: float) -> tuple[int, int] | None:
+    def _place(self, color: str, size_mm: float) -> Place | None:
         """The place of ``BIN_PLACES`` for a block ``size_mm`` wide (``_best_place``;
         the block itself is one of those expected, the nearest in size)."""
         coming = list(self._coming.get(color, []))
@@ -198,11 +218,9 @@ class BinPlaces:
         place = self._place(color, size_mm)
         if place is None:
             raise ConfigError(f"the {color} bin is full ({self.count(color)} blocks)")
-        slot, layer = place
-        dx, dy = slot_offset_mm(slot, size_mm)
-        beside = [slot_offset_mm(other, size) for other, lay, size in self._placed.get(color, [])
-                  if lay == layer]
-        self._placed.setdefault(color, []).append((slot, layer, size_mm))
+        slot, layer, dx, dy = place
+        beside = [(x, y) for _, lay, _, x, y in self._placed.get(color, []) if lay == layer]
+        self._placed.setdefault(color, []).append((slot, layer, size_mm, dx, dy))
         square = self.planner.roll_squared_deg(bx + dx, by + dy, 0.0)
 
         def along_neighbours(roll: float) -> float:
