@@ -23,7 +23,7 @@ def _robot(scene: object, calibration: tuple[Path, Path]) -> Robot:
 
 def test_blocks_of_every_size_class_go_to_their_class_bins(
         twin_calibration: tuple[Path, Path]) -> None:
-    scene = sized_scene(1)  # 41, 40.5, 25 and 31.5 mm: two large ones share a bin
+    scene = sized_scene(7)  # 23, 30, 31 and 42.5 mm: two medium ones share a bin
     said: list[str] = []
     with _robot(scene, twin_calibration) as robot:
         twin = robot.twin

@@ -85,17 +85,21 @@ def test_size_class_refuses_what_is_not_a_length() -> None:
             size_class(bad)
 
 
-def test_a_bin_of_large_blocks_stacks_them_and_knows_how_many_it_hides() -> None:
+def test_a_bin_stacks_blocks_no_taller_than_a_pair_may_stand_and_counts_those_hidden(
+        ) -> None:
     config = load_arm_config("jetauto_pro")
     planner = GraspPlanner(ArmKinematics.from_config(config), 0.0, 30.0, 60.0, 75.0)
-    places = BinPlaces({"large": SIZED["large"]}, planner)
-    for size in (44.0, 41.0):
-        places.next_spot("large", size_mm=size)
-    # One 44 mm block fills a layer of a 90 mm tray: the 41 mm one stands on it.
-    assert (places.count("large"), places.covered("large")) == (2, 1)
-    assert places.is_full("large", 39.0)
+    places = BinPlaces({"large": SIZED["large"], "medium": SIZED["medium"]}, planner)
+    for _ in range(5):
+        places.next_spot("medium", size_mm=30.0)  # four side by side, the fifth on top
+    assert (places.count("medium"), places.covered("medium")) == (5, 1)
+    places.next_spot("large", size_mm=44.0)
+    # One 44 mm block fills a layer of a 90 mm tray, and a 41 mm one on it would stand
+    # 85 mm tall: no room for it.
+    assert places.is_full("large", 41.0) and not places.is_full("large", 25.0)
     # What a bin takes at best, for the benchmark's "more than their bins hold".
-    assert [bin_takes(s) for s in ([44.0, 41.0, 39.0], [30.0] * 8, [20.0] * 9)] == [2, 7, 7]
+    assert [bin_takes(s) for s in ([44.0, 41.0, 39.0], [30.0] * 8, [20.0] * 9, [39.0] * 3)
+            ] == [1, 7, 7, 3]
 
 
 def test_a_bin_keeps_room_for_the_blocks_it_expects() -> None:

@@ -16,6 +16,7 @@ __all__ = [
     "BIN_SEEN_MM",
     "BIN_SLOTS_MM",
     "IN_BIN_MM",
+    "MAX_PAIR_MM",
     "SLOT_GAP_MM",
     "STACK_DROP_MM",
     "TOP_SLACK_MM",
@@ -58,6 +59,10 @@ SLOT_GAP_MM = 1.0
 """Blocks side by side in a bin stand at least this far apart."""
 TOP_SLACK_MM = 6.0
 """A block on the second layer is at most this much wider than the one it stands on."""
+MAX_PAIR_MM = 70.0
+"""Two blocks stand one on the other in a bin no taller than this (two of 35 mm): in the
+twin a pair of large blocks (78 and 82 mm) was knocked over later in the run, the bottom
+one thrown out of the tray, the top one still in it."""
 
 
 def in_tray(x_mm: float, y_mm: float, bin_mm: tuple[float, float]) -> bool:
@@ -97,7 +102,7 @@ def _free_places(taken: Taken, size_mm: float) -> Iterator[Place]:
     """The places a block ``size_mm`` wide fits in a bin holding ``taken``, in
     ``BIN_PLACES`` order (a slot's place before its corner): free, clear of its
     neighbours in the layer; on the second layer centred on a block no smaller than it
-    less ``TOP_SLACK_MM``."""
+    less ``TOP_SLACK_MM``, the two no taller than ``MAX_PAIR_MM``."""
     for slot, layer in BIN_PLACES:
         if any(s == slot and lay == layer for s, lay, *_ in taken):
             continue
@@ -105,7 +110,8 @@ def _free_places(taken: Taken, size_mm: float) -> Iterator[Place]:
             most = TRAY_INSIDE_MM - WALL_CLEARANCE_MM - size_mm / 2
             spots = [(math.copysign(min(abs(x), most), x), math.copysign(min(abs(y), most), y))
                      for s, lay, size, x, y in taken
-                     if s == slot and lay == 0 and size + TOP_SLACK_MM >= size_mm][:1]
+                     if s == slot and lay == 0 and size + TOP_SLACK_MM >= size_mm
+                     and size + size_mm <= MAX_PAIR_MM][:1]
         else:
             spots = [place_offset_mm(slot, size_mm, corner) for corner in (False, True)]
         for dx, dy in spots:
