@@ -115,23 +115,12 @@ class TagSortJob:
     # ------------------------------------------------------------------ seeing
 
     def survey(self) -> dict[int, TagSighting]:
-        """Every upright tagged block seen on the table (not in a bin), by id: the
-        sighting nearest the middle of its view."""
+        """Every upright tagged block seen on the table (not in a bin), by id
+        (``TagView.survey``)."""
         s = self.settings
-        found: dict[int, tuple[float, TagSighting]] = {}
-        for bearing in s.survey_bearings_deg:
-            a = math.radians(bearing)
-            x, y = s.survey_radius_mm * math.cos(a), s.survey_radius_mm * math.sin(a)
-            try:
-                pose = self.view.pose_for(x, y, self.table_z_mm + PROBE_MM, s.survey_mm)
-            except UnreachableError:
-                continue
-            for t in self.view.look(pose):
-                off = t.off_mm(x, y)
-                if t.upright and not self._in_a_bin(t) and (
-                        t.tag_id not in found or off < found[t.tag_id][0]):
-                    found[t.tag_id] = (off, t)
-        return {tag: t for tag, (_, t) in sorted(found.items())}
+        seen = self.view.survey(s.survey_bearings_deg, s.survey_radius_mm,
+                                self.table_z_mm + PROBE_MM, s.survey_mm)
+        return {tag: t for tag, t in seen.items() if not self._in_a_bin(t)}
 
     def _in_a_bin(self, t: TagSighting) -> bool:
         return any(math.hypot(t.x_mm - x, t.y_mm - y) < IN_BIN_MM for x, y in self.bins.values())

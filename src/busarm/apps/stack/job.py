@@ -217,22 +217,11 @@ class StackJob:
         ``keepout``: the tower), by id (the sighting nearest the middle of its view kept),
         each one's side measured."""
         s = self.settings
-        found: dict[int, tuple[float, TagSighting]] = {}
-        for bearing in s.survey_bearings_deg:
-            a = math.radians(bearing)
-            x, y = s.survey_radius_mm * math.cos(a), s.survey_radius_mm * math.sin(a)
-            try:
-                pose = self.view.pose_for(x, y, self.table_z_mm + PLACE_PROBE_MM, s.survey_mm,
-                                          keepout)
-            except UnreachableError:
-                continue
-            for t in self.view.look(pose):
-                off = t.off_mm(x, y)
-                if t.upright and (t.tag_id not in found or off < found[t.tag_id][0]):
-                    found[t.tag_id] = (off, t)
-        for tag, (_, t) in found.items():
+        found = self.view.survey(s.survey_bearings_deg, s.survey_radius_mm,
+                                 self.table_z_mm + PLACE_PROBE_MM, s.survey_mm, keepout)
+        for tag, t in found.items():
             self.view.sizes.setdefault(tag, t.size_mm)
-        return {tag: t for tag, (_, t) in sorted(found.items())}
+        return found
 
     def _chosen(self, seen: Mapping[int, TagSighting]) -> list[int]:
         """The ids to stack: those asked, every one on the table (ConfigError if not,

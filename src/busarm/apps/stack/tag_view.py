@@ -192,6 +192,26 @@ class TagView:
                                        self.sizes.get(detection.tag_id)))
         return out
 
+    def survey(self, bearings_deg: Sequence[float], radius_mm: float, surface_z_mm: float,
+               camera_mm: float, keepout: Keepout | None = None) -> dict[int, TagSighting]:
+        """Every upright tag seen looking at the points ``radius_mm`` out on these
+        bearings, on the plane ``surface_z_mm``, from ``camera_mm`` over it (the tool
+        over ``keepout``), by id, lowest first: of several sightings of one tag, the one
+        nearest the middle of its view."""
+        found: dict[int, tuple[float, TagSighting]] = {}
+        for bearing in bearings_deg:
+            a = math.radians(bearing)
+            x, y = radius_mm * math.cos(a), radius_mm * math.sin(a)
+            try:
+                pose = self.pose_for(x, y, surface_z_mm, camera_mm, keepout)
+            except UnreachableError:
+                continue
+            for t in self.look(pose):
+                off = t.off_mm(x, y)
+                if t.upright and (t.tag_id not in found or off < found[t.tag_id][0]):
+                    found[t.tag_id] = (off, t)
+        return {tag: t for tag, (_, t) in sorted(found.items())}
+
     def find(self, tag_id: int, x_mm: float, y_mm: float, surface_z_mm: float,
              camera_mm: float, keepout: Keepout | None = None) -> TagSighting | None:
         """Tag ``tag_id`` looked at closer about (x, y) (the tool over ``keepout``); its
