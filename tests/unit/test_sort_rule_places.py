@@ -8,7 +8,15 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from busarm.apps.pick_sort.bins import BinPlaces, bin_takes
+from busarm.apps.pick_sort.bins import (
+    SLOT_GAP_MM,
+    STACK_CLEAR_MM,
+    STACK_DROP_MM,
+    BinPlaces,
+    _free_places,
+    bin_takes,
+    place_offset_mm,
+)
 from busarm.apps.pick_sort.grasp import GraspPlanner
 from busarm.apps.pick_sort.outcomes import BlockOutcome, RunReport
 from busarm.apps.pick_sort.records import BlockRecords
@@ -94,12 +102,47 @@ def test_a_bin_stacks_blocks_no_taller_than_a_pair_may_stand_and_counts_those_hi
         places.next_spot("medium", size_mm=30.0)  # four side by side, the fifth on top
     assert (places.count("medium"), places.covered("medium")) == (5, 1)
     places.next_spot("large", size_mm=44.0)
-    # One 44 mm block fills a layer of a 90 mm tray, and a 41 mm one on it would stand
-    # 85 mm tall: no room for it.
-    assert places.is_full("large", 41.0) and not places.is_full("large", 25.0)
+    # One 44 mm block fills a layer of a 90 mm tray; a 41 mm one stands on it (85 mm,
+    # under the 90 mm a pair may stand), a third large block has no room.
+    assert places.next_layer("large", 41.0) == 1
+    carry, release = places.heights_mm("large", 41.0, 75.0, 12.0)
+    assert (carry, release) == (75.0 + 44.0, 44.0 + STACK_DROP_MM + 41.0 / 2)
+    places.next_spot("large", size_mm=41.0)
+    assert places.tallest_mm == 85.0
+    assert places.is_full("large", 39.0) and not places.is_full("large", 25.0)
+    # Every carry now passes over the 85 mm pair, to any bin.
+    assert places.heights_mm("medium", 30.0, 75.0, 12.0)[0] == 85.0 + STACK_CLEAR_MM + 15.0
     # What a bin takes at best, for the benchmark's "more than their bins hold".
-    assert [bin_takes(s) for s in ([44.0, 41.0, 39.0], [30.0] * 8, [20.0] * 9, [39.0] * 3)
-            ] == [1, 7, 7, 3]
+    assert [bin_takes(s) for s in ([44.0, 41.0, 39.0], [30.0] * 8, [20.0] * 9, [39.0] * 3,
+                                   [45.0, 45.0, 45.0])] == [2, 7, 7, 3, 2]
+
+
+def test_a_block_that_may_lean_in_its_bin_has_nothing_set_on_it() -> None:
+    config = load_arm_config("jetauto_pro")
+    planner = GraspPlanner(ArmKinematics.from_config(config), 0.0, 30.0, 60.0, 75.0)
+    places, upright = BinPlaces(SIZED, planner), BinPlaces(SIZED, planner)
+    for bins in (places, upright):
+        bins.next_spot("large", size_mm=40.0)
+    places.may_lean("large")  # taken tilted, set down with no room to take it again
+    # A 38.5 mm block would stand on an upright 40 mm one; on one that may lean, not
+    # (in the twin the pair fell, the bottom one thrown out while both counted sorted).
+    assert upright.next_layer("large", 38.5) == 1 and not upright.is_full("large", 38.5)
+    assert places.is_full("large", 38.5)
+    assert not places.is_full("large", 20.0)  # beside it, on the floor: yes
+    assert places.next_layer("large", 20.0) == 0
+    assert places.tallest_mm == 40.0
+
+
+def test_a_block_beside_a_pair_clears_the_wider_block_on_top() -> None:
+    # The look-alike family's seed 34: a 40.5 mm block stood on a 37.5 mm one, and a 37 mm
+    # block set down beside the pair, clear of the bottom one but not of the top one
+    # (1.5 mm wider on each side), knocked it out of the tray.
+    bottom = place_offset_mm(0, 37.5)
+    taken = [(0, 0, 37.5, *bottom), (0, 1, 40.5, *bottom)]
+    places = list(_free_places(taken, 37.0))
+    assert places  # there is room beside the pair...
+    for _, _, dx, dy in places:  # ... clear of the top block too
+        assert max(abs(dx - bottom[0]), abs(dy - bottom[1])) >= (37.0 + 40.5) / 2 + SLOT_GAP_MM
 
 
 def test_a_bin_keeps_room_for_the_blocks_it_expects() -> None:

@@ -41,6 +41,7 @@ from busarm.units import check_int_range
 
 if TYPE_CHECKING:
     from busarm.apps.pick_sort.sorter import BlockOutcome, PickSorter
+    from busarm.apps.pick_sort.tag_sort import TagSortJob
 
 __all__ = [
     "DISTRACTOR_MOVED_MM",
@@ -173,8 +174,8 @@ class PickBenchReport:
     median_cycle_s: float | None
     """Twin time per sorted block; None if none was sorted."""
     p95_cycle_s: float | None
-    survey_error_median_mm: float
-    survey_error_p95_mm: float
+    survey_error_median_mm: float | None
+    survey_error_p95_mm: float | None
     seconds: float
     """Wall seconds of the whole run, calibration included."""
     calibration_seconds: float
@@ -223,10 +224,9 @@ def run_scene(task: SceneTask) -> SceneResult:
         distractors_before = twin.distractor_positions_mm()
         if rule.reads_tags:
             job: PickSorter | TagSortJob = TagSortJob(robot, rule=rule)
-            survey_errors: list[float] = []
         else:
             job = PickSorter(robot, colors=task.colors, rule=rule)
-            survey_errors = _survey_errors(job, twin.blocks())
+        survey_errors = _survey_errors(job, twin.blocks(), scene)
         try:
             job.run()
             error = ""
@@ -246,9 +246,18 @@ def run_scene(task: SceneTask) -> SceneResult:
                            _about_not_blocks(outcomes, scene, distractors_before))
 
 
-def _survey_errors(sorter: PickSorter, truth: list[BlockState]) -> list[float]:
-    """How far the first survey saw each block from where it is (mm; those it saw)."""
-    first = sorter.survey()
+def _survey_errors(job: PickSorter | TagSortJob, truth: list[BlockState], scene: Scene
+                   ) -> list[float]:
+    """How far the first survey saw each block from where it is (mm; those it saw): by
+    colour, the nearest sighting; by tag, its tag's."""
+    from busarm.apps.pick_sort.tag_sort import TagSortJob
+
+    if isinstance(job, TagSortJob):
+        tags = job.survey()
+        ids = [scene.blocks[t.index].tag_id for t in truth]
+        return [math.hypot(tags[i].x_mm - t.x_mm, tags[i].y_mm - t.y_mm)
+                for t, i in zip(truth, ids, strict=True) if i is not None and i in tags]
+    first = job.survey()
     out = []
     for t in truth:
         near = [math.hypot(s.location.x_mm - t.x_mm, s.location.y_mm - t.y_mm)
@@ -400,7 +409,6 @@ def _score(results: list[SceneResult], calibration: CalibrationSummary, seconds:
                 outcomes=r.outcomes,
                 not_in_bins=[t for t, ok in zip(r.truth, placed, strict=True) if not ok],
                 distractors_moved_mm=r.distractors_moved_mm))
-    errors = np.asarray(survey_errors) if survey_errors else np.asarray([math.nan])
     sim_s = sum(r.sim_s for r in results)
     return PickBenchReport(
         machine=short_machine_info(), calibration=calibration, family=family,
@@ -412,8 +420,10 @@ def _score(results: list[SceneResult], calibration: CalibrationSummary, seconds:
         sorted_with_a_tilted_grasp=tilted,
         median_cycle_s=round(float(np.median(cycles)), 2) if cycles else None,
         p95_cycle_s=round(float(np.percentile(cycles, 95)), 2) if cycles else None,
-        survey_error_median_mm=round(float(np.median(errors)), 2),
-        survey_error_p95_mm=round(float(np.percentile(errors, 95)), 2),
+        survey_error_median_mm=round(float(np.median(survey_errors)), 2)
+        if survey_errors else None,
+        survey_error_p95_mm=round(float(np.percentile(survey_errors, 95)), 2)
+        if survey_errors else None,
         seconds=round(seconds, 1), calibration_seconds=round(calibration_s, 1),
         sim_seconds=round(sim_s, 1), speedup=round(sim_s / max(seconds, 1e-9), 2),
         workers=workers, clock="wall" if realtime else "simulated",

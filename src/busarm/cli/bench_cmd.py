@@ -446,8 +446,10 @@ def _print_pick(settings: Settings, report: PickBenchReport) -> None:
         f"p95 {report.p95_cycle_s} s"
         + ("" if report.clock != "wall" else
            f"; the twins fell behind the wall clock by {report.twin_slipped_s} s in all")
-        + "\nsurvey error median "
-        f"{report.survey_error_median_mm} mm, p95 {report.survey_error_p95_mm} mm\n"
+        + ("\nsurvey error median "
+           f"{report.survey_error_median_mm} mm, p95 {report.survey_error_p95_mm} mm\n"
+           if report.survey_error_median_mm is not None
+           else "\nsurvey error: no block seen by the first survey\n")
         + (f"things that are not blocks: {report.distractors}, moved by the runs: "
            f"{report.distractors_moved}, in a bin: {report.not_blocks_binned}, reported "
            f"as blocks: {report.not_blocks_reported}\n" if report.distractors else "")

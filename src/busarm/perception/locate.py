@@ -120,8 +120,9 @@ class Sighting:
 
     ``reachable``: a grasp at the block's centre height is within the arm's reach and
     limits (any pitch); ``top_down``: straight down works too; ``reason`` says why not.
-    ``whole``: False if the blob is cut by the picture's edge, so that its location is
-    only rough (look again, facing it).
+    ``whole``: False if the blob is cut by the picture's edge, or is split into blocks
+    that do not explain its outline, so that its location is only rough (look again,
+    facing it).
     """
 
     color: str
@@ -260,8 +261,10 @@ class BlockLocator:
             parts = self._split(d, cam2base)
             if parts is None:
                 single.append(d)
-            else:
-                out += [self._sighting(d.color, loc, d) for loc in parts]
+            else:  # cubes that explain the blob; else the split's guess, its places not sure
+                explained = self._explained_parts(d, d.contour_px, cam2base, parts)
+                out += explained if explained is not None else [
+                    replace(self._sighting(d.color, loc, d), whole=False) for loc in parts]
         return Found(out + self._locate_single(single, cam2base, w, h), [])
 
     def _judged_all(self, image: npt.NDArray[np.uint8], detections: Sequence[Detection],
@@ -307,27 +310,31 @@ class BlockLocator:
         return Found(blocks, not_blocks)
 
     def _explained_parts(self, d: Detection, outline: npt.NDArray[np.int32],
-                         cam2base: FloatArray) -> list[Sighting] | None:
-        """The touching blocks split out of blob ``d`` if cubes of this locator's size
-        there explain the thing's ``outline``; else None."""
-        parts = self._split(d, cam2base)
+                         cam2base: FloatArray, split: list[BlockLocation] | None = None
+                         ) -> list[Sighting] | None:
+        """The touching blocks split out of blob ``d`` (``split``: already) if cubes of
+        this locator's size there explain the thing's ``outline``; else None."""
+        parts = split if split is not None else self._split(d, cam2base)
         size = self.block_size_mm
 
         def explains(locs: Sequence[BlockLocation]) -> float:
             return cubes_explain(outline, [(p.x_mm, p.y_mm, p.yaw_deg, size) for p in locs],
                                  self.intrinsics, cam2base, self.table_z_mm)
 
-        if parts is None or (best := explains(parts)) < SPLIT_EXPLAINS:
+        if parts is None:
             return None
         # No more blocks than explain it: a part the others explain as well without (two
-        # blocks apart, seen as one blob through the gap, split in three) is none.
-        k = 0
+        # blocks apart, seen as one blob through the gap, split in three; two in a row
+        # whose sides in view make the blob big enough for four) is none.
+        best, k = explains(parts), 0
         while len(parts) > 1 and k < len(parts):
             fewer = [*parts[:k], *parts[k + 1:]]
             if (without := explains(fewer)) >= best:
                 parts, best = fewer, without
             else:
                 k += 1
+        if best < SPLIT_EXPLAINS:
+            return None
         return [self._sighting(d.color, loc, d) for loc in parts]
 
     def _judged(self, image: npt.NDArray[np.uint8], detections: Sequence[Detection],

@@ -18,6 +18,7 @@ __all__ = [
     "IN_BIN_MM",
     "MAX_PAIR_MM",
     "SLOT_GAP_MM",
+    "STACK_CLEAR_MM",
     "STACK_DROP_MM",
     "TOP_SLACK_MM",
     "TRAY_INSIDE_MM",
@@ -32,10 +33,10 @@ __all__ = [
 
 BIN_RADIUS_MM = 45.0
 """A block seen this close to a bin's centre is in or at that bin: not to be picked."""
-BIN_SEEN_MM = 57.0
+BIN_SEEN_MM = 60.0
 """A block seen this close to a bin's centre along both of the base's axes (a tray
 stands square to them) is in that bin: one on a tray's second layer, located as if it
-stood on the table, is seen up to about 12 mm beyond the tray's side (a block on the
+stood on the table, is seen up to about 15 mm beyond the tray's side (a block on the
 table keeps a finger's room off it)."""
 IN_BIN_MM = 35.0
 """A block whose centre is this close to its bin's centre is sorted: inside a 90 mm tray
@@ -59,10 +60,13 @@ SLOT_GAP_MM = 1.0
 """Blocks side by side in a bin stand at least this far apart."""
 TOP_SLACK_MM = 6.0
 """A block on the second layer is at most this much wider than the one it stands on."""
-MAX_PAIR_MM = 70.0
-"""Two blocks stand one on the other in a bin no taller than this (two of 35 mm): in the
-twin a pair of large blocks (78 and 82 mm) was knocked over later in the run, the bottom
-one thrown out of the tray, the top one still in it."""
+MAX_PAIR_MM = 90.0
+"""Two blocks stand one on the other in a bin no taller than this (two of 45 mm, the
+largest blocks: a bin takes one such pair where side by side they would not fit). Every
+carry passes over the tallest pair (``BinPlaces.tallest_mm``): in the twin a pair of 78
+and 82 mm, swept by a carry at the usual height, was knocked out of its tray."""
+STACK_CLEAR_MM = 15.0
+"""A block carried over the bins clears the tallest pair in them by this."""
 
 
 def in_tray(x_mm: float, y_mm: float, bin_mm: tuple[float, float]) -> bool:
@@ -100,8 +104,8 @@ def place_offset_mm(slot: int, size_mm: float, corner: bool = False) -> tuple[fl
 
 def _free_places(taken: Taken, size_mm: float) -> Iterator[Place]:
     """The places a block ``size_mm`` wide fits in a bin holding ``taken``, in
-    ``BIN_PLACES`` order (a slot's place before its corner): free, clear of its
-    neighbours in the layer; on the second layer centred on a block no smaller than it
+    ``BIN_PLACES`` order (a slot's place before its corner): free, clear of the
+    blocks in the other slots; on the second layer centred on a block no smaller than it
     less ``TOP_SLACK_MM``, the two no taller than ``MAX_PAIR_MM``."""
     for slot, layer in BIN_PLACES:
         if any(s == slot and lay == layer for s, lay, *_ in taken):
@@ -115,9 +119,12 @@ def _free_places(taken: Taken, size_mm: float) -> Iterator[Place]:
         else:
             spots = [place_offset_mm(slot, size_mm, corner) for corner in (False, True)]
         for dx, dy in spots:
-            if not any(lay == layer and abs(dx - ox) < (size_mm + size) / 2 + SLOT_GAP_MM
+            # Clear of every block in the other slots, either layer: one on the second
+            # layer may be wider than the one it stands on (in the twin a block set down
+            # beside such a pair knocked its top block out of the tray).
+            if not any(s != slot and abs(dx - ox) < (size_mm + size) / 2 + SLOT_GAP_MM
                        and abs(dy - oy) < (size_mm + size) / 2 + SLOT_GAP_MM
-                       for _, lay, size, ox, oy in taken):
+                       for s, _, size, ox, oy in taken):
                 yield slot, layer, dx, dy
 
 
@@ -163,6 +170,8 @@ class BinPlaces:
         self._placed: dict[str, Taken] = {}
         """Per colour, the places taken in order."""
         self._coming: dict[str, list[float]] = {}
+        self._leaning: dict[str, set[int]] = {}
+        """Per colour, the slots whose block may lean (set down tilted): none on it."""
         """Per colour, the sides of the blocks seen waiting to go there (``expect``)."""
 
     @property
@@ -196,6 +205,31 @@ class BinPlaces:
         return next(size for slot, layer, size, *_ in self._placed[color]
                     if slot == place[0] and layer == 0)
 
+    @property
+    def tallest_mm(self) -> float:
+        """The tallest stack in any bin (mm above its floor), by the blocks put there."""
+        stacks: dict[tuple[str, int], float] = {}
+        for color, taken in self._placed.items():
+            for slot, _, size, *_ in taken:
+                stacks[color, slot] = stacks.get((color, slot), 0.0) + size
+        return max(stacks.values(), default=0.0)
+
+    def heights_mm(self, color: str, size_mm: float, carry_mm: float, release_mm: float
+                   ) -> tuple[float, float]:
+        """How high above the table the next block of ``color`` (``size_mm`` wide, held
+        at its middle) is carried to its bin, and let go there: over the first layer for
+        the second, and over the tallest pair in any bin (``STACK_CLEAR_MM``); let go
+        just above the block below (a drop from the first layer's height bounces it off)."""
+        layer, below = self.next_layer(color, size_mm), self.below_mm(color, size_mm)
+        carry = max(carry_mm + layer * below, self.tallest_mm + STACK_CLEAR_MM + size_mm / 2)
+        return carry, release_mm if layer == 0 else below + STACK_DROP_MM + size_mm / 2
+
+    def may_lean(self, color: str) -> None:
+        """The block last put in ``color``'s bin may not stand flat (it was held tilted):
+        nothing is set on it."""
+        slot = self._placed[color][-1][0]
+        self._leaning.setdefault(color, set()).add(slot)
+
     def take_back(self, color: str) -> None:
         """The last place taken for ``color`` is free again (its block did not get there)."""
         self._placed[color].pop()
@@ -211,7 +245,11 @@ class BinPlaces:
         coming = list(self._coming.get(color, []))
         if coming:
             coming.remove(min(coming, key=lambda s: abs(s - size_mm)))
-        return _best_place(self._placed.get(color, []), size_mm, coming)
+        taken = self._placed.get(color, [])
+        # (A leaning block's slot counts its second layer as taken: by nothing at all.)
+        unsure = [(slot, 1, 0.0, x, y) for slot, lay, _, x, y in taken
+                  if lay == 0 and slot in self._leaning.get(color, ())]
+        return _best_place([*taken, *unsure], size_mm, coming)
 
     def next_spot(self, color: str, things: Sequence[Footprint] = (), gap_mm: float = 0.0,
                   release_z_mm: float = 0.0, size_mm: float = 30.0

@@ -21,16 +21,17 @@ __all__ = [
 ]
 
 
-STAGING_RADII_MM = (150.0, 170.0, 190.0, 210.0)
-STAGING_BEARINGS_DEG = tuple(range(-40, 41, 10))
+STAGING_RADII_MM = (150.0, 130.0, 170.0, 190.0, 210.0, 230.0)
+STAGING_BEARINGS_DEG = tuple(range(-60, 61, 5))
 """Where a block taken tilted may be set down to be taken again straight down."""
 
 
 class Restaged(Exception):
-    """A block taken tilted for a second layer was set down to be taken straight down."""
+    """A block taken tilted (for a second layer, or a large one) was set down to be taken
+    straight down."""
 
     def __init__(self, spot_mm: tuple[float, float]) -> None:
-        super().__init__(f"taken tilted, it would lean on the second layer: set down at "
+        super().__init__(f"taken tilted, it would land leaning in the bin: set down at "
                          f"{place_text(spot_mm)} to be taken straight down")
         self.spot_mm = spot_mm
 

@@ -37,7 +37,6 @@ from busarm.apps.pick_sort.bins import (
     BIN_RADIUS_MM,
     BIN_SLOTS_MM,
     IN_BIN_MM,
-    STACK_DROP_MM,
     BinPlaces,
 )
 from busarm.apps.pick_sort.footprint import Footprint
@@ -77,7 +76,13 @@ MAX_CYCLES = 150
 HOLD_SLACK_MM = 4.0
 """A gripper this little wider than a block, squeezing one, holds it (pads give a little)."""
 
-_Candidate = tuple[tuple[int, float], Sighting, BlockOutcome]
+TILTED_SET_DOWN_MM = 32.0
+"""A block larger than this, taken tilted, is set down to be taken again straight down
+before it goes to a bin: held tilted it would land leaning on the tray's wall (in the
+twin a 40 mm block leaned 24 deg, and the one set on it threw it out)."""
+LARGER_FIRST_MM = 5.0
+"""Blocks are taken larger first, by sizes this far apart (a bin packs best so)."""
+_Candidate = tuple[tuple[bool, int, int, float], Sighting, BlockOutcome]
 """A block that may be picked: its rank (colour order, distance), as seen, its record."""
 
 
@@ -257,16 +262,22 @@ class PickSorter:
             return False, missed, None, plan
         arm.move_line(*plan.lift, pitch, roll, speed_mm_s=s.line_speed_mm_s)
         self.on_step("lift")
-        if pitch != -90.0 and self.places.next_layer(place, target.location.size_mm) == 1:
-            # Taken tilted, it turns with the tool and would lean when set down straight:
-            # a first layer forgives that, a second does not. Put down to be taken again.
+        size = target.location.size_mm
+        if pitch != -90.0 and (self.places.next_layer(place, size) == 1
+                               or size > TILTED_SET_DOWN_MM):
+            # Taken tilted, it turns with the tool and lands on an edge when set down
+            # straight: a small one falls flat in a tray, a large one leans on the wall
+            # (and one on it then throws it out), and a second layer does not forgive
+            # it at all. Put down to be taken again straight down.
             stage = self._staging_spot(target)
             if stage is not None:
                 self._set_down(plan, stage, plan.gap_mm)
                 raise Restaged(stage)
-        placed = self._put_in_bin(place, plan, target.location.size_mm)
+        placed = self._put_in_bin(place, plan, size)
         if placed is None:
             return False, "the block slipped out during the carry", None, plan
+        if pitch != -90.0 and size > TILTED_SET_DOWN_MM:  # no room to set it down first
+            self.places.may_lean(place)
         return True, "", placed, plan
 
     def _go_above(self, plan: GraspPlan) -> str:
@@ -298,14 +309,10 @@ class PickSorter:
         where it was put, or None if it slipped out on the way (the fingers opened again)."""
         arm, s = self.arm, self.settings
         z0, gap = self.locator.table_z_mm, plan.gap_mm
-        # A second layer: carried higher over the first, set down just above it (a drop
-        # from the first layer's height would bounce it off).
-        size, layer = size_mm, self.places.next_layer(place, size_mm)
-        below = self.places.below_mm(place, size_mm)
-        carry_z = z0 + s.carry_mm + layer * below
-        release_z = z0 + (s.release_mm if layer == 0 else below + STACK_DROP_MM + size / 2)
+        carry, release = self.places.heights_mm(place, size_mm, s.carry_mm, s.release_mm)
+        carry_z, release_z = z0 + carry, z0 + release
         bx, by, _, square = self.places.next_spot(place, self.view.obstacles, gap, release_z,
-                                                  size)
+                                                  size_mm)
         carry_z = self._carry(plan, (bx, by), carry_z, square)
         self.on_step("carry")
         if not still_holding(arm):
@@ -336,11 +343,14 @@ class PickSorter:
                end_roll_deg: float) -> float:
         """Carry the block held at ``plan``'s lift to over ``end`` (x, y mm), straight
         down there at ``end_roll_deg``, at ``carry_z`` or, past a thing that is not a
-        block (of a height not known), over the tallest cup a desk has; the height used."""
+        block (of a height not known), over the tallest cup a desk has; the height used.
+        Carried higher than its lift (over a second layer), it rises there first."""
         arm, s = self.arm, self.settings
-        if self.view.thing_on_the_way(plan.lift[:2], end):
-            carry_z = max(carry_z, self.locator.table_z_mm + OVER_THINGS_MM
-                          + self.view.tallest_mm / 2)
+        past_a_thing = self.view.thing_on_the_way(plan.lift[:2], end)
+        if past_a_thing or carry_z > plan.lift[2]:
+            if past_a_thing:
+                carry_z = max(carry_z, self.locator.table_z_mm + OVER_THINGS_MM
+                              + self.view.tallest_mm / 2)
             # (Not straight up from here: it rises on the way over.)
             with contextlib.suppress(UnreachableError):
                 arm.move_line(*plan.lift[:2], carry_z, plan.pitch_deg, plan.roll_deg,
@@ -485,7 +495,11 @@ class PickSorter:
             place = self.place_of(sighting)
             rank = (list(self.bins).index(place) if place in self.bins else len(self.bins)) \
                 if self.settings.order == "colors" else 0
-            candidates.append(((rank, distance), sighting, outcome))
+            # A thing whose shape waits for its neighbours to go: after them. Larger blocks
+            # first (by 5 mm): a bin packs best that way, the large at the bottom.
+            larger = -round(sighting.location.size_mm / LARGER_FIRST_MM)
+            candidates.append(((self.view.is_waiting(sighting), rank, larger, distance),
+                               sighting, outcome))
         return candidates, boxed_in
 
     def _free_one(self, boxed_in: list[tuple[BlockOutcome, str, Sighting]]) -> bool:
@@ -622,5 +636,5 @@ def _mm(xy: tuple[float, float]) -> str:
     return place_text(xy)
 
 
-__all__ = ["BIN_PLACES", "BIN_SLOTS_MM", "IN_BIN_MM", "ORDERS", "BlockOutcome", "PickSortSettings",
-           "PickSorter", "RunReport"]
+__all__ = ["BIN_PLACES", "BIN_SLOTS_MM", "IN_BIN_MM", "ORDERS", "TILTED_SET_DOWN_MM",
+           "BlockOutcome", "PickSortSettings", "PickSorter", "RunReport"]

@@ -23,7 +23,7 @@ from busarm.arm import Arm
 from busarm.errors import ConfigError, UnreachableError
 from busarm.perception.locate import BlockLocator, NotBlock, Sighting
 from busarm.perception.obstacles import Obstacle, refine
-from busarm.perception.shape import CUBE_SIDES_MM, Shape, judge
+from busarm.perception.shape import CUBE_SIDES_MM, HEIGHT_TOLERANCE, Shape, judge
 from busarm.units import place_text
 from busarm.vision.camera import CameraSource
 
@@ -84,6 +84,7 @@ class TableView:
         self.last_survey: list[tuple[npt.NDArray[np.uint8], list[Sighting]]] = []
         # Every block the last survey saw: the neighbours a grasp must keep clear of.
         self.seen: list[Sighting] = []
+        self.last_found: list[Sighting] = []  # the blocks the last look saw
         # Things seen since the last survey began that are not blocks (cast on the table).
         self.obstacles: list[Footprint] = []
         self.things: list[Obstacle] = []  # the same, as seen (refined by each look)
@@ -91,6 +92,9 @@ class TableView:
         self.not_blocks: list[NotBlock] = []
         # Things no picture made out (colour, where): not touched, not reported.
         self.unknown: list[tuple[str, tuple[float, float]]] = []
+        # Things among others whose shape no picture was sure of (colour, where): judged
+        # again once the blocks around them have gone.
+        self.waiting: list[tuple[str, tuple[float, float]]] = []
 
     def survey(self, facing: Sequence[tuple[float, float]] = ()) -> list[Sighting]:
         """Every block seen from the survey poses, merged (averaged per pose), then from
@@ -201,7 +205,7 @@ class TableView:
             *pictures[-1], [(x, y, 2 * BIN_RADIUS_MM) for x, y in self.bins.values()],
             found.blocks, found.not_blocks))
         self.obstacles = [Footprint(o.corners) for o in self.things]
-        blocks = [v for v in found.blocks if not self.is_not_block(v)]
+        blocks = self.last_found = [v for v in found.blocks if not self.is_not_block(v)]
         return pictures[-1][0], blocks
 
     def not_block(self, thing: NotBlock) -> None:
@@ -218,11 +222,9 @@ class TableView:
 
     def is_not_block_at(self, color: str, xy_mm: tuple[float, float]) -> bool:
         """Whether a thing of ``color`` found not to be a block is at ``xy_mm``."""
-        # Within the thing's own footprint (a disc is wider than a block), or as near as
-        # two sightings of a block are.
-        return any(n.color == color and math.dist(n.xy_mm, xy_mm)
-                   < max(SAME_BLOCK_MM, n.shape.reach_mm) for n in self.not_blocks) or any(
-            c == color and math.dist(xy, xy_mm) < SAME_BLOCK_MM for c, xy in self.unknown)
+        return any(n.color == color and _on_thing(n.shape, xy_mm) for n in self.not_blocks
+                   ) or any(c == color and math.dist(xy, xy_mm) < SAME_BLOCK_MM
+                            for c, xy in self.unknown)
 
     def confirm(self, target: Sighting) -> Sighting | None:
         """``target`` if its outline showed a cube; else seen again from other poses
@@ -234,7 +236,7 @@ class TableView:
             return target
         seen = [target] if _judged(target) else []
         last: Sighting | None = None
-        verdict: Shape | None = None
+        verdict = target.shape if seen else None
         for again in self._other_looks(target):
             if self.is_not_block(target):
                 return None
@@ -251,26 +253,53 @@ class TableView:
             if verdict.verdict == "not a block":
                 self.not_block(NotBlock(target.color, verdict))
                 return None
+        return self._undecided(target, seen, last, verdict)
+
+    def _undecided(self, target: Sighting, seen: Sequence[Sighting], last: Sighting | None,
+                   verdict: Shape | None) -> Sighting | None:
+        """``confirm``'s answer when no picture decided: among others (its outline partly
+        hidden by them), judged again once they have gone, and then taken as a block if
+        its height is still a block's as far as they show; else left alone."""
+        crowded = any(self._in_a_crowd(v) for v in (target, last) if v is not None)
+        where = place_text(target.location.xy_mm)
+        if verdict is not None and crowded and not self.is_waiting(target):
+            # Among others its sides hardly show: once they have gone, they will.
+            self.waiting.append((target.color, target.location.xy_mm))
+            self.on_note(f"the {target.color} thing at {where} stands among others and its "
+                         f"shape is not sure yet: looked at again once they have gone")
+            return None
+        if verdict is not None and crowded and _block_high(verdict):
+            # Still among others (things that stay): as a thing hidden in every picture
+            # is, a block of the size its outline shows; no picture says it is none.
+            self.on_note(f"the {target.color} thing at {where} stays among others: taken "
+                         f"for a block ({verdict.box.height_mm:.0f} mm high as far as its "
+                         f"outline shows)")
+            return seen[-1] if len(seen) == 1 else self.locator.measured(seen[-1], verdict)
         if verdict is not None:  # unsure from every picture: not touched
             self.not_block(NotBlock(target.color, replace(
                 verdict, why=f"its shape is not sure from {len(seen)} picture(s) "
                              f"({verdict.why})")))
             return None
-        if not any(self._in_a_crowd(v) for v in (target, last) if v is not None):
+        if not crowded:
             # No picture made it out, and no neighbour hides it: it is not touched.
-            self.on_note(f"the {target.color} thing at {place_text(target.location.xy_mm)} "
-                         f"could not be made out from any pose: left alone")
+            self.on_note(f"the {target.color} thing at {where} could not be made out from "
+                         f"any pose: left alone")
             self.unknown.append((target.color, target.location.xy_mm))
             return None
         return target if last is None else last
+
+    def is_waiting(self, seen: Sighting) -> bool:
+        """Whether ``seen`` is a thing among others to be judged once they have gone."""
+        return any(c == seen.color and math.dist(xy, seen.location.xy_mm) < 2 * SAME_BLOCK_MM
+                   for c, xy in self.waiting)
 
     def _in_a_crowd(self, seen: Sighting) -> bool:
         """Whether ``seen`` is hidden by its neighbours, or one of several touching blocks
         split from one blob: a block of the usual size among others."""
         if seen.shape is not None and seen.shape.verdict == "hidden":
             return True
-        return seen.detection is not None and sum(
-            v.detection is seen.detection for v in self.seen) > 1
+        return seen.detection is not None and len(
+            {id(v) for v in (*self.seen, *self.last_found) if v.detection is seen.detection}) > 1
 
     def _judged_all(self, seen: Sequence[Sighting]) -> Shape:
         """The verdict on one thing from every picture that measured it."""
@@ -350,6 +379,27 @@ class TableView:
         x, y = sighting.location.x_mm, sighting.location.y_mm
         return any(abs(x - bx) < BIN_SEEN_MM and abs(y - by) < BIN_SEEN_MM
                    for bx, by in self.bins.values())
+
+
+def _on_thing(shape: Shape, xy_mm: tuple[float, float]) -> bool:
+    """Whether ``xy_mm`` lies on the thing ``shape`` measured: within its footprint (a
+    disc's circle, a bar's rectangle: a block beside a bar is not on it), or as near its
+    middle as two sightings of one block are."""
+    if shape.cylinder is not None:
+        return math.dist(shape.xy_mm, xy_mm) < max(SAME_BLOCK_MM, shape.reach_mm)
+    box = shape.box
+    a = math.radians(box.yaw_deg)
+    dx, dy = xy_mm[0] - box.x_mm, xy_mm[1] - box.y_mm
+    along, across = dx * math.cos(a) + dy * math.sin(a), -dx * math.sin(a) + dy * math.cos(a)
+    return (abs(along) < max(SAME_BLOCK_MM, box.length_mm / 2)
+            and abs(across) < max(SAME_BLOCK_MM, box.width_mm / 2))
+
+
+def _block_high(shape: Shape) -> bool:
+    """Whether the box that fits ``shape``'s outlines best is as high as a block (its
+    side, within what two pictures measure)."""
+    side = (shape.box.length_mm + shape.box.width_mm) / 2
+    return abs(shape.box.height_mm / side - 1.0) <= HEIGHT_TOLERANCE[1]
 
 
 def _judged(seen: Sighting) -> bool:

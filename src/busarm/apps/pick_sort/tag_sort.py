@@ -27,7 +27,7 @@ from dataclasses import replace
 import numpy as np
 import numpy.typing as npt
 
-from busarm.apps.pick_sort.bins import STACK_DROP_MM, BinPlaces
+from busarm.apps.pick_sort.bins import BinPlaces
 from busarm.apps.pick_sort.footprint import Footprint
 from busarm.apps.pick_sort.grasp import GraspPlan, GraspPlanner, NoClearGrasp
 from busarm.apps.pick_sort.gripping import descend_and_grip, lower_and_release, still_holding
@@ -230,11 +230,9 @@ class TagSortJob:
         """Carry the block held at ``plan``'s lift to its bin's next place and let it go
         (a second layer: set down just above the first); where, or None if it slipped."""
         pick, z0, gap = self.settings.pick, self.table_z_mm, plan.gap_mm
-        layer, below = (self.places.next_layer(place, size_mm),
-                        self.places.below_mm(place, size_mm))
-        carry_z = z0 + pick.carry_mm + layer * below
-        release_z = z0 + (pick.release_mm if layer == 0
-                          else below + STACK_DROP_MM + size_mm / 2)
+        carry, release = self.places.heights_mm(place, size_mm, pick.carry_mm,
+                                                pick.release_mm)
+        carry_z, release_z = z0 + carry, z0 + release
         bx, by, _, roll = self.places.next_spot(place, (), gap, release_z, size_mm)
         self.arm.move_line(*plan.lift, plan.pitch_deg, plan.roll_deg,
                            speed_mm_s=pick.line_speed_mm_s)
