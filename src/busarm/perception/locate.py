@@ -24,13 +24,13 @@ from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import ConfigError, UnreachableError, VisionError
 from busarm.perception.obstacles import Obstacle, cast_obstacle, find_obstacles
 from busarm.perception.shape import (
-    CUBE_SIDES_MM,
     MIN_TRUSTED,
     ROUND_FROM_PX,
     WHOLE_SHARE,
     Shape,
     cubes_explain,
     judge_blobs,
+    nearest_other_mm,
 )
 from busarm.perception.split import Grid, cast_cube_extent, edge_yaw_deg, top_faces_mm
 from busarm.units import check_range
@@ -615,7 +615,7 @@ def _part_of_measured(seen: Sighting, found: Sequence[Sighting]) -> bool:
     return any(m.shape is not None and m.shape.verdict in ("cube", "unsure")
                and m.color == seen.color and math.hypot(
                    m.location.x_mm - seen.location.x_mm, m.location.y_mm - seen.location.y_mm)
-               < (m.location.size_mm + CUBE_SIDES_MM[0]) / 2 - 2.0 for m in found)
+               < nearest_other_mm(m.location.size_mm) for m in found)
 
 
 def _a_thing(shape: Shape) -> bool:

@@ -60,6 +60,7 @@ __all__ = [
     "cubes_explain",
     "judge",
     "judge_blobs",
+    "nearest_other_mm",
 ]
 
 CUBE_SIDES_MM = (17.0, 48.0)
@@ -94,6 +95,13 @@ SIDE_GROW = 0.5
 sides, lit from elsewhere, may be too dark for its colour) to make the thing's outline."""
 
 Verdict = Literal["cube", "unsure", "not a block", "hidden"]
+
+
+def nearest_other_mm(size_mm: float) -> float:
+    """How near another block's centre can stand to a block ``size_mm`` wide (half its
+    side and half the smallest block's, less 2 mm): a sighting nearer is that block
+    seen in part (a large block's picture split in two)."""
+    return (size_mm + CUBE_SIDES_MM[0]) / 2 - 2.0
 
 
 @dataclass(frozen=True)

@@ -39,6 +39,7 @@ def count_in_bin(view: TableView, places: BinPlaces, name: str, expected: int, *
     bx, by = places.bins[name]
     look = arm.config.pose("look")
     bearing = math.degrees(math.atan2(by, bx))
+    reach = TRAY_INSIDE_MM + IN_TRAY_SLACK_MM
     most: int | None = None
     for turn in (0.0, *RECOUNT_TURNS_DEG):
         try:
@@ -46,7 +47,6 @@ def count_in_bin(view: TableView, places: BinPlaces, name: str, expected: int, *
         except ConfigError:
             continue
         _, found = view.look(pose)
-        reach = TRAY_INSIDE_MM + IN_TRAY_SLACK_MM
         inside = [v for v in found if (any_color or v.color == name)
                   and abs(v.location.x_mm - bx) < reach and abs(v.location.y_mm - by) < reach]
         seen = len(inside) + places.covered(name)

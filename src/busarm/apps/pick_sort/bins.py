@@ -170,9 +170,9 @@ class BinPlaces:
         self._placed: dict[str, Taken] = {}
         """Per colour, the places taken in order."""
         self._coming: dict[str, list[float]] = {}
+        """Per colour, the sides of the blocks seen waiting to go there (``expect``)."""
         self._leaning: dict[str, set[int]] = {}
         """Per colour, the slots whose block may lean (set down tilted): none on it."""
-        """Per colour, the sides of the blocks seen waiting to go there (``expect``)."""
 
     @property
     def capacity(self) -> int:
@@ -194,16 +194,19 @@ class BinPlaces:
 
     def next_layer(self, color: str, size_mm: float = 30.0) -> int:
         """The layer the next block of ``color``, ``size_mm`` wide, goes to (0, 1)."""
-        place = self._place(color, size_mm)
-        return 1 if place is None else place[1]
+        return self._layer_and_below(color, size_mm)[0]
 
     def below_mm(self, color: str, size_mm: float = 30.0) -> float:
         """The size of the block the next one of ``color`` stands on (0: the floor)."""
+        return self._layer_and_below(color, size_mm)[1]
+
+    def _layer_and_below(self, color: str, size_mm: float) -> tuple[int, float]:
+        """``next_layer`` and ``below_mm`` from one choice of the place."""
         place = self._place(color, size_mm)
         if place is None or place[1] == 0:
-            return 0.0
-        return next(size for slot, layer, size, *_ in self._placed[color]
-                    if slot == place[0] and layer == 0)
+            return (1 if place is None else 0), 0.0
+        return 1, next(size for slot, layer, size, *_ in self._placed[color]
+                       if slot == place[0] and layer == 0)
 
     @property
     def tallest_mm(self) -> float:
@@ -220,7 +223,7 @@ class BinPlaces:
         at its middle) is carried to its bin, and let go there: over the first layer for
         the second, and over the tallest pair in any bin (``STACK_CLEAR_MM``); let go
         just above the block below (a drop from the first layer's height bounces it off)."""
-        layer, below = self.next_layer(color, size_mm), self.below_mm(color, size_mm)
+        layer, below = self._layer_and_below(color, size_mm)
         carry = max(carry_mm + layer * below, self.tallest_mm + STACK_CLEAR_MM + size_mm / 2)
         return carry, release_mm if layer == 0 else below + STACK_DROP_MM + size_mm / 2
 

@@ -12,7 +12,7 @@ import numpy as np
 from busarm.apps.pick_sort.outcomes import BlockOutcome, RunReport
 from busarm.apps.pick_sort.table_view import SAME_BLOCK_MM, off_mm, same_block
 from busarm.perception.locate import Sighting
-from busarm.perception.shape import CUBE_SIDES_MM
+from busarm.perception.shape import nearest_other_mm
 
 __all__ = [
     "BlockRecords",
@@ -94,7 +94,7 @@ class BlockRecords:
             o for o in report.blocks
             if o is outcome or o.outcome not in ("pending", "skipped") or o.attempts
             or o.color != outcome.color
-            or math.dist(o.found_mm, outcome.found_mm) >= (size_mm + CUBE_SIDES_MM[0]) / 2 - 2]
+            or math.dist(o.found_mm, outcome.found_mm) >= nearest_other_mm(size_mm)]
 
     def may_push(self, outcome: BlockOutcome, most: int) -> bool:
         """Whether the block may be pushed once more (``most`` pushes a record); counted."""

@@ -263,8 +263,9 @@ class PickSorter:
         arm.move_line(*plan.lift, pitch, roll, speed_mm_s=s.line_speed_mm_s)
         self.on_step("lift")
         size = target.location.size_mm
-        if pitch != -90.0 and (self.places.next_layer(place, size) == 1
-                               or size > TILTED_SET_DOWN_MM):
+        tilted = pitch != -90.0
+        large_tilted = tilted and size > TILTED_SET_DOWN_MM
+        if large_tilted or (tilted and self.places.next_layer(place, size) == 1):
             # Taken tilted, it turns with the tool and lands on an edge when set down
             # straight: a small one falls flat in a tray, a large one leans on the wall
             # (and one on it then throws it out), and a second layer does not forgive
@@ -276,7 +277,7 @@ class PickSorter:
         placed = self._put_in_bin(place, plan, size)
         if placed is None:
             return False, "the block slipped out during the carry", None, plan
-        if pitch != -90.0 and size > TILTED_SET_DOWN_MM:  # no room to set it down first
+        if large_tilted:  # no room to set it down first
             self.places.may_lean(place)
         return True, "", placed, plan
 
@@ -347,10 +348,10 @@ class PickSorter:
         Carried higher than its lift (over a second layer), it rises there first."""
         arm, s = self.arm, self.settings
         past_a_thing = self.view.thing_on_the_way(plan.lift[:2], end)
+        if past_a_thing:
+            carry_z = max(carry_z, self.locator.table_z_mm + OVER_THINGS_MM
+                          + self.view.tallest_mm / 2)
         if past_a_thing or carry_z > plan.lift[2]:
-            if past_a_thing:
-                carry_z = max(carry_z, self.locator.table_z_mm + OVER_THINGS_MM
-                              + self.view.tallest_mm / 2)
             # (Not straight up from here: it rises on the way over.)
             with contextlib.suppress(UnreachableError):
                 arm.move_line(*plan.lift[:2], carry_z, plan.pitch_deg, plan.roll_deg,

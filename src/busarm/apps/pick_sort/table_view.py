@@ -23,7 +23,7 @@ from busarm.arm import Arm
 from busarm.errors import ConfigError, UnreachableError
 from busarm.perception.locate import BlockLocator, NotBlock, Sighting
 from busarm.perception.obstacles import Obstacle, refine
-from busarm.perception.shape import CUBE_SIDES_MM, HEIGHT_TOLERANCE, Shape, judge
+from busarm.perception.shape import HEIGHT_TOLERANCE, Shape, judge, nearest_other_mm
 from busarm.units import place_text
 from busarm.vision.camera import CameraSource
 
@@ -417,7 +417,7 @@ def too_near_for_two(size_mm: float, x_mm: float, y_mm: float, seen: Sighting) -
     """Whether ``seen`` stands nearer a block ``size_mm`` wide at (x, y) than any block
     can (half its side and half the smallest block's, less 2 mm): the same block, seen
     in part (a large block's picture split in two)."""
-    return off_mm(seen, x_mm, y_mm) < (size_mm + CUBE_SIDES_MM[0]) / 2 - 2.0
+    return off_mm(seen, x_mm, y_mm) < nearest_other_mm(size_mm)
 
 
 def off_mm(seen: Sighting, x_mm: float, y_mm: float) -> float:
