@@ -141,7 +141,9 @@ NUMBER_METAVARS = {"N", "S", "MS", "MM", "DEG", "DEG_S", "MM_S", "PX", "V", "C",
 """A number option's metavar: its unit, or N for a count (never NUMBER or INTEGER)."""
 SAME_NAME_OTHER_MEANING = {"--pose": "a servo pose ID=DEG,... (`move`), or a named pose",
                            "--save": "a pose's NAME (`arm pose`), or a DIRECTORY",
-                           "--speed": "the arm's DEG_S, or the base's M_S (`line-follow`)"}
+                           "--speed": "the arm's DEG_S, or the base's M_S (`line-follow`)",
+                           "--family": "the tables (`bench pick`), the rooms (`bench "
+                                       "transport`), or the tape's colour (`bench line`)"}
 
 
 def test_metavars_name_the_unit_and_agree_across_commands() -> None:

@@ -328,6 +328,8 @@ def test_a_tape_point_alone_past_a_gap_is_kept_as_seen() -> None:
                                  "green, blue, yellow (comma separated), or none"),
     (["--chassis", "jetauto"], "error: --chassis and --lidar are for a robot on --port; the "
                                "twin has its own (--arena chooses its world)"),
+    (["--tape", "purple"], "error: --tape 'purple': allowed: black, white, red, green, blue, "
+                           "yellow"),
 ])
 def test_bad_options_are_refused_with_one_error(tmp_path: Path, args: list[str],
                                                 message: str) -> None:

@@ -224,6 +224,22 @@ def test_lidar_without_noise_measures_the_true_ranges() -> None:
             assert np.max(np.abs(scan.ranges_m[in_reach] - true[in_reach])) < 0.01
 
 
+def test_an_inner_wall_is_seen_by_the_lidar_and_stops_the_chassis() -> None:
+    wall = Solid(1.5, 0.0, 0.1, 3.0, 0.3)  # across the whole room: no way round it
+    arena = Arena(Room(-1.0, 3.0, -1.5, 1.5), start=StartPose(0.0, 0.0, 0.0), walls=(wall,))
+    with robot_on(TwinSpec(arena=arena, controller=BoardSettings(), lidar_noise=False)
+                  ) as (robot, twin):
+        x, y, heading = lidar_origin(twin)
+        ahead = range_at(scans(robot, 2)[-1], -heading)  # the beam along the arena's +x
+        assert ahead == pytest.approx(wall.x_m - wall.size_x_m / 2 - x, abs=0.01)
+        drive_for(robot, 8.0, 0.25, 0.0, 0.0)  # 2 m of driving toward a wall 1.3 m off
+        stop_and_settle(robot)
+        assert twin.mobile is not None
+        assert "inner_wall0" in {name for _, name in twin.mobile.contacts}
+        front = true_pose(twin).x_m + CHASSIS_SIZE_M[0] / 2
+        assert front == pytest.approx(wall.x_m - wall.size_x_m / 2, abs=0.03)
+
+
 def test_lidar_noise_is_unbiased_with_its_dropouts() -> None:
     noise = LidarNoise()
     with robot_on(TwinSpec(family="arena", seed=1)) as (robot, twin):

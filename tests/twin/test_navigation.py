@@ -339,6 +339,27 @@ def test_a_robot_kidnapped_mid_trip_stops_or_recovers_touching_nothing(
         assert contacts(robot) == []
 
 
+def test_a_robot_shoved_mid_trip_finds_itself_again_and_arrives(mapped: Mapped) -> None:
+    shoved: list[Pose2D] = []
+
+    def shove(robot: Robot, nav: Navigator) -> None:  # a person bumps it 0.25 m aside
+        if not shoved and len(nav.trips) == 1 and len(nav.trips[0].path) == 12:
+            here = true_pose(robot)
+            to = compose(here, Pose2D(0.0, 0.25, math.radians(8.0)))
+            teleport(robot, to)
+            shoved.append(to)
+
+    goal = mapped.to_map(WEST_GOAL)
+    with robot_at() as robot:
+        nav = navigator(robot, mapped, on_scan=shove)
+        trip = nav.go_to(goal)
+        nav.settle(goal)
+        assert shoved and trip.relocalised >= 1, trip  # the scans stopped fitting: found again
+        position_m, heading_deg = off_by(mapped.to_map(true_pose(robot)), goal)
+        assert position_m <= 0.03 and heading_deg <= 2.0, (position_m, heading_deg)
+        assert contacts(robot) == []
+
+
 # ---------------------------------------------------------------------- going places
 
 def test_go_to_reaches_its_goals_within_3_cm_touching_nothing(mapped: Mapped) -> None:

@@ -23,6 +23,7 @@ from hypothesis import strategies as st
 from busarm.errors import ConfigError, VisionError
 from busarm.vision.calibration.camera_model import CameraIntrinsics
 from busarm.vision.floor_line import FloorLineSighting, find_floor_line
+from busarm.vision.tape_colour import check_tape, measure_tape
 
 K = np.array([[474.0, 0.0, 320.0], [0.0, 474.0, 240.0], [0.0, 0.0, 1.0]])
 PINHOLE = CameraIntrinsics("pinhole", 640, 480, K, np.zeros(5))
@@ -318,7 +319,7 @@ def test_beyond_what_is_seen_is_an_error() -> None:
 
 def test_bad_input_is_refused_by_name() -> None:
     image = seen(floor([straight()]))
-    with pytest.raises(ConfigError, match=r"'purple': give black, one of red, green, blue"):
+    with pytest.raises(ConfigError, match=r"'purple': give black, white, one of red, green, blue"):
         find_floor_line(image, PINHOLE, POSE, "purple")
     with pytest.raises(ConfigError, match="320x240 px; the intrinsics are for 640x480"):
         find_floor_line(np.asarray(cv2.resize(image, (320, 240)), dtype=np.uint8), PINHOLE, POSE)
@@ -330,3 +331,54 @@ def test_bad_input_is_refused_by_name() -> None:
         find_floor_line(image, PINHOLE, POSE, tape_width_m=0.5)
     with pytest.raises(ConfigError, match="mask"):
         find_floor_line(image, PINHOLE, POSE, mask=np.ones((10, 10), bool))
+
+
+# ---------------------------------------------------------------------- tape of any colour
+
+
+def test_white_tape_on_a_dark_floor_is_white_not_black() -> None:
+    truth = arc(0.6)
+    image = 255 - seen(floor([truth]))  # the floor dark (about 80), the tape white (247)
+    sighting = find(image, colour="white")
+    check_on(truth, sighting)
+    assert sighting.colour == "white"
+    assert find_floor_line(image, PINHOLE, POSE, "black") is None
+
+
+NAMED_BGR = {"black": (8, 8, 8), "blue": (180, 64, 25), "red": (25, 20, 200),
+             "green": (64, 128, 13), "yellow": (20, 205, 240)}
+"""Tape as the default thresholds name it (sRGB of the twin's tape, BGR)."""
+
+
+@settings(max_examples=25, deadline=None)
+@given(name=st.sampled_from([*NAMED_BGR, "cyan", "pink"]), lateral_m=st.floats(-0.08, 0.08),
+       heading_deg=st.floats(-20.0, 20.0), shade=st.floats(0.8, 1.0))
+def test_the_first_look_measures_the_tapes_colour(name: str, lateral_m: float,
+                                                  heading_deg: float, shade: float) -> None:
+    """A tape of a colour the thresholds know is named by it; one they do not (cyan,
+    pink) gets a Lab box of its own that leaves the floor out. Either way the line is
+    then found by it where it truly is."""
+    bgr = NAMED_BGR.get(name, {"cyan": (200, 170, 0), "pink": (160, 90, 230)}.get(name))
+    assert bgr is not None
+    tape = tuple(int(c * shade) for c in bgr)
+    truth = straight(lateral_m, heading_deg)
+    box = np.array([[0.3, 0.32], [0.45, 0.32], [0.45, 0.5], [0.3, 0.5]])  # a box aside
+    image = seen(floor([truth], tape_bgr=tape, blobs=[(box, (60, 90, 120))]))
+    look = measure_tape(image, PINHOLE, POSE)
+    assert look is not None
+    assert look.name == (name if name in NAMED_BGR else "measured")
+    assert np.max(distance_to(truth, look.sighting.points_m)) < 0.005
+    sighting = find(image, colour=look.colour)
+    assert np.max(distance_to(truth, sighting.points_m)) < 0.005
+    assert sighting.colour == look.name
+
+
+def test_no_tape_on_the_first_look_is_none_and_names_are_checked() -> None:
+    square = np.array([[0.4, -0.015], [0.43, -0.015], [0.43, 0.015], [0.4, 0.015]])
+    assert measure_tape(seen(floor(blobs=[(square, (180, 64, 25))])), PINHOLE, POSE) is None
+    assert check_tape("white") == "white"
+    with pytest.raises(ConfigError, match=r"^--tape 'purple': allowed: black, white, red, "
+                                          r"green, blue, yellow$"):
+        check_tape("purple", "--tape")
+    with pytest.raises(ConfigError, match=r"^tape colour 3: allowed: black, white, "):
+        check_tape(3)

@@ -10,10 +10,20 @@ from the tape's centreline at every step (not while the base lines up with a blo
 slides back onto the line, which is the job, not following), every block's distance from
 the tape at the end (cleared: more than ``CLEARED_M``), every contact of the chassis, and
 whether the robot stopped short of each obstacle.
+
+Families (``family``): the tape's colour, the same seeded layouts taped in it: ``black``
+(the default: the layouts as they always were), ``blue``, ``red``, ``green``, ``yellow``
+and ``white`` (on a dark floor). The job is not told the colour: it measures it on the
+first look, and the colour it measured is scored too. Every stop for something in the
+way is checked against the truth: a stop is false when no box, table, wall or block
+stood within ``STOP_REACH_M`` ahead of the chassis's centre (the Lidar's stop range and
+a margin) when it began.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 import random
 import time
@@ -22,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from busarm.bench.common import (
     Progress,
@@ -35,19 +46,24 @@ from busarm.errors import BusArmError
 from busarm.robot import Robot
 from busarm.robot.description import CameraSpec, RobotConfig
 from busarm.sim.spec import BoardSettings
+from busarm.twin.arena import Arena, Solid
 from busarm.twin.arena_gen import distance_to_line_m, random_arena
+from busarm.twin.footprints import Footprint
 from busarm.twin.spec import TwinSpec
 
 __all__ = [
     "CLEARED_M",
+    "FAMILIES",
     "MAX_WORKERS",
     "OBSTACLE_AFTER_M",
     "OBSTACLE_AHEAD_M",
     "OBSTACLE_STAY_S",
+    "STOP_REACH_M",
     "TARGET_LATERAL_MAX_M",
     "TARGET_LATERAL_MEDIAN_M",
     "LayoutRun",
     "LineBenchReport",
+    "family_arena",
     "run_layout",
     "run_line_bench",
 ]
@@ -63,6 +79,11 @@ OBSTACLE_AFTER_M = (1.5, 4.5)
 OBSTACLE_AHEAD_M = 0.55
 OBSTACLE_STAY_S = 3.0
 MAX_WORKERS = 8
+FAMILIES = ("black", "blue", "red", "green", "yellow", "white")
+"""The tape's colours (``white`` on a dark floor); ``black`` is the layouts as they were."""
+STOP_REACH_M = 0.65
+"""A stop is true when something stood this near the chassis's centre, ahead of it (the
+stop rule's reach, 0.55 m, and a margin for the Lidar's noise and the base's coasting)."""
 
 
 @dataclass
@@ -79,6 +100,12 @@ class LayoutRun:
     contacts: list[str] = field(default_factory=list)
     seconds: float = 0.0
     wall_s: float = 0.0
+    family: str = "black"
+    tape_seen: str = ""
+    """The tape's colour as the job measured it on the first look."""
+    stops: int = 0
+    false_stops: int = 0
+    """Stops with nothing truly within ``STOP_REACH_M`` ahead."""
 
 
 class _Obstacles:
@@ -143,14 +170,82 @@ class _Obstacles:
             twin.mujoco.mj_forward(twin.model, twin.data)
 
 
-def run_layout(seed: int, intrinsics: Path, hand_eye: Path) -> LayoutRun:
-    """One seeded layout, one lap, on a twin of its own (this process)."""
+def family_arena(seed: int, blocks: int, family: str = "black") -> Arena:
+    """Layout ``seed``'s arena (``blocks`` on the floor) taped in ``family``'s colour."""
+    if family not in FAMILIES:
+        raise BusArmError(f"line family {family!r}: allowed: {', '.join(FAMILIES)}")
+    arena = random_arena(seed, floor_blocks=blocks)
+    if family == "black":
+        return arena
+    lines = tuple(dataclasses.replace(line, color=family) for line in arena.lines)
+    return dataclasses.replace(arena, lines=lines,
+                               floor="dark" if family == "white" else arena.floor)
+
+
+class _Truth:
+    """What truly stood ahead of the chassis at each step (for the stops' check)."""
+
+    def __init__(self, robot: Robot, arena: Arena) -> None:
+        twin = robot.twin
+        assert twin is not None
+        self.twin, self.arena, self.clock = twin, arena, robot.clock
+        fixed: list[Solid] = [*arena.tables, *getattr(arena, "walls", ())]
+        self.fixed = [_outline_m(s.footprint()) for s in fixed]
+        r = arena.room
+        edge = np.linspace(0.0, 1.0, 200)[:, None]
+        corners = np.array([(r.x_min_m, r.y_min_m), (r.x_max_m, r.y_min_m),
+                            (r.x_max_m, r.y_max_m), (r.x_min_m, r.y_max_m)])
+        self.fixed += [a + edge * (b - a) for a, b in zip(corners, np.roll(corners, -1, 0),
+                                                          strict=True)]
+        self.boxes = [_outline_m(dataclasses.replace(b, x_m=0.0, y_m=0.0).footprint())
+                      for b in arena.boxes]
+        self.steps: list[tuple[float, bool]] = []
+
+    def step(self) -> None:
+        twin = self.twin
+        assert twin.mobile is not None
+        pose = twin.mobile.pose(twin.data)
+        points = list(self.fixed)
+        for i, outline in enumerate(self.boxes):
+            body = twin.model.body(f"box{i}")
+            points.append(outline + twin.data.mocap_pos[int(body.mocapid[0])][:2])
+        for i in range(len(self.arena.blocks)):
+            points.append(np.array([twin.data.xpos[twin.model.body(f"block{i}").id][:2]]))
+        p = np.vstack(points) - [pose.x_m, pose.y_m]
+        c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+        x, y = p[:, 0] * c + p[:, 1] * s, -p[:, 0] * s + p[:, 1] * c
+        ahead = bool(np.any((x > 0.0) & (np.hypot(x, y) <= STOP_REACH_M)))
+        self.steps.append((self.clock.now(), ahead))
+
+    def false_stops(self, began_s: list[float]) -> int:
+        """How many of the stops begun at ``began_s`` had nothing ahead (at the last step
+        before each)."""
+        times = np.array([t for t, _ in self.steps])
+        out = 0
+        for t in began_s:
+            k = int(np.searchsorted(times, t + 1e-9)) - 1
+            out += k >= 0 and not self.steps[k][1]
+        return out
+
+
+def _outline_m(fp: Footprint) -> npt.NDArray[np.float64]:
+    """Points along a footprint's outline every centimetre or so (m)."""
+    corners = np.array(fp.corners()) / 1000.0
+    edge = np.linspace(0.0, 1.0, 40)[:, None]
+    return np.vstack([a + edge * (b - a) for a, b in zip(corners, np.roll(corners, -1, 0),
+                                                         strict=True)])
+
+
+def run_layout(seed: int, intrinsics: Path, hand_eye: Path, family: str = "black"
+               ) -> LayoutRun:
+    """One seeded layout taped in ``family``'s colour, one lap, on a twin of its own
+    (this process)."""
     from busarm.apps.line_follow.job import LineFollowJob
 
     wall = time.monotonic()
     rng = random.Random(seed)
-    out = LayoutRun(seed, blocks=rng.randint(0, 3), obstacles=rng.randint(0, 2))
-    arena = random_arena(seed, floor_blocks=out.blocks)
+    out = LayoutRun(seed, blocks=rng.randint(0, 3), obstacles=rng.randint(0, 2), family=family)
+    arena = family_arena(seed, out.blocks, family)
     out.obstacles = min(out.obstacles, len(arena.boxes))
     with Robot.open(RobotConfig(
             TwinSpec(arena=arena, controller=BoardSettings()),
@@ -160,11 +255,13 @@ def run_layout(seed: int, intrinsics: Path, hand_eye: Path) -> LayoutRun:
         mobile, line = twin.mobile, arena.lines[0]
         offsets: list[float] = []
         obstacles = _Obstacles(robot, out.obstacles, rng)
+        truth = _Truth(robot, arena)
 
         def on_step(job: LineFollowJob) -> None:
             pose = mobile.pose(twin.data)
             speed = math.hypot(*mobile.speed(twin.data)[:2])
             obstacles.step(speed)
+            truth.step()
             if not job.rejoining:
                 offsets.append(distance_to_line_m(line, pose.x_m, pose.y_m))
 
@@ -177,6 +274,9 @@ def run_layout(seed: int, intrinsics: Path, hand_eye: Path) -> LayoutRun:
         out.finished = report.finished
         out.why = out.why or report.why
         out.seconds = report.seconds
+        out.tape_seen = report.tape
+        out.stops = len(report.stops)
+        out.false_stops = truth.false_stops([s.began_s for s in report.stops])
         twin.sync()
         with twin.lock:
             ends = [(float(twin.data.xpos[twin.model.body(f"block{i}").id][0]),
@@ -195,6 +295,8 @@ def run_layout(seed: int, intrinsics: Path, hand_eye: Path) -> LayoutRun:
 
 @dataclass
 class LineBenchReport(SeededBenchReport[LayoutRun]):
+    family: str = "black"
+
     def summary(self) -> dict[str, Any]:
         medians = [r.lateral_median_m for r in self.runs if math.isfinite(r.lateral_median_m)]
         maxes = [r.lateral_max_m for r in self.runs if math.isfinite(r.lateral_max_m)]
@@ -208,6 +310,10 @@ class LineBenchReport(SeededBenchReport[LayoutRun]):
             "obstacles": sum(r.obstacles for r in self.runs),
             "obstacles_stopped_for": sum(r.obstacles_stopped_for for r in self.runs),
             "collisions": sum(len(r.contacts) for r in self.runs),
+            "family": self.family,
+            "tape_measured_right": sum(r.tape_seen == r.family for r in self.runs),
+            "stops": sum(r.stops for r in self.runs),
+            "false_stops": sum(r.false_stops for r in self.runs),
             "lap_median_s": round(float(np.median([r.seconds for r in self.runs])), 1)
             if self.runs else None}
 
@@ -226,6 +332,11 @@ class LineBenchReport(SeededBenchReport[LayoutRun]):
             f"{s['obstacles_stopped_for']}/{s['obstacles']} "
             f"{verdict(s['obstacles_stopped_for'] == s['obstacles'])}; collisions: "
             f"{s['collisions']} {verdict(s['collisions'] == 0)}\n"
+            f"{s['family']} tape, its colour measured right on the first look: "
+            f"{s['tape_measured_right']}/{s['layouts']} "
+            f"{verdict(s['tape_measured_right'] == s['layouts'])}; stops without something "
+            f"truly in the way: {s['false_stops']} of {s['stops']} "
+            f"{verdict(s['false_stops'] == 0)}\n"
             f"a lap: median {s['lap_median_s']} s of twin time; {self.time_text}")
 
 
@@ -235,13 +346,19 @@ def _layout_line(done: int, total: int, r: LayoutRun) -> str:
     return (f"layout {done}/{total} (seed {r.seed}): {state}; off the tape median "
             f"{r.lateral_median_m * 1000:.1f} mm, max {r.lateral_max_m * 1000:.1f} mm; blocks "
             f"cleared {r.blocks_cleared}/{r.blocks}; obstacles stopped for "
-            f"{r.obstacles_stopped_for}/{r.obstacles}{touch}; {r.seconds:.0f} s twin, "
+            f"{r.obstacles_stopped_for}/{r.obstacles}{touch}; {r.tape_seen or 'no'} tape "
+            f"seen; {r.false_stops} of {r.stops} stops false; {r.seconds:.0f} s twin, "
             f"{r.wall_s:.0f} s here")
 
 
 def run_line_bench(*, layouts: int = 20, seed: int = 0, workers: int = 1,
-                   progress: Progress = quiet) -> LineBenchReport:
-    """Line following over ``layouts`` seeded layouts (seeds ``seed``..)."""
-    return run_seeded_bench(LineBenchReport(machine_info(), workers=workers), run_layout,
+                   family: str = "black", progress: Progress = quiet) -> LineBenchReport:
+    """Line following over ``layouts`` seeded layouts (seeds ``seed``..) taped in
+    ``family``'s colour (``FAMILIES``)."""
+    if family not in FAMILIES:
+        raise BusArmError(f"--family {family!r}: allowed: {', '.join(FAMILIES)}")
+    report = LineBenchReport(machine_info(), workers=workers)
+    report.family = family
+    return run_seeded_bench(report, functools.partial(run_layout, family=family),
                             _layout_line, what="layouts", count=layouts, seed=seed,
                             max_workers=MAX_WORKERS, progress=progress)

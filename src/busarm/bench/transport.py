@@ -18,6 +18,7 @@ start, and the map's accuracy (its occupied cells' distance from the true surfac
 
 from __future__ import annotations
 
+import functools
 import math
 import random
 import time
@@ -43,10 +44,11 @@ from busarm.nav.points import WORK_AHEAD_M, NamedPoints
 from busarm.robot import Robot
 from busarm.robot.description import CameraSpec, RobotConfig
 from busarm.sim.spec import BoardSettings
+from busarm.twin.arena_families import transport_task
 from busarm.twin.arena_tasks import (
     free_pose,
+    map_in_arena,
     start_pose,
-    transport_arena,
     transport_points,
     true_map_surfaces,
 )
@@ -55,6 +57,7 @@ from busarm.twin.spec import TwinSpec
 __all__ = [
     "DELIVERED_M",
     "MAP_TIME_S",
+    "MAP_TIME_S_PER_M2",
     "MAX_WORKERS",
     "PUT_DOWN_S",
     "TARGET_DELIVERED",
@@ -78,6 +81,8 @@ TARGET_GLOBAL_S = 10.0
 VENDOR_GRASP_S = 5.0
 """The vendor's fixed grasp sequence alone (field notes, section 5)."""
 MAP_TIME_S = 300.0
+MAP_TIME_S_PER_M2 = 10.0
+"""A room's exploring is given MAP_TIME_S, or this much a square metre of floor if more."""
 PUT_DOWN_S = 1.0
 """After being put down the robot stands this long before anything is asked of it."""
 TEACH_GUESS = Pose2D(0.05, -0.04, math.radians(3.0))
@@ -98,6 +103,9 @@ class ArenaRun:
     map_s: float = math.nan
     map_error_median_m: float = math.nan
     map_error_p95_m: float = math.nan
+    map_turn_deg: float = math.nan
+    """How far the map is turned from the room (``map_in_arena``): its own frame, in
+    which the localisation errors are measured."""
     contacts: list[str] = field(default_factory=list)
     position_errors_m: list[float] = field(default_factory=list, repr=False)
     heading_errors_deg: list[float] = field(default_factory=list, repr=False)
@@ -127,16 +135,20 @@ def _taught(robot: Robot, grid: OccupancyGrid, stands: NamedPoints, origin: Pose
     return NamedPoints("taught", taught)
 
 
-def run_arena(seed: int, intrinsics: Path, hand_eye: Path) -> ArenaRun:
-    """Map, carry, transport: one seeded arena on a twin of its own (this process)."""
+def run_arena(seed: int, intrinsics: Path, hand_eye: Path, family: str = "standard"
+              ) -> ArenaRun:
+    """Map, carry, transport: one seeded room of ``family`` on a twin of its own (this
+    process)."""
     from busarm.apps.navigation.explore import build_map
     from busarm.apps.transport.job import TransportJob
 
     wall = time.monotonic()
     out = ArenaRun(seed)
-    arena = transport_arena(seed)
+    task = transport_task(family, seed)
+    arena = task.arena
     origin = start_pose(arena)
-    stands, index, _ = transport_points(arena, Pose2D(), seed)  # in the arena's frame
+    stands, index, _ = transport_points(arena, Pose2D(), seed, place_within=task.place_within,
+                                        min_trip_m=task.min_trip_m)  # in the arena's frame
     want = compose(stands.get("place").pose, Pose2D(WORK_AHEAD_M, 0.0, 0.0))
     with Robot.open(RobotConfig(
             TwinSpec(arena=arena, controller=BoardSettings()),
@@ -144,7 +156,8 @@ def run_arena(seed: int, intrinsics: Path, hand_eye: Path) -> ArenaRun:
         twin = robot.twin
         assert twin is not None and twin.mobile is not None
         mobile = twin.mobile
-        run = build_map(robot, time_limit_s=MAP_TIME_S)
+        area_m2 = arena.room.size_m[0] * arena.room.size_m[1]
+        run = build_map(robot, time_limit_s=max(MAP_TIME_S, MAP_TIME_S_PER_M2 * area_m2))
         out.map_s = run.seconds
         p = run.grid.probability
         rows, cols = np.nonzero(p >= 0.65)
@@ -154,7 +167,9 @@ def run_arena(seed: int, intrinsics: Path, hand_eye: Path) -> ArenaRun:
         points = _taught(robot, run.grid, stands, origin)
         here = mobile.pose(twin.data)
         _teleport(robot, free_pose(arena, random.Random(seed), away_from=(here.x_m, here.y_m)))
-        to_map = inverse(origin)
+        frame = map_in_arena(arena, run.grid, origin)
+        out.map_turn_deg = math.degrees(wrap_rad(frame.yaw_rad - origin.yaw_rad))
+        to_map = inverse(frame)
 
         def on_scan(nav: Any, sensed: Any) -> None:
             if nav.estimate is None or not nav.estimate.converged:
@@ -187,6 +202,8 @@ def run_arena(seed: int, intrinsics: Path, hand_eye: Path) -> ArenaRun:
 
 @dataclass
 class TransportBenchReport(SeededBenchReport[ArenaRun]):
+    family: str = "standard"
+
     @property
     def delivered_share(self) -> float:
         return sum(r.delivered for r in self.runs) / len(self.runs) if self.runs else 0.0
@@ -220,7 +237,8 @@ class TransportBenchReport(SeededBenchReport[ArenaRun]):
                 "placed_error_median_m": q([r.placed_error_m for r in self.runs
                                             if r.delivered], 50),
                 "map_error_median_m": q([r.map_error_median_m for r in self.runs], 50),
-                "map_error_p95_m": q([r.map_error_p95_m for r in self.runs], 50)}
+                "map_error_p95_m": q([r.map_error_p95_m for r in self.runs], 50),
+                "map_turn_max_deg": q([abs(r.map_turn_deg) for r in self.runs], 100)}
 
     def text(self, verdict: Verdict) -> str:
         s = self.summary()
@@ -232,7 +250,7 @@ class TransportBenchReport(SeededBenchReport[ArenaRun]):
         pos, head, loc = (s["position_error_median_m"], s["heading_error_median_deg"],
                           s["localise_max_s"])
         return (
-            f"{len(self.runs)} seeded arenas, unknown starts\n"
+            f"{len(self.runs)} seeded rooms of the {self.family} family, unknown starts\n"
             f"{machine_line(self.machine, with_os=False)}\n"
             f"delivered within {DELIVERED_M * 100:g} cm: {self.delivered_share:.0%} "
             f"{verdict(self.delivered_share >= TARGET_DELIVERED)} >= "
@@ -250,7 +268,8 @@ class TransportBenchReport(SeededBenchReport[ArenaRun]):
             f"the vendor's grasp sequence alone is about {VENDOR_GRASP_S:g} s\n"
             f"placed: median {cm('placed_error_median_m')} from the place point's spot; maps: "
             f"occupied cells {cm('map_error_median_m')} from the true surfaces (median of the "
-            f"arenas' medians; p95 {cm('map_error_p95_m')})\n"
+            f"arenas' medians; p95 {cm('map_error_p95_m')}); a map turned from the room at "
+            f"most {s['map_turn_max_deg']} deg (localisation is judged in the map's frame)\n"
             f"time: {self.time_text}")
 
     def run_dict(self, run: ArenaRun) -> dict[str, Any]:
@@ -270,8 +289,13 @@ def _arena_line(done: int, total: int, r: ArenaRun) -> str:
 
 
 def run_transport_bench(*, arenas: int = 30, seed: int = 0, workers: int = 1,
-                        progress: Progress = quiet) -> TransportBenchReport:
-    """Transport over ``arenas`` seeded arenas (seeds ``seed``..), ``workers`` processes."""
-    return run_seeded_bench(TransportBenchReport(machine_info(), workers=workers), run_arena,
+                        family: str = "standard", progress: Progress = quiet
+                        ) -> TransportBenchReport:
+    """Transport over ``arenas`` seeded rooms of ``family`` (seeds ``seed``..; see
+    busarm.twin.arena_families), ``workers`` processes."""
+    transport_task(family, seed)  # a bad family refused before anything starts
+    return run_seeded_bench(TransportBenchReport(machine_info(), workers=workers,
+                                                 family=family),
+                            functools.partial(run_arena, family=family),
                             _arena_line, what="arenas", count=arenas, seed=seed,
                             max_workers=MAX_WORKERS, progress=progress)

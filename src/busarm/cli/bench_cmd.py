@@ -20,6 +20,7 @@ from busarm.cli.common import (
     pass_settings,
 )
 from busarm.sim.spec import SimSpec
+from busarm.twin.arena_families import FAMILIES as ROOM_FAMILIES
 from busarm.units import listing
 
 if TYPE_CHECKING:
@@ -540,14 +541,18 @@ def _print_mobile(settings: Settings, report: MobileBenchReport) -> None:
 
 @bench.command("transport")
 @seeded_world_options("arenas", 30, "Seeded twin arenas (arena i uses seed + i).")
+@click.option("--family", type=click.Choice(list(ROOM_FAMILIES)), default="standard",
+              show_default=True, help="The rooms: the line arenas (standard), two rooms "
+              "through a door, two joined by a corridor, the block in a corner, a big sparse "
+              "room, a symmetric room, a carry over 8 m.")
 def bench_transport(settings: Settings, arenas: int, seed: int, workers: int,
-                    as_json: bool) -> None:
-    """Navigation transport over seeded twin arenas, against the twin's truth: each arena
+                    as_json: bool, family: str) -> None:
+    """Navigation transport over seeded twin rooms, against the twin's truth: each room
     mapped by exploring, the robot carried elsewhere, then fetching the floor block from
-    the pick point to the place point from an unknown start. About a minute an arena."""
+    the pick point to the place point from an unknown start. About a minute a room."""
     from busarm.bench.transport import run_transport_bench
 
-    report = run_transport_bench(arenas=arenas, seed=seed, workers=workers,
+    report = run_transport_bench(arenas=arenas, seed=seed, workers=workers, family=family,
                                  progress=said(settings))
     judged(settings, as_json, report.to_dict(),
             lambda shown: _print_seeded(shown, "transport", report))
@@ -556,14 +561,19 @@ def bench_transport(settings: Settings, arenas: int, seed: int, workers: int,
 @bench.command("line")
 @seeded_world_options("layouts", 20, "Seeded line layouts (layout i uses seed + i): 0-3 "
                        "blocks, 0-2 obstacles.")
+@click.option("--family", "family", default="black", show_default=True,
+              type=click.Choice(["black", "blue", "red", "green", "yellow", "white"]),
+              help="The tape's colour (white: on a dark floor); the layouts are the same, "
+                   "black is them as they always were. The robot is not told it.")
 def bench_line(settings: Settings, layouts: int, seed: int, workers: int,
-               as_json: bool) -> None:
+               as_json: bool, family: str) -> None:
     """Line following over seeded twin layouts, against the twin's truth: one lap each,
-    blocks on the tape to clear, a box stepping onto it to stop for. About a minute a
-    layout."""
+    blocks on the tape to clear, a box stepping onto it to stop for; the tape's colour
+    measured on the first look, and every stop checked for something truly in the way.
+    About a minute a layout."""
     from busarm.bench.line import run_line_bench
 
-    report = run_line_bench(layouts=layouts, seed=seed, workers=workers,
+    report = run_line_bench(layouts=layouts, seed=seed, workers=workers, family=family,
                             progress=said(settings))
     judged(settings, as_json, report.to_dict(), lambda shown: _print_seeded(shown, "line", report))
 

@@ -86,6 +86,10 @@ def parse_clear_colors(text: str) -> list[str]:
               help="The speed along straight tape in m/s (slower in bends).")
 @click.option("--colors", "colors_text", default=DEFAULT_COLORS, show_default=True,
               help="Block colours cleared off the line, comma separated; none: none.")
+@click.option("--tape", default=None, metavar="COLOUR",
+              help="The tape's colour: black, white, or a colour of the shipped thresholds "
+                   "(red, green, blue, yellow)  [default: measured on the first look; the "
+                   "robot starts on the tape facing along it]")
 @click.option("--obstacle-wait", "obstacle_wait_s", default=30.0, show_default=True,
               type=RangeType("--obstacle-wait", 0.0, 3600.0, "s"),
               help="How long something in the base's way is waited for, in s.")
@@ -101,7 +105,7 @@ def parse_clear_colors(text: str) -> list[str]:
 @mobile_options
 @pass_settings
 def line_follow(settings: Settings, laps: float, speed_m_s: float, colors_text: str,
-                obstacle_wait_s: float, report_dir: Path, camera_src: str | None,
+                tape: str | None, obstacle_wait_s: float, report_dir: Path, camera_src: str | None,
                 intrinsics: Path | None, hand_eye: Path | None, config: str, as_json: bool,
                 foxglove_port: int | None, mcap_file: Path | None, arena_spec: str,
                 chassis: str | None, lidar_port: str | None) -> None:
@@ -111,8 +115,11 @@ def line_follow(settings: Settings, laps: float, speed_m_s: float, colors_text: 
     path drawn). Exit code 0 when the laps are done and every block on the way was
     cleared, 1 when not. Without --port: a twin of its own in --arena."""
     from busarm.apps.line_follow.job import LineFollowJob
+    from busarm.vision.tape_colour import check_tape
 
     colors = parse_clear_colors(colors_text)
+    if tape is not None:
+        check_tape(tape, "--tape")
     ac = ArmContext(settings, config, None)
     check_writable(report_dir / "report.json" if report_dir.is_dir() else report_dir)
     say = _sayer(settings)
@@ -128,7 +135,7 @@ def line_follow(settings: Settings, laps: float, speed_m_s: float, colors_text: 
                            **options) as robot, \
             watching(settings, robot, foxglove_port, mcap_file) as view:
         job = LineFollowJob(robot, laps=laps, speed_m_s=speed_m_s, colors=colors,
-                            obstacle_wait_s=obstacle_wait_s, progress=say,
+                            obstacle_wait_s=obstacle_wait_s, progress=say, tape=tape,
                             on_step=line_follow_hook(view))
         with keeping_what_was_done(robot, lambda exc: "the report so far: "
                                    f"{_write(report_dir, job.report, robot)}"):
@@ -216,7 +223,8 @@ def _print_summary(report: LineFollowReport, simulated: bool, wall_s: float,
     click.echo(f"followed {report.laps_done:.2f} lap(s){loop}, {report.travelled_m:.2f} m, "
                f"in {report.seconds:.1f} {unit} ({wall_s:.0f} s on this computer, with the "
                f"set-up); {offsets} (as the robot measured it); {cleared} block(s) cleared, "
-               f"{len(report.stops)} stop(s) for obstacles. Report: {report_dir}/")
+               f"{len(report.stops)} stop(s) for obstacles; {report.tape or 'no'} tape"
+               f"{' (measured)' if report.tape_measured else ''}. Report: {report_dir}/")
 
 
 COMMANDS = [line_follow]

@@ -19,6 +19,8 @@ __all__ = [
     "FREE_LOG_ODDS",
     "GAP_CELLS",
     "MIN_FRONTIER_M",
+    "PLAN_GAP_CELLS",
+    "SEEN_FREE_P",
     "FloatArray",
     "Frontier",
     "find_frontiers",
@@ -33,6 +35,15 @@ FREE_LOG_ODDS = -0.2
 """A cell below this is free (one beam through it puts it at -0.4)."""
 MIN_FRONTIER_M = 0.25
 GAP_CELLS = 2
+SEEN_FREE_P = 0.45
+"""A map made now (not read from a file): a cell a beam crossed and none ended in is
+floor to plan over (``Costmap.from_grid``'s ``free_below_p``), as it was to the explorer
+that stopped there; a saved map asks more of it (map_server's free threshold)."""
+PLAN_GAP_CELLS = 6
+"""Planning, unseen gaps up to this many cells wide between free cells are floor: a few
+metres off, the A1's beams (1.8 deg apart) leave gaps wider than a frontier's closing
+(which would make them walls on the costmap, cutting a big room in two), and a path
+across them is watched by every scan's guard anyway."""
 
 
 @dataclass(frozen=True)

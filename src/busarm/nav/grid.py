@@ -112,16 +112,21 @@ class OccupancyGrid:
         return out
 
     def insert(self, sensor: Pose2D, bearings_rad: npt.ArrayLike,
-               ranges_m: npt.ArrayLike, no_return_clears_m: float = 0.0) -> None:
+               ranges_m: npt.ArrayLike, no_return_clears_m: float = 0.0,
+               max_range_m: float = math.inf) -> None:
         """Fold in one scan taken from ``sensor`` (the Lidar's pose in the grid's frame):
         beam bearings in the Lidar's frame, ranges in m (NaN: no return, which clears
-        ``no_return_clears_m``)."""
+        ``no_return_clears_m``). A return beyond ``max_range_m`` marks nothing there
+        (its range too uncertain) but clears its beam up to ``max_range_m``."""
         b = np.asarray(bearings_rad, dtype=np.float64).ravel() + sensor.yaw_rad
         r = np.asarray(ranges_m, dtype=np.float64).ravel()
         if b.shape != r.shape:
             raise ConfigError(f"{len(b)} bearings and {len(r)} ranges: one each per beam")
-        hit = np.isfinite(r)
-        reach = np.where(hit, r, no_return_clears_m)
+        found = np.isfinite(r)
+        hit = found & (r <= max_range_m)
+        # Beyond reach: cleared to max_range_m (the beam's end, a cell more, is left out).
+        reach = np.where(hit, r, np.where(found, max_range_m + self.spec.resolution_m,
+                                          no_return_clears_m))
         step = self.spec.resolution_m / 2.0
         samples = max(1, math.ceil(float(reach.max(initial=0.0)) / step))
         # Points along every beam up to just short of its end (free), then its end (hit).

@@ -11,12 +11,18 @@ once it is found). When the scans fit worse than they have lately (augmented MCL
 short-term average ``w_fast`` below the long-term ``w_slow``) random particles go to the
 map's free cells, so that a robot carried elsewhere is found again. The estimate is the
 weighted mean of the heaviest cluster, refined by a scan match once the cloud gathered.
+
+A cloud gathered after ``start_anywhere`` is not yet believed: the scan is matched over
+the whole map for other poses that fit it about as well (``busarm.nav.hypotheses``: a
+symmetric room's mirror image, a place along a bare wall), and while any remains the
+estimate is not converged (``PoseEstimate.rivals`` says how many). The odometry carries
+them all, the scans tell them apart; the one they choose is where the cloud goes.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -25,13 +31,24 @@ from busarm.base.config import Mount
 from busarm.base.odometry import Pose2D
 from busarm.errors import ConfigError
 from busarm.nav.grid import OccupancyGrid
+from busarm.nav.hypotheses import Hypotheses, find_rivals
 from busarm.nav.map_files import FREE_THRESH
 from busarm.nav.mapping import MIN_MATCHED_SHARE, compose, inverse
-from busarm.nav.scan_match import SIGMA_M, LikelihoodField, match_scan, scan_points
+from busarm.nav.scan_match import (
+    INDEPENDENT_BEAMS,
+    SIGMA_M,
+    LikelihoodField,
+    match_scan,
+    mean_log_likelihood,
+    scan_points,
+    thinned,
+)
 from busarm.units import check_int_range, check_range
 
 __all__ = [
     "BROAD_SIGMA_M",
+    "CHOSEN_SIGMA_M",
+    "CHOSEN_SIGMA_RAD",
     "CLUSTER_BIN_M",
     "CLUSTER_FLOOR",
     "FIT_SAMPLE",
@@ -48,11 +65,6 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 
-Z_HIT, Z_RAND = 0.95, 0.05
-"""A return's likelihood: Z_HIT x the field's (near a surface) + Z_RAND (anything)."""
-INDEPENDENT_BEAMS = 10.0
-"""Neighbouring beams see the same wall, so their errors are not independent: a scan's
-log-likelihood counts as this many beams' (else one scan would crush the cloud)."""
 BROAD_SIGMA_M = 0.2
 """Until the cloud gathers, returns are scored on a field this broad: the particles lie
 too sparsely for the sharp field to find the ones near the truth."""
@@ -74,7 +86,11 @@ CLUSTER_FLOOR = 0.01
 heaviest cell's weight."""
 CONVERGED_XY_M, CONVERGED_YAW_RAD, CONVERGED_SHARE = 0.1, math.radians(5.0), 0.9
 REFINE_WINDOW_M, REFINE_WINDOW_DEG, REFINE_POINTS = 0.05, 2.0, 150
-"""The refining scan match: around the cloud's mean, with this many of the returns."""
+REFINE_SPREADS = 3.0
+"""The refining scan match: around the cloud's mean, at least REFINE_WINDOW or this many
+of the cloud's deviations wide, with REFINE_POINTS of the returns."""
+CHOSEN_SIGMA_M, CHOSEN_SIGMA_RAD = 0.03, 0.03
+"""The cloud's spread about the place the scans chose among several alike."""
 SHARP_SIGMA_M = 0.025
 """The refining scan match's field: a narrow peak is where the surfaces are."""
 
@@ -104,11 +120,15 @@ class PoseEstimate:
     matched_share: float
     """Share of the latest scan's returns within NEAR_M of a mapped surface at ``pose`` (0
     when no scan came since the last start or motion)."""
+    rivals: int = 0
+    """Other places on the map the scans so far fit about as well (then not converged)."""
 
     def __repr__(self) -> str:
         sd_m = math.sqrt(max(float(self.covariance[0, 0] + self.covariance[1, 1]), 0.0))
         sd_deg = math.degrees(math.sqrt(max(float(self.covariance[2, 2]), 0.0)))
-        return (f"PoseEstimate({self.pose!r}, {'converged' if self.converged else 'searching'}, "
+        state = ("converged" if self.converged else
+                 f"{self.rivals + 1} places alike" if self.rivals else "searching")
+        return (f"PoseEstimate({self.pose!r}, {state}, "
                 f"spread {sd_m:.3f} m {sd_deg:.1f} deg, matched {self.matched_share:.2f})")
 
 
@@ -131,7 +151,8 @@ class ParticleFilter:
         self.refine = refine
         self.mount = Pose2D(lidar.x_m, lidar.y_m, lidar.yaw_rad)
         spec = grid.spec
-        rows, cols = np.nonzero(grid.probability <= FREE_THRESH)
+        self._free = grid.probability <= FREE_THRESH
+        rows, cols = np.nonzero(self._free)
         if len(rows) == 0:
             raise ConfigError(f"the map has no free cell (occupancy <= {FREE_THRESH}): "
                               "nowhere to place particles")
@@ -142,6 +163,9 @@ class ParticleFilter:
         self._w_slow = self._w_fast = 0.0
         self._fresh = self._moved = self._gathered = self._fit_settled = False
         self._last: PoseEstimate | None = None
+        self._doubt = self._cluster_tight = False
+        """Whether a gathering cloud is checked for rivals (after ``start_anywhere``)."""
+        self._rivals: Hypotheses | None = None
         self.start_anywhere()
 
     @property
@@ -164,10 +188,12 @@ class ParticleFilter:
         xy = self._rng.normal([pose.x_m, pose.y_m], sigma_xy_m, (n, 2))
         yaw = pose.yaw_rad + self._rng.normal(0.0, sigma_yaw_rad, n)
         self._reset(np.column_stack([xy, _wrap(yaw)]), w_slow=0.0)
+        self._doubt, self._rivals = False, None
 
     def start_anywhere(self) -> None:
         """Global localisation: max_particles over the map's free cells, any heading."""
         self._reset(self._random_poses(self.max_particles), w_slow=GOOD_FIT)
+        self._doubt, self._rivals = True, None
 
     def predict(self, odom_before: Pose2D, odom_after: Pose2D) -> None:
         """Move every particle by the odometry's motion (in the base's frame at
@@ -190,6 +216,8 @@ class ParticleFilter:
         p[:, 0] += c * bx - s * by
         p[:, 1] += s * bx + c * by
         p[:, 2] = _wrap(p[:, 2] + moved.yaw_rad + self._rng.normal(0.0, sigma_rad, n))
+        if self._rivals is not None:
+            self._rivals.move(moved)
         self._moved = True
         self._last = None
 
@@ -204,17 +232,47 @@ class ParticleFilter:
             raise ConfigError(f"{len(b)} bearings and {len(r)} ranges: one each per beam")
         if not np.isfinite(b).all():
             raise ConfigError(f"bearing {b[~np.isfinite(b)][0]}: bearings must be finite (rad)")
-        local = _thinned(scan_points(b, r), self.beams)
+        local = thinned(scan_points(b, r), self.beams)
         if len(local) == 0:
             return self.estimate()
         weigh = self._moved or self._fresh
         if weigh:
             self._weigh(local)
         self._last = self._estimate((b, r))  # of the weighed cloud, before resampling
+        # A gathered cluster is checked for places alike even while another cluster holds
+        # weight: the filter's thinned beams may not see what tells them apart.
+        if self._doubt and (self._cluster_tight or self._rivals is not None):
+            self._last = self._judge_rivals(self._last, scan_points(b, r), weigh)
         if weigh and self._moved:
             self._resample()
         self._moved = self._fresh = False
         return self._last
+
+    def _judge_rivals(self, estimate: PoseEstimate, local: FloatArray, weigh: bool
+                      ) -> PoseEstimate:
+        """A gathered cloud checked for other places alike, once; then those places
+        weighed scan by scan until one leads (see the module docstring)."""
+        if self._rivals is None:
+            sensor = compose(estimate.pose, self.mount)
+            sensor, rivals = find_rivals(self._sharp, self._broad, local, self._free_xy,
+                                         sensor)
+            if not rivals:
+                self._doubt = False
+                return estimate
+            back = inverse(self.mount)
+            self._rivals = Hypotheses(self._sharp, self._free, self.mount, [
+                compose(pose, back) for pose in (sensor, *(p for p, _ in rivals))])
+            weigh = True  # the first view counts once for every place alike
+        if weigh:
+            self._rivals.weigh(local)
+        chosen = self._rivals.decided()
+        if chosen is None:
+            return replace(estimate, pose=self._rivals.leader.pose, converged=False,
+                           rivals=len(self._rivals.places) - 1)
+        # The cloud around the chosen place alone: particles left at the others (its
+        # thinned beams see less of what told them apart) would linger there.
+        self.start_at(chosen, CHOSEN_SIGMA_M, CHOSEN_SIGMA_RAD)
+        return PoseEstimate(chosen, estimate.covariance, False, estimate.matched_share)
 
     def estimate(self) -> PoseEstimate:
         """The latest update's estimate, or (moved since) that of the cloud alone."""
@@ -248,7 +306,7 @@ class ParticleFilter:
     def _weigh(self, local: FloatArray) -> None:
         points = self._in_map(self._poses, local)
         field = self.field if self._gathered else self._broad
-        mean_log = _mean_log_likelihood(field, points)
+        mean_log = mean_log_likelihood(field, points)
         log_w = np.log(np.maximum(self._weights, 1e-300)) + INDEPENDENT_BEAMS * mean_log
         w = np.exp(log_w - log_w.max())
         self._weights = w / w.sum()
@@ -259,7 +317,7 @@ class ParticleFilter:
         else:  # the fit on the sharp field, on a sample drawn by weight: the same scale
             pick = self._rng.choice(len(points), size=min(len(points), FIT_SAMPLE),
                                     p=self._weights)
-            w_avg = float(np.mean(np.exp(_mean_log_likelihood(self.field, points[pick]))))
+            w_avg = float(np.mean(np.exp(mean_log_likelihood(self.field, points[pick]))))
         self._follow_fit(w_avg)
 
     def _follow_fit(self, w_avg: float) -> None:
@@ -291,20 +349,23 @@ class ParticleFilter:
 
     def _estimate(self, scan: tuple[FloatArray, FloatArray] | None) -> PoseEstimate:
         pose, cov, share = self._cloud()
-        converged = bool(share >= CONVERGED_SHARE
-                         and np.linalg.eigvalsh(cov[:2, :2])[-1] <= CONVERGED_XY_M ** 2
-                         and cov[2, 2] <= CONVERGED_YAW_RAD ** 2)
+        converged = share >= CONVERGED_SHARE and _tight(cov)
         self._gathered = converged
         if scan is None:
             return PoseEstimate(pose, cov, converged, 0.0)
         b, r = scan
         if converged and self.refine:  # the cloud is as fine as its noise: the map is finer
+            # As wide as the cloud is spread (a sparse room's cloud gathers loosely, its
+            # mean some centimetres off), at least REFINE_WINDOW.
+            sd_m = math.sqrt(float(np.linalg.eigvalsh(cov[:2, :2])[-1]))
+            sd_deg = math.degrees(math.sqrt(max(float(cov[2, 2]), 0.0)))
             found = match_scan(self._sharp, b, r, compose(pose, self.mount),
-                               window_m=REFINE_WINDOW_M, window_deg=REFINE_WINDOW_DEG,
+                               window_m=max(REFINE_WINDOW_M, REFINE_SPREADS * sd_m),
+                               window_deg=max(REFINE_WINDOW_DEG, REFINE_SPREADS * sd_deg),
                                max_points=REFINE_POINTS)
             if found.matched_share >= MIN_MATCHED_SHARE:
                 pose = compose(found.pose, inverse(self.mount))
-        local = _thinned(scan_points(b, r), self.beams)
+        local = thinned(scan_points(b, r), self.beams)
         at = np.array([[pose.x_m, pose.y_m, pose.yaw_rad]])
         _, near = self.field.score(self._in_map(at, local)[0])
         return PoseEstimate(pose, cov, converged, float(near))
@@ -323,6 +384,9 @@ class ParticleFilter:
         dev = p - mean
         dev[:, 2] = _wrap(dev[:, 2])  # the yaw's spread on the circle, about the mean's
         cov: FloatArray = (dev * (w / w.sum())[:, None]).T @ dev
+        own = dev[member]
+        own_cov: FloatArray = (own * wc[:, None]).T @ own
+        self._cluster_tight = _tight(own_cov)
         return Pose2D(float(mean[0]), float(mean[1]), yaw), cov, share
 
     def _main_cluster(self) -> npt.NDArray[np.bool_]:
@@ -348,30 +412,20 @@ class ParticleFilter:
         return member
 
 
+def _tight(cov: FloatArray) -> bool:
+    """Whether a spread (3x3 over x, y, yaw) is within CONVERGED_XY_M and _YAW_RAD."""
+    return bool(np.linalg.eigvalsh(cov[:2, :2])[-1] <= CONVERGED_XY_M ** 2
+                and cov[2, 2] <= CONVERGED_YAW_RAD ** 2)
+
+
 def _check_poses(what: str, *poses: Pose2D) -> None:
     if not all(math.isfinite(v) for p in poses for v in (p.x_m, p.y_m, p.yaw_rad)):
         shown = " to ".join(str(p) for p in poses)
         raise ConfigError(f"{what} {shown}: every value must be a finite number")
 
 
-def _mean_log_likelihood(field: LikelihoodField, points: FloatArray) -> FloatArray:
-    """Per particle, the mean log-likelihood of its returns (points (N, B, 2), map frame)."""
-    # One point per group: the field's mean over the last axis is each return's own.
-    like = field.likelihood_xy(points[:, :, None, 0], points[:, :, None, 1])
-    out: FloatArray = np.log(Z_HIT * like + Z_RAND).mean(axis=1)
-    return out
-
-
 def _wrap(angle_rad: FloatArray) -> FloatArray:
     out: FloatArray = np.arctan2(np.sin(angle_rad), np.cos(angle_rad))
-    return out
-
-
-def _thinned(points: FloatArray, most: int) -> FloatArray:
-    """At most ``most`` of the points, evenly spread (as ``match_scan`` thins them)."""
-    if len(points) <= most:
-        return points
-    out: FloatArray = points[np.linspace(0, len(points) - 1, most).round().astype(int)]
     return out
 
 

@@ -24,8 +24,10 @@ __all__ = [
     "FIELD_MARGIN_M",
     "INSERT_MOVED_M",
     "INSERT_TURNED_RAD",
+    "MAP_RANGE_M",
     "MATCH_SIGMA_M",
     "MIN_MATCHED_SHARE",
+    "ODOMETRY_SIGMA_M",
     "MapBuilder",
     "compose",
     "inverse",
@@ -34,6 +36,13 @@ __all__ = [
 
 
 MIN_MATCHED_SHARE = 0.5
+MAP_RANGE_M = 5.0
+"""A wall is mapped only from within this range: the A1's noise grows with range (about
+2 cm at 5 m, 3.5 cm at 8 m), so a far wall would be drawn thick; exploring goes nearer."""
+ODOMETRY_SIGMA_M = 0.05
+"""How far off the odometry's step between two scans may be (wheel slip included): the
+match's prior, so that along a corridor whose ends are out of reach the map does not
+pull the robot back to where it was."""
 """A correction is taken only if at least this share of the returns lands on the map."""
 FIELD_MARGIN_M = 0.5
 MATCH_SIGMA_M = 0.025
@@ -77,6 +86,8 @@ class MapBuilder:
     lidar: Mount
     start: Pose2D = field(default_factory=Pose2D)
     min_matched_share: float = MIN_MATCHED_SHARE
+    max_range_m: float = MAP_RANGE_M
+    """Returns farther than this mark no wall (they clear the floor up to it)."""
 
     def __post_init__(self) -> None:
         self.grid = OccupancyGrid(self.spec)
@@ -103,7 +114,8 @@ class MapBuilder:
             predicted = compose(self.poses[-1], moved)
             base = self._corrected(predicted, bearings_rad, ranges_m)
         if self._inserted is None or _moved(self._inserted, base):
-            self.grid.insert(compose(base, self.mount), bearings_rad, ranges_m)
+            self.grid.insert(compose(base, self.mount), bearings_rad, ranges_m,
+                             max_range_m=self.max_range_m)
             self._inserted = base
         self.poses.append(base)
         return base
@@ -113,7 +125,8 @@ class MapBuilder:
         sensor = compose(predicted, self.mount)
         # The field of what is mapped so far only (the canvas is mostly unknown).
         field = LikelihoodField(cropped(self.grid, FIELD_MARGIN_M), sigma_m=MATCH_SIGMA_M)
-        found = match_scan(field, bearings_rad, ranges_m, sensor)
+        found = match_scan(field, bearings_rad, ranges_m, sensor,
+                           prior_sigma_m=ODOMETRY_SIGMA_M)
         if found.matched_share < self.min_matched_share:
             return predicted
         self.corrections += 1

@@ -20,14 +20,20 @@ from busarm.base.odometry import Pose2D, wrap_rad
 from busarm.nav.grid import OccupancyGrid
 
 __all__ = [
+    "INDEPENDENT_BEAMS",
     "NEAR_M",
     "OCCUPIED_P",
+    "PRIOR_WEIGHT",
     "SIGMA_M",
+    "Z_HIT",
+    "Z_RAND",
     "FloatArray",
     "LikelihoodField",
     "Match",
     "match_scan",
+    "mean_log_likelihood",
     "scan_points",
+    "thinned",
 ]
 
 
@@ -37,6 +43,15 @@ SIGMA_M = 0.05
 OCCUPIED_P = 0.65
 NEAR_M = 0.1
 """A return this close to a mapped surface counts as matched."""
+Z_HIT, Z_RAND = 0.95, 0.05
+"""A return's likelihood in a filter's weighing: Z_HIT x the field's (near a surface) +
+Z_RAND (anything: an unmapped box costs every pose alike)."""
+INDEPENDENT_BEAMS = 10.0
+"""Neighbouring beams see the same wall, so their errors are not independent: a scan's
+mean log-likelihood counts as this many beams' (else one scan would crush the cloud)."""
+PRIOR_WEIGHT = 0.05
+"""A guess's prior, in the score's units (a mean likelihood, 0..1): a shift of one sigma
+from it costs as much as 2.5 % of the returns moving off their surface."""
 
 
 @dataclass(frozen=True)
@@ -139,8 +154,26 @@ def scan_points(bearings_rad: npt.ArrayLike, ranges_m: npt.ArrayLike) -> FloatAr
     return np.stack([r[ok] * np.cos(b[ok]), r[ok] * np.sin(b[ok])], axis=1)
 
 
+def thinned(points: FloatArray, most: int) -> FloatArray:
+    """At most ``most`` of the points, evenly spread."""
+    if len(points) <= most:
+        return points
+    out: FloatArray = points[np.linspace(0, len(points) - 1, most).round().astype(int)]
+    return out
+
+
+def mean_log_likelihood(field: LikelihoodField, points: FloatArray) -> FloatArray:
+    """Per pose, the mean log-likelihood of its returns (points (N, B, 2), map frame):
+    log(Z_HIT x the field's + Z_RAND) averaged over each pose's B returns."""
+    # One point per group: the field's mean over the last axis is each return's own.
+    like = field.likelihood_xy(points[:, :, None, 0], points[:, :, None, 1])
+    out: FloatArray = np.log(Z_HIT * like + Z_RAND).mean(axis=1)
+    return out
+
+
 def _search(field: LikelihoodField, local: FloatArray, guess: Pose2D, half_m: float,
-            step_m: float, half_rad: float, step_rad: float) -> tuple[Pose2D, float, float]:
+            step_m: float, half_rad: float, step_rad: float,
+            prior: tuple[Pose2D, float] | None = None) -> tuple[Pose2D, float, float]:
     shifts = np.arange(-half_m, half_m + step_m / 2, step_m)
     turns = np.arange(-half_rad, half_rad + step_rad / 2, step_rad)
     yaw = guess.yaw_rad + turns
@@ -153,6 +186,10 @@ def _search(field: LikelihoodField, local: FloatArray, guess: Pose2D, half_m: fl
     score = field.likelihood_xy(  # candidates (T, S, N)
         turned_x[:, None, :] + offsets[None, :, None, 0],
         turned_y[:, None, :] + offsets[None, :, None, 1])
+    if prior is not None:  # the odometry's word: far from it costs, where the map is flat
+        centre, sigma_m = prior
+        off2 = (offsets[:, 0] - centre.x_m) ** 2 + (offsets[:, 1] - centre.y_m) ** 2
+        score = score - PRIOR_WEIGHT * off2[None, :] / (2 * sigma_m ** 2)
     t, k = np.unravel_index(int(np.argmax(score)), score.shape)
     pose = Pose2D(float(offsets[k, 0]), float(offsets[k, 1]), wrap_rad(float(yaw[t])))
     _, near = field.score_xy(turned_x[t] + offsets[k, 0], turned_y[t] + offsets[k, 1])
@@ -161,19 +198,21 @@ def _search(field: LikelihoodField, local: FloatArray, guess: Pose2D, half_m: fl
 
 def match_scan(field: LikelihoodField, bearings_rad: npt.ArrayLike, ranges_m: npt.ArrayLike,
                guess: Pose2D, *, window_m: float = 0.15, window_deg: float = 6.0,
-               max_points: int = 180) -> Match:
+               max_points: int = 180, prior_sigma_m: float | None = None) -> Match:
     """The sensor pose near ``guess`` (within ``window_m`` and ``window_deg``) at which the
-    scan fits the map best."""
+    scan fits the map best; with ``prior_sigma_m``, ``guess`` is also believed that well
+    (a shift from it costs PRIOR_WEIGHT x its square over 2 sigma^2): where the map cannot
+    tell places apart (along a corridor, a bare wall), the guess stands."""
     local = scan_points(bearings_rad, ranges_m)
     if len(local) == 0:
         return Match(guess, 0.0, 0.0)
-    if len(local) > max_points:  # evenly thinned: the search's cost grows with the points
-        local = local[np.linspace(0, len(local) - 1, max_points).round().astype(int)]
+    local = thinned(local, max_points)  # the search's cost grows with the points
     res = field.spec.resolution_m
+    prior = None if prior_sigma_m is None else (guess, prior_sigma_m)
     pose, score, near = _search(field, local, guess, window_m, res, math.radians(window_deg),
-                                math.radians(1.0))
+                                math.radians(1.0), prior)
     pose, score, near = _search(field, local, pose, res, res / 4, math.radians(1.0),
-                                math.radians(0.25))
+                                math.radians(0.25), prior)
     pose, score, near = _search(field, local, pose, res / 4, res / 16, math.radians(0.25),
-                                math.radians(0.0625))
+                                math.radians(0.0625), prior)
     return Match(pose, score, near)

@@ -5,9 +5,11 @@ The table is what most of the picture's unsaturated pixels show; its brightness 
 median. A pixel much darker than that (darker than a shadow: a lamp's share of the light
 is a third at most) or much brighter and unsaturated (a white thing under the same light)
 is something else. Blobs of such pixels, less the blocks and trays (their outlines, from
-where they are known to be), the arm's own black parts and what lies on its base, are
-cast onto the table plane. A thing standing up casts further than its foot (its top is
-higher), so the cast covers at least what it stands on: its convex hull is kept off.
+where they are known to be), the arm's own black parts, what lies on its base and white
+floor tape (a strip of the tape's width all along, flat: busarm.vision.tape_colour; a
+thing standing on it stays), are cast onto the table plane. A thing standing up casts
+further than its foot (its top is higher), so the cast covers at least what it stands
+on: its convex hull is kept off.
 
 How tall a thing is, no picture says; but it lies inside the cone from each camera that
 saw it whole through its cast (its visual hull), and, standing upright, in the column on
@@ -26,12 +28,15 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from busarm.errors import VisionError
+from busarm.errors import ConfigError, VisionError
 from busarm.vision.calibration import CameraIntrinsics
+from busarm.vision.floor_line import each_floor_line
 from busarm.vision.localize import table_points_from_pixels
+from busarm.vision.tape_colour import flat_tape_mask
 
 __all__ = [
     "ARM_DARK",
+    "ARM_DARK_V",
     "BASE_KEEP_OUT_MM",
     "BLOCK_MARGIN_PX",
     "BRIGHT",
@@ -39,6 +44,7 @@ __all__ = [
     "MIN_AREA_PX",
     "PIECE_GAP_MM",
     "TABLE_SATURATION",
+    "TAPE_MIN_M",
     "WHITE_SATURATION",
     "FloatArray",
     "Obstacle",
@@ -66,11 +72,17 @@ ARM_DARK = 0.18
 """A blob whose median brightness is under this share of the table's is black: the arm's
 own fingers and links in the picture (0.08-0.13 of the table); a brown or grey cup, its
 shaded side dark, is 0.24 or lighter."""
+ARM_DARK_V = 34.0
+"""Nor darker than this (0..255) on a dark floor: the arm's black parts are as black
+there (``ARM_DARK`` of a light table); a brown or grey cup's shaded side is 45 or more."""
 BLOCK_MARGIN_PX = 5
 """The blocks' own blobs, grown this much, are not obstacles (their dark edges)."""
 BASE_KEEP_OUT_MM = 80.0
 """What lies this close to the arm's axis is the arm's own base."""
 PIECE_GAP_MM = 10.0
+TAPE_MIN_M = 0.1
+"""White tape is a strip of its width this long at least (a lit edge of the gripper is
+shorter)."""
 """Casts this close are pieces of one thing (its lit top and a shaded side, say)."""
 
 
@@ -149,6 +161,10 @@ def find_obstacles(image: npt.NDArray[np.uint8], known: Sequence[npt.NDArray[np.
     if found is None:
         return []
     mask, val, table = found
+    if np.any((mask > 0) & (val > BRIGHT * table)):
+        floor = ~_arm_at_bottom(val < DARK * table)
+        tape = _white_tape(image, floor, intrinsics, cam2base, table_z_mm)
+        mask = mask & ~(tape & (val > BRIGHT * table)).astype(np.uint8)
     contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     h, w = image.shape[:2]
     out = []
@@ -158,7 +174,8 @@ def find_obstacles(image: npt.NDArray[np.uint8], known: Sequence[npt.NDArray[np.
             continue  # a speck, or the arm's own fingers at the picture's bottom
         inside = np.zeros(mask.shape, np.uint8)
         cv2.drawContours(inside, [c], -1, 1, -1)
-        if float(np.median(val[(inside > 0) & (mask > 0)])) < ARM_DARK * table:
+        if float(np.median(val[(inside > 0) & (mask > 0)])) < max(ARM_DARK * table,
+                                                                  ARM_DARK_V):
             continue  # black: the arm itself
         whole = not (pts[:, 0].min() <= 0 or pts[:, 1].min() <= 0 or pts[:, 0].max() >= w - 1)
         thing = cast_obstacle(np.asarray(pts, np.int32), intrinsics, cam2base, table_z_mm,
@@ -227,6 +244,35 @@ def _thing_blobs(image: npt.NDArray[np.uint8], known: Sequence[npt.NDArray[np.in
         cv2.drawContours(mask_u8, [outline.reshape(-1, 1, 2)], -1, 0, 2 * BLOCK_MARGIN_PX)
     opened = cv2.morphologyEx(mask_u8, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
     return np.asarray(opened, np.uint8), val, table
+
+
+def _arm_at_bottom(dark: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
+    """The dark blobs that reach the picture's bottom (the arm's own gripper), grown a
+    little: H x W, True."""
+    count, labels = cv2.connectedComponents(dark.astype(np.uint8), connectivity=8)
+    bottom = np.unique(labels[-2:][labels[-2:] > 0])
+    arm = np.isin(labels, bottom).astype(np.uint8)
+    return np.asarray(cv2.dilate(arm, np.ones((9, 9), np.uint8)) > 0)
+
+
+def _white_tape(image: npt.NDArray[np.uint8], floor: npt.NDArray[np.bool_],
+                intrinsics: CameraIntrinsics, cam2base: FloatArray, table_z_mm: float
+                ) -> npt.NDArray[np.bool_]:
+    """The flat white tape on the table's plane in ``image`` (RGB; ``floor``: the pixels
+    that may show it): H x W, True."""
+    bgr = np.ascontiguousarray(image[..., ::-1])
+    to_plane = np.array(cam2base, dtype=np.float64)
+    to_plane[2, 3] -= table_z_mm
+    to_plane[:3, 3] /= 1000.0
+    out = np.zeros(image.shape[:2], bool)
+    try:
+        for line in each_floor_line(bgr, intrinsics, to_plane, "white", mask=floor,
+                                    from_middle=True):
+            if line.length_m >= TAPE_MIN_M:
+                out |= flat_tape_mask(bgr, line, intrinsics, to_plane, floor)[0]
+    except ConfigError:  # a camera below the plane or a picture of another size: no tape
+        return out
+    return out
 
 
 def _merged(things: list[Obstacle]) -> list[Obstacle]:

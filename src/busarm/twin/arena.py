@@ -11,6 +11,8 @@ robot that would start inside something is refused with one error naming it.
 - ``boxes``: obstacles on the floor, each a body the twin can move (a person stepping in).
 - ``blocks``: coloured cubes on the floor or on a table (``on = <table index>``).
 - ``lines``: floor tape (polylines; ``closed`` for a loop), seen by the camera only.
+- ``walls``: inner walls (fixed, as tall as the room's): rooms, doorways and corridors
+  inside the outer walls.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from busarm.twin.scene import BLOCK_SIZE_MM, COLORS, DEFAULT_BLOCK_MM
 
 __all__ = [
     "BLOCK_KEYS",
+    "FLOOR_COLORS",
     "FORMAT_NAME",
     "FORMAT_VERSION",
     "HEIGHT_M",
@@ -65,7 +68,13 @@ HEIGHT_M = (0.02, 2.0)
 LINE_WIDTH_M = (0.01, 0.1)
 WALL_THICKNESS_M = 0.05
 WALL_HEIGHT_M = 0.3
-LINE_COLORS = {"black": (0.03, 0.03, 0.03), "blue": (0.1, 0.25, 0.7)}
+LINE_COLORS = {"black": (0.03, 0.03, 0.03), "blue": (0.1, 0.25, 0.7),
+               "red": (0.78, 0.08, 0.1), "green": (0.05, 0.5, 0.25),
+               "yellow": (0.95, 0.8, 0.08), "white": (0.92, 0.92, 0.9)}
+"""Floor tape (sRGB 0..1) as sold: vinyl marking tape's black, blue, red, green, yellow
+and white."""
+FLOOR_COLORS = {"light": (0.74, 0.72, 0.68), "dark": (0.16, 0.16, 0.17)}
+"""The floor (sRGB 0..1): a light grey, or a dark one (rubber, lino) for white tape."""
 MAX_THINGS = 200
 
 
@@ -154,9 +163,18 @@ class Arena:
     name: str = "arena"
     seed: int | None = None
     source: str = "<memory>"
+    walls: tuple[Solid, ...] = ()
+    """Inner walls (their ``height_m`` as drawn; WALL_HEIGHT_M is the room's own)."""
+    floor: str = "light"
+    """The floor's colour: a name of ``FLOOR_COLORS``."""
 
     def __post_init__(self) -> None:
         check_arena(self)
+
+    @property
+    def fixed(self) -> tuple[Solid, ...]:
+        """What never moves and the Lidar sees: the tables and the inner walls."""
+        return (*self.tables, *self.walls)
 
     def block_z_m(self, index: int) -> float:
         """Where block ``index``'s centre stands (on the floor or its table)."""
@@ -197,11 +215,13 @@ def check_arena(arena: Arena) -> None:
         _number(arena, f"room.{key}", getattr(r, key), -100.0, 100.0, "m")
     for axis, size in zip("xy", r.size_m, strict=True):
         _number(arena, f"room's {axis} extent", round(size, 9), *ROOM_M, "m")
-    count = len(arena.tables) + len(arena.boxes) + len(arena.blocks) + len(arena.lines)
+    count = (len(arena.tables) + len(arena.boxes) + len(arena.blocks) + len(arena.lines)
+             + len(arena.walls))
     if count > MAX_THINGS:
         raise _fail(arena, f"{count} things; at most {MAX_THINGS}")
     floor: list[tuple[str, Footprint]] = []
-    for kind, solids in (("table", arena.tables), ("box", arena.boxes)):
+    for kind, solids in (("table", arena.tables), ("box", arena.boxes),
+                         ("wall", arena.walls)):
         for i, s in enumerate(solids):
             name = f"{kind} {i}"
             for key, lo, hi in (("x_m", -100.0, 100.0), ("y_m", -100.0, 100.0),
@@ -220,6 +240,8 @@ def check_arena(arena: Arena) -> None:
     _inside_room(arena, "the robot at its start", robot)
     floor.append(("the robot at its start", robot))
     _check_overlaps(arena, floor)
+    if arena.floor not in FLOOR_COLORS:
+        raise _fail(arena, f"floor {arena.floor!r}; allowed: {', '.join(FLOOR_COLORS)}")
     for i, line in enumerate(arena.lines):
         _check_line(arena, i, line)
 
@@ -295,7 +317,8 @@ class _Reader(TomlReader):
 
     def arena(self, data: dict[str, Any]) -> Arena:
         self.unknown(data, "top level", {"format", "version", "name", "room", "start",
-                                         "tables", "boxes", "blocks", "lines"})
+                                         "tables", "boxes", "blocks", "lines", "walls",
+                                         "floor"})
         name = self.header(data, FORMAT_NAME, FORMAT_VERSION)
         room = self.table(data, "room")
         self.unknown(room, "room", {"x_min_m", "x_max_m", "y_min_m", "y_max_m"})
@@ -303,6 +326,9 @@ class _Reader(TomlReader):
         if not isinstance(start, dict):
             raise self.fail("start", "must be a table")
         self.unknown(start, "start", {"x_m", "y_m", "yaw_deg"})
+        floor = data.get("floor", "light")
+        if not isinstance(floor, str):
+            raise self.fail("floor", f"must be one of {', '.join(FLOOR_COLORS)}")
         return Arena(
             room=Room(*(self.real(room, k, "room") for k in
                         ("x_min_m", "x_max_m", "y_min_m", "y_max_m"))),
@@ -317,12 +343,14 @@ class _Reader(TomlReader):
             start=StartPose(self.real(start, "x_m", "start", 0.0),
                             self.real(start, "y_m", "start", 0.0),
                             self.real(start, "yaw_deg", "start", 0.0)),
-            name=name, source=self.source)
+            name=name, source=self.source,
+            walls=tuple(self.solid(d, f"walls[{i}]", wall=True)
+                        for i, d in enumerate(self.items(data, "walls"))), floor=floor)
 
-    def solid(self, d: dict[str, Any], where: str) -> Solid:
+    def solid(self, d: dict[str, Any], where: str, wall: bool = False) -> Solid:
         self.unknown(d, where, SOLID_KEYS)
-        x, y, sx, sy, h = (self.real(d, k, where) for k in
-                           ("x_m", "y_m", "size_x_m", "size_y_m", "height_m"))
+        x, y, sx, sy = (self.real(d, k, where) for k in ("x_m", "y_m", "size_x_m", "size_y_m"))
+        h = self.real(d, "height_m", where, WALL_HEIGHT_M if wall else None)
         return Solid(x, y, sx, sy, h, self.real(d, "yaw_deg", where, 0.0))
 
     def block(self, d: dict[str, Any], where: str) -> ArenaBlock:
@@ -383,10 +411,12 @@ def arena_to_toml(arena: Arena) -> str:
     """The arena as a file ``load_arena`` reads back to the same arena."""
     r, s = arena.room, arena.start
     out = [f'format = "{FORMAT_NAME}"', f"version = {FORMAT_VERSION}",
-           f"name = {toml_string(arena.name)}", "",
+           f"name = {toml_string(arena.name)}",
+           *([f"floor = {toml_string(arena.floor)}"] if arena.floor != "light" else []), "",
            f"room = {{ {_fields(dict(x_min_m=r.x_min_m, x_max_m=r.x_max_m, y_min_m=r.y_min_m, y_max_m=r.y_max_m))} }}",  # noqa: E501
            f"start = {{ {_fields(dict(x_m=s.x_m, y_m=s.y_m, yaw_deg=s.yaw_deg))} }}", ""]
-    for key, solids in (("tables", arena.tables), ("boxes", arena.boxes)):
+    for key, solids in (("tables", arena.tables), ("boxes", arena.boxes),
+                        ("walls", arena.walls)):
         out += [f"[[{key}]]\n{_fields(vars(t)).replace(', ', chr(10))}\n" for t in solids]
     for b in arena.blocks:
         values = {k: v for k, v in vars(b).items() if v is not None}

@@ -25,7 +25,14 @@ import numpy as np
 
 from busarm.arm.config import ArmConfig
 from busarm.base.config import ChassisConfig
-from busarm.twin.arena import LINE_COLORS, WALL_HEIGHT_M, WALL_THICKNESS_M, Arena, Solid
+from busarm.twin.arena import (
+    FLOOR_COLORS,
+    LINE_COLORS,
+    WALL_HEIGHT_M,
+    WALL_THICKNESS_M,
+    Arena,
+    Solid,
+)
 from busarm.twin.model import (
     ROBOT_GROUP,
     TwinModelSpec,
@@ -65,7 +72,7 @@ BASE_KV = 400.0
 BASE_FORCE_N = 40.0
 """The most the base pushes with (four small gear motors): a wall stops it."""
 BASE_TORQUE_NM = 8.0
-FLOOR_RGB = (0.74, 0.72, 0.68)
+FLOOR_RGB = FLOOR_COLORS["light"]
 FLOOR_M_PER_PX = 0.0025
 FLOOR_MAX_PX = 4096
 HIT = 'contype="9" conaffinity="1"'
@@ -142,7 +149,7 @@ def floor_texture(arena: Arena) -> tuple[str, bytes]:
     m_per_px = max(FLOOR_M_PER_PX, max(x1 - x0, y1 - y0) / FLOOR_MAX_PX)
     width, height = round((x1 - x0) / m_per_px), round((y1 - y0) / m_per_px)
     rng = np.random.default_rng(arena.seed or 0)
-    base = np.array(FLOOR_RGB[::-1]) * 255
+    base = np.array(FLOOR_COLORS[arena.floor][::-1]) * 255
     image = np.clip(base + rng.normal(0.0, 3.0, (height, width, 1)), 0, 255).astype(np.uint8)
     shift = 4  # sub-pixel precision of the drawing (cv2's fixed point)
     for line in arena.lines:
@@ -163,6 +170,7 @@ def _floor_extent(arena: Arena) -> tuple[float, float, float, float]:
 
 def _things(arena: Arena) -> list[str]:
     out = [_solid_geom(f"table{i}", t, "table") for i, t in enumerate(arena.tables)]
+    out += [_solid_geom(f"inner_wall{i}", w, "wall") for i, w in enumerate(arena.walls)]
     for i, box in enumerate(arena.boxes):
         yaw = math.radians(box.yaw_deg)
         out += [f'    <body name="box{i}" mocap="true" pos="{_fmt((box.x_m, box.y_m, 0))}" '

@@ -17,9 +17,11 @@ import numpy.typing as npt
 
 from busarm.base.odometry import Pose2D
 from busarm.errors import ConfigError
+from busarm.nav.grid import OccupancyGrid
 from busarm.nav.mapping import compose, inverse, transform_points
 from busarm.nav.points import WORK_AHEAD_M, NamedPoint, NamedPoints
-from busarm.twin.arena import ROBOT_RADIUS_M, Arena
+from busarm.nav.scan_match import OCCUPIED_P
+from busarm.twin.arena import ROBOT_RADIUS_M, Arena, Room
 from busarm.twin.arena_gen import random_arena
 from busarm.twin.footprints import Footprint
 
@@ -34,6 +36,7 @@ __all__ = [
     "STANDOFF_M",
     "FloatArray",
     "free_pose",
+    "map_in_arena",
     "start_pose",
     "transport_arena",
     "transport_points",
@@ -50,6 +53,8 @@ CLEAR_M = 0.08
 """A stand keeps the base's disc this far from everything the arena has."""
 MIN_TRIP_M = 1.0
 DIRECTIONS = 24
+FIT_CELLS, FIT_CLIP_M = 600, 0.3
+"""``map_in_arena``: the cells fitted (evenly taken), and the farthest a cell counts."""
 
 
 def transport_arena(seed: int) -> Arena:
@@ -64,7 +69,7 @@ def start_pose(arena: Arena) -> Pose2D:
 
 
 def _footprints(arena: Arena, skip_block: int | None) -> list[Footprint]:
-    out = [s.footprint() for s in (*arena.tables, *arena.boxes)]
+    out = [s.footprint() for s in (*arena.fixed, *arena.boxes)]
     out += [b.footprint() for i, b in enumerate(arena.blocks) if b.on is None and i != skip_block]
     return out
 
@@ -90,12 +95,14 @@ def _stand(arena: Arena, things: list[Footprint], spot: tuple[float, float],
     return None
 
 
-def transport_points(arena: Arena, map_origin: Pose2D | None = None, seed: int = 0
+def transport_points(arena: Arena, map_origin: Pose2D | None = None, seed: int = 0, *,
+                     place_within: Room | None = None, min_trip_m: float = MIN_TRIP_M
                      ) -> tuple[NamedPoints, int, tuple[float, float]]:
     """Points ``pick`` (facing the first floor block) and ``place`` (facing a clear spot
-    at least MIN_TRIP_M away) in the map's frame (``map_origin``: the arena pose the
-    map's origin is at; default the arena's start); also the block's index and the place
-    spot (arena frame), for checking the outcome."""
+    in ``place_within``, default anywhere, at least ``min_trip_m`` away) in the map's
+    frame (``map_origin``: the arena pose the map's origin is at; default the arena's
+    start); also the block's index and the place spot (arena frame), for checking the
+    outcome."""
     rng = random.Random(seed)
     floor = [i for i, b in enumerate(arena.blocks) if b.on is None]
     if not floor:
@@ -108,10 +115,11 @@ def transport_points(arena: Arena, map_origin: Pose2D | None = None, seed: int =
         raise ConfigError(f"{arena.name}: no room to stand in front of block {index}")
     things_and_block = [*things, block.footprint(),
                         Footprint.disc(pick.x_m * 1000, pick.y_m * 1000, 2000 * ROBOT_RADIUS_M)]
+    area = place_within or arena.room
     for _ in range(2000):
-        x = rng.uniform(arena.room.x_min_m, arena.room.x_max_m)
-        y = rng.uniform(arena.room.y_min_m, arena.room.y_max_m)
-        if math.dist((x, y), (block.x_m, block.y_m)) < MIN_TRIP_M or not _clear(
+        x = rng.uniform(area.x_min_m, area.x_max_m)
+        y = rng.uniform(area.y_min_m, area.y_max_m)
+        if math.dist((x, y), (block.x_m, block.y_m)) < min_trip_m or not _clear(
                 arena, things_and_block, x, y, 0.06):
             continue
         place = _stand(arena, things_and_block, (x, y), rng)
@@ -169,8 +177,31 @@ def true_map_surfaces(arena: Arena, origin: Pose2D, points_m: npt.ArrayLike) -> 
     r = arena.room
     out = np.minimum.reduce([np.abs(x - r.x_min_m), np.abs(x - r.x_max_m),
                              np.abs(y - r.y_min_m), np.abs(y - r.y_max_m)])
-    for solid in (*arena.tables, *arena.boxes):
+    for solid in (*arena.fixed, *arena.boxes):
         f = solid.footprint()
         d = np.array([f.distance_from_mm(a * 1000, b * 1000) for a, b in zip(x, y, strict=True)])
         out = np.minimum(out, d / 1000)
     return np.asarray(out, dtype=np.float64)
+
+
+def map_in_arena(arena: Arena, grid: OccupancyGrid, origin: Pose2D) -> Pose2D:
+    """Where (arena frame) a map's origin truly is: ``origin`` (the pose it was begun
+    from) corrected by the rigid shift and turn that lay its occupied cells best on the
+    true surfaces. A map is its own frame: one built with a degree's turn in it is still
+    right for a robot localised and taught on it, so its localisation is judged there."""
+    from scipy.optimize import minimize
+
+    rows, cols = np.nonzero(grid.probability >= OCCUPIED_P)
+    if len(rows) == 0:
+        return origin
+    cells = grid.spec.centres(rows, cols)
+    cells = cells[:: max(1, len(cells) // FIT_CELLS)]
+
+    def misfit(v: FloatArray) -> float:
+        at = compose(origin, Pose2D(float(v[0]), float(v[1]), float(v[2])))
+        return float(np.mean(np.minimum(true_map_surfaces(arena, at, cells), FIT_CLIP_M)))
+
+    start = np.array([[0.0, 0.0, 0.0], [0.05, 0.0, 0.0], [0.0, 0.05, 0.0], [0.0, 0.0, 0.02]])
+    best = minimize(misfit, np.zeros(3), method="Nelder-Mead",
+                    options={"xatol": 1e-4, "fatol": 1e-7, "initial_simplex": start})
+    return compose(origin, Pose2D(float(best.x[0]), float(best.x[1]), float(best.x[2])))

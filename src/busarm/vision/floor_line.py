@@ -12,8 +12,10 @@ and their weighted centroids are neither metric nor robust to a curve):
    wider than the tape looks, so uneven light and soft shadows cancel, and a dark
    thing wider than that closing, a box's base or a shadow, is no darker than its
    own surroundings), counted only where the pixel has no colour (a blue block's
-   shaded side is dark too). A colour (``"blue"``, any ``ColorRange``): the pixels
-   in its Lab box.
+   shaded side is dark too). White tape (on a dark floor): the same, brighter than the
+   floor (a grey opening). A colour (``"blue"``, any ``ColorRange``): the pixels in its
+   Lab box. ``"contrast"`` (the first look, busarm.vision.tape_colour): how far a
+   pixel's colour is from the floor's, whatever the tape's colour.
 2. **Pieces**: the connected blobs of tape-like pixels, each cast onto the floor
    through the camera model (lens distortion undone); the pieces are tried nearest
    to the robot first, so where the loop curves out of view and comes back farther
@@ -34,7 +36,9 @@ and their weighted centroids are neither metric nor robust to a curve):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Literal
 
 import cv2
 import numpy as np
@@ -48,7 +52,9 @@ from busarm.vision.camera import check_bgr_image
 from busarm.vision.color_thresholds import ColorRange, default_thresholds
 
 __all__ = [
+    "BRIGHT_MIN",
     "CHROMA_MAX",
+    "CONTRAST_MIN",
     "CURVATURE_WINDOW_M",
     "DARK_MIN",
     "EXTRAPOLATE_M",
@@ -67,7 +73,11 @@ __all__ = [
     "BoolArray",
     "FloatArray",
     "FloorLineSighting",
+    "TapeSpec",
+    "each_floor_line",
     "find_floor_line",
+    "floor_pixels",
+    "tape_colour_spec",
 ]
 
 
@@ -91,6 +101,12 @@ EXTRAPOLATE_M = 0.3
 DARK_MIN = 0.4
 """Black tape: at least this much darker than the floor around it (the tape is about
 0.9 darker; shadows about 0.2-0.4)."""
+BRIGHT_MIN = 0.4
+"""White tape: at least this much brighter than the floor around it (``1 - floor / grey``;
+white tape on a dark floor is about 0.8)."""
+CONTRAST_MIN = 30.0
+"""``"contrast"``: a pixel this far from the floor's colour (Lab, 8-bit, lightness counted
+half: light falls unevenly, a colour's hue does not) may be tape."""
 CHROMA_MAX = 30
 """Black tape: the most its BGR channels may differ (levels); coloured things differ more."""
 MIN_PIECE_PX = 30
@@ -127,6 +143,9 @@ class FloorLineSighting:
     """The tape's width as measured (median over the cross-sections)."""
     found_share: float
     colour: str
+    found_m: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
+    """(M, 2) the centres of the cross-sections that found the tape (its width), along the
+    line: where the tape lies bare (not where something stands on it)."""
 
     @property
     def length_m(self) -> float:
@@ -258,39 +277,69 @@ class _FloorView:
 # ---------------------------------------------------------------------- scores
 
 
-def _colour(colour: str | ColorRange) -> tuple[str, ColorRange | None]:
+TapeSpec = ColorRange | Literal["black", "white", "contrast"]
+"""How tape is told from the floor: a Lab box, darker or brighter than the floor and
+colourless, or any colour far from the floor's (the first look)."""
+
+
+def tape_colour_spec(colour: str | ColorRange) -> tuple[str, TapeSpec]:
+    """The name and the scoring of a tape colour: ``black``, ``white``, a colour of the
+    default thresholds or a ``ColorRange`` (``contrast``: any colour, for the first look);
+    ConfigError naming the value and what is allowed."""
     if isinstance(colour, ColorRange):
         return colour.name, colour
     if colour == "black":
-        return "black", None
+        return "black", "black"
+    if colour == "white":
+        return "white", "white"
+    if colour == "contrast":
+        return "contrast", "contrast"
     table = default_thresholds()
     if isinstance(colour, str) and colour in table.names:
         return colour, table[colour]
-    raise ConfigError(f"line colour {colour!r}: give black, one of {listing(table.names)}, "
-                      f"or a ColorRange")
+    raise ConfigError(f"line colour {colour!r}: give black, white, one of "
+                      f"{listing(table.names)}, or a ColorRange")
 
 
-def _tape_score(image: npt.NDArray[np.uint8], colour: ColorRange | None, mask: BoolArray,
+def _relative(grey: npt.NDArray[np.uint8], mask: BoolArray, tape_px: float,
+              darker: bool) -> npt.NDArray[np.float32]:
+    """How much darker (``darker``) or brighter than the floor around it each pixel is:
+    the floor's level from a grey closing (opening) wider than the tape looks."""
+    if not np.all(mask):  # the floor's level where the picture is not floor
+        grey = grey.copy()
+        grey[~mask] = int(np.median(np.asarray(grey[mask]))) if np.any(mask) else 255
+    side = int(min(max(3 * tape_px, 7), 255)) | 1
+    kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (side, side))
+    op = cv2.MORPH_CLOSE if darker else cv2.MORPH_OPEN
+    floor = cv2.morphologyEx(grey, op, kernel).astype(np.float32)
+    g = grey.astype(np.float32)
+    if darker:
+        return np.asarray(1.0 - g / np.maximum(floor, 1.0), dtype=np.float32)
+    return np.asarray(1.0 - np.maximum(floor, 1.0) / np.maximum(g, 1.0), dtype=np.float32)
+
+
+def _tape_score(image: npt.NDArray[np.uint8], colour: TapeSpec, mask: BoolArray,
                 tape_px: float) -> tuple[npt.NDArray[np.float32], float]:
     """Per pixel how tape-like it is (NaN outside ``mask``), and the level that counts."""
-    if colour is not None:
+    if isinstance(colour, ColorRange):
         lab = cv2.cvtColor(image, cv2.COLOR_BGR2Lab)
         score = cv2.inRange(lab, np.array(colour.lab_min, np.uint8),
                             np.array(colour.lab_max, np.uint8)).astype(np.float32) / 255.0
         level = 0.5
+    elif colour == "contrast":
+        lab = np.asarray(cv2.cvtColor(image, cv2.COLOR_BGR2Lab), dtype=np.float32)
+        floor = (np.median(np.asarray(lab[mask], dtype=np.float64), axis=0) if np.any(mask)
+                 else np.full(3, 128.0))
+        diff = (lab - floor.astype(np.float32)) * np.array([0.5, 1.0, 1.0], np.float32)
+        score = np.sqrt(np.sum(diff * diff, axis=2), dtype=np.float32)
+        level = CONTRAST_MIN
     else:
-        grey = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
-        if not np.all(mask):  # the floor's level where the picture is not floor
-            grey = grey.copy()
-            grey[~mask] = int(np.median(np.asarray(grey[mask]))) if np.any(mask) else 255
-        side = int(min(max(3 * tape_px, 7), 255)) | 1
-        kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (side, side))
-        floor = cv2.morphologyEx(grey, cv2.MORPH_CLOSE, kernel).astype(np.float32)
-        score = 1.0 - grey.astype(np.float32) / np.maximum(floor, 1.0)
+        grey = np.asarray(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY), dtype=np.uint8)
+        score = _relative(grey, mask, tape_px, colour == "black")
         chroma = cv2.subtract(cv2.max(cv2.max(image[..., 0], image[..., 1]), image[..., 2]),
                               cv2.min(cv2.min(image[..., 0], image[..., 1]), image[..., 2]))
         score[chroma > CHROMA_MAX] = 0.0
-        level = DARK_MIN
+        level = DARK_MIN if colour == "black" else BRIGHT_MIN
     score[~mask] = np.nan
     return score, level
 
@@ -455,11 +504,15 @@ def _pieces(view: _FloorView, score: npt.NDArray[np.float32], level: float,
     return [floor for _, floor in out]
 
 
-def _follow(tracker: _Tracker, piece: FloatArray) -> tuple[FloatArray, float, float] | None:
-    """The tape of one piece: its centres (nearest end first), width and found share."""
+def _follow(tracker: _Tracker, piece: FloatArray, from_middle: bool = False
+            ) -> tuple[FloatArray, float, float] | None:
+    """The tape of one piece: its centres (nearest end first), width and found share
+    (``from_middle``: tracked from its middle if not from its near end)."""
     nearest = piece[int(np.argmin(np.hypot(piece[:, 0], piece[:, 1])))]
-    close = piece[np.hypot(*(piece - nearest).T) <= SEED_RADIUS_M]
-    seed = _seed(tracker, close.mean(axis=0))
+    away = np.hypot(*(piece - nearest).T)
+    seed = _seed(tracker, piece[away <= SEED_RADIUS_M].mean(axis=0))
+    if seed is None and from_middle:  # its near end runs into something else
+        seed = _seed(tracker, piece[int(np.argmin(np.abs(away - np.median(away))))])
     if seed is None:
         return None
     start, t = seed
@@ -509,18 +562,16 @@ def _smooth(points: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, Flo
     return out, s, heading, kappa
 
 
-def find_floor_line(
+def each_floor_line(
     image: npt.NDArray[np.uint8], intrinsics: CameraIntrinsics, cam_to_floor: npt.ArrayLike,
     colour: str | ColorRange = "black", *, tape_width_m: float = TAPE_WIDTH_M,
     mask: npt.NDArray[np.bool_] | None = None, max_range_m: float = MAX_RANGE_M,
-) -> FloorLineSighting | None:
-    """The floor line in ``image`` (see the module docstring), or None if none is seen.
-
-    ``cam_to_floor``: the camera's pose in the base frame on the floor (4x4, m).
-    ``colour``: ``"black"``, a colour of the default thresholds (``"blue"``...) or a
-    ``ColorRange``. ``mask``: the pixels that may show the floor (H x W, True; e.g.
-    not the robot's own gripper); ``max_range_m``: farther floor is not looked at.
-    """
+    from_middle: bool = False,
+) -> Iterator[FloorLineSighting]:
+    """Every piece of tape in ``image`` that is a line, nearest the robot first (see
+    ``find_floor_line`` for the arguments; ``colour`` may also be ``"contrast"``);
+    ``from_middle``: a piece whose near end runs into something (the gripper's edge in
+    a close look) is tracked from its middle."""
     img = check_bgr_image(image)
     if (img.shape[1], img.shape[0]) != intrinsics.size:
         raise ConfigError(f"the image is {img.shape[1]}x{img.shape[0]} px; the intrinsics "
@@ -529,18 +580,41 @@ def find_floor_line(
     check_range("camera height (cam_to_floor z)", pose[2, 3], 0.02, 10.0, "m")
     width = check_range("tape_width_m", tape_width_m, 0.005, 0.2, "m")
     reach = check_range("max_range_m", max_range_m, 0.1, 20.0, "m")
-    name, rng = _colour(colour)
+    name, spec = tape_colour_spec(colour)
     floor_ok = np.ones(img.shape[:2], bool) if mask is None else np.asarray(mask)
     if floor_ok.shape != img.shape[:2]:
         raise ConfigError(f"mask is {floor_ok.shape}; the image is {img.shape[:2]}")
     view = _FloorView(intrinsics, pose)
-    score, level = _tape_score(img, rng, floor_ok.astype(bool), view.tape_px(width))
+    score, level = _tape_score(img, spec, floor_ok.astype(bool), view.tape_px(width))
     tracker = _Tracker(view, score, level, width, reach)
     for piece in _pieces(view, score, level, reach):
-        followed = _follow(tracker, piece)
+        followed = _follow(tracker, piece, from_middle)
         if followed is None:
             continue
         raw, measured_width, share = followed
         points, s, heading, kappa = _smooth(raw)
-        return FloorLineSighting(points, s, heading, kappa, measured_width, share, name)
-    return None
+        yield FloorLineSighting(points, s, heading, kappa, measured_width, share, name, raw)
+
+
+def find_floor_line(
+    image: npt.NDArray[np.uint8], intrinsics: CameraIntrinsics, cam_to_floor: npt.ArrayLike,
+    colour: str | ColorRange = "black", *, tape_width_m: float = TAPE_WIDTH_M,
+    mask: npt.NDArray[np.bool_] | None = None, max_range_m: float = MAX_RANGE_M,
+) -> FloorLineSighting | None:
+    """The floor line in ``image`` (see the module docstring), or None if none is seen.
+
+    ``cam_to_floor``: the camera's pose in the base frame on the floor (4x4, m).
+    ``colour``: ``"black"``, ``"white"``, a colour of the default thresholds (``"blue"``...)
+    or a ``ColorRange``. ``mask``: the pixels that may show the floor (H x W, True; e.g.
+    not the robot's own gripper); ``max_range_m``: farther floor is not looked at.
+    """
+    return next(each_floor_line(image, intrinsics, cam_to_floor, colour,
+                                tape_width_m=tape_width_m, mask=mask,
+                                max_range_m=max_range_m), None)
+
+
+def floor_pixels(intrinsics: CameraIntrinsics, cam_to_floor: npt.ArrayLike,
+                 floor_xy_m: npt.ArrayLike) -> FloatArray:
+    """(N, 2) floor points (base frame, m) -> (N, 2) pixels; NaN where not in front."""
+    view = _FloorView(intrinsics, as_transform("cam_to_floor", cam_to_floor))
+    return view.pixels(np.asarray(floor_xy_m, dtype=np.float64).reshape(-1, 2))

@@ -21,8 +21,17 @@ then a camera frame of the same moment, in which it
   looks that it is there and off the line, looks ahead again and goes on (the
   odometry, and so the remembered line, runs on through it all).
 
+The tape's colour is given (``tape``: black, white or a colour of the default
+thresholds) or measured on the first look (busarm.vision.tape_colour: the robot starts on
+the tape facing along it). The line is looked for in that colour only. But for black
+tape, the flat tape is painted out of the picture the blocks are looked for in (a block
+of its colour standing on it stays: ``without_tape``), and out of the pictures the pick
+looks at the block in (``tape_camera``).
+
 A line not seen for ``LOST_AFTER_S`` is searched for by turning in place (up to
-``SEARCH_DEG`` each way); not found, the job stops with a NavigationError.
+``SEARCH_DEG`` each way), before anything in the way is waited for (a lost line is a
+lost line, not an obstacle); not found, or no room to turn, the job stops with a
+NavigationError saying the line is lost.
 
 Laps: the start pose is remembered (odometry frame); a lap is done when the base comes
 back to it (within ``LAP_RADIUS_M``, facing its way, level with it or just past it)
@@ -41,13 +50,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
-from typing import Any, Literal
+from dataclasses import replace
+from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
 
 from busarm.apps.line_follow.floor_look import floor_camera, look_ahead
+from busarm.apps.line_follow.report import BlockCleared, LineFollowReport, ObstacleStop
+from busarm.apps.line_follow.tape_camera import tape_hidden
 from busarm.apps.navigation.sensing import ScanReader, SensedScan
 from busarm.apps.transport.mobile_pick import FLOOR, BlockSeen, pick_block, put_aside
 from busarm.apps.transport.workspace import Workspace, half_size_m, m_text
@@ -61,6 +72,9 @@ from busarm.perception.floor_view import FloorCamera
 from busarm.progress import Progress, quiet
 from busarm.robot import Robot
 from busarm.units import check_range
+from busarm.vision.color_thresholds import ColorRange
+from busarm.vision.floor_line import FloorLineSighting
+from busarm.vision.tape_colour import check_tape, measure_tape, without_tape
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -104,100 +118,6 @@ seemed to be (a block on a table seen from afar on the floor's plane)."""
 Side = Literal["left", "right"]
 
 
-@dataclass(frozen=True)
-class ObstacleStop:
-    """The base stopped for something the Lidar saw in its way."""
-
-    at: Pose2D
-    """Where the base stood (odometry frame)."""
-    obstacle_m: tuple[float, float]
-    """The nearest return in the way, base frame."""
-    began_s: float
-    seconds: float
-    cleared: bool
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"at": _pose_list(self.at), "obstacle_m": _xy_list(self.obstacle_m),
-                "began_s": round(self.began_s, 2), "seconds": round(self.seconds, 2),
-                "cleared": self.cleared}
-
-
-@dataclass(frozen=True)
-class BlockCleared:
-    """A block found on the base's path, and what was done with it."""
-
-    color: str
-    found_m: tuple[float, float]
-    """Where it was seen (odometry frame)."""
-    put_m: tuple[float, float] | None
-    """Where it was seen after it was put down (odometry frame; None if not seen)."""
-    outcome: Literal["cleared", "failed", "not there"]
-    """``not there``: a closer look found no block where the look ahead saw one (a block
-    on a table, seen from afar as if on the floor): the base went on."""
-    why: str = ""
-    side: str = ""
-    attempts: int = 0
-    seconds: float = 0.0
-
-    @property
-    def ok(self) -> bool:
-        return self.outcome == "cleared"
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"color": self.color, "outcome": self.outcome,
-                "found_m": _xy_list(self.found_m),
-                "put_m": None if self.put_m is None else _xy_list(self.put_m),
-                "why": self.why, "side": self.side, "attempts": self.attempts,
-                "seconds": round(self.seconds, 2)}
-
-
-@dataclass
-class LineFollowReport:
-    """One line-following run (odometry frame, m; the robot's clock, s)."""
-
-    laps_wanted: float
-    laps_done: float = 0.0
-    loop_length_m: float | None = None
-    """The loop's length as the first lap measured it (None before)."""
-    travelled_m: float = 0.0
-    seconds: float = 0.0
-    finished: bool = False
-    why: str = ""
-    path: list[Pose2D] = field(default_factory=list)
-    """The odometry's pose at each scan."""
-    lateral: list[tuple[float, float]] = field(default_factory=list)
-    """(travelled m, the line's offset from the base's centre m, + left) as the tracker
-    measured it, each scan the line was known under the base (but while it slides back
-    onto the line after lining up with a block: ``LineFollowJob.rejoining``)."""
-    stops: list[ObstacleStop] = field(default_factory=list)
-    blocks: list[BlockCleared] = field(default_factory=list)
-    searches: int = 0
-
-    def lateral_mm(self, after_m: float = 0.0) -> tuple[float, float] | None:
-        """(median, max) of the tracker's |lateral| offsets (mm) after ``after_m`` driven."""
-        values = [abs(v) for s, v in self.lateral if s >= after_m]
-        if not values:
-            return None
-        return float(np.median(values)) * 1000.0, max(values) * 1000.0
-
-    def to_dict(self) -> dict[str, Any]:
-        lateral = self.lateral_mm()
-        return {
-            "format": "busarm.line_follow_report", "version": 1,
-            "finished": self.finished, "why": self.why, "laps_wanted": self.laps_wanted,
-            "laps_done": round(self.laps_done, 3),
-            "loop_length_m": None if self.loop_length_m is None else round(self.loop_length_m, 3),
-            "travelled_m": round(self.travelled_m, 3), "seconds": round(self.seconds, 2),
-            "lateral_median_mm": None if lateral is None else round(lateral[0], 2),
-            "lateral_max_mm": None if lateral is None else round(lateral[1], 2),
-            "searches": self.searches,
-            "stops": [s.to_dict() for s in self.stops],
-            "blocks": [b.to_dict() for b in self.blocks],
-            "path": [_pose_list(p) for p in self.path],
-            "lateral": [[round(s, 3), round(v, 4)] for s, v in self.lateral],
-        }
-
-
 StepHook = Callable[["LineFollowJob"], None]
 
 
@@ -207,8 +127,10 @@ class LineFollowJob:
     def __init__(self, robot: Robot, *, laps: float = 1.0,
                  speed_m_s: float = DEFAULT_SPEED_M_S, colors: Sequence[str] | None = None,
                  on_step: StepHook | None = None, obstacle_wait_s: float = OBSTACLE_WAIT_S,
-                 progress: Progress = quiet) -> None:
+                 progress: Progress = quiet, tape: str | None = None) -> None:
         self.laps = check_range("laps", laps, 0.05, 100.0, "laps")
+        self.tape: str | ColorRange | None = None if tape is None else check_tape(tape)
+        """What the line is looked for by (None until the first look measures it)."""
         check_range("obstacle_wait_s", obstacle_wait_s, 0.0, 3600.0, "s")
         self.robot = robot
         self.reader = ScanReader(robot)
@@ -219,7 +141,9 @@ class LineFollowJob:
         self.obstacle_wait_s = obstacle_wait_s
         self.progress = progress
         self.tracker = LineTracker()
-        self.report = LineFollowReport(self.laps)
+        self.report = LineFollowReport(self.laps, tape=tape or "")
+        self.sighting: FloorLineSighting | None = None
+        """The line in the last frame (None if it was not seen)."""
         half_width = half_size_m(self.base.config)[1]
         self.corridor_half_m = half_width + CORRIDOR_MARGIN_M
         # Blocks are looked for when there are colours to clear (the locator checks them).
@@ -242,6 +166,7 @@ class LineFollowJob:
         self._seen_at_s = -math.inf
         self._not_there: list[tuple[float, float]] = []
         self._said_share = 0.0
+        self._tape_said = ""
 
     # ------------------------------------------------------------------ the run
 
@@ -252,6 +177,8 @@ class LineFollowJob:
         try:
             self._prepare()
             self.progress("the arm looks ahead: following the line")
+            if self._tape_said:
+                self.progress(f"the tape: {self._tape_said}")
             while not self._done():
                 self._step()
             self.report.finished = True
@@ -270,8 +197,23 @@ class LineFollowJob:
     def _prepare(self) -> None:
         look_ahead(self.robot)
         self.camera = floor_camera(self.robot)
+        if self.tape is None:
+            self._measure_tape(self.camera)
         self._start = self.base.odometry().pose
         self._seen_at_s = self.clock.now()
+
+    def _measure_tape(self, camera: FloorCamera) -> None:
+        """The tape's colour from the first look (the robot stands on it)."""
+        look = measure_tape(self.robot.camera.read().image, camera.intrinsics,
+                            camera.cam_to_floor, mask=camera.mask)
+        if look is None:
+            raise NavigationError(
+                "no tape seen on the first look: the robot starts on the tape facing along "
+                "it (a strip of the tape's width, at least 0.2 m of it in view); or give "
+                "the tape's colour (--tape)")
+        self.tape = look.colour
+        self.report.tape, self.report.tape_measured = look.name, True
+        self._tape_said = look.text()
 
     def _step(self) -> None:
         """One scan: see, check the way, steer."""
@@ -279,16 +221,17 @@ class LineFollowJob:
         returns = to_points(sensed.scan, self.base.config.lidar)
         if self.on_step is not None:
             self.on_step(self)
+        if self.clock.now() - self._seen_at_s > LOST_AFTER_S:
+            self._search(returns)
+            return
         blocked = self._in_the_way(returns)
         if blocked is not None:
             self._wait_for_way(blocked)
             return
         block = self._block_in_the_way(image)
         if block is not None:
-            self._clear(block)
-            return
-        if self.clock.now() - self._seen_at_s > LOST_AFTER_S:
-            self._search()
+            with tape_hidden(self.robot, self.tape):  # a block of its colour on it
+                self._clear(block)
             return
         self._steer()
 
@@ -299,8 +242,8 @@ class LineFollowJob:
         image = frame.image
         self.odometry = self.base.pose_at(frame.timestamp_s)  # where the picture was taken
         self._note_motion(self.odometry)
-        assert self.camera is not None
-        sighting = self.camera.find_line(image)
+        assert self.camera is not None and self.tape is not None
+        sighting = self.sighting = self.camera.find_line(image, self.tape)
         if sighting is not None:
             self.tracker.add(sighting.points_m, self.odometry)
             self._seen_at_s = self.clock.now()
@@ -411,6 +354,10 @@ class LineFollowJob:
         line = self.tracker.points(self.odometry)
         if not len(line):
             return None
+        if self.tape != "black" and self.sighting is not None:  # (see tape_camera)
+            cam = self.camera
+            image = without_tape(image, self.sighting, cam.intrinsics, cam.cam_to_floor,
+                                 cam.mask)
         found = []
         for sighting in ws.locator.locate(image, self.camera.joints_deg):
             block = ws.seen(sighting, image)
@@ -527,13 +474,24 @@ class LineFollowJob:
 
     # ------------------------------------------------------------------ lost
 
-    def _search(self) -> None:
+    def _search(self, returns: FloatArray) -> None:
         """Turn in place up to ``SEARCH_DEG`` each way until the line is seen;
-        NavigationError if it is not."""
+        NavigationError if it is not, or if the Lidar sees something within the chassis's
+        turning circle (``returns``: this scan's, base frame)."""
         self.base.stop()
         self.report.searches += 1
         lost_s = self.clock.now() - self._seen_at_s
         start = self.odometry
+        turning_m = math.hypot(*half_size_m(self.base.config)) + TURN_CLEAR_M
+        near = returns[np.hypot(returns[:, 0], returns[:, 1]) < turning_m] if len(returns) \
+            else returns
+        if len(near):
+            nearest = near[int(np.argmin(np.hypot(near[:, 0], near[:, 1])))]
+            raise NavigationError(
+                f"the line is lost: not seen for {lost_s:.1f} s at "
+                f"{m_text((start.x_m, start.y_m))} of the odometry, and something "
+                f"{_ahead_text((float(nearest[0]), float(nearest[1])))} leaves no room to "
+                "turn and look for it; the base is stopped")
         self.progress(f"the line is lost (not seen for {lost_s:.1f} s): looking for it")
         limit = math.radians(SEARCH_DEG)
         for direction in (1.0, -1.0):
@@ -579,14 +537,6 @@ def _ahead_text(xy: tuple[float, float]) -> str:
 
 def _laps_text(laps: float) -> str:
     return f"{laps:g} lap" + ("" if laps == 1 else "s")
-
-
-def _pose_list(pose: Pose2D) -> list[float]:
-    return [round(pose.x_m, 4), round(pose.y_m, 4), round(pose.yaw_deg, 2)]
-
-
-def _xy_list(xy: tuple[float, float]) -> list[float]:
-    return [round(xy[0], 4), round(xy[1], 4)]
 
 
 __all__ = ["BlockCleared", "LineFollowJob", "LineFollowReport", "ObstacleStop"]

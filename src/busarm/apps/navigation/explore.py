@@ -19,7 +19,13 @@ from busarm.base.odometry import Pose2D
 from busarm.lidar.scan import to_points
 from busarm.nav.costmap import Costmap
 from busarm.nav.follower import FollowerSettings, PathFollower, blocked
-from busarm.nav.frontiers import Frontier, find_frontiers, gaps_filled
+from busarm.nav.frontiers import (
+    PLAN_GAP_CELLS,
+    SEEN_FREE_P,
+    Frontier,
+    find_frontiers,
+    gaps_filled,
+)
 from busarm.nav.grid import GridSpec, OccupancyGrid, cropped
 from busarm.nav.mapping import MapBuilder, compose, inverse
 from busarm.nav.planner import NoPath, plan_path
@@ -32,6 +38,7 @@ __all__ = [
     "EXPLORE_SPEED_M_S",
     "EXPLORE_YAW_RATE_RAD_S",
     "EXTENT_M",
+    "FRONTIER_MARGIN_M",
     "REPLAN_S",
     "RESOLUTION_M",
     "ROBOT_RADIUS_M",
@@ -43,8 +50,10 @@ __all__ = [
 
 ROBOT_RADIUS_M = 0.2
 """The base's footprint as a disc (the JetAuto with its wheels is about 0.3 x 0.25 m)."""
-EXTENT_M = 16.0
-"""The canvas a map is built on (centred on the start), cropped to what was seen."""
+EXTENT_M = 32.0
+"""The canvas a map is built on (centred on the start), cropped to what was seen: a room
+reaching 16 m from where the map was begun (the A1 sees 12 m); planning works on the part
+seen so far."""
 RESOLUTION_M = 0.025
 REPLAN_S = 3.0
 EXPLORE_SPEED_M_S = 0.2
@@ -53,8 +62,9 @@ EXPLORE_YAW_RATE_RAD_S = 0.6
 ARRIVED_M = 0.25
 """A frontier target this close to the base is reached (whatever remains of it cannot be
 seen from here): it is not chosen again."""
-EXPLORE_FREE_P = 0.45
-"""While exploring, a cell one beam has crossed is open floor (a saved map asks more)."""
+FRONTIER_MARGIN_M = 0.5
+"""Unknown floor kept round what is seen, where frontiers and plans are worked out."""
+EXPLORE_FREE_P = SEEN_FREE_P
 
 
 @dataclass
@@ -157,7 +167,8 @@ class Explorer:
         here = (self.pose.x_m, self.pose.y_m)
         if self.goal is not None and math.dist(self.goal, here) < ARRIVED_M:
             self.visited.append(self.goal)
-        costmap = Costmap.from_grid(gaps_filled(self.builder.grid), ROBOT_RADIUS_M,
+        seen = cropped(self.builder.grid, FRONTIER_MARGIN_M)
+        costmap = Costmap.from_grid(gaps_filled(seen, PLAN_GAP_CELLS), ROBOT_RADIUS_M,
                                     free_below_p=EXPLORE_FREE_P)
         for frontier in self._candidates(costmap):
             target = costmap.nearest_free(frontier.x_m, frontier.y_m, 0.6)
@@ -175,7 +186,8 @@ class Explorer:
         return False
 
     def _candidates(self, costmap: Costmap) -> list[Frontier]:
-        found = find_frontiers(self.builder.grid, self.min_frontier_m)
+        found = find_frontiers(cropped(self.builder.grid, FRONTIER_MARGIN_M),
+                               self.min_frontier_m)
 
         def cost(f: Frontier) -> float:
             # Near ones first; a long frontier is worth a little more travel.

@@ -6,8 +6,11 @@ planned on the inflated map with the scan's returns added (busarm.nav.costmap, p
 followed holonomically (busarm.nav.follower). Every scan it checks that the next second
 of the commanded motion keeps clear of every return (``blocked``): if not, the wheels
 stop; it re-plans around the obstacle, or waits for it to go (a person steps away), and
-gives up with a clear reason after ``obstacle_wait_s``. The Lidar going silent, the
-localisation getting lost or the time running out stop the base with a NavigationError.
+gives up with a clear reason after ``obstacle_wait_s``. Where the scans fit the map
+less (``PoseEstimate.matched_share``) it drives slower; where they stop fitting it stands
+and finds itself again near where it believed it was, before driving on (``_confident``).
+The Lidar going silent, the localisation lost for good or the time running out stop the
+base with a NavigationError.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from busarm.errors import ConfigError, NavigationError
 from busarm.lidar.scan import to_points
 from busarm.nav.costmap import Costmap
 from busarm.nav.follower import FollowerSettings, PathFollower, blocked
+from busarm.nav.frontiers import PLAN_GAP_CELLS, SEEN_FREE_P, gaps_filled
 from busarm.nav.grid import OccupancyGrid
 from busarm.nav.localize import ParticleFilter, PoseEstimate
 from busarm.nav.mapping import compose, inverse, transform_points
@@ -55,6 +59,13 @@ already holds the chassis, 0.30 x 0.26 m, with a centimetre to spare: goals are 
 where the base stood)."""
 SETTLE_MAX_M = 0.1
 """``settle`` closes at most this much by odometry alone (no Lidar check of the path)."""
+SLOW_MATCH, SLOW_SHARE = 0.8, 0.5
+"""Below this share of a scan's returns on the map, drive at SLOW_SHARE of the speed..."""
+LOST_MATCH, LOST_SCANS = 0.5, 3
+"""... and below this share for LOST_SCANS scans running, stop and find the pose again."""
+RELOCALISE_SIGMA_M, RELOCALISE_SIGMA_RAD, RELOCALISE_S = 0.2, 0.2, 6.0
+"""Finding it again: the cloud spread this much about the pose believed, for at most
+RELOCALISE_S standing still."""
 
 
 @dataclass(frozen=True)
@@ -94,6 +105,8 @@ class Trip:
     plans: list[list[Point]] = field(default_factory=list)
     obstacle_stops: int = 0
     waited_s: float = 0.0
+    relocalised: int = 0
+    """How often the scans stopped fitting the map and the pose was found again."""
 
     @property
     def driven_m(self) -> float:
@@ -122,8 +135,11 @@ class Navigator:
         self.clock = robot.clock
         self.grid = grid
         self.filter = ParticleFilter(grid, self.base.config.lidar, seed=seed)
-        self.static = Costmap.from_grid(grid, self.settings.robot_radius_m,
-                                        self.settings.inflation_m)
+        # Unseen gaps between diverging beams are floor, not walls; on a map made now,
+        # floor a beam crossed is floor (a file's cells are free, occupied or unknown).
+        self.static = Costmap.from_grid(gaps_filled(grid, PLAN_GAP_CELLS),
+                                        self.settings.robot_radius_m,
+                                        self.settings.inflation_m, free_below_p=SEEN_FREE_P)
         self.on_scan = on_scan
         self.estimate: PoseEstimate | None = None
         self.pose = Pose2D()
@@ -182,10 +198,14 @@ class Navigator:
                     self.base.stop()
                     return self.estimate
                 if self.clock.now() - began > self.settings.localize_limit_s:
+                    rivals = self.estimate.rivals
+                    why = (f"the room looks the same from {rivals + 1} places on the map "
+                           "(give it a hint: where it stands)" if rivals else
+                           "is it the map of this place?")
                     raise NavigationError(
                         f"could not tell where the base is on the map after "
-                        f"{self.settings.localize_limit_s:g} s of looking (is it the map of "
-                        "this place?): the base is stopped")
+                        f"{self.settings.localize_limit_s:g} s of looking ({why}): the base "
+                        "is stopped")
                 if start is None and wander:
                     self._wander(sensed)
         finally:
@@ -237,9 +257,14 @@ class Navigator:
         follower: PathFollower | None = None
         planned_at = -math.inf
         blocked_since: float | None = None
+        unsure = 0
         while True:
             sensed = self.sense()
             trip.path.append(self.pose)
+            relocalised = trip.relocalised
+            unsure = self._confident(trip, unsure)
+            if trip.relocalised != relocalised:
+                planned_at = -math.inf  # found again: a new plan from where it is
             now = self.clock.now()
             if now - began > s.trip_limit_s:
                 raise NavigationError(self._where(trip) + f": not there after "
@@ -268,7 +293,32 @@ class Navigator:
             if blocked_since is not None:
                 trip.waited_s += now - blocked_since
                 blocked_since = None
-            self.base.drive(command.vx_m_s, command.vy_m_s, command.wz_rad_s)
+            assert self.estimate is not None
+            k = SLOW_SHARE if self.estimate.matched_share < SLOW_MATCH else 1.0
+            self.base.drive(k * command.vx_m_s, k * command.vy_m_s, k * command.wz_rad_s)
+
+    def _confident(self, trip: Trip, unsure: int) -> int:
+        """Count the scans running that fit the map too little; at LOST_SCANS, stop and
+        find the pose again near the one believed (NavigationError if it is not found)."""
+        assert self.estimate is not None
+        if self.estimate.matched_share >= LOST_MATCH:
+            return 0
+        if unsure + 1 < LOST_SCANS:
+            return unsure + 1
+        self.base.stop()
+        trip.relocalised += 1
+        believed = self.pose
+        self.filter.start_at(believed, RELOCALISE_SIGMA_M, RELOCALISE_SIGMA_RAD)
+        self._filter_odometry = None
+        began = self.clock.now()
+        while self.clock.now() - began < RELOCALISE_S:
+            self.sense()
+            if self.estimate.converged and self.estimate.matched_share >= SLOW_MATCH:
+                return 0
+        raise NavigationError(f"{self._where(trip)}: the scans no longer fit the map near "
+                              f"where the base believed it was (at most "
+                              f"{self.estimate.matched_share:.0%} of the returns on it for "
+                              f"{RELOCALISE_S:g} s standing): the base is stopped")
 
     def settle(self, goal: Pose2D, tolerance_m: float = 0.01, tolerance_deg: float = 1.0,
                scans: int = 4, tries: int = 2) -> Pose2D:
