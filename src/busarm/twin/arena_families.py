@@ -37,7 +37,7 @@ from busarm.twin.arena import (
     Solid,
     StartPose,
 )
-from busarm.twin.arena_gen import TABLE_HEIGHT_M, TRIES, random_arena
+from busarm.twin.arena_gen import TABLE_HEIGHT_M, TRIES, _Placer, random_arena
 from busarm.twin.footprints import Footprint, overlaps
 from busarm.units import listing
 
@@ -71,16 +71,15 @@ class TransportTask:
     min_trip_m: float = MIN_TRIP_M
 
 
-class _Room:
+class _Room(_Placer):
     """Drawing a room: rejection sampling of things that touch nothing already there."""
 
     def __init__(self, rng: random.Random, room: Room) -> None:
-        self.rng, self.room = rng, room
+        super().__init__(rng, room, None)
         self.walls: list[Solid] = []
         self.tables: list[Solid] = []
         self.boxes: list[Solid] = []
         self.blocks: list[ArenaBlock] = []
-        self.taken: list[Footprint] = []
 
     def wall(self, x0: float, x1: float, y0: float, y1: float) -> None:
         """An inner wall over the rectangle x0..x1, y0..y1 (m)."""
@@ -93,24 +92,6 @@ class _Room:
     def keep_clear(self, x: float, y: float, radius_m: float) -> None:
         """Nothing is put within ``radius_m`` of (x, y): a door's way, a start."""
         self.taken.append(Footprint.disc(x * 1000, y * 1000, radius_m * 2000))
-
-    def free(self, fp: Footprint, margin_m: float, within: Room | None = None) -> bool:
-        r = within or self.room
-        pad = margin_m
-        pts = ([(fp.x_mm, fp.y_mm)] if fp.round else fp.corners())
-        if fp.round:
-            pad += fp.radius_mm / 1000
-        if not all(r.x_min_m + pad - 1e-9 <= x / 1000 <= r.x_max_m - pad + 1e-9
-                   and r.y_min_m + pad - 1e-9 <= y / 1000 <= r.y_max_m - pad + 1e-9
-                   for x, y in pts):
-            return False
-        grown = Footprint(fp.x_mm, fp.y_mm, fp.half_x_mm + margin_m * 1000,
-                          fp.half_y_mm + margin_m * 1000, fp.yaw_deg, fp.round)
-        return not any(overlaps(grown, other) for other in self.taken)
-
-    def point(self, within: Room | None = None) -> tuple[float, float]:
-        r = within or self.room
-        return self.rng.uniform(r.x_min_m, r.x_max_m), self.rng.uniform(r.y_min_m, r.y_max_m)
 
     def table(self, within: Room | None = None) -> Solid | None:
         """A table against one of ``within``'s sides that is an outer wall."""

@@ -115,12 +115,14 @@ def _draw_loop(rng: random.Random, room: Room) -> FloorLine:
 class _Placer:
     """Rejection sampling of footprints that touch nothing already placed."""
 
-    def __init__(self, rng: random.Random, room: Room, line: FloorLine) -> None:
+    def __init__(self, rng: random.Random, room: Room, line: FloorLine | None) -> None:
         self.rng, self.room, self.line = rng, room, line
         self.taken: list[Footprint] = []
 
-    def free(self, fp: Footprint, margin_m: float = 0.0) -> bool:
-        r = self.room
+    def free(self, fp: Footprint, margin_m: float = 0.0, within: Room | None = None) -> bool:
+        """Whether ``fp`` grown by ``margin_m`` touches nothing taken and lies that far
+        inside ``within`` (default the room)."""
+        r = within or self.room
         points = [(fp.x_mm, fp.y_mm)] if fp.round else fp.corners()
         pad = (fp.radius_mm if fp.round else 0.0) / 1000 + margin_m
         if not all(r.x_min_m + pad <= x / 1000 <= r.x_max_m - pad
@@ -130,8 +132,8 @@ class _Placer:
                           fp.half_y_mm + margin_m * 1000, fp.yaw_deg, fp.round)
         return not any(overlaps(grown, other) for other in self.taken)
 
-    def point(self) -> tuple[float, float]:
-        r = self.room
+    def point(self, within: Room | None = None) -> tuple[float, float]:
+        r = within or self.room
         return self.rng.uniform(r.x_min_m, r.x_max_m), self.rng.uniform(r.y_min_m, r.y_max_m)
 
 
@@ -196,6 +198,7 @@ def _place_tables(place: _Placer, count: int) -> list[Solid]:
 def _clear_of_line(place: _Placer, fp: Footprint, clear_m: float) -> bool:
     """Whether the footprint keeps ``clear_m`` from the tape's edge (the tape's points are
     LINE_STEP_M apart, so this holds to about a centimetre)."""
+    assert place.line is not None, "an arena with its tape drawn"
     edge_mm = (clear_m + place.line.width_m / 2) * 1000
     return all(fp.distance_from_mm(x * 1000, y * 1000) >= edge_mm
                for x, y in place.line.points_m)
@@ -233,6 +236,7 @@ def _table_block(place: _Placer, tables: list[Solid], t: int, color: str) -> Are
 
 def _floor_block(place: _Placer, color: str) -> ArenaBlock:
     rng, line = place.rng, place.line
+    assert line is not None, "an arena with its tape drawn"
     for _ in range(TRIES):
         ax, ay = rng.choice(line.points_m)
         x, y = ax + rng.uniform(-0.1, 0.1), ay + rng.uniform(-0.1, 0.1)
