@@ -168,6 +168,10 @@ def test_the_gripper_state_rule() -> None:
     assert gripper_state(g, 700, 700).gap_mm == 0.0
     assert gripper_state(g, 300, 200).state == "open"  # opening, stopped short: not holding
     assert gripper_state(g, 197, 200).gap_mm == g.widest_gap_mm == 93.75  # never wider
+    # A light hold (Arm.grip eases to a few pulses inside where the fingers stopped).
+    assert gripper_state(g, 541, 544).state == "holding"
+    assert gripper_state(g, 543, 544).state == "open"  # 1 pulse: within the accuracy
+    assert gripper_state(g, 685, 688).state == "closed"  # the fingers met: on nothing
 
 
 def test_arm_pose_says_the_gripper_holds_the_block_it_stalled_on(
@@ -177,7 +181,8 @@ def test_arm_pose_says_the_gripper_holds_the_block_it_stalled_on(
         run("arm", "gripper", "close", port=port))
     sim.advance()
     assert sim.servo(GRIPPER_ID).position_pulses == 540  # the truth: stalled on the block
-    assert ("gripper holding something 30.0 mm wide (540 pulses; told 700, stopped 160 "
+    # Then eased to a hold 3 pulses inside the block (busarm.arm.gripper): still holding.
+    assert ("gripper holding something 30.0 mm wide (540 pulses; told 543, stopped 3 "
             "short)") in ok(run("arm", "pose", port=port))
     data = json.loads(ok(run("arm", "pose", "--json", port=port)))
     assert (data["gripper_state"], data["gripper_pulses"], data["gripper_gap_mm"]) == (

@@ -360,7 +360,8 @@ def test_a_signal_stops_the_wheels_and_keeps_the_report(
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     assert proc.stderr is not None
     assert proc.stderr.readline().startswith("Robot(")
-    assert proc.stderr.readline() == "the arm looks ahead: following the line\n"  # under way
+    assert proc.stderr.readline() == "the arm looks ahead: following the line\n"
+    assert proc.stderr.readline().startswith("the tape: black (measured: ")  # under way
     proc.send_signal(sent)
     try:
         _, err = proc.communicate(timeout=30)

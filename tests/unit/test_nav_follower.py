@@ -348,3 +348,16 @@ def test_a_holonomic_base_turning_as_it_goes_down_a_narrow_corridor_is_not_block
     assert blocked(walls, twist, 0.2)
     assert not blocked(walls, twist, 0.2, holonomic=True)
     assert blocked(walls, Twist(0.0, 0.25, 1.2), 0.2, holonomic=True)  # sideways into one
+
+
+def test_a_jamb_passed_beside_is_given_the_passing_margin_a_wall_ahead_the_full_one() -> None:
+    ahead = Twist(0.2, 0.0, 0.0)  # 0.2 m in the next second
+    jambs = np.array([[0.1, 0.24], [0.1, -0.24]])  # a door 0.48 m wide, passed through
+    assert blocked(jambs, ahead, 0.2, holonomic=True)  # within 5 cm as it passes
+    assert not blocked(jambs, ahead, 0.2, holonomic=True, passing_margin_m=0.02)
+    wall = np.array([[0.44, 0.0]])  # 0.24 m past where the second ends: still coming on
+    assert blocked(wall, ahead, 0.2, holonomic=True, passing_margin_m=0.02)
+    farther = wall + np.array([0.02, 0.0])
+    assert not blocked(farther, ahead, 0.2, holonomic=True, passing_margin_m=0.02)
+    with pytest.raises(ConfigError, match="passing_margin_m"):
+        blocked(jambs, ahead, 0.2, passing_margin_m=-0.01)

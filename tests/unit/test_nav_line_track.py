@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from busarm.base.odometry import Pose2D
 from busarm.nav.line_track import LineController, LineTracker, obstacle_ahead
-from busarm.nav.mapping import compose
+from busarm.nav.mapping import compose, transform_points
 
 
 def arc(radius_m: float, bend: int, length_m: float = 6.0) -> np.ndarray:
@@ -133,3 +133,46 @@ def test_the_stop_rule_sees_what_is_in_the_way_not_beside_it() -> None:
     assert obstacle_ahead([[0.3, 0.25]], corridor_half_m=0.3) == (0.3, 0.25)
     assert obstacle_ahead([[0.2, 0.19]]) == (0.2, 0.19)
     assert obstacle_ahead([[0.1, 0.19]]) is None  # beyond 45 degrees
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(0.5, 2.0), st.sampled_from([-1, 0, 1]), st.floats(-0.5, 2.0))
+def test_only_line_not_seen_before_counts_as_unseen(radius_m: float, bend: int,
+                                                    along_m: float) -> None:
+    line = arc(radius_m, bend)
+    tracker = LineTracker()
+    pose = Pose2D(-1.0, 0.0, 0.0)
+    i = int(np.argmin(np.abs(np.cumsum(np.r_[0, np.hypot(*np.diff(line, axis=0).T)])
+                             - (along_m + 1.0))))
+    k = min(i, len(line) - 2)
+    pose = Pose2D(float(line[k, 0]), float(line[k, 1]),
+                  math.atan2(line[k + 1, 1] - line[k, 1], line[k + 1, 0] - line[k, 0]))
+    seen = seen_from(line, pose)
+    assert tracker.unseen(seen, pose) == len(seen)  # nothing remembered yet
+    tracker.add(seen, pose)
+    assert tracker.unseen(seen, pose) == 0  # the same line again
+    back = compose(pose, Pose2D(-0.1, 0.0, 0.0))  # the part seen, from 10 cm back
+    again = seen_from(line, back)
+    world = transform_points(back, again)
+    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+    d = world - np.array([pose.x_m, pose.y_m])
+    ahead, side = c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]
+    was_in_view = (ahead >= 0.17) & (ahead <= 0.58) & (np.abs(side) <= 0.23)
+    assert tracker.unseen(again[was_in_view], back) == 0
+    beside = seen + np.array([0.0, 0.2])  # a second line 20 cm to the side
+    assert tracker.unseen(beside, pose) == len(beside)
+
+
+def test_floor_seen_at_or_behind_a_wall_is_told() -> None:
+    from busarm.base.config import Mount
+    from busarm.lidar.scan import LaserScan, at_returns
+
+    angles = np.radians(np.arange(0.0, 360.0, 1.0))
+    # A wall 1 m ahead of the Lidar (x = 1.06 m on the base, the Lidar 6 cm forward).
+    ahead = np.abs(np.cos(angles)) > 0.3
+    ranges = np.where(ahead & (np.cos(angles) > 0), 1.0 / np.cos(angles), np.nan)
+    scan = LaserScan(angles, ranges, np.where(np.isnan(ranges), 0.0, 40.0), 0.0, 0.15, 12.0)
+    mount = Mount(0.06, 0.0, 0.18, 0.0)
+    points = np.array([[0.5, 0.0], [1.0, 0.0], [1.05, 0.1], [1.2, -0.2], [-0.5, 0.0]])
+    assert at_returns(points, scan, mount).tolist() == [False, False, True, True, False]
+    assert not at_returns(np.zeros((0, 2)), scan, mount).any()

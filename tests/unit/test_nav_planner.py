@@ -175,6 +175,24 @@ def test_a_path_keeps_the_disc_clear_and_exists_exactly_when_a_route_does(
     assert min(path_clearances(grid, path)) >= radius_m - 1e-9
 
 
+@settings(max_examples=40, deadline=None)
+@given(rects, kinds, partitions, st.sampled_from([0.06, 0.1]), st.integers(0, 10_000),
+       st.integers(0, 10_000))
+def test_reachable_cells_are_those_a_breadth_first_search_reaches(
+        boxes: list[Rect], values: list[float], partition: tuple[bool, int, int, int] | None,
+        radius_m: float, i: int, j: int) -> None:
+    grid = random_room(boxes, values, partition)
+    costmap = Costmap.from_grid(grid, radius_m)
+    cells = np.argwhere(costmap.free)
+    if len(cells) == 0:
+        assert not costmap.reachable(0.6, 0.6).any()
+        return
+    (sr, sc), (gr, gc) = cells[i % len(cells)], cells[j % len(cells)]
+    reach = costmap.reachable((sc + 0.5) * RES_M, (sr + 0.5) * RES_M)
+    assert reach[sr, sc] and not (reach & ~costmap.free).any()
+    assert reach[gr, gc] == reachable(costmap.free, (int(sr), int(sc)), (int(gr), int(gc)))
+
+
 def test_the_path_keeps_away_from_walls_where_there_is_room_and_has_few_waypoints() -> None:
     # A 3 x 2 m room with a pillar in the middle of the way.
     grid = room(60, 40, [(14, 27, 12, 6)])

@@ -93,6 +93,11 @@ def test_an_exactly_symmetric_room_is_never_claimed_known(
     # The believed pose is one of the two places alike (within 5 cm): the filter has
     # gathered on them, but claims neither.
     assert min(off_m(est.pose, walk.truth), off_m(est.pose, mirror(walk.truth))) < 0.05
+    # Both places are given, the believed one first: a job can go and look.
+    assert est.rivals == 1 and est.alike[0] == est.pose
+    assert sorted(min(off_m(p, walk.truth), off_m(p, mirror(walk.truth))) < 0.05
+                  for p in est.alike) == [True, True]
+    assert max(off_m(p, walk.truth) for p in est.alike) > 1.0  # (one is the mirror)
 
 
 @settings(max_examples=2, deadline=None)

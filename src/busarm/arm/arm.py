@@ -25,7 +25,7 @@ from busarm.arm.arm_servos import DEFAULT_TOLERANCE_DEG, ArmServos
 from busarm.arm.calibration import Calibration, load_calibration
 from busarm.arm.chain import Joints
 from busarm.arm.config import ArmConfig, load_arm_config
-from busarm.arm.gripper import gripper_state
+from busarm.arm.gripper import HOLD_MIN_PULSES, HOLD_SQUEEZE_PULSES, gripper_state
 from busarm.arm.guard import GuardedMove, GuardSettings, LineGuard
 from busarm.arm.line_plan import (
     DEFAULT_LINE_SPEED_MM_S,
@@ -44,6 +44,8 @@ from busarm.units import check_range, listing
 
 DEFAULT_SPEED_DEG_S = 60.0
 """Joint speed of moves that give neither a duration nor a speed."""
+HOLD_MOVE_S = 0.05
+"""Easing a grip to its hold: the move's time (a few pulses), waited before reading."""
 
 
 @dataclass(frozen=True)
@@ -53,6 +55,10 @@ class GripResult:
     position_pulses: int
     is_holding: bool
     closed_pulses: int
+    """Where it was told to close to."""
+    hold_pulses: int | None = None
+    """Holding: where it was then told to hold (``HOLD_SQUEEZE_PULSES`` inside where the
+    fingers stopped, a light squeeze); None if it holds nothing."""
 
     @property
     def short_of_closed_pulses(self) -> int:
@@ -75,6 +81,9 @@ class MotionRecord:
 
 class Arm(ArmServos):
     """Command an arm in joint degrees or millimetres, on real servos or the simulator."""
+
+    _hold_pulses: int | None = None
+    """The hold the gripper was last told (``grip``), None once told anything else."""
 
     def __repr__(self) -> str:
         return f"Arm({self.config.name!r} on {self.bus.name})"
@@ -332,6 +341,7 @@ class Arm(ArmServos):
     def _gripper_move(self, position_pulses: int, duration_s: float) -> None:
         g = self.config.gripper
         g.check_pulses(position_pulses)
+        self._hold_pulses = None  # (a hold is told by _hold_at only)
         self.bus.move_deg(g.servo_id, self.model.deg_from_pulses(position_pulses), duration_s)
 
     def open_gripper(self, *, wait: bool = True, gap_mm: float | None = None) -> int:
@@ -348,8 +358,10 @@ class Arm(ArmServos):
     def grip(self, position_pulses: int | None = None) -> GripResult:
         """Close (to ``position_pulses``, default fully closed) and tell whether it holds.
 
-        A gripper that closes on an object stalls short of the target: if it settles
-        more than ``holding_margin_pulses`` short, it is holding something.
+        A gripper that closes on an object stalls short of the target. Holding something,
+        it is then told a hold just inside where the fingers stopped (a light squeeze: a
+        stalled servo heats to its limit in about half a minute and lets go), and read
+        back. ``position_pulses`` is where the fingers stand then.
         """
         g = self.config.gripper
         target = g.closed_pulses if position_pulses is None else position_pulses
@@ -357,9 +369,69 @@ class Arm(ArmServos):
         duration = self._gripper_travel_s(target)
         self._guarded(lambda: self._gripper_move(target, duration))
         final = self._settle_gripper(target, duration)
-        # The one rule of busarm.arm.gripper: stalled short of where it was told = holding.
-        holding = gripper_state(g, final, target).is_holding
-        return GripResult(final, holding, target)
+        # The one rule of busarm.arm.gripper: pressing on something = holding.
+        if not gripper_state(g, final, target).is_holding:
+            return GripResult(final, False, target)
+        closing = 1 if g.closed_pulses >= g.open_pulses else -1
+        hold = self._hold_from(final, target)
+        now = self._hold_at(hold)
+        if closing * (hold - now) < HOLD_MIN_PULSES:
+            # The fingers went on closing after the settle (the block turned or gave):
+            # the hold from where they stand now.
+            hold = self._hold_from(now, target)
+            now = self._hold_at(hold)
+        return GripResult(now, gripper_state(g, now, hold).is_holding, target, hold)
+
+    def check_hold(self) -> bool:
+        """Whether the gripper still holds what it gripped.
+
+        Read as ``read_gripper_state`` reads it; where that is unsure (the fingers apart
+        but at the hold they were told: the block turned a little in them, or has gone),
+        the hold is told a squeeze further in and read again: fingers that stop short of
+        it press on something and keep that hold.
+        """
+        g = self.config.gripper
+        with self._lock:
+            state = self.read_gripper_state()
+            told = self._hold_pulses
+            if state.is_holding or state.state != "open" or told is None \
+                    or state.target_pulses != told or state.torque_on is False:
+                return state.is_holding
+            hold = self._hold_from(state.position_pulses, g.closed_pulses)
+            now = self._hold_at(hold)
+            return gripper_state(g, now, hold).is_holding
+
+    def _hold_from(self, stand: int, limit: int) -> int:
+        """A hold ``HOLD_SQUEEZE_PULSES`` inside ``stand``, no further in than ``limit``."""
+        g = self.config.gripper
+        closing = 1 if g.closed_pulses >= g.open_pulses else -1
+        hold = stand + closing * HOLD_SQUEEZE_PULSES
+        return limit if closing * (limit - hold) < 0 else hold
+
+    def hold_lighter(self) -> int | None:
+        """Ease a hold to the lightest the gripper still reads as holding: told
+        ``HOLD_MIN_PULSES`` inside where the fingers stand now (a hot gripper on a long
+        carry). Returns the new hold, or None (nothing done) if it holds nothing."""
+        g = self.config.gripper
+        with self._lock:
+            state = self.read_gripper_state()
+            if not state.is_holding:
+                return None
+            closing = 1 if g.closed_pulses >= g.open_pulses else -1
+            hold = state.position_pulses + closing * HOLD_MIN_PULSES
+            if state.target_pulses is not None and closing * (state.target_pulses - hold) <= 0:
+                return state.target_pulses  # already as light
+            self._hold_at(hold)
+            return hold
+
+    def _hold_at(self, hold: int) -> int:
+        """Tell the gripper ``hold`` (a few pulses from where it stands: no travel to
+        wait for) and read where the fingers settle."""
+        self.config.gripper.check_pulses(hold)
+        self._guarded(lambda: self._gripper_move(hold, HOLD_MOVE_S))
+        self._hold_pulses = hold
+        self.clock.sleep(HOLD_MOVE_S)
+        return self.bus.read_position_pulses(self.config.gripper.servo_id)
 
     close_gripper = grip
 
@@ -372,17 +444,20 @@ class Arm(ArmServos):
 
     def _settle_gripper(self, target: int, duration_s: float) -> int:
         """Wait for the gripper to arrive or stop moving (blocked); its final position."""
-        sid = self.config.gripper.servo_id
-        margin = self.config.gripper.holding_margin_pulses
+        g = self.config.gripper
         move_end = self.clock.now() + duration_s + 0.1
         deadline = move_end + 2.0
         self.clock.sleep(min(duration_s, 0.05))
-        last = self.bus.read_position_pulses(sid)
+        last = self.bus.read_position_pulses(g.servo_id)
+        # Closing, it must arrive nearer than a hold's squeeze (else a gripper still
+        # closing on nothing would read as holding); opening, a little short will do.
+        closing = (g.closed_pulses - g.open_pulses) * (target - last) > 0
+        near = HOLD_MIN_PULSES - 1 if closing else g.holding_margin_pulses // 4 + 1
         still = 0
         while self.clock.now() < deadline:
             self.clock.sleep(0.03)
-            now = self.bus.read_position_pulses(sid)
-            if abs(now - target) <= margin // 4 + 1:
+            now = self.bus.read_position_pulses(g.servo_id)
+            if abs(now - target) <= near:
                 return now
             still = still + 1 if abs(now - last) <= 1 else 0
             # Stopped short for three polls after the move should have ended: blocked.

@@ -2,8 +2,13 @@
 
 One rule for every interface (``busarm arm pose``, ``arm gripper``, the dashboard): the
 servo's ``MOVE_TIME_READ`` returns the position it was last told, so a gripper told to a
-position narrower than where it stands, by more than the config's
-``holding_margin_pulses``, has stalled on something between its fingers: it holds it.
+position narrower than where it stands (by ``HOLD_MIN_PULSES`` or more, twice the
+vendor's 0.2 deg accuracy) while its fingers stand apart (short of closed by more than
+the config's ``holding_margin_pulses``) is pressing on something between its fingers:
+it holds it. A grip closes until the fingers stop on the block, then eases to a hold
+``HOLD_SQUEEZE_PULSES`` inside where they stopped (``Arm.grip``): the servo's torque rises
+with its position error, so the hold presses lightly and does not cook the servo on a
+long carry, and the rule still reads it as holding.
 Pure: the readings come in, nothing is read here (``Arm.read_gripper_state`` reads them).
 """
 
@@ -13,6 +18,14 @@ from dataclasses import dataclass
 from typing import Literal
 
 from busarm.arm.config import GripperConfig
+
+HOLD_SQUEEZE_PULSES = 3
+"""A hold is told this far inside where the fingers stopped on the block (closing at
+full torque): a squeeze of about a quarter of stall torque on the twin's servo, whose
+friction keeps a 20 g block through the base's starts and turns."""
+HOLD_MIN_PULSES = 2
+"""Told at least this far inside where it stands (and the fingers apart): pressing on
+something. Twice the vendor's servo accuracy (0.2 deg, about 1 pulse)."""
 
 GripperStateName = Literal["open", "closed", "holding"]
 
@@ -46,21 +59,24 @@ def gripper_state(
 ) -> GripperState:
     """The gripper's state from its position, the position it was last told and its torque.
 
-    Holding: told to close further than it stands by more than ``holding_margin_pulses``
-    (stalled on something), torque not off (a limp gripper holds nothing). Else closed
-    within the margin of ``closed_pulses``, else open.
+    Holding: told to close at least ``HOLD_MIN_PULSES`` further than it stands while it
+    stands short of closed by more than ``holding_margin_pulses`` (pressing on
+    something), torque not off (a limp gripper holds nothing). Else closed within the
+    margin of ``closed_pulses``, else open.
     """
     closing = 1 if gripper.closed_pulses >= gripper.open_pulses else -1
     gap = min(gripper.gap_mm_at(position_pulses), gripper.widest_gap_mm)
+    apart = closing * (gripper.closed_pulses - position_pulses) > gripper.holding_margin_pulses
     state: GripperStateName
-    if (target_pulses is not None and torque_on is not False
-            and closing * (target_pulses - position_pulses) > gripper.holding_margin_pulses):
+    if (target_pulses is not None and torque_on is not False and apart
+            and closing * (target_pulses - position_pulses) >= HOLD_MIN_PULSES):
         state = "holding"
-    elif closing * (gripper.closed_pulses - position_pulses) <= gripper.holding_margin_pulses:
+    elif not apart:
         state = "closed"
     else:
         state = "open"
     return GripperState(state, gap, position_pulses, target_pulses, torque_on)
 
 
-__all__ = ["GripperState", "GripperStateName", "gripper_state"]
+__all__ = ["HOLD_MIN_PULSES", "HOLD_SQUEEZE_PULSES", "GripperState", "GripperStateName",
+           "gripper_state"]

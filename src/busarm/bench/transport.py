@@ -111,6 +111,10 @@ class ArenaRun:
     heading_errors_deg: list[float] = field(default_factory=list, repr=False)
     pick_attempts: int = 0
     wall_s: float = 0.0
+    gripper_peak_c: float | None = None
+    """The gripper's hottest reading while it held the block (the report's)."""
+    gripper_margin_c: float | None = None
+    """Its temperature limit less that peak."""
 
 
 def _teleport(robot: Robot, pose: Pose2D) -> None:
@@ -195,6 +199,7 @@ def run_arena(seed: int, intrinsics: Path, hand_eye: Path, family: str = "standa
         out.localise_s = next((ph.seconds for ph in report.phases if ph.name == "localise"),
                               math.nan)
         out.pick_attempts = report.pick_attempts
+        out.gripper_peak_c, out.gripper_margin_c = report.gripper_peak_c, report.gripper_margin_c
         out.contacts = [name for _, name in twin.mobile.contacts]
     out.wall_s = time.monotonic() - wall
     return out
@@ -238,7 +243,9 @@ class TransportBenchReport(SeededBenchReport[ArenaRun]):
                                             if r.delivered], 50),
                 "map_error_median_m": q([r.map_error_median_m for r in self.runs], 50),
                 "map_error_p95_m": q([r.map_error_p95_m for r in self.runs], 50),
-                "map_turn_max_deg": q([abs(r.map_turn_deg) for r in self.runs], 100)}
+                "map_turn_max_deg": q([abs(r.map_turn_deg) for r in self.runs], 100),
+                "gripper_peak_max_c": max((r.gripper_peak_c for r in self.runs
+                                           if r.gripper_peak_c is not None), default=None)}
 
     def text(self, verdict: Verdict) -> str:
         s = self.summary()

@@ -24,6 +24,7 @@ __all__ = [
     "FloatArray",
     "LaserScan",
     "LidarSource",
+    "at_returns",
     "to_points",
 ]
 
@@ -107,6 +108,25 @@ def to_points(scan: LaserScan, mount: Mount) -> FloatArray:
     points[:, 0] = mount.x_m + ranges * np.cos(bearing)
     points[:, 1] = mount.y_m + ranges * np.sin(bearing)
     return points
+
+
+def at_returns(points_base_m: npt.ArrayLike, scan: LaserScan, mount: Mount, *,
+               within_m: float = 0.03, beam_rad: float = math.radians(2.0)
+               ) -> npt.NDArray[np.bool_]:
+    """Which base-frame points lie at or behind what the Lidar sees on their bearing:
+    farther from it than the return of the beam within ``beam_rad`` of them, less
+    ``within_m`` (floor a camera "sees" there is a wall's foot or face)."""
+    p = np.asarray(points_base_m, dtype=np.float64).reshape(-1, 2)
+    valid = scan.valid
+    if not len(p) or not np.any(valid):
+        return np.zeros(len(p), dtype=bool)
+    dx, dy = p[:, 0] - mount.x_m, p[:, 1] - mount.y_m
+    bearing = np.arctan2(dy, dx) - mount.yaw_rad
+    off = np.abs(np.angle(np.exp(1j * (bearing[:, None] - scan.angles_rad[valid][None, :]))))
+    k = np.argmin(off, axis=1)
+    ranges = scan.ranges_m[valid][k]
+    return np.asarray((off[np.arange(len(p)), k] <= beam_rad)
+                      & (np.hypot(dx, dy) > ranges - within_m))
 
 
 @runtime_checkable

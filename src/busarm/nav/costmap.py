@@ -124,6 +124,20 @@ class Costmap:
             return None
         return (float(centres[best, 0]), float(centres[best, 1]))
 
+    def reachable(self, x_m: float, y_m: float) -> BoolArray:
+        """The free cells connected to the point's (8-connected, as the planner moves; its
+        nearest free cell within a robot radius where the point's own is not free): where
+        the base can drive from there. All False if there is no such cell."""
+        from scipy import ndimage
+
+        start = self.nearest_free(x_m, y_m, self.robot_radius_m)
+        if start is None:
+            return np.zeros_like(self.free)
+        labels, _ = ndimage.label(self.free, structure=np.ones((3, 3), dtype=bool))
+        rows, cols = self.spec.cells([start])
+        out: BoolArray = labels == labels[rows[0], cols[0]]
+        return out
+
     def cell_free(self, x_m: float, y_m: float) -> bool:
         """Whether the point's cell is free (the planner's test for a start or a goal)."""
         rows, cols = self.spec.cells([(x_m, y_m)])

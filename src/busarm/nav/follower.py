@@ -31,6 +31,7 @@ from busarm.units import check_range
 
 __all__ = [
     "CORNER_RAD",
+    "PASSING_MARGIN_M",
     "YAW_GAIN_PER_S",
     "FloatArray",
     "FollowerSettings",
@@ -47,6 +48,10 @@ Point = tuple[float, float]
 CORNER_RAD = math.radians(20.0)
 """A vertex turning the path by more than this is a corner the look-ahead point stops at."""
 YAW_GAIN_PER_S = 2.5
+PASSING_MARGIN_M = 0.02
+"""What ``blocked`` keeps between the base's disc (it holds the chassis, 0.30 x 0.26 m,
+with a centimetre to spare) and a return it passes beside: a 0.6 m doorway leaves 10 cm
+of play, more than the path follower needs."""
 """The turn rate asked per radian of heading error (before the rate limits)."""
 _RANGES: dict[str, tuple[float, float, str]] = {
     "max_speed_m_s": (0.01, 2.0, "m/s"),
@@ -293,15 +298,20 @@ def sweep_m(twist: Twist, horizon_s: float, step_m: float = 0.01) -> FloatArray:
 
 
 def blocked(points_base_m: npt.ArrayLike, twist: Twist, robot_radius_m: float,
-            horizon_s: float = 1.0, margin_m: float = 0.05, *, holonomic: bool = False) -> bool:
+            horizon_s: float = 1.0, margin_m: float = 0.05, *, holonomic: bool = False,
+            passing_margin_m: float | None = None) -> bool:
     """Whether the robot's disc, going on at ``twist`` for ``horizon_s``, comes within
     ``margin_m`` of any return (shape (N, 2), base frame) at a place nearer to it than it
-    is now (so a base already that close may still back away). ``holonomic``: the
-    translation is held in the world while the base turns (as ``PathFollower`` steers a
-    mecanum base), so the disc goes straight; else the twist is held in the body and the
-    disc follows its arc."""
+    is now (so a base already that close may still back away). ``passing_margin_m``
+    (default ``margin_m``): the margin to a return the disc passes beside within the
+    horizon (nearest to it before the horizon's end: a door's jamb, not a wall ahead).
+    ``holonomic``: the translation is held in the world while the base turns (as
+    ``PathFollower`` steers a mecanum base), so the disc goes straight; else the twist is
+    held in the body and the disc follows its arc."""
     check_range("robot_radius_m", robot_radius_m, 0.01, 2.0, "m")
     check_range("margin_m", margin_m, 0.0, 1.0, "m")
+    passing = margin_m if passing_margin_m is None else check_range(
+        "passing_margin_m", passing_margin_m, 0.0, 1.0, "m")
     points = np.asarray(points_base_m, dtype=np.float64)
     if points.size == 0:
         return False
@@ -314,5 +324,7 @@ def blocked(points_base_m: npt.ArrayLike, twist: Twist, robot_radius_m: float,
     now_m = np.hypot(points[:, 0], points[:, 1])
     later_m = np.hypot(points[None, :, 0] - centres[:, None, 0],
                        points[None, :, 1] - centres[:, None, 1])
-    reach_m = robot_radius_m + margin_m
-    return bool(np.any((later_m < reach_m) & (later_m < now_m[None, :])))
+    nearest = np.argmin(later_m, axis=0)
+    closest_m = later_m[nearest, np.arange(len(points))]
+    reach_m = robot_radius_m + np.where(nearest < len(centres) - 1, passing, margin_m)
+    return bool(np.any((closest_m < reach_m) & (closest_m < now_m)))

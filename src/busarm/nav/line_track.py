@@ -38,6 +38,7 @@ __all__ = [
     "FIT_RADIUS_M",
     "MEMORY_M",
     "MIN_POINTS",
+    "NEW_M",
     "UNDER_M",
     "WEIGHT_M",
     "FloatArray",
@@ -60,6 +61,8 @@ not pull the fit under the base."""
 UNDER_M = 0.06
 """The line is known under the base when a point this close to its centre was seen."""
 MIN_POINTS = 6
+NEW_M = 0.05
+"""A sighting's point this far from every remembered one is the line seen anew."""
 
 
 @dataclass(frozen=True)
@@ -129,6 +132,19 @@ class LineTracker:
         if len(near) < MIN_POINTS or distance.min() > UNDER_M:
             return None
         return _fit(near, np.exp(-0.5 * np.square(distance[distance <= FIT_RADIUS_M] / WEIGHT_M)))
+
+    def unseen(self, points_base_m: npt.ArrayLike, odometry: Pose2D, *,
+               beyond_m: float = NEW_M) -> int:
+        """How many of a sighting's points (base frame, taken at ``odometry``) lie farther
+        than ``beyond_m`` from every line point remembered: the line seen anew, not the
+        part already followed."""
+        p = np.asarray(points_base_m, dtype=np.float64).reshape(-1, 2)
+        if not self._seen or not len(p):
+            return len(p)
+        known = np.concatenate(list(self._seen))
+        seen = transform_points(odometry, p)
+        gaps = np.hypot(seen[:, None, 0] - known[None, :, 0], seen[:, None, 1] - known[None, :, 1])
+        return int(np.count_nonzero(gaps.min(axis=1) > beyond_m))
 
     def nearest(self, odometry: Pose2D) -> tuple[float, float] | None:
         """The nearest remembered line point (base frame), to steer to before the line

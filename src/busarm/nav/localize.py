@@ -122,6 +122,8 @@ class PoseEstimate:
     when no scan came since the last start or motion)."""
     rivals: int = 0
     """Other places on the map the scans so far fit about as well (then not converged)."""
+    alike: tuple[Pose2D, ...] = ()
+    """With rivals: every place alike, the likeliest first (``pose`` is the first)."""
 
     def __repr__(self) -> str:
         sd_m = math.sqrt(max(float(self.covariance[0, 0] + self.covariance[1, 1]), 0.0))
@@ -267,8 +269,9 @@ class ParticleFilter:
             self._rivals.weigh(local)
         chosen = self._rivals.decided()
         if chosen is None:
-            return replace(estimate, pose=self._rivals.leader.pose, converged=False,
-                           rivals=len(self._rivals.places) - 1)
+            alike = tuple(h.pose for h in sorted(self._rivals.places, key=lambda h: h.misses))
+            return replace(estimate, pose=alike[0], converged=False, rivals=len(alike) - 1,
+                           alike=alike)
         # The cloud around the chosen place alone: particles left at the others (its
         # thinned beams see less of what told them apart) would linger there.
         self.start_at(chosen, CHOSEN_SIGMA_M, CHOSEN_SIGMA_RAD)

@@ -34,6 +34,7 @@ __all__ = [
     "DIRECTIONS",
     "MIN_TRIP_M",
     "STANDOFF_M",
+    "WALL_CLEAR_M",
     "FloatArray",
     "free_pose",
     "map_in_arena",
@@ -52,6 +53,9 @@ STANDOFF_M = WORK_AHEAD_M
 CLEAR_M = 0.08
 """A stand keeps the base's disc this far from everything the arena has."""
 MIN_TRIP_M = 1.0
+WALL_CLEAR_M = 0.5
+"""A place spot keeps this far from inner walls (a person does not put things down in a
+doorway's or a corridor's way: the base keeps off a spot, blocks lie there)."""
 DIRECTIONS = 24
 FIT_CELLS, FIT_CLIP_M = 600, 0.3
 """``map_in_arena``: the cells fitted (evenly taken), and the farthest a cell counts."""
@@ -120,7 +124,9 @@ def transport_points(arena: Arena, map_origin: Pose2D | None = None, seed: int =
         x = rng.uniform(area.x_min_m, area.x_max_m)
         y = rng.uniform(area.y_min_m, area.y_max_m)
         if math.dist((x, y), (block.x_m, block.y_m)) < min_trip_m or not _clear(
-                arena, things_and_block, x, y, 0.06):
+                arena, things_and_block, x, y, 0.06) or any(
+                w.footprint().distance_from_mm(x * 1000, y * 1000) < WALL_CLEAR_M * 1000
+                for w in arena.walls):
             continue
         place = _stand(arena, things_and_block, (x, y), rng)
         if place is not None:

@@ -12,6 +12,8 @@ config, all "C: plausible, not identified on hardware":
 =========================== ============ =================================================
 servo stall torque          3.43 N m     35 kg cm joints (vendor); gripper 1.96 N m (20 kg cm)
 servo stiffness kp          410 N m/rad  full torque at 2 pulses (0.48 deg) of error
+gripper stiffness kp        22.5 N m/rad full torque at 5 deg of error (a P band, so a
+                                         gentle squeeze exists: busarm.arm.gripper's hold)
 servo damping kv            2.0 N m s/rad on the error's rate (PD), within the stall torque
 no-load speed               300 deg/s    0.2 s/60 deg, typical of 35 kg bus servos
 joint damping / armature    0.66 / 0.01  stall torque / no-load speed (the motor's torque
@@ -51,6 +53,8 @@ __all__ = [
     "ARM_RGBA",
     "AS_BUILT_MOUNT_ERROR",
     "FINGER_PAD_MM",
+    "GRIPPER_FULL_TORQUE_DEG",
+    "GRIPPER_KP_NM_PER_RAD",
     "GRIPPER_TORQUE_NM",
     "JOINT_ARMATURE",
     "JOINT_DAMPING",
@@ -87,6 +91,11 @@ JOINT_TORQUE_NM = 35 * 0.0980665   # 35 kg cm
 GRIPPER_TORQUE_NM = 20 * 0.0980665  # 20 kg cm
 SERVO_KP_NM_PER_RAD = 410.0
 SERVO_KV_NM_S_PER_RAD = 2.0
+GRIPPER_FULL_TORQUE_DEG = 5.0
+"""The gripper servo's torque rises in proportion to its position error up to its stall
+torque at this error (a P band, as bus servos of its kind publish: docs/twin.md); the
+joints keep the stiff 2-pulse band, which their accuracy was measured with."""
+GRIPPER_KP_NM_PER_RAD = GRIPPER_TORQUE_NM / math.radians(GRIPPER_FULL_TORQUE_DEG)
 NO_LOAD_SPEED_DEG_S = 300.0
 # A saturated servo's torque falls linearly from stall at rest to nothing at the no-load
 # speed: joint damping of stall torque / no-load speed on top of a capped actuator.
@@ -460,7 +469,7 @@ def arm_actuators(config: ArmConfig) -> list[str]:
           f'kv="{SERVO_KV_NM_S_PER_RAD}" ctrlrange="{lo - 0.2:.9g} {hi + 0.2:.9g}" '
           f'forcerange="{-JOINT_TORQUE_NM:.6g} {JOINT_TORQUE_NM:.6g}"/>')
     w(f'    <position name="gripper" joint="finger_left" gear="{finger_gear:.9g}" '
-      f'kp="{SERVO_KP_NM_PER_RAD}" ctrllimited="false" '
+      f'kp="{GRIPPER_KP_NM_PER_RAD:.9g}" ctrllimited="false" '
       f'forcerange="{-GRIPPER_TORQUE_NM:.6g} {GRIPPER_TORQUE_NM:.6g}"/>')
     w('  </actuator>')
     return out

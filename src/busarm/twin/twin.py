@@ -54,6 +54,7 @@ from busarm.twin.lidar import LidarNoise
 from busarm.twin.mobile import MobileBase, SlipModel
 from busarm.twin.model import (
     AS_BUILT_MOUNT_ERROR,
+    GRIPPER_KP_NM_PER_RAD,
     GRIPPER_TORQUE_NM,
     JOINT_TORQUE_NM,
     M_PER_MM,
@@ -223,6 +224,7 @@ class Twin:
         self._link4 = m.body("link4").id
         self._torque = [JOINT_TORQUE_NM] * len(cfg.joints) + [GRIPPER_TORQUE_NM]
         self._acts = [*self._joint_act, self._grip_act]
+        self._kp = [SERVO_KP_NM_PER_RAD] * len(cfg.joints) + [GRIPPER_KP_NM_PER_RAD]
         self._loaded = [True] * len(self._acts)
         # Each joint's last commanded angle (rad) and when (None while limp), for the ramp
         # and the servo's rate term.
@@ -330,7 +332,7 @@ class Twin:
             return
         self._loaded[k] = loaded
         act = self._acts[k]
-        kp = SERVO_KP_NM_PER_RAD if loaded else 0.0
+        kp = self._kp[k] if loaded else 0.0
         self.model.actuator_gainprm[act, 0] = kp
         self.model.actuator_biasprm[act, 1] = -kp
         if act in self._joint_act:

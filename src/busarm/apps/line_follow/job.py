@@ -65,8 +65,14 @@ from busarm.apps.transport.workspace import Workspace, half_size_m, m_text
 from busarm.base.kinematics import Twist
 from busarm.base.odometry import Pose2D, wrap_rad
 from busarm.errors import NavigationError, UnreachableError, why_stopped
-from busarm.lidar.scan import to_points
-from busarm.nav.line_track import LineController, LineTracker, in_stop_range, obstacle_ahead
+from busarm.lidar.scan import at_returns, to_points
+from busarm.nav.line_track import (
+    MIN_POINTS,
+    LineController,
+    LineTracker,
+    in_stop_range,
+    obstacle_ahead,
+)
 from busarm.nav.mapping import compose
 from busarm.perception.floor_view import FloorCamera
 from busarm.progress import Progress, quiet
@@ -235,8 +241,10 @@ class LineFollowJob:
             return
         self._steer()
 
-    def _sense(self) -> tuple[SensedScan, npt.NDArray[np.uint8]]:
-        """The next scan, then a camera frame, the line in it remembered."""
+    def _sense(self, *, anew: bool = False) -> tuple[SensedScan, npt.NDArray[np.uint8]]:
+        """The next scan, then a camera frame, the line in it remembered (``anew``: only
+        line not seen before counts, as when turning at the tape's end brings the part
+        already followed into view)."""
         self.sensed = self.reader.read()
         frame = self.robot.camera.read()
         image = frame.image
@@ -244,6 +252,12 @@ class LineFollowJob:
         self._note_motion(self.odometry)
         assert self.camera is not None and self.tape is not None
         sighting = self.sighting = self.camera.find_line(image, self.tape)
+        if sighting is not None and (
+                # Mostly at or behind what the Lidar sees: a wall's foot, not tape.
+                np.mean(at_returns(sighting.points_m, self.sensed.scan,
+                                       self.base.config.lidar)) > 0.5
+                or (anew and self.tracker.unseen(sighting.points_m, self.odometry) < MIN_POINTS)):
+            sighting = self.sighting = None
         if sighting is not None:
             self.tracker.add(sighting.points_m, self.odometry)
             self._seen_at_s = self.clock.now()
@@ -497,7 +511,7 @@ class LineFollowJob:
         for direction in (1.0, -1.0):
             while True:
                 seen_before = self._seen_at_s
-                self._sense()
+                self._sense(anew=True)
                 if self._seen_at_s > seen_before:
                     self.base.stop()
                     self.progress("the line is found again: going on")

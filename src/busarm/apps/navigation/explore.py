@@ -14,11 +14,14 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+import numpy as np
+import numpy.typing as npt
+
 from busarm.apps.navigation.sensing import ScanReader, SensedScan
 from busarm.base.odometry import Pose2D
 from busarm.lidar.scan import to_points
 from busarm.nav.costmap import Costmap
-from busarm.nav.follower import FollowerSettings, PathFollower, blocked
+from busarm.nav.follower import PASSING_MARGIN_M, FollowerSettings, PathFollower, blocked
 from busarm.nav.frontiers import (
     PLAN_GAP_CELLS,
     SEEN_FREE_P,
@@ -62,6 +65,8 @@ EXPLORE_YAW_RATE_RAD_S = 0.6
 ARRIVED_M = 0.25
 """A frontier target this close to the base is reached (whatever remains of it cannot be
 seen from here): it is not chosen again."""
+TARGET_SEARCH_M = 0.6
+"""A frontier's target: a place the base can reach within this of it."""
 FRONTIER_MARGIN_M = 0.5
 """Unknown floor kept round what is seen, where frontiers and plans are worked out."""
 EXPLORE_FREE_P = SEEN_FREE_P
@@ -170,8 +175,9 @@ class Explorer:
         seen = cropped(self.builder.grid, FRONTIER_MARGIN_M)
         costmap = Costmap.from_grid(gaps_filled(seen, PLAN_GAP_CELLS), ROBOT_RADIUS_M,
                                     free_below_p=EXPLORE_FREE_P)
+        reach = costmap.reachable(*here)
         for frontier in self._candidates(costmap):
-            target = costmap.nearest_free(frontier.x_m, frontier.y_m, 0.6)
+            target = _target(costmap, reach, frontier)
             if (target is None or self._given_up_near(target)
                     or math.dist(target, here) < ARRIVED_M):
                 continue
@@ -205,13 +211,34 @@ class Explorer:
             return
         command = self.follower.command(self.pose)
         points = to_points(sensed.scan, self.base.config.lidar)
-        if blocked(points, command, ROBOT_RADIUS_M, holonomic=True):
+        if blocked(points, command, ROBOT_RADIUS_M, holonomic=True,
+                   passing_margin_m=PASSING_MARGIN_M):
             self.base.stop()
             if self.goal is not None:
                 self.unreachable.append(self.goal)
             self.follower = None
             return
         self.base.drive(command.vx_m_s, command.vy_m_s, command.wz_rad_s)
+
+
+def _target(costmap: Costmap, reach: npt.NDArray[np.bool_], frontier: Frontier
+            ) -> tuple[float, float] | None:
+    """Where to drive to see past ``frontier``: of the cells the base can reach
+    (``reach``) within ``TARGET_SEARCH_M`` of the frontier, the one nearest its middle
+    (the middle of a room seen through a doorway lies far out in the unknown: the
+    doorway is the way to it); None if none is that near."""
+    from scipy.spatial import cKDTree
+
+    rows, cols = np.nonzero(reach)
+    if not len(rows):
+        return None
+    cells = costmap.spec.centres(rows, cols).reshape(-1, 2)
+    gap, _ = cKDTree(frontier.points_m).query(cells, distance_upper_bound=TARGET_SEARCH_M)
+    near = cells[np.isfinite(gap)]
+    if not len(near):
+        return None
+    best = int(np.argmin(np.hypot(near[:, 0] - frontier.x_m, near[:, 1] - frontier.y_m)))
+    return float(near[best, 0]), float(near[best, 1])
 
 
 def build_map(robot: Robot, *, time_limit_s: float = 300.0,

@@ -28,7 +28,7 @@ from busarm.base.odometry import Pose2D
 from busarm.errors import ConfigError, NavigationError
 from busarm.lidar.scan import to_points
 from busarm.nav.costmap import Costmap
-from busarm.nav.follower import FollowerSettings, PathFollower, blocked
+from busarm.nav.follower import PASSING_MARGIN_M, FollowerSettings, PathFollower, blocked
 from busarm.nav.frontiers import PLAN_GAP_CELLS, SEEN_FREE_P, gaps_filled
 from busarm.nav.grid import OccupancyGrid
 from busarm.nav.localize import ParticleFilter, PoseEstimate
@@ -178,10 +178,13 @@ class Navigator:
         """The plan the last trip follows now (m, the map's frame; empty before one)."""
         return list(self.trips[-1].plans[-1]) if self.trips and self.trips[-1].plans else []
 
-    def localize(self, start: Pose2D | None = None, *, wander: bool = True) -> PoseEstimate:
+    def localize(self, start: Pose2D | None = None, *, wander: bool = True,
+                 alike_ok: bool = False) -> PoseEstimate:
         """Find where the base is: near ``start`` if given, else anywhere on the map
         (driving about slowly, clear of everything, until the filter has converged;
-        standing still if not ``wander``)."""
+        standing still if not ``wander``). ``alike_ok``: a room that looks the same from
+        several places returns its estimate (``rivals``, ``alike``: the caller tells
+        them apart, as by what the camera sees) instead of a NavigationError."""
         if start is not None:
             self.filter.start_at(start)
         else:
@@ -199,6 +202,8 @@ class Navigator:
                     return self.estimate
                 if self.clock.now() - began > self.settings.localize_limit_s:
                     rivals = self.estimate.rivals
+                    if rivals and alike_ok:
+                        return self.estimate
                     why = (f"the room looks the same from {rivals + 1} places on the map "
                            "(give it a hint: where it stands)" if rivals else
                            "is it the map of this place?")
@@ -284,7 +289,8 @@ class Navigator:
             command = follower.command(self.pose)
             near_goal = follower.remaining_m(self.pose) < NEAR_GOAL_M
             margin = NEAR_GOAL_MARGIN_M if near_goal else GUARD_MARGIN_M
-            if blocked(local, command, s.robot_radius_m, margin_m=margin, holonomic=True):
+            if blocked(local, command, s.robot_radius_m, margin_m=margin, holonomic=True,
+                       passing_margin_m=min(margin, PASSING_MARGIN_M)):
                 if blocked_since is None:
                     trip.obstacle_stops += 1
                 blocked_since = self._wait(trip, blocked_since, now, "something in the way")

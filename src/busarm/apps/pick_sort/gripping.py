@@ -20,9 +20,9 @@ __all__ = [
 
 
 def still_holding(arm: Arm) -> bool:
-    """Whether the gripper still stands short of closed (a dropped block lets it close)."""
-    g = arm.config.gripper
-    return abs(arm.read_gripper_pulses() - g.closed_pulses) > g.holding_margin_pulses
+    """Whether the gripper still holds its block (``Arm.check_hold``: a dropped block
+    lets the fingers reach the hold they were told)."""
+    return arm.check_hold()
 
 
 def descend_and_grip(arm: Arm, plan: GraspPlan, speed_mm_s: float, *,

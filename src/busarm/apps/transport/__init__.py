@@ -1,6 +1,7 @@
 """Navigation transport: fetch a block from one named point and deliver it to another
 (``TransportJob``, ``job``), picking on the floor from the base (``mobile_pick``,
-``workspace``), with its report (``report``)."""
+``workspace``), the carried block's heat watched (``carry``), with its report
+(``report``)."""
 
 from __future__ import annotations
 

@@ -5,7 +5,10 @@ given start, or anywhere), drive to the pick point (busarm.apps.navigation.navig
 exactly (the filter's estimate refined standing still, the last centimetres closed by
 ``move_by``), look for the block with the wrist camera and locate it in millimetres,
 line the base up and pick it with the grasp verified (busarm.apps.transport.mobile_pick, with
-retries), drive to the place point, put it down and look that it is there. Every phase
+retries), drive to the place point, put it down and look that it is there. The gripper
+holds the block lightly and its heat is watched on the way (busarm.apps.transport.carry:
+a rest first if it is too hot to finish the carry, an easier hold or a stop to cool
+before its limit; the report keeps its peak and the margin to the limit). Every phase
 is timed and kept for the report; a phase that cannot be done stops the job with the
 wheels stopped and the arm holding, and the report says which and why: a block is
 reported delivered only when the last look saw it where it was put.
@@ -20,6 +23,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from busarm.apps.navigation.navigator import Navigator, NavSettings, ScanHook, Trip
+from busarm.apps.transport.carry import BlockLost, CarryGuard, CarryTooHot
 from busarm.apps.transport.mobile_pick import (
     BlockSeen,
     PickResult,
@@ -32,7 +36,7 @@ from busarm.apps.transport.mobile_pick import (
 from busarm.base.odometry import Pose2D
 from busarm.errors import BusArmError, HaltedError, NavigationError, why_stopped
 from busarm.nav.grid import OccupancyGrid
-from busarm.nav.mapping import compose
+from busarm.nav.mapping import compose, inverse
 from busarm.nav.points import WORK_AHEAD_M, NamedPoint, NamedPoints
 from busarm.progress import Progress, quiet
 from busarm.robot import Robot
@@ -40,6 +44,8 @@ from busarm.robot import Robot
 __all__ = [
     "APPROACH_M",
     "KEEP_OUT_M",
+    "MAX_RESTS",
+    "PLACED_WITHIN_M",
     "SETTLE_SCANS",
     "SETTLE_TOLERANCE_DEG",
     "SETTLE_TOLERANCE_M",
@@ -60,7 +66,11 @@ APPROACH_M = 0.25
 """A point is approached straight, from this far behind it."""
 KEEP_OUT_M = 0.05
 """The base never drives over a point's work spot (blocks there are below the Lidar)."""
+PLACED_WITHIN_M = 0.03
+"""A block seen this close to the place point's spot after it is let go is delivered."""
 STOW_POSE = "home"
+MAX_RESTS = 3
+"""A carry stops at most this many times for the gripper to cool (busarm.apps.transport.carry)."""
 TEACH_LIMIT_S = 5.0
 """The arm's pose while the base drives (folded over the base)."""
 
@@ -88,6 +98,20 @@ class TransportReport:
     placed_at_m: tuple[float, float] | None = None
     """Where the block was put down (map frame), as the final look saw it."""
     trips: list[Trip] = field(default_factory=list)
+    gripper_peak_c: float | None = None
+    """The gripper's hottest reading from the pick to the place (None: no carry)."""
+    gripper_limit_c: float | None = None
+    joint_peak_c: float | None = None
+    """The hottest arm joint's hottest reading over the same time."""
+    rested_s: float = 0.0
+    """Time spent letting the gripper cool (before or during the carry)."""
+
+    @property
+    def gripper_margin_c(self) -> float | None:
+        """The gripper's temperature limit less its peak (None: no carry)."""
+        if self.gripper_peak_c is None or self.gripper_limit_c is None:
+            return None
+        return self.gripper_limit_c - self.gripper_peak_c
 
     @property
     def driven_m(self) -> float:
@@ -107,6 +131,9 @@ class TransportReport:
                        "seconds": round(t.seconds, 2), "driven_m": round(t.driven_m, 3),
                        "obstacle_stops": t.obstacle_stops, "replans": len(t.plans)}
                       for t in self.trips],
+            "gripper_peak_c": self.gripper_peak_c,
+            "gripper_margin_c": self.gripper_margin_c,
+            "joint_peak_c": self.joint_peak_c, "rested_s": round(self.rested_s, 1),
         }
 
 
@@ -123,8 +150,19 @@ class TransportJob:
         self.color = color
         self.retries = retries
         self.progress = progress
-        self.nav = Navigator(robot, grid, settings=settings, seed=seed, on_scan=on_scan)
+        self.guard = CarryGuard(robot, progress)
+
+        def scanned(nav: Navigator, sensed: Any) -> None:
+            if on_scan is not None:
+                on_scan(nav, sensed)
+            self.guard.on_scan(nav, sensed)
+
+        self.nav = Navigator(robot, grid, settings=settings, seed=seed, on_scan=scanned)
         self.report = TransportReport(pick, place)
+        self._cleared: set[str] = set()
+        self._alike: list[Pose2D] = []
+        """Places alike the base may be at, the one taken first (``_localise``)."""
+        """Points whose spot the pick leaves bare (the one block seen there taken)."""
         self.pictures: list[tuple[str, Any]] = []
         """(name, BGR image): what the camera saw at the pick point."""
 
@@ -138,8 +176,12 @@ class TransportJob:
         try:
             self._phase("stow the arm", self._stow)
             self._phase("localise", lambda: self._localise(start))
-            self._go("drive to " + self.pick_point.name, self.pick_point)
-            block = self._phase("look for the block", self._look)
+            while True:
+                self._go("drive to " + self.pick_point.name, self.pick_point)
+                block = self._phase("look for the block", self._look)
+                if block is not None:
+                    break
+                self._phase("take the place alike", self._next_alike)
             # Carried as the pick left it, lifted over the deck: folding the arm with a
             # block in the fingers knocked it out against the chassis.
             self._phase("pick", lambda: self._pick(block))
@@ -155,6 +197,9 @@ class TransportJob:
         finally:
             self.report.seconds = clock.now() - began
             self.report.trips = list(self.nav.trips)
+            g = self.guard
+            self.report.gripper_peak_c, self.report.gripper_limit_c = g.gripper_peak_c, g.limit_c
+            self.report.joint_peak_c, self.report.rested_s = g.joint_peak_c, g.rested_s
         return self.report
 
     # ------------------------------------------------------------------ phases
@@ -175,7 +220,16 @@ class TransportJob:
         arm.move_joints(arm.config.pose(STOW_POSE))
 
     def _localise(self, start: Pose2D | None) -> None:
-        estimate = self.nav.localize(start)
+        estimate = self.nav.localize(start, alike_ok=True)
+        if estimate.rivals:
+            # A room that looks the same from several places: the likeliest is taken;
+            # no block at the pick point from there, the next (the camera tells them
+            # apart where the Lidar cannot).
+            self._alike = list(estimate.alike)
+            self.progress(f"the room looks the same from {len(self._alike)} places on the "
+                          "map: going from the likeliest; the block at the pick point will "
+                          "tell")
+            estimate = self.nav.localize(self._alike[0], wander=False)
         p = estimate.pose
         self.progress(f"localised at x {p.x_m:+.2f} m, y {p.y_m:+.2f} m, "
                       f"{p.yaw_deg:+.0f} deg")
@@ -183,14 +237,27 @@ class TransportJob:
     def _go(self, name: str, point: NamedPoint) -> None:
         def go() -> None:
             spots = {p.name: (*p.work_spot_m, KEEP_OUT_M) for p in (self.pick_point,
-                                                                  self.place_point)}
+                                                                  self.place_point)
+                     if p.name not in self._cleared}
             others = [spot for n, spot in spots.items() if n != point.name]
             # Over the spot's keep-out to a pose behind the point, then straight in: the
             # base ends with its disc over the spot's margin (its front stops short of it).
             behind = compose(point.pose, Pose2D(-APPROACH_M, 0.0, 0.0))
+            for _ in range(MAX_RESTS):
+                try:
+                    return drive(behind, spots, others)
+                except CarryTooHot as exc:  # the base stopped: let the gripper cool
+                    self.progress(str(exc))
+                    self.guard.rest()
+            drive(behind, spots, others)
+
+        def drive(behind: Pose2D, spots: dict[str, tuple[float, float, float]],
+                  others: list[tuple[float, float, float]]) -> None:
             driven = 0.0
             try:
                 driven += self.nav.go_to(behind, keep_out=list(spots.values())).driven_m
+            except (CarryTooHot, BlockLost):
+                raise  # the carry's watch stopped the trip (not a way that failed)
             except NavigationError as exc:
                 self.progress(f"no way to {APPROACH_M:g} m behind {point.name} ({exc}): "
                               "going straight to it")
@@ -200,10 +267,14 @@ class TransportJob:
 
         self._phase(name, go)
 
-    def _look(self) -> BlockSeen:
+    def _look(self) -> BlockSeen | None:
         surface = Surface(self.pick_point.name, self.pick_point.surface_m)
-        colors = None if self.color is None else [self.color]
-        seen = look_for_blocks(self.robot, surface, colors)
+        every = look_for_blocks(self.robot, surface, None)
+        seen = [b for b in every if self.color in (None, b.color)]
+        if len(every) == 1:  # once it is taken, the base may drive over the spot
+            self._cleared.add(self.pick_point.name)
+        if not seen and len(self._alike) > 1:
+            return None  # (then it stands at the place alike: _next_alike)
         if not seen:
             what = f"{self.color} block" if self.color else "block"
             raise _PhaseFailed(f"no {what} seen at {self.pick_point.name}")
@@ -211,26 +282,57 @@ class TransportJob:
         self.pictures.append((f"seen-{block.color}", block.image))
         return block
 
+    def _next_alike(self) -> None:
+        """Nothing at the pick point: the base stands where the next place alike says
+        (the way driven since, from there); localised there afresh."""
+        taken, other = self._alike[0], self._alike[1]
+        here = compose(other, compose(inverse(taken), self.nav.pose))
+        self._alike = self._alike[1:]
+        self.progress(f"no block at {self.pick_point.name}: the base is at the place alike, "
+                      f"x {here.x_m:+.2f} m, y {here.y_m:+.2f} m, {here.yaw_deg:+.0f} deg")
+        self.nav.localize(here, wander=False)
+
     def _pick(self, block: BlockSeen) -> PickResult:
         surface = Surface(self.pick_point.name, self.pick_point.surface_m)
+        self.guard.before_carry(self._carry_s())
         result = pick_block(self.robot, surface, block, retries=self.retries)
         self.report.pick_attempts = result.attempts
+        self.guard.carrying = result.ok
         if not result.ok:
             raise _PhaseFailed(f"the pick did not hold the block after {result.attempts} "
                                f"attempt(s): {result.why}")
         self.report.color = result.color
         return result
 
+    def _carry_s(self) -> float:
+        """How long a block is held, pick to place, at most: the way there driven at
+        half the cruise speed, and a minute for the pick, the approach and the place."""
+        a, b = self.pick_point.pose, self.place_point.pose
+        way_m = 1.5 * math.dist((a.x_m, a.y_m), (b.x_m, b.y_m))
+        return way_m / (self.nav.settings.max_speed_m_s / 2) + 60.0
+
     def _place(self) -> PlaceResult:
-        surface = Surface(self.place_point.name, self.place_point.surface_m)
-        result = place_block(self.robot, surface, (WORK_AHEAD_M, 0.0))
+        if self.guard.carrying:
+            self.guard.check(arrived=True)  # (BlockLost if it fell on the way in)
+        point = self.place_point
+        surface = Surface(point.name, point.surface_m)
+        # The spot as the map has it, from where the base stands (it settled to within
+        # SETTLE_TOLERANCE_M of the point: that much off the spot, else).
+        want = Pose2D(*point.work_spot_m, 0.0)
+        ahead = want.relative_to(self.nav.pose)
+        result = place_block(self.robot, surface, (ahead.x_m, ahead.y_m))
+        off_m = math.inf
         if result.where_m is not None:
-            here = self.nav.pose
-            spot = compose(here, Pose2D(result.where_m[0], result.where_m[1], 0.0))
+            spot = compose(self.nav.pose, Pose2D(result.where_m[0], result.where_m[1], 0.0))
             self.report.placed_at_m = (spot.x_m, spot.y_m)
+            off_m = math.dist(self.report.placed_at_m, (want.x_m, want.y_m))
         if not result.ok:
-            raise _PhaseFailed(f"the block was let go at {self.place_point.name} but the look "
+            raise _PhaseFailed(f"the block was let go at {point.name} but the look "
                                f"afterwards did not see it there: {result.why}")
+        if off_m > PLACED_WITHIN_M:
+            raise _PhaseFailed(f"the block was put down {off_m * 100:.1f} cm from "
+                               f"{point.name}'s spot (at most {PLACED_WITHIN_M * 100:g} cm "
+                               "is delivered)")
         self.report.delivered = True
         self.report.why = "delivered"
         return result

@@ -244,7 +244,7 @@ def place_block(robot: Robot, surface: Surface,
     reach = ws.reach()
     spot_m = ws.to_base_m(reach.comfortable_mm, 0.0) if at_base_m is None else at_base_m
     moved_m, why = 0.0, ""
-    if not ws.arm.read_gripper_state().is_holding:  # (open is short of closed too)
+    if not still_holding(ws.arm):
         _HELD.pop(ws.arm, None)
         why = "the gripper holds nothing to put down"
     elif not _reaches_down(ws, *ws.to_arm_mm(*spot_m)):
