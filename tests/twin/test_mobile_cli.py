@@ -22,7 +22,6 @@ import re
 import signal
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -304,7 +303,9 @@ def test_sigterm_stops_a_map_build_keeps_its_map_and_the_base_stands_still(
         try:
             assert proc.stderr is not None
             assert proc.stderr.readline().startswith("exploring with Robot(")
-            time.sleep(2.0)  # on its way to the first frontier
+            # Under way: 10 s explored (however long a busy computer takes for it).
+            assert re.fullmatch(r"explored 1\d s: \d+ scans, [\d.]+ m\^2 of floor seen\n",
+                                proc.stderr.readline())
             proc.send_signal(signal.SIGTERM)
             printed, err = proc.communicate(timeout=30)
         finally:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from nav_world import BEARINGS, Segment, box, scan_from
 
@@ -80,6 +80,7 @@ STARTS = st.tuples(st.floats(-1.5, -0.3), st.floats(-0.2, 0.3), st.floats(-math.
 
 @settings(max_examples=2, deadline=None)
 @given(STARTS, st.booleans(), st.integers(0, 1000))
+@example((-0.5, 0.0, 0.0), False, 291)  # near the middle: the mirror under a metre off
 def test_an_exactly_symmetric_room_is_never_claimed_known(
         start: tuple[float, float, float], mirrored: bool, seed: int) -> None:
     grid = room_map(ROOM)
@@ -95,9 +96,9 @@ def test_an_exactly_symmetric_room_is_never_claimed_known(
     assert min(off_m(est.pose, walk.truth), off_m(est.pose, mirror(walk.truth))) < 0.05
     # Both places are given, the believed one first: a job can go and look.
     assert est.rivals == 1 and est.alike[0] == est.pose
-    assert sorted(min(off_m(p, walk.truth), off_m(p, mirror(walk.truth))) < 0.05
-                  for p in est.alike) == [True, True]
-    assert max(off_m(p, walk.truth) for p in est.alike) > 1.0  # (one is the mirror)
+    near_truth = sorted(off_m(p, walk.truth) for p in est.alike)
+    near_mirror = sorted(off_m(p, mirror(walk.truth)) for p in est.alike)
+    assert near_truth[0] < 0.05 and near_mirror[0] < 0.05, est.alike  # one each
 
 
 @settings(max_examples=2, deadline=None)

@@ -176,8 +176,8 @@ def run_arena(seed: int, intrinsics: Path, hand_eye: Path, family: str = "standa
         to_map = inverse(frame)
 
         def on_scan(nav: Any, sensed: Any) -> None:
-            if nav.estimate is None or not nav.estimate.converged:
-                return
+            if nav.estimate is None or not nav.estimate.converged or nav.guess:
+                return  # (judged where the robot claims to know where it is)
             truth = compose(to_map, mobile.pose(twin.data))
             out.position_errors_m.append(math.dist((truth.x_m, truth.y_m),
                                                    (nav.pose.x_m, nav.pose.y_m)))

@@ -94,7 +94,9 @@ def build(settings: Settings, out_file: Path, time_limit_s: float, png: Path | N
             watching(settings, robot, foxglove_port, mcap_file) as view:
         settings.err.print(f"exploring with {robot!r} (at most {time_limit_s:g} s)",
                            highlight=False, markup=False)
-        explorer = Explorer(robot, time_limit_s=time_limit_s, on_scan=explore_hook(view))
+        explorer = Explorer(robot, time_limit_s=time_limit_s, on_scan=explore_hook(view),
+                            progress=lambda line: settings.err.print(
+                                line, highlight=False, markup=False))
         # A stop keeps the map explored so far (what `map show` and transport read).
         with keeping_what_was_done(robot, lambda exc: _keep(
                 explorer.so_far(why_stopped(exc)), out_file, png)):

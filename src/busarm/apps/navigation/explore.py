@@ -32,6 +32,7 @@ from busarm.nav.frontiers import (
 from busarm.nav.grid import GridSpec, OccupancyGrid, cropped
 from busarm.nav.mapping import MapBuilder, compose, inverse
 from busarm.nav.planner import NoPath, plan_path
+from busarm.progress import Progress, quiet
 from busarm.robot import Robot
 from busarm.units import check_range
 
@@ -42,6 +43,7 @@ __all__ = [
     "EXPLORE_YAW_RATE_RAD_S",
     "EXTENT_M",
     "FRONTIER_MARGIN_M",
+    "PROGRESS_S",
     "REPLAN_S",
     "RESOLUTION_M",
     "ROBOT_RADIUS_M",
@@ -65,6 +67,8 @@ EXPLORE_YAW_RATE_RAD_S = 0.6
 ARRIVED_M = 0.25
 """A frontier target this close to the base is reached (whatever remains of it cannot be
 seen from here): it is not chosen again."""
+PROGRESS_S = 10.0
+"""A line of progress every this much of exploring."""
 TARGET_SEARCH_M = 0.6
 """A frontier's target: a place the base can reach within this of it."""
 FRONTIER_MARGIN_M = 0.5
@@ -101,7 +105,8 @@ class Explorer:
 
     def __init__(self, robot: Robot, *, time_limit_s: float = 300.0,
                  resolution_m: float = RESOLUTION_M, min_frontier_m: float = 0.3,
-                 on_scan: Callable[[Explorer], None] | None = None) -> None:
+                 on_scan: Callable[[Explorer], None] | None = None,
+                 progress: Progress = quiet) -> None:
         check_range("time_limit_s", time_limit_s, 1.0, 7200.0, "s")
         self.reader = ScanReader(robot)
         self.base = self.reader.base
@@ -109,6 +114,8 @@ class Explorer:
         self.time_limit_s = time_limit_s
         self.min_frontier_m = min_frontier_m
         self.on_scan = on_scan
+        self.progress = progress
+        self._said_s = 0.0
         half = EXTENT_M / 2
         spec = GridSpec.covering(-half, half, -half, half, resolution_m)
         self.builder = MapBuilder(spec, self.base.config.lidar)
@@ -151,10 +158,22 @@ class Explorer:
             self._place(sensed)
             if self.on_scan is not None:
                 self.on_scan(self)
+            self._say_how_far(start_s)
             if self._needs_plan() and not self._plan():
                 return "explored: no frontier left that the base can reach"
             self._drive(sensed)
         return f"the time limit ({self.time_limit_s:g} s)"
+
+    def _say_how_far(self, start_s: float) -> None:
+        """Every ``PROGRESS_S`` of exploring: a line saying how far it has got."""
+        explored_s = self.clock.now() - start_s
+        if explored_s - self._said_s < PROGRESS_S:
+            return
+        self._said_s = explored_s
+        free = self.builder.grid.probability < SEEN_FREE_P
+        floor_m2 = float(np.count_nonzero(free)) * self.builder.grid.spec.resolution_m ** 2
+        self.progress(f"explored {explored_s:.0f} s: {self.reader.scans} scans, "
+                      f"{floor_m2:.1f} m^2 of floor seen")
 
     def _place(self, sensed: SensedScan) -> None:
         at_scan = self.builder.add(sensed.bearings_rad, sensed.ranges_m,

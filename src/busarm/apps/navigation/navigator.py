@@ -142,6 +142,9 @@ class Navigator:
                                         self.settings.inflation_m, free_below_p=SEEN_FREE_P)
         self.on_scan = on_scan
         self.estimate: PoseEstimate | None = None
+        self.guess = False
+        """The pose is one of several places alike, taken until something else (the
+        camera) tells: the filter's, but not claimed known (set by the job that guesses)."""
         self.pose = Pose2D()
         """The base's pose now (map frame): the filter's, carried on by the odometry."""
         self.last_scan: SensedScan | None = None

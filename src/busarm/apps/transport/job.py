@@ -229,6 +229,7 @@ class TransportJob:
             self.progress(f"the room looks the same from {len(self._alike)} places on the "
                           "map: going from the likeliest; the block at the pick point will "
                           "tell")
+            self.nav.guess = True
             estimate = self.nav.localize(self._alike[0], wander=False)
         p = estimate.pose
         self.progress(f"localised at x {p.x_m:+.2f} m, y {p.y_m:+.2f} m, "
@@ -278,6 +279,7 @@ class TransportJob:
         if not seen:
             what = f"{self.color} block" if self.color else "block"
             raise _PhaseFailed(f"no {what} seen at {self.pick_point.name}")
+        self.nav.guess = False  # the block where the map says: this place it is
         block = min(seen, key=lambda b: math.hypot(b.x_m - WORK_AHEAD_M, b.y_m))
         self.pictures.append((f"seen-{block.color}", block.image))
         return block
