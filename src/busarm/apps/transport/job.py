@@ -69,10 +69,11 @@ KEEP_OUT_M = 0.05
 PLACED_WITHIN_M = 0.03
 """A block seen this close to the place point's spot after it is let go is delivered."""
 STOW_POSE = "home"
+"""The arm's pose while the base drives (folded over the base)."""
 MAX_RESTS = 3
 """A carry stops at most this many times for the gripper to cool (busarm.apps.transport.carry)."""
 TEACH_LIMIT_S = 5.0
-"""The arm's pose while the base drives (folded over the base)."""
+"""Teaching a point where the base stands: the longest it looks for itself on the map."""
 
 
 @dataclass
