@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 import pytest
+from test_floor_view import distance_to
 
 from busarm.apps.line_follow.floor_look import floor_camera, look_ahead
 from busarm.apps.line_follow.job import LineFollowJob
@@ -89,16 +90,6 @@ def in_base(arena: Arena, points: Points, at: StartPose | None = None) -> Points
     c, si = math.cos(math.radians(s.yaw_deg)), math.sin(math.radians(s.yaw_deg))
     d = np.asarray(points, dtype=np.float64) - [s.x_m, s.y_m]
     return np.column_stack([d[:, 0] * c + d[:, 1] * si, -d[:, 0] * si + d[:, 1] * c])
-
-
-def distance_to(polyline: Points, points: Points) -> Points:
-    a, b = polyline[:-1], polyline[1:]
-    ab = b - a
-    out = []
-    for q in points:
-        t = np.clip(((q - a) * ab).sum(1) / (ab * ab).sum(1), 0.0, 1.0)
-        out.append(np.min(np.hypot(*(a + t[:, None] * ab - q).T)))
-    return np.array(out)
 
 
 @pytest.mark.parametrize("colour", list(LINE_COLORS))
