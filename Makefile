@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-$(shell cat pyproject.toml | cksum | cut -d' ' -f1)
 
-.PHONY: demo test test-fast lint docs bench bench-peers bench-ik gl browser clean
+.PHONY: demo test tests-and-types test-fast lint docs bench bench-peers bench-ik gl browser lerobot clean
 
 $(BIN)/python:
 	@$(PYTHON) -c 'import venv, ensurepip' 2>/dev/null || { \
@@ -16,6 +16,18 @@ $(STAMP): $(BIN)/python pyproject.toml
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q -e '.[dev]'
 	@rm -f $(VENV)/.installed-*; touch $@
+
+# LeRobot (and a CPU build of PyTorch) live in an environment of their own, with busarm and
+# its LeRobot plugin (integrations/lerobot; docs/lerobot.md says why these versions).
+LEROBOT_VENV  := .venv-lerobot
+LEROBOT_FILES := pyproject.toml integrations/lerobot/pyproject.toml $(wildcard integrations/lerobot/venv/*)
+LEROBOT_STAMP := $(LEROBOT_VENV)/.installed-$(shell cat $(LEROBOT_FILES) | cksum | cut -d' ' -f1)
+
+$(LEROBOT_STAMP): $(LEROBOT_FILES)
+	integrations/lerobot/venv/install.sh $(LEROBOT_VENV) $(PYTHON)
+	@rm -f $(LEROBOT_VENV)/.installed-*; touch $@
+
+lerobot: $(LEROBOT_STAMP)
 
 # The twin renders its cameras offscreen with Mesa's EGL on the CPU; install it when it
 # is missing and we are root, else say what to install.
@@ -74,17 +86,30 @@ define TESTS_AND_TYPES
 	wait $$types; typed=$$?; cat $(VENV)/mypy.log; \
 	[ $$tests = 0 ] && [ $$typed = 0 ]
 endef
+# The LeRobot tests (tests/with_lerobot) run in LeRobot's environment, beside the rest:
+# its install (a minute and a half, mostly unpacking) and then its tests go on in the
+# background while the main suite runs, and their verdict counts as the suite's does.
+LEROBOT_PYTEST := env -u PYTHONDONTWRITEBYTECODE \
+	  PYTHONPYCACHEPREFIX=$(CURDIR)/$(LEROBOT_VENV)/pycache $(LEROBOT_VENV)/bin/python -m pytest -q
 test: $(STAMP) gl browser
-	$(BIN)/ruff check src tests
+	$(BIN)/ruff check src tests integrations
 	$(BIN)/lint-imports --no-cache
-	$(call TESTS_AND_TYPES,)
+	@mkdir -p build; ( $(MAKE) -s lerobot > build/lerobot-install.log 2>&1 \
+	  || { echo "make lerobot failed: build/lerobot-install.log"; tail -n 20 build/lerobot-install.log; exit 1; }; \
+	  $(LEROBOT_PYTEST) -n 2 tests/with_lerobot $(PYTEST_ARGS) ) > build/lerobot-tests.log 2>&1 & lerobot=$$!; \
+	$(MAKE) -s tests-and-types; main=$$?; \
+	wait $$lerobot; learned=$$?; echo "LeRobot tests (.venv-lerobot):"; cat build/lerobot-tests.log; \
+	[ $$main = 0 ] && [ $$learned = 0 ]
+
+tests-and-types: $(STAMP)
+	$(call TESTS_AND_TYPES,--ignore=tests/with_lerobot)
 
 # The inner loop: everything but the tests marked slow (the README's blocks, whole jobs
 # on the twin, the browser): under 2 minutes on two cores. `make test` runs them all.
 test-fast: $(STAMP) gl
-	$(BIN)/ruff check src tests
+	$(BIN)/ruff check src tests integrations
 	$(BIN)/lint-imports --no-cache
-	$(call TESTS_AND_TYPES,-m "not slow and not wallclock")
+	$(call TESTS_AND_TYPES,--ignore=tests/with_lerobot -m "not slow and not wallclock")
 
 # The API reference, from the docstrings, to build/api/ (open build/api/index.html); a
 # warning is an error. tests/unit/test_api_reference.py builds it in `make test` too.
@@ -110,4 +135,4 @@ bench-ik: $(STAMP)
 	$(BIN)/busarm bench ik --peers
 
 clean:
-	rm -rf $(VENV) build *.egg-info src/*.egg-info .pytest_cache .mypy_cache .ruff_cache .hypothesis
+	rm -rf $(VENV) $(LEROBOT_VENV) build *.egg-info src/*.egg-info .pytest_cache .mypy_cache .ruff_cache .hypothesis

@@ -132,21 +132,34 @@ class Arm(ArmServos):
         *,
         duration_s: float | None = None,
         speed_deg_s: float | None = None,
+        min_duration_s: float | None = None,
         wait: bool = True,
         tolerance_deg: float = DEFAULT_TOLERANCE_DEG,
+        read_deg: Sequence[float] | None = None,
     ) -> float:
         """Move all joints so that they start and arrive together; returns the duration.
 
-        Give ``duration_s`` or ``speed_deg_s`` (the fastest joint's speed; default
-        DEFAULT_SPEED_DEG_S). No joint ever exceeds its configured ``max_speed_deg_s``:
-        a duration too short for that raises LimitError, sending nothing.
+        Give ``duration_s``, ``speed_deg_s`` (the fastest joint's speed; default
+        DEFAULT_SPEED_DEG_S) or ``min_duration_s`` (at least this long, longer where a
+        joint's top speed needs it: a stream of targets from a teleoperator or a policy).
+        No joint ever exceeds its configured ``max_speed_deg_s``: a ``duration_s`` too
+        short for that raises LimitError, sending nothing. ``read_deg``: the joints as the
+        caller has just read them (within a frame), so the speeds are judged from there
+        without reading them again.
         """
-        if duration_s is not None and speed_deg_s is not None:
-            raise ConfigError("give duration_s or speed_deg_s, not both")
+        if sum(v is not None for v in (duration_s, speed_deg_s, min_duration_s)) > 1:
+            raise ConfigError("give one of duration_s, speed_deg_s, min_duration_s")
         pulses = self.servo_pulses(joints_deg)
         target = self.config.check_joints(joints_deg)
         with self._lock:
-            current = self.read_joints_deg()
+            current = self.read_joints_deg() if read_deg is None else tuple(read_deg)
+            if len(current) != len(target):
+                raise ConfigError(f"read_deg: {len(current)} angles for "
+                                  f"{len(target)} joints")
+            if min_duration_s is not None:
+                check_range("min_duration_s", min_duration_s, 0.0, self.model.max_move_s, "s")
+                duration_s = max(min_duration_s, self._joint_move_duration(
+                    current, target, None, math.inf))
             duration = self._joint_move_duration(current, target, duration_s, speed_deg_s)
             self._guarded(lambda: self._send_pulses(pulses, duration))
             if wait:
@@ -160,7 +173,8 @@ class Arm(ArmServos):
         deltas = [abs(t - c) for t, c in zip(target, current, strict=True)]
         if duration_s is None:
             speed = DEFAULT_SPEED_DEG_S if speed_deg_s is None else speed_deg_s
-            check_range("speed_deg_s", speed, 0.1, 1000.0, "deg/s")
+            if not math.isinf(speed):  # inf: each joint at its own top speed
+                check_range("speed_deg_s", speed, 0.1, 1000.0, "deg/s")
             duration_s = max(
                 d / min(speed, j.max_speed_deg_s)
                 for d, j in zip(deltas, self.config.joints, strict=True)

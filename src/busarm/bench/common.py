@@ -4,11 +4,8 @@ report and runner of the benchmarks over seeded twin worlds (transport, line).""
 
 from __future__ import annotations
 
-import concurrent.futures
-import multiprocessing
 import os
 import platform
-import tempfile
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
@@ -17,8 +14,7 @@ from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 from busarm.errors import ConfigError
 from busarm.progress import Progress, quiet
-from busarm.robot.description import CameraSpec, RobotConfig
-from busarm.twin.spec import TwinSpec
+from busarm.robot.seeded_runs import run_seeded
 from busarm.units import check_int_range
 
 R = TypeVar("R")
@@ -127,35 +123,6 @@ class CalibrationSummary:
                                  i.cy),
                    HandEyeFit(run.hand_eye_rms_px, run.hand_eye_views, run.hand_eye_error_mm,
                               run.hand_eye_error_deg))
-
-
-def run_seeded(task: Callable[[int, Path, Path], R], seeds: Sequence[int], workers: int,
-               progress: Progress, describe: Callable[[int, int, R], str]) -> list[R]:
-    """``task(seed, intrinsics, hand_eye)`` for every seed, in seed order, on ``workers``
-    processes (1: this one), the twin's camera calibrated once first by our own flows;
-    ``describe(done, total, result)`` is said as each one ends."""
-    with tempfile.TemporaryDirectory() as tmp:
-        from busarm.robot import Robot
-
-        with Robot.open(RobotConfig(TwinSpec(blocks=0), camera=CameraSpec(folder=Path(tmp))),
-                        progress=progress) as robot:
-            robot.require_camera_calibration()
-        intrinsics, hand_eye = Path(tmp) / "camera.json", Path(tmp) / "hand_eye.json"
-        if workers == 1:
-            out = []
-            for seed in seeds:
-                out.append(task(seed, intrinsics, hand_eye))
-                progress(describe(len(out), len(seeds), out[-1]))
-            return out
-        # Spawned, not forked: each worker starts its own OpenGL context for the cameras.
-        context = multiprocessing.get_context("spawn")
-        done: dict[int, R] = {}
-        with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
-            futures = {pool.submit(task, seed, intrinsics, hand_eye): seed for seed in seeds}
-            for future in concurrent.futures.as_completed(futures):
-                done[futures[future]] = future.result()
-                progress(describe(len(done), len(seeds), done[futures[future]]))
-        return [done[seed] for seed in seeds]
 
 
 Verdict = Callable[[bool], str]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import inspect
 import os
 import sys
 import warnings
@@ -34,6 +35,7 @@ from busarm.cli import (
     dashboard_cmd,
     demo,
     help_style,
+    learn_cmds,
     lidar_cmds,
     line_follow_cmd,
     locate_cmd,
@@ -56,6 +58,7 @@ from busarm.cli import (
     vision_cmds,
 )
 from busarm.cli.bench_cmd import bench
+from busarm.cli.bench_learn_cmd import bench_teleop
 from busarm.cli.common import Settings, report_line, unwritten_text
 from busarm.cli.exits import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OUTPUT_CLOSED
 from busarm.cli.stopping import Terminated, new_command, servos_note, stop_on_termination
@@ -271,18 +274,47 @@ def cli(
     )
 
 
+class _RecordEither(click.Command):
+    """``record``: the robot's channels into an MCAP file for Foxglove (view_cmds), or,
+    given who demonstrates (--expert, --leader, --teleop), demonstrations into a LeRobot
+    dataset (learn_cmds): one verb, the command chosen by those options."""
+
+    DEMONSTRATORS = ("--expert", "--leader", "--teleop")
+
+    def __init__(self, mcap: click.Command, dataset: click.Command) -> None:
+        super().__init__("record", help=mcap.help, short_help=(
+            "Record the robot: an MCAP file for Foxglove, or (--expert, --leader, "
+            "--teleop) demonstrations as a LeRobot dataset."))
+        self.mcap, self.dataset = mcap, dataset
+        mcap.help = inspect.cleandoc(mcap.help or "") + (
+            "\n\nWith --expert, --leader or --teleop it records demonstrations into a "
+            "LeRobot dataset instead: busarm record OUT --expert pick-sort --help.")
+
+    def make_context(self, info_name: str | None, args: list[str],
+                     parent: click.Context | None = None, **extra: Any) -> click.Context:
+        demonstrated = any(a.split("=", 1)[0] in self.DEMONSTRATORS for a in args)
+        chosen = self.dataset if demonstrated else self.mcap
+        return chosen.make_context(info_name, args, parent=parent, **extra)
+
+    def invoke(self, ctx: click.Context) -> Any:
+        assert ctx.command is not self
+        return ctx.command.invoke(ctx)
+
+
 for _module in (
     bus_cmds, servo_cmds, config_cmds, proto_cmds, sim_cmds, arm_cmds, actions_cmds, twin_cmds,
     camera_cmds, vision_cmds, pick_cmd, demo, motor_cmd, dashboard_cmd, board_cmds, base_cmds,
     lidar_cmds, map_cmds, line_follow_cmd, transport_cmd, ros_cmds, robot_cmds, view_cmds,
-    track_cmd, stack_cmd,
+    track_cmd, stack_cmd, learn_cmds,
 ):
     for _command in _module.COMMANDS:
         cli.add_command(_command)
 
+cli.add_command(_RecordEither(view_cmds.record, learn_cmds.record))
 cli.add_command(bench)
 bench.add_command(bench_games_cmd.bench_track)
 bench.add_command(bench_games_cmd.bench_stack)
+bench.add_command(bench_teleop)
 # `vision locate` needs the arm; the rest of `vision` does not.
 vision_cmds.vision.add_command(locate_cmd.locate)
 # `arm poses` and `actions list` are kept out of arm_cmds and actions_cmds.

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import types
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -48,6 +48,7 @@ __all__ = [
     "GRIPPER_KEY",
     "JOINT_SUFFIX",
     "MAX_STALE_SCANS",
+    "MIN_DURATION_KEY",
     "SCAN_TIMEOUT_S",
     "Action",
     "ActionLike",
@@ -65,6 +66,9 @@ GRIPPER_KEY = "gripper.gap_mm"
 """The gripper's key in the flat form: the fingers' gap, mm."""
 DURATION_KEY = "duration_s"
 """An action's joint move time in the flat form, s."""
+MIN_DURATION_KEY = "min_duration_s"
+"""An action's shortest joint move time in the flat form, s: longer where a joint's top
+speed needs it (a stream of targets, one a frame, from a teleoperator or a policy)."""
 BASE_KEYS = ("base.vx", "base.vy", "base.wz")
 """A base twist in the flat form: m/s forward, m/s left, rad/s counter-clockwise."""
 SCAN_TIMEOUT_S = 1.0
@@ -172,6 +176,9 @@ class Action:
     gripper_gap_mm: float | None = None
     duration_s: float | None = None
     base: Twist | None = None
+    min_duration_s: float | None = None
+    """Instead of ``duration_s``: the joints' move takes at least this long, longer where a
+    joint's top speed needs it (never refused for speed)."""
 
     def __post_init__(self) -> None:
         if self.joints_rad is not None:
@@ -182,7 +189,7 @@ class Action:
         if self.joints_rad is not None:
             parts.append("joints_rad={" + ", ".join(
                 f"{name!r}: {rad:.4g}" for name, rad in self.joints_rad.items()) + "}")
-        for name in ("gripper_gap_mm", "duration_s", "base"):
+        for name in ("gripper_gap_mm", "duration_s", "min_duration_s", "base"):
             if getattr(self, name) is not None:
                 parts.append(f"{name}={getattr(self, name)!r}")
         return f"Action({', '.join(parts)})"
@@ -197,6 +204,8 @@ class Action:
             out[GRIPPER_KEY] = self.gripper_gap_mm
         if self.duration_s is not None:
             out[DURATION_KEY] = self.duration_s
+        if self.min_duration_s is not None:
+            out[MIN_DURATION_KEY] = self.min_duration_s
         if self.base is not None:
             out.update(zip(BASE_KEYS, (self.base.vx_m_s, self.base.vy_m_s,
                                        self.base.wz_rad_s), strict=True))
@@ -207,20 +216,21 @@ class Action:
         """An action from its flat form (``as_dict``'s keys). A base twist's missing
         components are 0; a key of none of these forms is a ConfigError (a misspelt key
         must not be left out quietly)."""
-        known = {GRIPPER_KEY, DURATION_KEY, *BASE_KEYS}
+        known = {GRIPPER_KEY, DURATION_KEY, MIN_DURATION_KEY, *BASE_KEYS}
         unknown = [k for k in values if k not in known and not (
             isinstance(k, str) and k.endswith(JOINT_SUFFIX) and len(k) > len(JOINT_SUFFIX))]
         if unknown:
             raise ConfigError(f"action keys {listing(map(repr, unknown))} are not known; "
                               f"allowed: JOINT{JOINT_SUFFIX} (rad), {GRIPPER_KEY}, "
-                              f"{DURATION_KEY}, {', '.join(BASE_KEYS)}")
+                              f"{DURATION_KEY}, {MIN_DURATION_KEY}, {', '.join(BASE_KEYS)}")
         joints = {k[:-len(JOINT_SUFFIX)]: v for k, v in values.items()
                   if k.endswith(JOINT_SUFFIX)}
         twist = None
         if any(k in values for k in BASE_KEYS):
             vx, vy, wz = (values.get(k, 0.0) for k in BASE_KEYS)
             twist = Twist(vx, vy, wz)
-        return cls(joints or None, values.get(GRIPPER_KEY), values.get(DURATION_KEY), twist)
+        return cls(joints or None, values.get(GRIPPER_KEY), values.get(DURATION_KEY), twist,
+                   values.get(MIN_DURATION_KEY))
 
 
 ActionLike = Action | Mapping[str, float]
@@ -235,6 +245,7 @@ class CheckedAction:
     gripper_gap_mm: float | None
     duration_s: float | None
     twist: Twist | None
+    min_duration_s: float | None = None
 
 
 def _within(key: str, value: object, lo: float, hi: float, unit: str,
@@ -299,6 +310,13 @@ def check_action(action: Action, arm: Arm, chassis: ChassisConfig | None) -> Che
             raise ConfigError(f"{DURATION_KEY} is the joints' move time: give joint targets "
                               "with it (the gripper goes at its own pace)")
         duration = _within(DURATION_KEY, action.duration_s, 0.0, arm.model.max_move_s, "s")
+    least = None
+    if action.min_duration_s is not None:
+        if action.joints_rad is None or action.duration_s is not None:
+            raise ConfigError(f"{MIN_DURATION_KEY} is the joints' shortest move time: give "
+                              f"joint targets with it, and not {DURATION_KEY} too")
+        least = _within(MIN_DURATION_KEY, action.min_duration_s, 0.0, arm.model.max_move_s,
+                        "s")
     joints = None if action.joints_rad is None else _joint_targets(arm, action.joints_rad)
     gap = None
     if action.gripper_gap_mm is not None:
@@ -312,23 +330,26 @@ def check_action(action: Action, arm: Arm, chassis: ChassisConfig | None) -> Che
                               "BaseSpec(...) on hardware, a twin in an arena with "
                               "controller=BoardSettings())")
         twist = _twist(chassis, action.base)
-    return CheckedAction(joints, gap, duration, twist)
+    return CheckedAction(joints, gap, duration, twist, least)
 
 
-def send_action(robot: Robot, action: ActionLike) -> Action:
+def send_action(robot: Robot, action: ActionLike, *,
+                read_deg: Sequence[float] | None = None) -> Action:
     """Check every value of ``action`` (an Action or its flat form), then send it: the
     joints first (whose speed check, which needs where the arm is now, comes before
     their move is sent, so a refusal there too leaves everything as it was), then the
     gripper, then the base. Returns what was sent: the joints' move time, and the twist
     the wheels were given (``Base.drive`` ramps toward the asked one within the
-    acceleration limits). Waits for nothing."""
+    acceleration limits). Waits for nothing. ``read_deg``: the joints as just read
+    (``Arm.move_joints``), not read again."""
     asked = action if isinstance(action, Action) else Action.from_dict(action)
     checked = check_action(asked, robot.arm, None if robot.base is None
                            else robot.base.config)
     duration = None
     if checked.joints_deg is not None:
         duration = robot.arm.move_joints(checked.joints_deg, duration_s=checked.duration_s,
-                                         wait=False)
+                                         min_duration_s=checked.min_duration_s, wait=False,
+                                         read_deg=read_deg)
     if checked.gripper_gap_mm is not None:
         robot.arm.open_gripper(wait=False, gap_mm=checked.gripper_gap_mm)
     sent = None

@@ -249,6 +249,16 @@ class SimServo(ServoCommands):
         """The logical position POS_READ would report (unrounded), as of the last advance."""
         return self._wrap(self._phys_at(self._now)) - self._offset
 
+    def setpoint_pulses_at(self, t: float) -> float:
+        """The logical position the firmware's move profile has at ``t`` (where it is
+        taking the horn then; a recorder's action), as of the last command."""
+        return self._wrap(self._phys_at(t)) - self._offset
+
+    @property
+    def offset_pulses(self) -> float:
+        """The angle offset in use (physical = logical + offset)."""
+        return float(self._offset)
+
     @property
     def physical_pulses(self) -> float:
         """The horn's physical angle (logical + offset); what power-off storage keeps."""

@@ -429,6 +429,18 @@ class Twin:
         with self._lock:
             return tuple(math.degrees(self.data.qpos[a]) for a in self._joint_qpos)
 
+    def servo_pulses_in_step(self) -> tuple[list[int], list[float]]:
+        """Every servo's (arm joints, then the gripper) position as POS_READ would report
+        it (logical pulses) and its firmware's setpoint, at the physics' present: for a
+        hook in ``physics_hooks``, which runs between physics steps, where the bus cannot
+        be read."""
+        t = self._t0 + float(self.data.time)
+        read = [j.pulses_from_angle_deg(math.degrees(self.data.qpos[a]))
+                for j, a in zip(self.config.joints, self._joint_qpos, strict=True)]
+        read.append(self._pulses_from_half_gap(float(self.data.qpos[self._finger_qpos])))
+        return ([round(p - s.offset_pulses) for p, s in zip(read, self.servos, strict=True)],
+                [s.setpoint_pulses_at(t) for s in self.servos])
+
     def finger_gap_mm(self) -> float:
         with self._lock:
             return 2 * float(self.data.qpos[self._finger_qpos]) / M_PER_MM
