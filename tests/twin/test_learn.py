@@ -42,13 +42,13 @@ def test_an_expert_episode_is_sampled_and_judged_on_the_truth(
     assert 3.0 * DEFAULT_FPS < e.frames < e.sim_s * DEFAULT_FPS
     look = [math.radians(a) for a in _look()]
     assert np.allclose(e.states[0, :5], look, atol=math.radians(1.0))
-    # the actions are the servos' setpoints: the joints follow them closely (nearer the
-    # same frame's reading than a frame before or after) ...
+    # a frame's action is the servos' setpoint one frame on: where the joints are read
+    # the next frame (nearer it than the same frame's reading or the one after) ...
     def off(d: int) -> float:
         n = len(e.actions) - abs(d)
         a = e.actions[max(0, -d):max(0, -d) + n, :5]
         return float(np.abs(a - e.states[max(0, d):max(0, d) + n, :5]).mean())
-    assert off(0) < min(off(1), off(-1)) / 5
+    assert off(1) < min(off(0), off(2)) / 5
     # ... and while the block is held the gripper's is inside it (its squeeze)
     holding = np.abs(e.states[:, 5] - block.size_mm) < 2.0
     assert holding.sum() > DEFAULT_FPS

@@ -1,7 +1,8 @@
 """busarm's episodes as LeRobotDatasets, loaded back by LeRobot's own ``LeRobotDataset``:
 the declared features (dtype, shape, names), every frame's values, the episode
-boundaries and their tasks intact; and ``record_expert``'s report agreeing with what was
-written (episodes kept, frames, the expert's success on the twin's truth)."""
+boundaries and their tasks intact, the folder taking its name only when finished; and
+``record_expert``'s report agreeing with what was written (episodes kept, frames, the
+expert's success on the twin's truth)."""
 
 from __future__ import annotations
 
@@ -9,8 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from click.testing import CliRunner
 from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
+from busarm.cli.main import cli
 from busarm.errors import ConfigError
 from busarm.learn.dataset import DatasetWriter
 from busarm.learn.expert import EpisodeTask, run_expert
@@ -32,8 +35,12 @@ def test_expert_episodes_load_in_lerobot_intact(twin_calibration: tuple[Path, Pa
         for e in episodes:
             writer.add(e.text, e.states, e.actions, task_state=e.task_state,
                        success=e.success)
+    assert not root.with_name("ds.part").exists()  # finished: under its own name
     with pytest.raises(ConfigError, match="exists"):
         DatasetWriter(root, Features.of(config))
+    with DatasetWriter(tmp_path / "empty", Features.of(config)) as empty:
+        assert empty.part.is_dir() and not empty.root.exists()
+    assert not empty.part.exists() and not empty.root.exists()  # nothing in it: no trace
 
     ds = LeRobotDataset("local/busarm", root=root)
     names = motor_names(config)
@@ -74,3 +81,14 @@ def test_record_expert_reports_what_it_wrote(tmp_path: Path) -> None:
     assert all(t.startswith("put the ") and t.endswith(" bin") for t in tasks)
     with pytest.raises(ConfigError, match="seed"):
         record_expert(tmp_path / "held-out", episodes=2, seed=999_999)
+
+
+def test_a_recording_that_cannot_start_leaves_nothing(tmp_path: Path) -> None:
+    runner = CliRunner(mix_stderr=False)
+    out = tmp_path / "keys"
+    result = runner.invoke(cli, ["record", str(out), "--teleop", "keyboard"])  # no terminal
+    assert result.exit_code == 2 and "terminal" in result.stderr
+    assert list(tmp_path.iterdir()) == []
+    both = runner.invoke(cli, ["record", str(out), "--expert", "pick-sort", "--leader", "sim"])
+    assert both.exit_code == 2 and "give one of" in both.stderr
+    assert list(tmp_path.iterdir()) == []

@@ -130,12 +130,17 @@ def test_the_dashboard_stops_a_rollout(tmp_path: Path) -> None:
     assert report["ended"].startswith("stopped: ") and report["seconds"] < 30
 
 
-def _dashboard_url(proc: subprocess.Popen[str]) -> str:
+def _said(proc: subprocess.Popen[str], text: str) -> str:
+    """The first line of ``proc``'s stderr that says ``text``."""
     assert proc.stderr is not None
     for line in proc.stderr:
-        if "dashboard: open " in line:
-            return line.split("dashboard: open ", 1)[1].split()[0]
-    raise AssertionError(f"no dashboard URL: {proc.communicate(timeout=10)}")
+        if text in line:
+            return line
+    raise AssertionError(f"never said {text!r}: {proc.communicate(timeout=10)}")
+
+
+def _dashboard_url(proc: subprocess.Popen[str]) -> str:
+    return _said(proc, "dashboard: open ").split("dashboard: open ", 1)[1].split()[0]
 
 
 @pytest.mark.wallclock("a person's jog through the dashboard of a real-time twin")
@@ -149,6 +154,7 @@ def test_a_dashboard_episode_is_recorded_and_replayed(tmp_path: Path) -> None:
     try:
         url = _dashboard_url(proc)
         with connect(url.replace("http", "ws") + "ws", open_timeout=10) as ws:
+            _said(proc, "episode 1/1: recording")
             ws.send(json.dumps({"type": "jog", "joint": "base_yaw", "direction": 1}))
             for _ in range(10):  # held for a second, heartbeats every 100 ms
                 time.sleep(0.1)

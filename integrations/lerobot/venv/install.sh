@@ -2,8 +2,8 @@
 # Make a virtual environment with LeRobot, a CPU build of PyTorch, busarm and busarm's
 # LeRobot plugin (docs/lerobot.md says why these versions).
 #   integrations/lerobot/venv/install.sh VENV [PYTHON]
-# TORCH_INDEX: an index holding the CPU build of torch 2.13.0, where pip's own settings do
-# not find one (https://download.pytorch.org/whl/cpu is PyTorch's).
+# TORCH_INDEX: where the CPU build of torch 2.13.0 comes from when pip's own settings do
+# not have it on this computer (default: PyTorch's CPU index; never PyPI's, a CUDA build).
 set -euo pipefail
 # torchcodec (LeRobot's video decoder) loads the system's FFmpeg libraries (4 to 8: Debian
 # 12 has 5.1); libavdevice-dev brings them all by the same name on Debian and Ubuntu.
@@ -21,13 +21,20 @@ here="$(cd "$(dirname "$0")" && pwd)"
 repo="$(cd "$here/../../.." && pwd)"
 venv="$1"
 python="${2:-python3}"
-index=(); [ -n "${TORCH_INDEX:-}" ] && index=(--extra-index-url "$TORCH_INDEX")
+torch_index="${TORCH_INDEX:-https://download.pytorch.org/whl/cpu}"
 rm -rf "$venv"
 "$python" -m venv "$venv"
 pip=("$venv/bin/python" -m pip install -q --disable-pip-version-check)
 "${pip[@]}" --upgrade pip
 # The CPU build first: asked for through another package, pip would take a CUDA build.
-"${pip[@]}" torch==2.13.0 "${index[@]}"
+# One on this computer (pip's find-links) if there is one, else PyTorch's CPU index.
+if "${pip[@]}" --no-index --no-deps torch==2.13.0 2>/dev/null; then
+  "${pip[@]}" torch==2.13.0  # its own dependencies, from the usual index
+else
+  "${pip[@]}" torch==2.13.0 --index-url "$torch_index" --extra-index-url https://pypi.org/simple
+fi
+"$venv/bin/python" -c 'import torch, sys; sys.exit(torch.version.cuda is not None)' \
+  || { echo "torch 2.13.0 here is a CUDA build: give TORCH_INDEX a CPU build's index" >&2; exit 1; }
 # LeRobot 0.4.4 pins torch<2.11, torchvision<0.26 and torchcodec<0.11, which have no CPU
 # build for this Python here: its other dependencies with their own pins, then LeRobot, and
 # the torchvision and torchcodec made for torch 2.13, without dependencies.

@@ -90,14 +90,13 @@ def run_teleop_bench(*, seconds: float = 10.0, fps: int = 50,
     with PtyServer(lines) as server:
         path = server.path
         with LeaderArm(path, config=frames.config, background=True) as leader:
-            robot = frames.open()
+            frames.open()
             try:
                 hand, follower = _drive(leader, frames, lines, seconds, fps, report)
             finally:
                 frames.close()
     report.lag_ms, report.error_deg = _lag(hand, follower)
     progress(f"{report.frames} frames, follower {report.lag_ms:.0f} ms behind")
-    assert robot is not None
     return report
 
 
@@ -139,7 +138,7 @@ def _drive(leader: LeaderArm, frames: FrameRobot, lines: Any, seconds: float, fp
             t_next += 1.0 / fps
             time.sleep(max(0.0, t_next - time.monotonic()))
         # frames a second, from the first frame's start to the last's
-        report.rate_hz = (len(starts) - 1) / (starts[-1] - starts[0])
+        report.rate_hz = (len(starts) - 1) / max(starts[-1] - starts[0], 1e-9)
     finally:
         stop.set()
         thread.join()

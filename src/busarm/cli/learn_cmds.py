@@ -71,6 +71,15 @@ def record(settings: Settings, out: Path, expert: str | None, leader_port: str |
     if len(chosen) != 1:
         raise ConfigError("give one of --expert pick-sort, --leader PORT, --teleop "
                           f"dashboard|keyboard (got {', '.join(chosen) or 'none'})")
+    ctx = click.get_current_context()
+    theirs = ("task", "seed", "workers", "keep_failed") if expert is None else (
+        "episode_s", "text", "cameras")
+    given = [f"--{n.replace('_', '-')}" for n in theirs
+             if ctx.get_parameter_source(n) is click.core.ParameterSource.COMMANDLINE]
+    if given:
+        raise ConfigError(f"{', '.join(given)}: not for {chosen[0]} (the expert's: --task, "
+                          "--seed, --workers, --keep-failed; a person's: --episode-s, "
+                          "--text, --cameras)")
     if expert is not None:
         from busarm.learn.record import record_expert
 
@@ -112,13 +121,13 @@ def _record_person(settings: Settings, out: Path, leader_port: str | None,
     frames = FrameRobot(_description(settings, realtime=True), fps=fps, cameras=cameras)
     features = Features.of(frames.config, fps=fps, task_state=False, cameras=[
         (role, *frames.camera_sizes[role]) for role in cameras])
-    with DatasetWriter(out, features) as writer, _source(frames, leader_port, teleop,
-                                                         say) as source:
-        try:
+    try:  # a leader or a terminal that is not there: the writer leaves nothing behind
+        with DatasetWriter(out, features) as writer, \
+                _source(frames, leader_port, teleop, say) as source:
             done = record_teleop(frames, source, writer, episodes=episodes,
                                  episode_s=episode_s, text=text, progress=say)
-        finally:
-            frames.close()
+    finally:
+        frames.close()
     kept = {"root": str(out), "episodes": len(done), "frames": sum(len(e.states) for e in done),
             "fps": fps, "worst_late_ms": round(1000 * max(e.worst_late_s for e in done), 1)}
     click.echo(json.dumps(kept, indent=2) if as_json else
@@ -141,8 +150,10 @@ def _source(frames: Any, leader_port: str | None, teleop: str | None, say: Any
 
         if not sys.stdin.isatty():
             raise ConfigError("--teleop keyboard reads this terminal's keys: run it in one")
-        say("keys: q/a w/s e/d r/f t/g jog the joints, o/c open/close, h home")
+        say("keys: q/a w/s e/d r/f t/g jog the joints, o/c open/close, h back to the start")
         with KeyboardJog(frames.config) as jog:
+            frames.open()
+            jog.begin_at(dict(zip(frames.motors, frames.state().tolist(), strict=True)))
             yield jog.read
         return
     with _dashboard(frames.open(), say):
@@ -178,13 +189,16 @@ def _dashboard(robot: Any, say: Any) -> Iterator[None]:
               show_default=True, help="At most this long, on the robot's clock.")
 @click.option("--fps", type=RangeType("--fps", 1.0, 100.0, "frames/s"), default=None,
               help="The policy's pace, in frames/s  [default: its training data's]")
-@click.option("--cameras", default="", help="Cameras the policy sees (comma separated).")
+@click.option("--cameras", default=None,
+              help="Cameras the policy sees, comma separated  [default: those its "
+                   "inputs name]")
 @click.option("--dashboard", "with_dashboard", is_flag=True,
               help="Serve the dashboard on the robot meanwhile (its Stop and e-stop end it).")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @pass_settings
 def rollout(settings: Settings, policy_path: Path, seed: int, task: str, seconds: float,
-            fps: float | None, cameras: str, with_dashboard: bool, as_json: bool) -> None:
+            fps: float | None, cameras: str | None, with_dashboard: bool,
+            as_json: bool) -> None:
     """Let a policy trained with LeRobot drive the robot (--port; default the twin on a
     held-out table): it looks first, then the policy acts each frame, every action
     clipped to the limits; on a twin the end is judged on the twin's truth."""
@@ -202,7 +216,8 @@ def rollout(settings: Settings, policy_path: Path, seed: int, task: str, seconds
     else:
         description = describe_robot(TwinSpec(scene=task_scene(task, seed),
                                               realtime=with_dashboard), settings.line())
-    frames = FrameRobot(description, fps=rate, cameras=[c for c in cameras.split(",") if c])
+    roles = [c for c in cameras.split(",") if c] if cameras is not None else policy.cameras
+    frames = FrameRobot(description, fps=rate, cameras=roles)
     say = _say(settings)
     try:
         robot = frames.open()

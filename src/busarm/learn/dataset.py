@@ -7,6 +7,7 @@ LeRobot is not part of busarm's install (docs/lerobot.md: its own virtual enviro
 
 from __future__ import annotations
 
+import shutil
 import warnings
 from pathlib import Path
 from types import TracebackType
@@ -41,22 +42,25 @@ def lerobot_dataset_class() -> Any:
 
 class DatasetWriter:
     """A new dataset at ``root`` (which must not exist): ``add`` an episode's frames,
-    ``close`` to finish its files (``with`` does)."""
+    ``close`` to finish its files (``with`` does). It is written in ``ROOT.part`` and
+    takes its name when finished; closed with no episode in it, it leaves nothing."""
 
     def __init__(self, root: Path, features: Features, *, repo_id: str = "local/busarm",
                  robot_type: str = "busarm") -> None:
-        if root.exists():
-            raise ConfigError(f"{root} exists: a dataset is written to a new folder")
+        self.root, self.part = root, root.with_name(root.name + ".part")
+        for path in (root, self.part):
+            if path.exists():
+                raise ConfigError(f"{path} exists: a dataset is written to a new folder")
         cls = lerobot_dataset_class()
         self.features = features
-        self.dataset = cls.create(repo_id=repo_id, fps=features.fps, root=root,
+        self.dataset = cls.create(repo_id=repo_id, fps=features.fps, root=self.part,
                                   features=features.as_lerobot(), robot_type=robot_type,
                                   use_videos=bool(features.cameras))
         self.episodes = 0
         self.frames = 0
 
     def __repr__(self) -> str:
-        return f"DatasetWriter({self.dataset.root}, {self.episodes} episodes)"
+        return f"DatasetWriter({self.root}, {self.episodes} episodes)"
 
     def add(self, text: str, states: npt.NDArray[np.float32], actions: npt.NDArray[np.float32],
             *, task_state: npt.NDArray[np.float32] | None = None, success: bool = True,
@@ -85,7 +89,16 @@ class DatasetWriter:
         self.frames += n
 
     def close(self) -> None:
-        self.dataset.finalize()
+        """Finish the files; the dataset takes its name (with no episode: removed)."""
+        if not self.part.exists():
+            return
+        try:
+            self.dataset.finalize()
+        finally:
+            if self.episodes:
+                self.part.rename(self.root)
+            else:
+                shutil.rmtree(self.part, ignore_errors=True)
 
     def __enter__(self) -> DatasetWriter:
         return self

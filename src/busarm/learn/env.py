@@ -92,6 +92,8 @@ class PickPlaceEnv(gym.Env[dict[str, Any], npt.NDArray[np.float32]]):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[dict[str, Any], dict[str, Any]]:
+        """A new twin on table ``seed`` of the task (None: the next held-out one), the
+        arm at its look pose, the table looked at; the first observation."""
         super().reset(seed=seed)
         if seed is None:
             seed, self._next_seed = self._next_seed, self._next_seed + 1
@@ -109,6 +111,8 @@ class PickPlaceEnv(gym.Env[dict[str, Any], npt.NDArray[np.float32]]):
 
     def step(self, action: npt.ArrayLike
              ) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+        """One frame: ``action`` clipped and sent (busarm.learn.frames), the twin's time
+        moved on a frame, the observation; reward 1 and the end once the task is done."""
         robot = self._robot()
         assert self.frames is not None
         values = np.asarray(action, np.float64).reshape(-1)

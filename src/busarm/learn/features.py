@@ -51,6 +51,8 @@ class Features:
     @classmethod
     def of(cls, config: ArmConfig, *, fps: int = DEFAULT_FPS,
            cameras: Sequence[tuple[str, int, int]] = (), task_state: bool = True) -> Features:
+        """The features of ``config``'s arm: ``cameras`` as (role, height, width),
+        ``task_state`` with the task's state (the expert's and the environment's)."""
         return cls(tuple(motor_names(config)), fps, tuple(cameras), task_state)
 
     def as_lerobot(self, *, videos: bool = True) -> dict[str, dict[str, Any]]:

@@ -12,7 +12,8 @@ refuses it) and returns what was sent.
 
 Who sends the actions does not matter to the limits. When actions stop coming, the
 servos hold the last target and the wheels stop on the chassis's command timeout.
-Closing (``close``, or an error while open) stops the arm and the wheels.
+Closing (``close``: LeRobot's disconnect, which its loops call on an error too) stops the
+arm and the wheels.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ import numpy.typing as npt
 
 from busarm.arm.config import ArmConfig, load_arm_config
 from busarm.base.kinematics import MecanumKinematics, Twist
+from busarm.clock import Clock
 from busarm.errors import ConfigError
 from busarm.learn.features import DEFAULT_FPS, motor_names
 from busarm.learn.limits import ActionLimits
@@ -35,13 +37,30 @@ from busarm.twin.spec import TwinSpec
 from busarm.units import listing
 
 __all__ = [
+    "HEADING_KEPT_S",
     "ODOMETRY_KEYS",
     "FrameRobot",
     "has_base",
+    "next_frame",
 ]
 
+HEADING_KEPT_S = 1.0
+"""An action's step is judged from the last one sent within this long (the firmware's
+setpoint is there); after a longer pause, from where the arm is read."""
 ODOMETRY_KEYS = ("base.x", "base.y", "base.yaw", "base.vx", "base.vy", "base.wz")
 """A base's observation: its odometry's pose (m, rad) and velocity (m/s, rad/s)."""
+
+
+def next_frame(due_s: float, period_s: float, clock: Clock) -> float:
+    """Wait on ``clock`` until the frame after the one due at ``due_s``; its time. A
+    frame more than a period late is not caught up on (no frames back to back): the next
+    is a period from now."""
+    due_s += period_s
+    now = clock.now()
+    if now > due_s + period_s:
+        return now
+    clock.sleep(max(0.0, due_s - now))
+    return due_s
 
 
 def has_base(description: RobotConfig) -> bool:
@@ -86,6 +105,7 @@ class FrameRobot:
         self.camera_sizes = {c: sizes[c] for c in self.cameras}
         self.robot: Robot | None = None
         self._read: tuple[float, npt.NDArray[np.float64]] | None = None
+        self._told: tuple[float, npt.NDArray[np.float64]] | None = None
         self.clipped = 0
         """Action values clipped to the limits since it was opened."""
 
@@ -114,6 +134,8 @@ class FrameRobot:
     # ------------------------------------------------------------------ use
 
     def open(self) -> Robot:
+        """Open the robot (once; a camera of another size than declared: ConfigError,
+        and it is closed again); the robot."""
         if self.robot is None:
             robot = Robot.open(self.description)
             try:
@@ -130,10 +152,16 @@ class FrameRobot:
         return self.robot
 
     def close(self) -> None:
-        self._read = None
+        """Stop the arm where it is if it was told anything (MOVE_STOP: it holds), stop
+        the wheels, and close the robot."""
+        told, self._read, self._told = self._told, None, None
         if self.robot is not None:
             robot, self.robot = self.robot, None
-            robot.close()
+            try:
+                if told is not None:
+                    robot.arm.stop()  # never raises
+            finally:
+                robot.close()
 
     def _open_robot(self) -> Robot:
         if self.robot is None:
@@ -190,14 +218,22 @@ class FrameRobot:
             raise ConfigError(f"action keys {listing(map(repr, unknown))} are not known; "
                               f"allowed: {listing(self.action_features)}")
         measured = self._measured(robot)
-        asked = np.array([float(action.get(name, m)) for name, m in zip(self.motors, measured,
+        now = robot.clock.now()
+        heading, since = None, None
+        if self._told is not None and now - self._told[0] < HEADING_KEPT_S:
+            heading, since = self._told[1], now - self._told[0]
+        start = measured if heading is None else heading
+        asked = np.array([float(action.get(name, s)) for name, s in zip(self.motors, start,
                                                                          strict=True)])
-        values, changed = self.limits.clip(asked, measured)
+        values, changed = self.limits.clip(asked, measured, heading, since_s=since)
         self.clipped += changed
         send: dict[str, float] = self.limits.flat(values)
         if self.base and any(k in action for k in BASE_KEYS):
             send.update(self._twist(robot, action))
-        send_action(robot, send, read_deg=np.degrees(measured[:-1]).tolist())
+        # The firmware moves each servo on from its setpoint, which is at the heading once
+        # the last move's frame is over (the clip above allowed for one still under way).
+        send_action(robot, send, read_deg=np.degrees(start[:-1]).tolist())
+        self._told = (now, values)
         self._read = None  # the arm is on its way: the next action reads it again
         return {k: v for k, v in send.items() if k in self.action_features}
 

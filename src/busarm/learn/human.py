@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from busarm.learn.dataset import DatasetWriter
-from busarm.learn.frames import FrameRobot
+from busarm.learn.frames import FrameRobot, next_frame
 from busarm.progress import Progress, quiet
 from busarm.units import check_int_range, check_range
 
@@ -64,11 +64,8 @@ def record_episode(frames: FrameRobot, source: ActionSource, *, episode_s: float
         actions.append([sent[m] for m in frames.motors])
         for role in frames.cameras:
             images[role].append(seen[role])
-        t_next += period
-        late = clock.now() - t_next
-        worst = max(worst, late)
-        if late < 0:
-            clock.sleep(-late)
+        worst = max(worst, clock.now() - (t_next + period))
+        t_next = next_frame(t_next, period, clock)
     return TeleopEpisode(np.asarray(states, np.float32), np.asarray(actions, np.float32),
                          images, worst)
 

@@ -10,7 +10,9 @@ a terminal without waiting (no window system needed, as on a robot's own compute
 
 Each press moves the target by ``step_deg`` (the gripper by ``gripper_step_mm``), kept
 within the joints' limits; ``read()`` returns the target in the state's form. The target
-starts at the arm's ``look`` pose, gripper open.
+starts where the arm is when it is given (``begin_at``, as ``busarm record --teleop
+keyboard`` does), else at the arm's ``look`` pose, gripper open (the first action then
+takes the arm there, at its servos' speed).
 """
 
 from __future__ import annotations
@@ -67,6 +69,12 @@ class KeyboardJog:
             self._saved = termios.tcgetattr(self.fd)
             tty.setcbreak(self.fd)  # each key as it is pressed, not echoed
         return self
+
+    def begin_at(self, motors: dict[str, float]) -> None:
+        """Start (and ``h`` come back) where the arm is: ``motors`` in the state's form."""
+        self.start = [min(max(float(motors[m]), lo), hi)
+                      for m, lo, hi in zip(self.motors, self.low, self.high, strict=True)]
+        self.target = list(self.start)
 
     def read(self) -> dict[str, float]:
         """Every key pressed since the last read applied; the target now."""

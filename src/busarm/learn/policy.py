@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import json
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -70,6 +71,21 @@ class LoadedPolicy:
 
     def __repr__(self) -> str:
         return f"LoadedPolicy({self.type} from {self.path})"
+
+    @property
+    def cameras(self) -> list[str]:
+        """The cameras its inputs name (``observation.images.ROLE``), by role."""
+        prefix = "observation.images."
+        return [k[len(prefix):] for k in self.policy.config.input_features
+                if k.startswith(prefix)]
+
+    def check_motors(self, motors: Sequence[str]) -> None:
+        """ConfigError unless its actions are as long as ``motors`` (the robot's)."""
+        action = self.policy.config.output_features.get("action")
+        size = int(action.shape[0]) if action is not None else -1
+        if size != len(motors):
+            raise ConfigError(f"the policy at {self.path} acts on {size} values; this robot "
+                              f"takes {len(motors)} ({', '.join(motors)})")
 
     def reset(self) -> None:
         """A new episode: forget the actions queued from the last one."""

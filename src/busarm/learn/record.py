@@ -85,7 +85,10 @@ def record_expert(root: Path, *, task: str = "one-block", episodes: int = 10, se
     check_int_range("episodes", episodes, 1, 100_000)
     check_int_range("workers", workers, 1, MAX_WORKERS)
     check_int_range("fps", fps, 1, 100)
-    check_int_range("seed", seed, 0, HELD_OUT_SEED - episodes)
+    if not 0 <= seed <= HELD_OUT_SEED - episodes:
+        raise ConfigError(f"seed = {seed}: the tables {seed}..{seed + episodes - 1} must lie "
+                          f"in 0..{HELD_OUT_SEED - 1} (from {HELD_OUT_SEED} on they are kept "
+                          "for evaluation)")
     report = RecordReport(task, str(root), workers=workers)
     start = time.monotonic()
     config = TwinSpec().arm_config()  # the arm of the twin's tables
@@ -110,7 +113,7 @@ def record_expert(root: Path, *, task: str = "one-block", episodes: int = 10, se
         run_seeded(functools.partial(expert_episode, task, fps),
                    [seed + i for i in range(episodes)], workers, progress, describe, keep)
     report.seconds = time.monotonic() - start
-    if report.kept == 0:
+    if report.kept == 0:  # the writer left nothing behind
         raise ConfigError(f"no episode was kept ({report.episodes} run, none succeeded): "
                           f"{report.failures[:1]}")
     return report

@@ -20,7 +20,7 @@ import numpy as np
 from busarm.apps.pick_sort.sorter import PickSorter
 from busarm.errors import HaltedError
 from busarm.learn.expert import first_look
-from busarm.learn.frames import FrameRobot
+from busarm.learn.frames import FrameRobot, next_frame
 from busarm.learn.policy import LoadedPolicy
 from busarm.learn.tasks import is_done, task_state
 from busarm.progress import Progress, quiet
@@ -61,6 +61,7 @@ def rollout(frames: FrameRobot, policy: LoadedPolicy, *, seconds: float = 15.0,
             progress: Progress = quiet) -> RolloutReport:
     """Look, then let ``policy`` act on ``frames``' robot (opened here if it is not)."""
     check_range("seconds", seconds, 0.1, 3600.0, "s")
+    policy.check_motors(frames.motors)
     robot = frames.open()
     twin = robot.twin
     report = RolloutReport(f"{policy.type} policy from {policy.path}")
@@ -88,8 +89,7 @@ def rollout(frames: FrameRobot, policy: LoadedPolicy, *, seconds: float = 15.0,
             if twin is not None and is_done(twin, robot.bins):
                 report.ended = "done"
                 break
-            t_next += frames.limits.frame_s
-            robot.clock.sleep(max(0.0, t_next - robot.clock.now()))
+            t_next = next_frame(t_next, frames.limits.frame_s, robot.clock)
     except HaltedError as exc:
         report.ended = f"stopped: {exc}"
     report.seconds = robot.clock.now() - start

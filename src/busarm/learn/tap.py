@@ -2,9 +2,11 @@
 
 A ``ServoTap`` rides on the twin's physics (``Twin.physics_hooks``): every ``1/fps`` of
 simulated time it takes each servo's position as the bus would read it (the state) and
-where the servo's firmware is taking it then (the action: the command the servos follow),
-in the flat form's units (rad, the gripper's gap in mm). The program it watches (the
-expert's pick, a scripted move) runs unchanged, and no bus read is added to its own.
+its firmware's setpoint (where its move profile has the horn then). A frame's action is
+the next frame's setpoint: where the servos are to be one frame later, which a policy's
+action asks for and a move of one frame reaches (the last frame's, its own). Units are
+the flat form's (rad, the gripper's gap in mm). The program it watches (the expert's
+pick, a scripted move) runs unchanged, and no bus read is added to its own.
 """
 
 from __future__ import annotations
@@ -75,7 +77,9 @@ class ServoTap:
 
     @property
     def actions(self) -> npt.NDArray[np.float32]:
-        return np.asarray(self._actions, np.float32).reshape(len(self._actions), self._width)
+        """Each frame's action: the next frame's setpoints (the last frame: its own)."""
+        ahead = self._actions[1:] + self._actions[-1:]
+        return np.asarray(ahead, np.float32).reshape(len(ahead), self._width)
 
     @property
     def _width(self) -> int:

@@ -9,7 +9,6 @@ evaluation (``busarm record`` refuses them), so a policy is judged on tables it 
 
 from __future__ import annotations
 
-import math
 import random
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
@@ -48,6 +47,7 @@ floor is 2 mm up) counts as lying there."""
 
 
 def check_task(task: str) -> str:
+    """``task`` if it is one of ``TASKS``; ConfigError naming them otherwise."""
     if task not in TASKS:
         raise ConfigError(f"task = {task!r}; allowed: {', '.join(TASKS)}")
     return task
@@ -79,7 +79,7 @@ def task_state(target: Sighting | None, bins: Mapping[str, tuple[float, float]]
         return np.zeros(5, np.float32)
     loc = target.location
     bx, by = bins[target.color]
-    return np.array([loc.x_mm, loc.y_mm, math.fmod(loc.yaw_deg % 90.0, 90.0), bx, by],
+    return np.array([loc.x_mm, loc.y_mm, loc.yaw_deg % 90.0, bx, by],
                     np.float32)
 
 
