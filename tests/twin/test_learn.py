@@ -2,7 +2,7 @@
 from the servos, the task's state from its look), the twin as a gymnasium environment
 (the expert's actions replayed to success, a still arm never succeeding, gymnasium's own
 checks), and the frame-at-a-time robot (features known before it opens, every action
-clipped, the last command read back, a halted bus refusing)."""
+clipped, the last command read back, a halted bus refusing, closing stopping the arm)."""
 
 from __future__ import annotations
 
@@ -19,6 +19,7 @@ from busarm.learn.expert import EpisodeTask, run_expert
 from busarm.learn.features import DEFAULT_FPS, motor_names
 from busarm.learn.frames import ODOMETRY_KEYS, FrameRobot
 from busarm.learn.tasks import HELD_OUT_SEED, is_done, task_scene
+from busarm.protocol import Command
 from busarm.robot import CameraSpec, RobotConfig
 from busarm.robot.observation import BASE_KEYS
 from busarm.sim.spec import BoardSettings
@@ -169,3 +170,20 @@ def test_a_frame_robot_clips_reads_back_and_obeys_a_halt() -> None:
         assert np.allclose(frames.state(), held, atol=math.radians(0.5))
     finally:
         frames.close()
+
+
+def test_closing_a_frame_robot_that_moved_stops_the_arm() -> None:
+    frames = FrameRobot(RobotConfig(TwinSpec(blocks=0), camera=CameraSpec(calibrate=False)),
+                        cameras=())
+    robot = frames.open()
+    assert robot.twin is not None
+    stops: list[int] = []
+    robot.twin.bus.taps.append(
+        lambda r: stops.append(r.servo_id) if r.command is Command.MOVE_STOP else None)
+    start = frames.state()
+    for k in range(1, 6):  # a base turn under way, a frame at a time
+        frames.act({"base_yaw.pos": float(start[0]) + 0.15 * k})
+        robot.clock.sleep(0.05)
+    frames.close()
+    assert stops  # MOVE_STOP (broadcast or each servo): the arm holds where it was
+    assert frames.robot is None

@@ -16,10 +16,13 @@ from busarm.arm.config import load_arm_config
 from busarm.cli.main import cli
 from busarm.errors import BusArmError
 from busarm.learn.leader import LeaderArm
+from busarm.robot import ServoLine
 from busarm.sim.pty import PtyServer
 from busarm.sim.spec import SimSpec
 
 ARM = load_arm_config()
+MARGIN = ServoLine(timeout_margin_s=0.02)
+"""The pty is served by a thread of the test's process: its replies get a margin."""
 
 
 @pytest.mark.wallclock("a leader arm's servos behind a pty, read in a thread")
@@ -27,7 +30,7 @@ def test_a_leader_is_read_limp_and_in_the_background() -> None:
     lines = SimSpec(realtime=True).build()
     with PtyServer(lines) as server:
         path = server.path
-        with LeaderArm(path, config=ARM, background=True) as leader:
+        with LeaderArm(path, config=ARM, background=True, line=MARGIN) as leader:
             assert all(not lines.servo(sid).is_loaded for sid in ARM.servo_ids)  # limp
             elbow = ARM.joints[2]
             lines.servo(elbow.servo_id).move_by_hand(elbow.pulses_from_angle_deg(40.0),

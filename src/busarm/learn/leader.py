@@ -4,7 +4,8 @@ its joints, read at the follower's rate, are the follower's action.
 ``LeaderArm("/dev/ttyUSB1")`` (any busarm port: ``sim``, a pty of ``busarm sim serve``)
 opens it limp (``Arm.set_torque(False)``); ``read()`` gives the motors in the state's
 form (``NAME.pos`` in rad, ``gripper.gap_mm``) through its own calibration, which is
-what makes a leader of another build drive this one. Closing leaves its torque off.
+what makes a leader of another build drive this one; ``line`` how its servo line is
+driven (busarm.robot.ServoLine: a reply's margin, retries). Closing leaves its torque off.
 
 With ``background=True`` a thread reads the leader over and over (at most every
 ``READ_PERIOD_S``) and ``read()`` returns the newest reading at once: the leader's bus
@@ -22,7 +23,7 @@ from types import TracebackType
 from busarm.arm.config import ArmConfig
 from busarm.errors import BusTimeoutError, ConfigError
 from busarm.learn.features import motor_names
-from busarm.robot import ArmSpec, CameraSpec, Robot, RobotConfig
+from busarm.robot import ArmSpec, CameraSpec, Robot, RobotConfig, ServoLine
 
 __all__ = [
     "READ_PERIOD_S",
@@ -37,9 +38,10 @@ class LeaderArm:
     """``with LeaderArm(port) as leader: action = leader.read()``."""
 
     def __init__(self, port: str, *, config: ArmConfig | str | None = None,
-                 background: bool = False) -> None:
-        self.description = RobotConfig.from_port(port, arm=ArmSpec(config=config),
-                                                 camera=CameraSpec(calibrate=False))
+                 background: bool = False, line: ServoLine | None = None) -> None:
+        self.description = RobotConfig.from_port(
+            port, arm=ArmSpec(config=config, line=line or ServoLine()),
+            camera=CameraSpec(calibrate=False))
         self.background = background
         self.robot: Robot | None = None
         self.motors: tuple[str, ...] = ()
