@@ -12,7 +12,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from busarm.robot import CameraSpec, Robot, RobotConfig
+from busarm.robot import ArmSpec, CameraSpec, Robot, RobotConfig, ServoLine
 from with_lerobot.conftest import BIN, lerobot_env
 
 TIMEOUT_S = 300.0
@@ -42,7 +42,8 @@ def served_twin() -> Iterator[str]:
 
 def arm_on(path: str) -> dict[str, float]:
     """The served twin's joints (rad) and gripper gap (mm), read through its pty."""
-    with Robot.open(RobotConfig.from_port(path, camera=CameraSpec(calibrate=False))) as robot:
+    with Robot.open(RobotConfig.from_port(path, camera=CameraSpec(calibrate=False), arm=ArmSpec(
+            line=ServoLine(timeout_margin_s=0.05)))) as robot:
         return robot.get_observation(cameras=False, scan=False).as_dict()  # type: ignore[return-value]
 
 
@@ -51,6 +52,8 @@ def close_deg(a: float, b: float, tolerance_deg: float) -> bool:
 
 
 def replay_args(root: Path, repo_id: str, port: str, fps: int) -> list[str]:
+    # the twin's pty is served by another process, on a busy computer: a reply's margin
     return ["--robot.type=busarm", f"--robot.port={port}", "--robot.camera_roles=[]",
+            "--robot.timeout_margin_s=0.05",
             f"--robot.fps={fps}", f"--dataset.repo_id={repo_id}", f"--dataset.root={root}",
             "--dataset.episode=0", f"--dataset.fps={fps}", "--play_sounds=false"]

@@ -46,7 +46,9 @@ def test_lerobot_record_from_a_leader_then_replay(tmp_path: Path) -> None:
         done = run_script(
             "lerobot-record", "--robot.type=busarm", "--robot.port=twin",
             "--robot.camera_roles=[wrist]", "--teleop.type=busarm_leader",
-            f"--teleop.port={server.path}", "--dataset.repo_id=local/led",
+            # the leader's pty is served by this test's process, on a busy computer
+            f"--teleop.port={server.path}", "--teleop.timeout_margin_s=0.05",
+            "--dataset.repo_id=local/led",
             f"--dataset.root={root}", "--dataset.num_episodes=1",
             "--dataset.episode_time_s=3", "--dataset.reset_time_s=0",
             "--dataset.single_task=follow the leader", "--dataset.push_to_hub=false",

@@ -34,8 +34,11 @@ TASKS = ("one-block", "table")
               help="Busarm's own expert on seeded twin tables (pick-and-sort's planner).")
 @click.option("--leader", "leader_port", default=None, metavar="PORT",
               help="A leader arm (torque off, moved by hand) on this port drives the robot.")
-@click.option("--teleop", type=click.Choice(["dashboard", "keyboard"]), default=None,
-              help="A person drives the robot from the dashboard's jog or this terminal's keys.")
+@click.option("--teleop", type=click.Choice(["dashboard", "keyboard", "gamepad"]),
+              default=None, help="A person drives the robot from the dashboard's jog, this "
+                                 "terminal's keys or a gamepad (--gamepad).")
+@click.option("--gamepad", "gamepad_device", default="/dev/input/js0", show_default=True,
+              help="The gamepad's joystick device (--teleop gamepad).")
 @click.option("--task", type=click.Choice(TASKS), default="one-block", show_default=True,
               help="The expert's task: one block to its bin, or a whole table.")
 @click.option("--episodes", type=click.IntRange(1, 100_000), default=10, show_default=True,
@@ -58,9 +61,9 @@ TASKS = ("one-block", "table")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 @pass_settings
 def record(settings: Settings, out: Path, expert: str | None, leader_port: str | None,
-           teleop: str | None, task: str, episodes: int, seed: int, workers: int, fps: float,
-           episode_s: float, text: str | None, cameras: str, keep_failed: bool,
-           as_json: bool) -> None:
+           teleop: str | None, gamepad_device: str, task: str, episodes: int, seed: int,
+           workers: int, fps: float, episode_s: float, text: str | None, cameras: str,
+           keep_failed: bool, as_json: bool) -> None:
     """Record demonstrations into a new LeRobotDataset at OUT (a folder): busarm's expert
     on seeded twin tables (--expert pick-sort, many side by side), or a person driving
     the robot (--leader PORT, --teleop dashboard|keyboard; on --port, default a real-time
@@ -70,16 +73,17 @@ def record(settings: Settings, out: Path, expert: str | None, leader_port: str |
                                    ("--teleop", teleop)) if v is not None]
     if len(chosen) != 1:
         raise ConfigError("give one of --expert pick-sort, --leader PORT, --teleop "
-                          f"dashboard|keyboard (got {', '.join(chosen) or 'none'})")
+                          f"dashboard|keyboard|gamepad (got {', '.join(chosen) or 'none'})")
     ctx = click.get_current_context()
     theirs = ("task", "seed", "workers", "keep_failed") if expert is None else (
-        "episode_s", "text", "cameras")
-    given = [f"--{n.replace('_', '-')}" for n in theirs
+        "episode_s", "text", "cameras", "gamepad_device")
+    opts = {p.name: p.opts[0] for p in ctx.command.params}
+    given = [opts[n] for n in theirs
              if ctx.get_parameter_source(n) is click.core.ParameterSource.COMMANDLINE]
     if given:
         raise ConfigError(f"{', '.join(given)}: not for {chosen[0]} (the expert's: --task, "
                           "--seed, --workers, --keep-failed; a person's: --episode-s, "
-                          "--text, --cameras)")
+                          "--text, --cameras, --gamepad)")
     if expert is not None:
         from busarm.learn.record import record_expert
 
@@ -88,8 +92,8 @@ def record(settings: Settings, out: Path, expert: str | None, leader_port: str |
                                progress=_say(settings))
         click.echo(json.dumps(report.to_dict(), indent=2) if as_json else report.text())
         return
-    _record_person(settings, out, leader_port, teleop, episodes, round(fps), episode_s,
-                   text or "a person's demonstration",
+    _record_person(settings, out, leader_port, (teleop, gamepad_device), episodes, round(fps),
+                   episode_s, text or "a person's demonstration",
                    [c for c in cameras.split(",") if c], as_json)
 
 
@@ -110,7 +114,8 @@ def _description(settings: Settings, realtime: bool) -> Any:
 
 
 def _record_person(settings: Settings, out: Path, leader_port: str | None,
-                   teleop: str | None, episodes: int, fps: int, episode_s: float, text: str,
+                   teleop: tuple[str | None, str], episodes: int, fps: int, episode_s: float,
+                   text: str,
                    cameras: list[str], as_json: bool) -> None:
     from busarm.learn.dataset import DatasetWriter
     from busarm.learn.features import Features
@@ -135,17 +140,28 @@ def _record_person(settings: Settings, out: Path, leader_port: str | None,
 
 
 @contextmanager
-def _source(frames: Any, leader_port: str | None, teleop: str | None, say: Any
+def _source(frames: Any, leader_port: str | None, teleop: tuple[str | None, str], say: Any
             ) -> Iterator[Any]:
-    """What drives the robot: a leader arm, the keyboard, or the dashboard (served on the
-    robot here while recording; None: the action kept is where the jog told the arm)."""
+    """What drives the robot: a leader arm, the keyboard, a gamepad, or the dashboard
+    (served on the robot here while recording; None: the action kept is where the jog
+    told the arm)."""
+    kind, device = teleop
     if leader_port is not None:
         from busarm.learn.leader import LeaderArm
 
         with LeaderArm(leader_port, config=frames.config) as leader:
             yield leader.read
         return
-    if teleop == "keyboard":
+    if kind == "gamepad":
+        from busarm.learn.gamepad import GamepadJog
+
+        say("gamepad: the sticks and the d-pad turn the joints, A/B close/open, Start back")
+        with GamepadJog(frames.config, device=device) as pad:
+            frames.open()
+            pad.begin_at(dict(zip(frames.motors, frames.state().tolist(), strict=True)))
+            yield pad.read
+        return
+    if kind == "keyboard":
         from busarm.learn.keyboard import KeyboardJog
 
         if not sys.stdin.isatty():

@@ -27,7 +27,7 @@ from types import TracebackType
 from typing import Any
 
 from busarm.arm.config import ArmConfig
-from busarm.learn.features import motor_names
+from busarm.learn.jog_target import JogTarget
 from busarm.units import check_range
 
 __all__ = [
@@ -50,14 +50,8 @@ class KeyboardJog:
         check_range("gripper_step_mm", gripper_step_mm, 0.1, 30.0, "mm")
         self.config = config
         self.fd = sys.stdin.fileno() if fd is None else fd
-        self.motors = tuple(motor_names(config))
+        self.jog = JogTarget(config)
         self.steps = [math.radians(step_deg)] * len(config.joints) + [gripper_step_mm]
-        self.low = [math.radians(j.min_deg) for j in config.joints] + [0.0]
-        self.high = [math.radians(j.max_deg) for j in config.joints] + [
-            config.gripper.widest_gap_mm]
-        self.start = [math.radians(a) for a in config.pose("look")] + [
-            config.gripper.widest_gap_mm]
-        self.target = list(self.start)
         self.presses = 0
         self._saved: list[Any] | None = None
 
@@ -72,9 +66,7 @@ class KeyboardJog:
 
     def begin_at(self, motors: dict[str, float]) -> None:
         """Start (and ``h`` come back) where the arm is: ``motors`` in the state's form."""
-        self.start = [min(max(float(motors[m]), lo), hi)
-                      for m, lo, hi in zip(self.motors, self.low, self.high, strict=True)]
-        self.target = list(self.start)
+        self.jog.begin_at(motors)
 
     def read(self) -> dict[str, float]:
         """Every key pressed since the last read applied; the target now."""
@@ -84,15 +76,14 @@ class KeyboardJog:
                 break
             for key in data.decode("ascii", "ignore").lower():
                 self._press(key)
-        return dict(zip(self.motors, self.target, strict=True))
+        return self.jog.values()
 
     def _press(self, key: str) -> None:
         if key == HOME_KEY:
-            self.target = list(self.start)
+            self.jog.home()
         elif key in KEYS:
             k, sign = KEYS[key]
-            self.target[k] = min(max(self.target[k] + sign * self.steps[k], self.low[k]),
-                                 self.high[k])
+            self.jog.nudge(k, sign * self.steps[k])
         else:
             return
         self.presses += 1

@@ -1,5 +1,5 @@
 """busarm in LeRobot: the robot (``--robot.type=busarm``), its teleoperators
-(``busarm_leader``, ``busarm_keyboard``) and the twin as an environment
+(``busarm_leader``, ``busarm_keyboard``, ``busarm_gamepad``) and the twin as an environment
 (``--env.type=busarm``, gymnasium ids ``lerobot_robot_busarm/OneBlock-v0`` and
 ``lerobot_robot_busarm/Table-v0``). LeRobot imports this distribution by its name
 (``register_third_party_plugins``); the classes register themselves on import."""
@@ -9,11 +9,12 @@ from __future__ import annotations
 import gymnasium as gym
 
 from lerobot_robot_busarm.busarm_robot import Busarm
-from lerobot_robot_busarm.busarm_teleop import BusarmKeyboard, BusarmLeader
+from lerobot_robot_busarm.busarm_teleop import BusarmGamepad, BusarmKeyboard, BusarmLeader
 from lerobot_robot_busarm.config_busarm import (
     GYM_PACKAGE,
     BusarmConfig,
     BusarmEnv,
+    BusarmGamepadConfig,
     BusarmKeyboardConfig,
     BusarmLeaderConfig,
 )
@@ -22,6 +23,8 @@ __all__ = [
     "Busarm",
     "BusarmConfig",
     "BusarmEnv",
+    "BusarmGamepad",
+    "BusarmGamepadConfig",
     "BusarmKeyboard",
     "BusarmKeyboardConfig",
     "BusarmLeader",

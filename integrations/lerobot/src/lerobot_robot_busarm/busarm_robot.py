@@ -27,6 +27,10 @@ def description_of(config: BusarmConfig) -> RobotConfig:
     world = description.world
     if isinstance(world, TwinSpec) and config.realtime and not world.realtime:
         description = replace(description, world=replace(world, realtime=True))
+    if config.timeout_margin_s is not None:
+        arm = description.arm
+        description = replace(description, arm=replace(arm, line=replace(
+            arm.line, timeout_margin_s=config.timeout_margin_s)))
     return description
 
 

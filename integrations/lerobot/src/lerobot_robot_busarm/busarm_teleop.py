@@ -1,5 +1,6 @@
-"""busarm's teleoperators for LeRobot: a leader arm of LX servos (torque off) and the
-keyboard of a terminal (busarm.learn.leader, busarm.learn.keyboard)."""
+"""busarm's teleoperators for LeRobot: a leader arm of LX servos (torque off), the keyboard
+of a terminal and a gamepad (busarm.learn.leader, busarm.learn.keyboard,
+busarm.learn.gamepad)."""
 
 from __future__ import annotations
 
@@ -10,11 +11,17 @@ from lerobot.teleoperators.teleoperator import Teleoperator
 
 from busarm.arm.config import load_arm_config
 from busarm.learn.features import motor_names
+from busarm.learn.gamepad import GamepadJog
 from busarm.learn.keyboard import KeyboardJog
 from busarm.learn.leader import LeaderArm
-from lerobot_robot_busarm.config_busarm import BusarmKeyboardConfig, BusarmLeaderConfig
+from busarm.robot import ServoLine
+from lerobot_robot_busarm.config_busarm import (
+    BusarmGamepadConfig,
+    BusarmKeyboardConfig,
+    BusarmLeaderConfig,
+)
 
-__all__ = ["BusarmKeyboard", "BusarmLeader"]
+__all__ = ["BusarmGamepad", "BusarmKeyboard", "BusarmLeader"]
 
 
 class BusarmLeader(Teleoperator):  # type: ignore[misc]
@@ -26,7 +33,8 @@ class BusarmLeader(Teleoperator):  # type: ignore[misc]
     def __init__(self, config: BusarmLeaderConfig) -> None:
         super().__init__(config)
         self.config = config
-        self.leader = LeaderArm(config.port, config=config.arm_config, background=True)
+        self.leader = LeaderArm(config.port, config=config.arm_config, background=True,
+                                line=ServoLine(timeout_margin_s=config.timeout_margin_s))
         self.motors = motor_names(load_arm_config(config.arm_config)
                                   if config.arm_config else load_arm_config())
 
@@ -122,3 +130,56 @@ class BusarmKeyboard(Teleoperator):  # type: ignore[misc]
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
+
+
+class BusarmGamepad(Teleoperator):  # type: ignore[misc]
+    """``--teleop.type=busarm_gamepad --teleop.device=/dev/input/js0``."""
+
+    config_class = BusarmGamepadConfig
+    name = "busarm_gamepad"
+
+    def __init__(self, config: BusarmGamepadConfig) -> None:
+        super().__init__(config)
+        self.config = config
+        self.arm_config = (load_arm_config(config.arm_config) if config.arm_config
+                           else load_arm_config())
+        self.pad: GamepadJog | None = None
+
+    @property
+    def action_features(self) -> dict[str, type]:
+        return {name: float for name in motor_names(self.arm_config)}
+
+    @property
+    def feedback_features(self) -> dict[str, type]:
+        return {}
+
+    @property
+    def is_connected(self) -> bool:
+        return self.pad is not None
+
+    def connect(self, calibrate: bool = True) -> None:
+        self.pad = GamepadJog(self.arm_config, device=self.config.device,
+                              speed_deg_s=self.config.speed_deg_s).open()
+
+    @property
+    def is_calibrated(self) -> bool:
+        return True
+
+    def calibrate(self) -> None:
+        """A gamepad needs none (its dead zone is busarm's)."""
+
+    def configure(self) -> None:
+        """Nothing to set."""
+
+    def get_action(self) -> dict[str, float]:
+        if self.pad is None:
+            raise ConnectionError("the gamepad is not connected")
+        return self.pad.read()
+
+    def send_feedback(self, feedback: dict[str, Any]) -> None:
+        """No rumble: nothing to give."""
+
+    def disconnect(self) -> None:
+        if self.pad is not None:
+            self.pad.close()
+            self.pad = None

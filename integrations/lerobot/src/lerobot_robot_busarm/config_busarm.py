@@ -12,12 +12,14 @@ from lerobot.robots.config import RobotConfig
 from lerobot.teleoperators.config import TeleoperatorConfig
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
+from busarm.bus.driver import DEFAULT_TIMEOUT_MARGIN_S
 from busarm.learn.features import DEFAULT_FPS, TASK_STATE_NAMES
 
 __all__ = [
     "GYM_PACKAGE",
     "BusarmConfig",
     "BusarmEnv",
+    "BusarmGamepadConfig",
     "BusarmKeyboardConfig",
     "BusarmLeaderConfig",
 ]
@@ -42,16 +44,20 @@ class BusarmConfig(RobotConfig):
     camera_height: int = 480
     fps: int = DEFAULT_FPS
     realtime: bool = True
+    timeout_margin_s: float | None = None
+    """Added to each servo reply's deadline (None: the robot description's)."""
 
 
 @TeleoperatorConfig.register_subclass("busarm_leader")
 @dataclass(kw_only=True)
 class BusarmLeaderConfig(TeleoperatorConfig):
     """A second arm of LX servos, its torque off, moved by hand: ``port`` its bus (a
-    serial device, or a busarm port)."""
+    serial device, or a busarm port); ``timeout_margin_s`` added to each reply's deadline
+    (a slow adapter, or a simulated leader on a busy computer)."""
 
     port: str
     arm_config: str | None = None
+    timeout_margin_s: float = DEFAULT_TIMEOUT_MARGIN_S
 
 
 @TeleoperatorConfig.register_subclass("busarm_keyboard")
@@ -101,3 +107,14 @@ class BusarmEnv(EnvConfig):
     def gym_kwargs(self) -> dict[str, object]:
         return {"obs_type": self.obs_type, "render_mode": self.render_mode,
                 "fps": self.fps, "max_episode_steps": self.episode_length}
+
+
+@TeleoperatorConfig.register_subclass("busarm_gamepad")
+@dataclass(kw_only=True)
+class BusarmGamepadConfig(TeleoperatorConfig):
+    """A gamepad through Linux's joystick device (busarm.learn.gamepad): the sticks and
+    the d-pad turn the joints at up to ``speed_deg_s``, A and B close and open."""
+
+    device: str = "/dev/input/js0"
+    speed_deg_s: float = 45.0
+    arm_config: str | None = None
