@@ -1,11 +1,12 @@
 """busarm's teleoperators for LeRobot: a leader arm of LX servos (torque off), the keyboard
 of a terminal and a gamepad (busarm.learn.leader, busarm.learn.keyboard,
-busarm.learn.gamepad)."""
+busarm.learn.gamepad). Each gives the robot's motors in the state's form; none gives or
+takes feedback, and none has a calibration of LeRobot's (busarm's are its own)."""
 
 from __future__ import annotations
 
 import os
-from typing import Any
+from typing import Any, Protocol
 
 from lerobot.teleoperators.teleoperator import Teleoperator
 
@@ -24,23 +25,29 @@ from lerobot_robot_busarm.config_busarm import (
 __all__ = ["BusarmGamepad", "BusarmKeyboard", "BusarmLeader"]
 
 
-class BusarmLeader(Teleoperator):  # type: ignore[misc]
-    """``--teleop.type=busarm_leader --teleop.port=/dev/ttyUSB1``."""
+class _Source(Protocol):
+    def read(self) -> dict[str, float]: ...
 
-    config_class = BusarmLeaderConfig
-    name = "busarm_leader"
+    def close(self) -> None: ...
 
-    def __init__(self, config: BusarmLeaderConfig) -> None:
+
+class _BusarmTeleop(Teleoperator):  # type: ignore[misc]
+    """What busarm's teleoperators share: the arm's motors as the action, no feedback, no
+    calibration of LeRobot's; ``_open`` gives what is read each frame."""
+
+    def __init__(self, config: Any) -> None:
         super().__init__(config)
         self.config = config
-        self.leader = LeaderArm(config.port, config=config.arm_config, background=True,
-                                line=ServoLine(timeout_margin_s=config.timeout_margin_s))
-        self.motors = motor_names(load_arm_config(config.arm_config)
-                                  if config.arm_config else load_arm_config())
+        self.arm_config = (load_arm_config(config.arm_config) if config.arm_config
+                           else load_arm_config())
+        self.source: _Source | None = None
+
+    def _open(self) -> _Source:
+        raise NotImplementedError
 
     @property
     def action_features(self) -> dict[str, type]:
-        return {name: float for name in self.motors}
+        return {name: float for name in motor_names(self.arm_config)}
 
     @property
     def feedback_features(self) -> dict[str, type]:
@@ -48,138 +55,81 @@ class BusarmLeader(Teleoperator):  # type: ignore[misc]
 
     @property
     def is_connected(self) -> bool:
-        return self.leader.robot is not None
+        return self.source is not None
 
     def connect(self, calibrate: bool = True) -> None:
-        self.leader.open()
+        self.source = self._open()
 
     @property
     def is_calibrated(self) -> bool:
         return True
 
     def calibrate(self) -> None:
-        """busarm's joint calibration is its own (``busarm arm calibrate`` on the leader)."""
+        """Nothing of LeRobot's: a leader's joint calibration is busarm's own (``busarm
+        arm calibrate``), a keyboard or gamepad needs none."""
 
     def configure(self) -> None:
-        """Nothing to set: the leader is opened limp."""
+        """Nothing to set."""
 
     def get_action(self) -> dict[str, float]:
-        return self.leader.read()
+        if self.source is None:
+            raise ConnectionError(f"{self.name} is not connected")
+        return self.source.read()
 
     def send_feedback(self, feedback: dict[str, Any]) -> None:
-        """A leader arm has no feedback to give."""
+        """Nothing to give feedback to."""
 
     def disconnect(self) -> None:
-        self.leader.close()
+        if self.source is not None:
+            source, self.source = self.source, None
+            source.close()
 
 
-class BusarmKeyboard(Teleoperator):  # type: ignore[misc]
+class BusarmLeader(_BusarmTeleop):
+    """``--teleop.type=busarm_leader --teleop.port=/dev/ttyUSB1``: opened limp, read in the
+    background."""
+
+    config_class = BusarmLeaderConfig
+    name = "busarm_leader"
+
+    def _open(self) -> _Source:
+        return LeaderArm(self.config.port, config=self.config.arm_config, background=True,
+                         line=ServoLine(timeout_margin_s=self.config.timeout_margin_s)).open()
+
+
+class _Terminal:
+    """The keyboard on a terminal device of its own (``tty``) or this one's."""
+
+    def __init__(self, config: BusarmKeyboardConfig, arm_config: Any) -> None:
+        self.fd = (os.open(config.tty, os.O_RDONLY | os.O_NOCTTY) if config.tty else None)
+        self.jog = KeyboardJog(arm_config, fd=self.fd, step_deg=config.step_deg,
+                               gripper_step_mm=config.gripper_step_mm).open()
+
+    def read(self) -> dict[str, float]:
+        return self.jog.read()
+
+    def close(self) -> None:
+        self.jog.close()
+        if self.fd is not None:
+            os.close(self.fd)
+
+
+class BusarmKeyboard(_BusarmTeleop):
     """``--teleop.type=busarm_keyboard``: keys of the terminal (busarm.learn.keyboard)."""
 
     config_class = BusarmKeyboardConfig
     name = "busarm_keyboard"
 
-    def __init__(self, config: BusarmKeyboardConfig) -> None:
-        super().__init__(config)
-        self.config = config
-        self._fd: int | None = None
-        self.jog: KeyboardJog | None = None
-        self.arm_config = (load_arm_config(config.arm_config) if config.arm_config
-                           else load_arm_config())
-
-    @property
-    def action_features(self) -> dict[str, type]:
-        return {name: float for name in motor_names(self.arm_config)}
-
-    @property
-    def feedback_features(self) -> dict[str, type]:
-        return {}
-
-    @property
-    def is_connected(self) -> bool:
-        return self.jog is not None
-
-    def connect(self, calibrate: bool = True) -> None:
-        if self.config.tty:
-            self._fd = os.open(self.config.tty, os.O_RDONLY | os.O_NOCTTY)
-        self.jog = KeyboardJog(self.arm_config, fd=self._fd, step_deg=self.config.step_deg,
-                               gripper_step_mm=self.config.gripper_step_mm).open()
-
-    @property
-    def is_calibrated(self) -> bool:
-        return True
-
-    def calibrate(self) -> None:
-        """A keyboard needs none."""
-
-    def configure(self) -> None:
-        """Nothing to set."""
-
-    def get_action(self) -> dict[str, float]:
-        if self.jog is None:
-            raise ConnectionError("the keyboard is not connected")
-        return self.jog.read()
-
-    def send_feedback(self, feedback: dict[str, Any]) -> None:
-        """A keyboard has no feedback to give."""
-
-    def disconnect(self) -> None:
-        if self.jog is not None:
-            self.jog.close()
-            self.jog = None
-        if self._fd is not None:
-            os.close(self._fd)
-            self._fd = None
+    def _open(self) -> _Source:
+        return _Terminal(self.config, self.arm_config)
 
 
-class BusarmGamepad(Teleoperator):  # type: ignore[misc]
+class BusarmGamepad(_BusarmTeleop):
     """``--teleop.type=busarm_gamepad --teleop.device=/dev/input/js0``."""
 
     config_class = BusarmGamepadConfig
     name = "busarm_gamepad"
 
-    def __init__(self, config: BusarmGamepadConfig) -> None:
-        super().__init__(config)
-        self.config = config
-        self.arm_config = (load_arm_config(config.arm_config) if config.arm_config
-                           else load_arm_config())
-        self.pad: GamepadJog | None = None
-
-    @property
-    def action_features(self) -> dict[str, type]:
-        return {name: float for name in motor_names(self.arm_config)}
-
-    @property
-    def feedback_features(self) -> dict[str, type]:
-        return {}
-
-    @property
-    def is_connected(self) -> bool:
-        return self.pad is not None
-
-    def connect(self, calibrate: bool = True) -> None:
-        self.pad = GamepadJog(self.arm_config, device=self.config.device,
-                              speed_deg_s=self.config.speed_deg_s).open()
-
-    @property
-    def is_calibrated(self) -> bool:
-        return True
-
-    def calibrate(self) -> None:
-        """A gamepad needs none (its dead zone is busarm's)."""
-
-    def configure(self) -> None:
-        """Nothing to set."""
-
-    def get_action(self) -> dict[str, float]:
-        if self.pad is None:
-            raise ConnectionError("the gamepad is not connected")
-        return self.pad.read()
-
-    def send_feedback(self, feedback: dict[str, Any]) -> None:
-        """No rumble: nothing to give."""
-
-    def disconnect(self) -> None:
-        if self.pad is not None:
-            self.pad.close()
-            self.pad = None
+    def _open(self) -> _Source:
+        return GamepadJog(self.arm_config, device=self.config.device,
+                          speed_deg_s=self.config.speed_deg_s).open()
