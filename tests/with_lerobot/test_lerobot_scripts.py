@@ -122,7 +122,7 @@ def test_the_dashboard_stops_a_rollout(tmp_path: Path) -> None:
     try:
         url = _dashboard_url(proc)
         with connect(url.replace("http", "ws") + "ws", open_timeout=10) as ws:
-            time.sleep(1.0)  # the policy acting
+            _said(proc, "looked: ")  # the policy acts from here on
             ws.send('{"type": "estop"}')
         stdout, stderr = proc.communicate(timeout=60)
     finally:
