@@ -275,7 +275,7 @@ op_to = st.one_of(
 )
 line_kw = st.fixed_dictionaries({
     "speed_mm_s": st.floats(60.0, 1000.0),
-    "profile": st.sampled_from(["min_jerk", "trapezoidal", "linear"]),
+    "profile": st.sampled_from(["min_jerk", "trapezoidal", "linear", "time_optimal"]),
     "rate_hz": st.sampled_from([10.0, 25.0, 50.0, 100.0]),
 })
 op_line_near = st.tuples(st.just("line"), near_x, near_y, near_z, near_pitch, line_kw)
@@ -283,7 +283,7 @@ op_line = st.tuples(
     st.just("line"), coord, coord, st.floats(-150, 550), pitch,
     st.fixed_dictionaries({
         "speed_mm_s": st.floats(60.0, 1000.0),
-        "profile": st.sampled_from(["min_jerk", "trapezoidal", "linear"]),
+        "profile": st.sampled_from(["min_jerk", "trapezoidal", "linear", "time_optimal"]),
         "rate_hz": st.sampled_from([10.0, 25.0, 50.0, 100.0]),
     }),
 )
@@ -381,6 +381,26 @@ def test_grip_on_a_block_is_holding(rig: Rig) -> None:
     result = rig.arm.grip()
     assert result.is_holding
     assert abs(result.position_pulses - 540) <= 3, result
+
+
+def test_grip_on_a_block_ends_once_the_fingers_stall_short_of_their_ramp() -> None:
+    # The servo follows an even ramp to closed (grip_time_s for the full travel); fingers
+    # that stop on a block while the ramp runs on are blocked: no waiting out the ramp.
+    rig = make_rig(way="inproc")
+    try:
+        g = rig.config.gripper
+        rig.arm.open_gripper()
+        rig.sim.put_block_in_gripper()
+        t0 = rig.sim.clock.now()
+        result = rig.arm.grip()
+        took_s = rig.sim.clock.now() - t0
+        # The fingers meet the block at 340/500 of the ramp, then three still polls and
+        # two hold moves (HOLD_MOVE_S each); the ramp's end alone is 0.6 s + 0.1 s away.
+        ramp_s = g.grip_time_s * abs(g.closed_pulses - g.open_pulses) / 500
+        assert result.is_holding
+        assert took_s < ramp_s + 0.1, took_s
+    finally:
+        rig.close()
 
 
 def test_grip_on_nothing_is_not_holding(rig: Rig) -> None:

@@ -189,6 +189,7 @@ BAD_INPUT = [
     ["limits", "1", "--temp", "120"],
     ["led", "1", "--alarms", "fire"],
     ["scan", "--ids", "0-300"],
+    ["scan", "--margin-ms", "500"],
     ["monitor", "--ids", "1", "--count", "0"],
     ["frobnicate"],
     ["--retries", "99", "scan"],
@@ -260,6 +261,12 @@ def test_scan_finds_the_arm() -> None:
     assert result.exit_code == 0, result.stderr
     assert "found 6 servo(s): 1, 2, 3, 4, 5, 10" in result.stdout
     assert "11.10" in result.stdout  # supply voltage column
+
+
+def test_scan_with_a_wider_margin_still_finds_the_arm() -> None:
+    result = run("scan", "--ids", "0-20", "--margin-ms", "5")
+    assert result.exit_code == 0, result.stderr
+    assert "found 6 servo(s): 1, 2, 3, 4, 5, 10" in result.stdout
 
 
 def test_scan_reports_duplicate_ids(sim_servos: SimFactory) -> None:

@@ -241,6 +241,7 @@ def test_a_benchmark_exits_1_when_it_prints_fail(monkeypatch: pytest.MonkeyPatch
 
 def test_the_vision_benchmark_counts_its_own_fail(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr("busarm.bench.vision.TARGET_SPEEDUP", 0.0)  # met, however busy
+    monkeypatch.setattr("busarm.bench.vision.TARGET_CLUTTER_FPS", 0.0)  # met, however busy
     monkeypatch.setattr("busarm.bench.vision.TARGET_LOCATE_FPS", 1e12)  # out of reach
     result = run("bench", "vision", "--pictures", "1", "--seconds", "0.5")
     assert one_error(result, 1) == "error: 1 target(s) missed: FAIL in the report"

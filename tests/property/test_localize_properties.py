@@ -20,8 +20,9 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from busarm.errors import VisionError
+from busarm.vision import localize
 from busarm.vision.calibration.camera_model import CameraIntrinsics
-from busarm.vision.localize import locate_block, table_points_from_pixels
+from busarm.vision.localize import locate_block, locate_blocks, table_points_from_pixels
 
 Array = npt.NDArray[np.float64]
 PROPS = settings(max_examples=60, deadline=None, derandomize=True)
@@ -154,3 +155,31 @@ def test_silhouette_gives_the_cube_back(
                        yaw_deg=yaw)
     assert math.hypot(loc.x_mm - spot[0], loc.y_mm - spot[1]) < 0.01
     assert loc.z_mm == table + size and loc.residual_px < 0.01
+
+
+@PROPS
+@given(cameras(), poses(), st.lists(st.tuples(st.floats(0.1, 0.9), st.floats(0.1, 0.9),
+                                              st.floats(0.0, 90.0)), min_size=1, max_size=4))
+def test_the_start_changes_no_answer(
+    intr: CameraIntrinsics, cam2base: Array, blobs: list[tuple[float, float, float]]
+) -> None:
+    # The solve from the estimated start (and with the Jacobian kept near the answer)
+    # ends where the one from the plain start (the measured pixel) does.
+    px = np.array([[60.0 + 520.0 * fu, 60.0 + 360.0 * fv] for fu, fv, _ in blobs])
+    yaws = [yaw for _, _, yaw in blobs]
+    try:
+        plain_start = localize._better_start
+        localize._better_start = lambda *args: None
+        try:
+            plain = locate_blocks(px, intr, cam2base, yaw_deg=yaws)
+        finally:
+            localize._better_start = plain_start
+    except VisionError:
+        assume(False)
+        raise
+    got = locate_blocks(px, intr, cam2base, yaw_deg=yaws)
+    for a, b in zip(plain, got, strict=True):
+        assert math.hypot(a.x_mm - b.x_mm, a.y_mm - b.y_mm) < 1e-3
+        assert b.residual_px < 0.01
+    stacked = localize._yaw_matrices(yaws)
+    assert np.abs(stacked - np.stack([localize._yaw_matrix(y) for y in yaws])).max() < 1e-15

@@ -68,12 +68,13 @@ def test_free_lines_at_pick_sort_speeds_never_trip(robot: Robot) -> None:
     lines = worst = 0.0
     for x, y, pitch in ((150, -100, -90), (150, 100, -90), (200, 0, -90), (230, -60, -90),
                         (260, 80, -45), (280, -20, -45)):
-        for speed in SPEEDS_MM_S:
+        for speed, profile in [*((v, "min_jerk") for v in SPEEDS_MM_S), (200.0, "time_optimal")]:
             arm.move_to(x, y, APPROACH_Z_MM + 15, pitch, 0.0, speed_deg_s=180.0)
             low = GRASP_Z_MM if pitch == -90 else 40.0  # a tilted pad's corner is lower
             aside = (x, y + (40 if y <= 0 else -40), APPROACH_Z_MM)
             for target in ((x, y, low), (x, y, APPROACH_Z_MM + 15), aside):
-                move = arm.move_line_guarded(*target, pitch, 0.0, speed_mm_s=speed)
+                move = arm.move_line_guarded(*target, pitch, 0.0, speed_mm_s=speed,
+                                             profile=profile)
                 lines += 1
                 worst = max(worst, move.worst_lag_fraction)
                 assert move.late_s < 1e-3, "the readings delayed a waypoint"
@@ -83,10 +84,12 @@ def test_free_lines_at_pick_sort_speeds_never_trip(robot: Robot) -> None:
     assert lines >= 20 and worst < 0.6
 
 
-@pytest.mark.parametrize("speed_mm_s", SPEEDS_MM_S)
+@pytest.mark.parametrize(("speed_mm_s", "profile"),
+                         [*((speed, "min_jerk") for speed in SPEEDS_MM_S),
+                          (200.0, "time_optimal")])  # pick-and-sort's descent
 @pytest.mark.parametrize("landing", ["fingers_closed", "one_finger"])
 def test_fingers_landing_on_a_block_trip_and_the_arm_backs_off(
-        robot: Robot, landing: str, speed_mm_s: float) -> None:
+        robot: Robot, landing: str, speed_mm_s: float, profile: str) -> None:
     arm, twin, clock = robot.arm, robot.twin, robot.clock
     assert twin is not None
     x, y = (190.0, -40.0) if landing == "one_finger" else (210.0, 50.0)
@@ -107,7 +110,8 @@ def test_fingers_landing_on_a_block_trip_and_the_arm_backs_off(
     clock.attach(touch)
     try:
         with pytest.raises(ContactError) as caught:
-            arm.move_line_guarded(x, y, GRASP_Z_MM, -90.0, 0.0, speed_mm_s=speed_mm_s)
+            arm.move_line_guarded(x, y, GRASP_Z_MM, -90.0, 0.0, speed_mm_s=speed_mm_s,
+                                  profile=profile)
     finally:
         clock.detach(touch)
     e = caught.value

@@ -342,8 +342,12 @@ def test_a_robot_kidnapped_mid_trip_stops_or_recovers_touching_nothing(
 def test_a_robot_shoved_mid_trip_finds_itself_again_and_arrives(mapped: Mapped) -> None:
     shoved: list[Pose2D] = []
 
-    def shove(robot: Robot, nav: Navigator) -> None:  # a person bumps it 0.25 m aside
-        if not shoved and len(nav.trips) == 1 and len(nav.trips[0].path) == 12:
+    # A person bumps it 0.25 m aside 1.6 s into the trip. (Where the bump lands decides
+    # whether the scans stop fitting: on some stretches of this room half of them still
+    # fit, and the filter finds itself without stopping. 1.6 s in, at the speed the base
+    # drives now, it is past them.)
+    def shove(robot: Robot, nav: Navigator) -> None:
+        if not shoved and len(nav.trips) == 1 and len(nav.trips[0].path) == 16:
             here = true_pose(robot)
             to = compose(here, Pose2D(0.0, 0.25, math.radians(8.0)))
             teleport(robot, to)

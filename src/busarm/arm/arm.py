@@ -224,10 +224,11 @@ class Arm(ArmServos):
 
         Keyword arguments are move_joints'.
         """
-        joints, _ = self.solve(
-            x_mm, y_mm, z_mm, pitch_deg, roll_deg, current_deg=self.read_joints_deg()
-        )
-        self.move_joints(joints, **kwargs)  # type: ignore[arg-type]
+        with self._lock:
+            current = self.read_joints_deg()
+            joints, _ = self.solve(x_mm, y_mm, z_mm, pitch_deg, roll_deg, current_deg=current)
+            kwargs.setdefault("read_deg", current)  # (just read: not read again)
+            self.move_joints(joints, **kwargs)  # type: ignore[arg-type]
         return joints
 
     def plan_line(
@@ -358,16 +359,26 @@ class Arm(ArmServos):
         self._hold_pulses = None  # (a hold is told by _hold_at only)
         self.bus.move_deg(g.servo_id, self.model.deg_from_pulses(position_pulses), duration_s)
 
-    def open_gripper(self, *, wait: bool = True, gap_mm: float | None = None) -> int:
+    def open_gripper(self, *, wait: bool = True, gap_mm: float | None = None,
+                     until_gap_mm: float | None = None) -> int:
         """Open the gripper fully, or until the fingers are ``gap_mm`` apart (no wider than
-        a grasp needs, to miss a neighbour); returns its position in pulses."""
+        a grasp needs, to miss a neighbour); returns its position in pulses (its target
+        if not waited for). ``until_gap_mm``: wait only until they are that far apart
+        (a released block is free), the opening going on."""
         g = self.config.gripper
         target = g.open_pulses if gap_mm is None else g.pulses_for_gap_mm(gap_mm)
         duration = self._gripper_travel_s(target)
         self._guarded(lambda: self._gripper_move(target, duration))
-        if wait:
-            return self._settle_gripper(target, duration)
-        return target
+        if not wait:
+            return target
+        if until_gap_mm is not None:
+            deadline = self.clock.now() + duration + 0.1
+            while self.clock.now() < deadline:
+                now = self.bus.read_position_pulses(g.servo_id)
+                if g.gap_mm_at(now) >= until_gap_mm:
+                    return now
+                self.clock.sleep(0.02)
+        return self._settle_gripper(target, duration)
 
     def grip(self, position_pulses: int | None = None) -> GripResult:
         """Close (to ``position_pulses``, default fully closed) and tell whether it holds.
@@ -459,14 +470,18 @@ class Arm(ArmServos):
     def _settle_gripper(self, target: int, duration_s: float) -> int:
         """Wait for the gripper to arrive or stop moving (blocked); its final position."""
         g = self.config.gripper
-        move_end = self.clock.now() + duration_s + 0.1
+        sent = self.clock.now()
+        move_end = sent + duration_s + 0.1
         deadline = move_end + 2.0
-        self.clock.sleep(min(duration_s, 0.05))
-        last = self.bus.read_position_pulses(g.servo_id)
+        start = last = self.bus.read_position_pulses(g.servo_id)
         # Closing, it must arrive nearer than a hold's squeeze (else a gripper still
         # closing on nothing would read as holding); opening, a little short will do.
         closing = (g.closed_pulses - g.open_pulses) * (target - last) > 0
         near = HOLD_MIN_PULSES - 1 if closing else g.holding_margin_pulses // 4 + 1
+        if abs(last - target) <= near:
+            return last  # there already (opened while the arm moved)
+        way = 1 if target > start else -1
+        self.clock.sleep(min(duration_s, 0.05))
         still = 0
         while self.clock.now() < deadline:
             self.clock.sleep(0.03)
@@ -474,8 +489,11 @@ class Arm(ArmServos):
             if abs(now - target) <= near:
                 return now
             still = still + 1 if abs(now - last) <= 1 else 0
-            # Stopped short for three polls after the move should have ended: blocked.
-            if still >= 3 and self.clock.now() > move_end:
+            # The servo follows an even ramp to the target: stopped for three polls while
+            # the ramp is a margin past it, or after the ramp's end, it is blocked.
+            ramp = start + (target - start) * min(1.0, (self.clock.now() - sent) / duration_s)
+            if still >= 3 and (self.clock.now() > move_end
+                               or way * (ramp - now) > g.holding_margin_pulses):
                 return now
             last = now
         return last

@@ -242,17 +242,19 @@ class ArmServos:
              for sid, deg in positions.items()}
         )
 
-    def settled_joints_deg(self, *, timeout_s: float = SETTLE_TIMEOUT_S) -> Joints:
+    def settled_joints_deg(self, *, timeout_s: float = SETTLE_TIMEOUT_S,
+                           poll_s: float = SETTLE_POLL_S) -> Joints:
         """The measured joints once the last commanded move has ended and the servos
-        stand still (two reads SETTLE_POLL_S apart within a pulse), or ``timeout_s`` after
+        stand still (two reads ``poll_s`` apart within a pulse), or ``timeout_s`` after
         its end: where the arm stays, as a later read finds it. A ``wait`` returns within
         tolerance, while the servos may still be closing the last degree or two."""
+        check_range("poll_s", poll_s, 0.001, 1.0, "s")
         end_s = self.bus.move_end_s(j.servo_id for j in self.config.joints)
         self.clock.sleep(max(end_s - self.clock.now(), 0.0))
         deadline = self.clock.now() + timeout_s
         last = self.read_joints_deg()
         while self.clock.now() < deadline:
-            self.clock.sleep(SETTLE_POLL_S)
+            self.clock.sleep(poll_s)
             now = self.read_joints_deg()
             if max(abs(a - b) for a, b in zip(now, last, strict=True)) <= self.model.deg_per_pulse:
                 return now

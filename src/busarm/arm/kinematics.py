@@ -12,6 +12,12 @@ The free-pitch solver finds, for each of the four branches, the pitches at which
 constraint becomes active (reach, each joint limit, the table): each is a root of
 ``cos(pitch - a) = b`` and so has a closed form. Between consecutive roots feasibility
 cannot change, so one test per arc gives the feasible pitch intervals exactly.
+
+Speed (issue 35, ``busarm bench ik``): the scalar solver is plain float math on
+constants computed once in ``__init__``, with ``_into`` written out inline; plain finite
+floats skip ``check_number``; ``ik_best`` without a current pose stops at the first
+solution, and the reasons for failing are only gathered (by solving again) when there is
+no solution. Results are those of the straightforward form, to the last bit.
 """
 
 from __future__ import annotations
@@ -38,9 +44,14 @@ from busarm.arm.chain import (
     wrap_deg,
     wrap_rad,
 )
-from busarm.arm.config import ArmConfig
+from busarm.arm.config import ArmConfig, Geometry
 from busarm.arm.ik_batch import solve_batch
 from busarm.errors import UnreachableError
+
+# math.radians and math.degrees multiply by these very constants (CPython's mathmodule);
+# a plain multiply is the same number without the call.
+_RAD = math.pi / 180.0
+_DEG = 180.0 / math.pi
 
 
 @dataclass(frozen=True)
@@ -71,6 +82,33 @@ class ArmKinematics(ArmChain):
             joint_names=[j.name for j in config.joints],
         )
 
+    def __init__(
+        self,
+        geometry: Geometry,
+        limits_deg: Sequence[tuple[float, float]],
+        *,
+        table_z_mm: float | None = 0.0,
+        base_keepout_mm: tuple[float, float] | None = None,
+        joint_names: Sequence[str] = ("joint1", "joint2", "joint3", "joint4", "joint5"),
+    ) -> None:
+        super().__init__(
+            geometry, limits_deg, table_z_mm=table_z_mm, base_keepout_mm=base_keepout_mm,
+            joint_names=joint_names,
+        )
+        # The scalar solver's constants, computed once: the same values (same float
+        # operations) as the per-call expressions they replace. _branch_k: reach, then
+        # (lo, hi, hi + tolerance) of each joint, for _into written out inline.
+        a2, a3 = self._a2, self._a3
+        self._solve_k = (self._L, self._table - 1e-9, self._keep_top, self._keep_r - 1e-9,
+                         self._h)
+        self._branch_k = (
+            self._L, a2, a3, a2 * a2, a3 * a3, 2.0 * a2 * a3,
+            *(v for lo, hi in self._lim for v in (lo, hi, hi + LIMIT_TOL_RAD)),
+        )
+        lo5, hi5 = self._lim[4]
+        roll0 = _into(0.0, lo5, hi5)  # a free roll without a current pose keeps 0
+        self._roll0 = min(max(0.0, lo5), hi5) if roll0 is None else roll0
+
     # ------------------------------------------------------------------ inverse
 
     def ik(
@@ -83,13 +121,10 @@ class ArmKinematics(ArmChain):
         ordered by the motion from ``current_deg`` (largest joint change, then the sum),
         or facing the target and elbow up first when no current pose is given.
         """
-        x = check_number("x_mm", x_mm)
-        y = check_number("y_mm", y_mm)
-        z = check_number("z_mm", z_mm)
-        p = math.radians(check_number("pitch_deg", pitch_deg))
-        roll = None if roll_deg is None else math.radians(check_number("roll_deg", roll_deg))
-        current = None if current_deg is None else self._radians(current_deg)
-        sols, _ = self._ik(x, y, z, p, roll, current)
+        x, y, z, pd, rd = _pose_args(x_mm, y_mm, z_mm, pitch_deg, roll_deg)
+        roll = None if rd is None else rd * _RAD
+        current = None if current_deg is None else _joint_args(self, current_deg)
+        sols = self._solve(x, y, z, pd * _RAD, roll, current, None, False)
         return self._ordered(sols, current)
 
     def ik_best(
@@ -97,109 +132,144 @@ class ArmKinematics(ArmChain):
         roll_deg: float | None = None, *, current_deg: Sequence[float] | None = None,
     ) -> Joints:
         """The solution nearest ``current_deg``; raises UnreachableError saying why if none."""
-        x = check_number("x_mm", x_mm)
-        y = check_number("y_mm", y_mm)
-        z = check_number("z_mm", z_mm)
-        pd = check_number("pitch_deg", pitch_deg)
-        roll = None if roll_deg is None else math.radians(check_number("roll_deg", roll_deg))
-        current = None if current_deg is None else self._radians(current_deg)
-        sols, failures = self._ik(x, y, z, math.radians(pd), roll, current)
+        x, y, z, pd, rd = _pose_args(x_mm, y_mm, z_mm, pitch_deg, roll_deg)
+        roll = None if rd is None else rd * _RAD
+        current = None if current_deg is None else _joint_args(self, current_deg)
+        p = pd * _RAD
+        # Without a current pose the first solution found is the best (the order of
+        # ``ik``); with one, min() keeps the first of equal costs, as the stable sort did.
+        sols = self._solve(x, y, z, p, roll, current, None, current is None)
         if not sols:
+            _, failures = self._ik(x, y, z, p, roll, current)  # only now: why
             raise self._unreachable((x, y, z), f"pitch {pd:g} deg", failures)
-        return self._ordered(sols, current)[0]
+        s = sols[0]
+        if current is not None and len(sols) > 1:
+            now = current
+            s = min(sols, key=lambda c: _motion_cost(c, now))
+        return s[0] * _DEG, s[1] * _DEG, s[2] * _DEG, s[3] * _DEG, s[4] * _DEG
 
     def _ik(
         self, x: float, y: float, z: float, p: float, roll: float | None,
         current: tuple[float, ...] | None,
     ) -> tuple[list[tuple[float, ...]], list[_Failure]]:
-        L = self._L
-        if z < self._table - 1e-9:
-            return [], [_Failure("table", value=z)]
-        if z - L * math.sin(p) < self._table - 1e-9:
-            return [], [_Failure("wrist_table", value=z - L * math.sin(p))]
+        """Every solution (radians) and, per failed branch, why it failed."""
+        failures: list[_Failure] = []
+        return self._solve(x, y, z, p, roll, current, failures, False), failures
+
+    def _solve(
+        self, x: float, y: float, z: float, p: float, roll: float | None,
+        current: tuple[float, ...] | None, failures: list[_Failure] | None, first: bool,
+    ) -> list[tuple[float, ...]]:
+        """The solutions (radians) in ``ik``'s order, only the first if ``first``; each
+        failure is appended to ``failures`` unless it is None (the fast path)."""
+        L, table, keep_top, keep_r, h = self._solve_k
+        if z < table:
+            if failures is not None:
+                failures.append(_Failure("table", value=z))
+            return []
+        wrist_z = z - L * math.sin(p)
+        if wrist_z < table:
+            if failures is not None:
+                failures.append(_Failure("wrist_table", value=wrist_z))
+            return []
         r = math.hypot(x, y)
-        if self.in_base(x, y, z):
-            return [], [_Failure("base", value=r)]
+        if z < keep_top and r < keep_r:  # in_base
+            if failures is not None:
+                failures.append(_Failure("base", value=r))
+            return []
         # On the base axis the target has no bearing: keep the current one.
         psi = math.atan2(y, x) if r >= AXIS_EPS_MM else (current[0] if current else 0.0)
-        zeta = z - self._h
+        zeta = z - h
+        # A free roll keeps the current one (or 0), within the limits, in both branches.
+        kept = 0.0 if roll is not None else (
+            self._roll0 if current is None else self._kept_roll(current[4]))
         sols: list[tuple[float, ...]] = []
-        failures: list[_Failure] = []
-        for back in (False, True):
-            if back:
-                t1, rho, q, r5 = psi + math.pi, -r, math.pi - p, None if roll is None else (
-                    roll + math.pi)
-            else:
-                t1, rho, q, r5 = psi, r, p, roll
-            self._ik_branch(t1, rho, zeta, q, r5, current, sols, failures)
-        return sols, failures
+        self._ik_branch(psi, r, zeta, p, roll, kept, sols, failures, first)
+        if not (first and sols):
+            self._ik_branch(
+                psi + math.pi, -r, zeta, math.pi - p, None if roll is None else roll + math.pi,
+                kept, sols, failures, first,
+            )
+        return sols
+
+    def _kept_roll(self, keep: float) -> float:
+        """A free roll's value: ``keep`` within the roll limits (clamped if need be)."""
+        lo5, hi5 = self._lim[4]
+        t5w = _into(keep, lo5, hi5)
+        return min(max(keep, lo5), hi5) if t5w is None else t5w
 
     def _ik_branch(
-        self, t1: float, rho: float, zeta: float, q: float, r5: float | None,
-        current: tuple[float, ...] | None, sols: list[tuple[float, ...]], failures: list[_Failure],
+        self, t1: float, rho: float, zeta: float, q: float, r5: float | None, kept: float,
+        sols: list[tuple[float, ...]], failures: list[_Failure] | None, first: bool,
     ) -> None:
         """One branch, both elbows (base yaw t1; the tool point at (rho, zeta) from the
-        shoulder axis, plane pitch q; roll r5, None: free); appends solutions and failures."""
-        L, a2, a3 = self._L, self._a2, self._a3
-        (lo1, hi1), (lo2, hi2), (lo3, hi3), (lo4, hi4), (lo5, hi5) = self._lim
-        t1w = _into(t1, lo1, hi1)
-        if t1w is None:
-            failures.append(_Failure("joint", 0, t1))
+        shoulder axis, plane pitch q; roll r5, None: free, ``kept``); appends solutions
+        and failures. ``_into`` is written out inline: calls cost a third of the time."""
+        (L, a2, a3, a2sq, a3sq, two_a2a3, lo1, hi1, top1, lo2, hi2, top2, lo3, hi3, top3,
+         lo4, hi4, top4, lo5, hi5, top5) = self._branch_k
+        tol = LIMIT_TOL_RAD
+        a = lo1 + (t1 - lo1 + tol) % TAU - tol
+        if a > top1:
+            if failures is not None:
+                failures.append(_Failure("joint", 0, t1))
             return
-        if r5 is None:  # free roll: keep the current one, within the limits
-            keep = current[4] if current is not None else 0.0
-            t5w = _into(keep, lo5, hi5)
-            if t5w is None:
-                t5w = min(max(keep, lo5), hi5)
-        else:
-            t5w = _into(r5, lo5, hi5)
-            if t5w is None:
-                failures.append(_Failure("joint", 4, r5))
+        t1w = lo1 if a < lo1 else (hi1 if a > hi1 else a)
+        t5w = kept
+        if r5 is not None:
+            a = lo5 + (r5 - lo5 + tol) % TAU - tol
+            if a > top5:
+                if failures is not None:
+                    failures.append(_Failure("joint", 4, r5))
                 return
-        cq, sq = math.cos(q), math.sin(q)
-        wr = rho - L * cq
-        wz = zeta - L * sq
+            t5w = lo5 if a < lo5 else (hi5 if a > hi5 else a)
+        wr = rho - L * math.cos(q)
+        wz = zeta - L * math.sin(q)
         d2 = wr * wr + wz * wz
-        c3 = (d2 - a2 * a2 - a3 * a3) / (2.0 * a2 * a3)
-        if c3 > 1.0 + REACH_TOL:
-            failures.append(_Failure("reach", value=math.sqrt(d2), extra=a2 + a3))
-            return
-        if c3 < -1.0 - REACH_TOL:
-            failures.append(_Failure("reach_min", value=math.sqrt(d2), extra=abs(a2 - a3)))
+        c3 = (d2 - a2sq - a3sq) / two_a2a3
+        if c3 > 1.0 + REACH_TOL or c3 < -1.0 - REACH_TOL:
+            if failures is not None:
+                failures.append(
+                    _Failure("reach", value=math.sqrt(d2), extra=a2 + a3) if c3 > 0 else
+                    _Failure("reach_min", value=math.sqrt(d2), extra=abs(a2 - a3))
+                )
             return
         c3 = min(max(c3, -1.0), 1.0)  # within REACH_TOL of full stretch (or fold)
         s3 = math.sqrt(1.0 - c3 * c3)
         gamma = math.atan2(wz, wr)
         base3 = math.acos(c3)
-        for sign in (1.0, -1.0):
-            if sign < 0 and s3 == 0.0:
-                break  # fully stretched or folded: both elbows are the same solution
-            t3 = sign * base3
-            t2 = -(gamma + math.atan2(a3 * sign * s3, a2 + a3 * c3))
-            t4 = -(q + HALF_PI) - t2 - t3
-            t2w = _into(t2, lo2, hi2)
-            if t2w is None:
-                failures.append(_Failure("joint", 1, t2))
+        ys, xs = a3 * s3, a2 + a3 * c3
+        q4 = -(q + HALF_PI)
+        # Fully stretched or folded (s3 == 0): both elbows are the same solution.
+        for t3, y3 in ((base3, ys),) if s3 == 0.0 else ((base3, ys), (-base3, -ys)):
+            t2 = -(gamma + math.atan2(y3, xs))
+            a = lo2 + (t2 - lo2 + tol) % TAU - tol
+            if a > top2:
+                if failures is not None:
+                    failures.append(_Failure("joint", 1, t2))
                 continue
-            t3w = _into(t3, lo3, hi3)
-            if t3w is None:
-                failures.append(_Failure("joint", 2, t3))
+            t2w = lo2 if a < lo2 else (hi2 if a > hi2 else a)
+            a = lo3 + (t3 - lo3 + tol) % TAU - tol
+            if a > top3:
+                if failures is not None:
+                    failures.append(_Failure("joint", 2, t3))
                 continue
-            t4w = _into(t4, lo4, hi4)
-            if t4w is None:
-                failures.append(_Failure("joint", 3, t4))
+            t3w = lo3 if a < lo3 else (hi3 if a > hi3 else a)
+            t4 = q4 - t2 - t3
+            a = lo4 + (t4 - lo4 + tol) % TAU - tol
+            if a > top4:
+                if failures is not None:
+                    failures.append(_Failure("joint", 3, t4))
                 continue
-            sols.append((t1w, t2w, t3w, t4w, t5w))
+            sols.append((t1w, t2w, t3w, lo4 if a < lo4 else (hi4 if a > hi4 else a), t5w))
+            if first:
+                return
 
     def _ordered(
         self, sols: list[tuple[float, ...]], current: tuple[float, ...] | None
     ) -> list[Joints]:
         if current is not None and len(sols) > 1:
             sols = sorted(sols, key=lambda s: _motion_cost(s, current))
-        return [
-            (math.degrees(a), math.degrees(b), math.degrees(c), math.degrees(d), math.degrees(e))
-            for a, b, c, d, e in sols
-        ]
+        return [(a * _DEG, b * _DEG, c * _DEG, d * _DEG, e * _DEG) for a, b, c, d, e in sols]
 
     def _unreachable(
         self, target: tuple[float, float, float], what: str, failures: list[_Failure]
@@ -308,7 +378,7 @@ class ArmKinematics(ArmChain):
         solutions: list[tuple[tuple[float, ...], float]] = []
         for d, pitch in best:
             if d <= dmin + 1e-9:
-                for s in self._ik(x, y, z, pitch, roll, current)[0]:
+                for s in self._solve(x, y, z, pitch, roll, current, None, False):
                     solutions.append((s, pitch))
         if not solutions:  # pragma: no cover - guarded by the inset
             raise UnreachableError(f"target ({x:.1f}, {y:.1f}, {z:.1f}) mm: no solution")
@@ -378,7 +448,7 @@ class ArmKinematics(ArmChain):
         self, x: float, y: float, z: float, p: float, roll: float | None,
         current: tuple[float, ...] | None, back: bool, sign: float,
     ) -> bool:
-        sols = self._ik(x, y, z, p, roll, current)[0]
+        sols = self._solve(x, y, z, p, roll, current, None, False)
         # Identify the branch of each solution from its (wrapped) joint values.
         for s in sols:
             if _is_back(s[0], x, y) == back and (s[2] >= 0) == (sign > 0):
@@ -399,6 +469,35 @@ class ArmKinematics(ArmChain):
         facing the target, elbow up). A NaN roll keeps the reference's wrist roll (or 0).
         """
         return solve_batch(self, targets, reference_deg)
+
+
+def _pose_args(
+    x: object, y: object, z: object, pitch: object, roll: object,
+) -> tuple[float, float, float, float, float | None]:
+    """The pose numbers checked (``check_number``; roll None stays None): plain finite
+    floats pass at once."""
+    if (
+        type(x) is float and type(y) is float and type(z) is float and type(pitch) is float
+        and math.isfinite(x + y + z + pitch)  # a NaN or an infinity makes the sum one
+        and (roll is None or (type(roll) is float and math.isfinite(roll)))
+    ):
+        return x, y, z, pitch, roll
+    return (check_number("x_mm", x), check_number("y_mm", y), check_number("z_mm", z),
+            check_number("pitch_deg", pitch),
+            None if roll is None else check_number("roll_deg", roll))
+
+
+def _joint_args(chain: ArmChain, joints_deg: Sequence[float]) -> tuple[float, ...]:
+    """``chain._radians(joints_deg)``: five plain finite floats in a tuple or list pass
+    at once (the common case: a measured pose), anything else is checked there."""
+    if (type(joints_deg) is tuple or type(joints_deg) is list) and len(joints_deg) == 5:
+        a, b, c, d, e = joints_deg
+        if (
+            type(a) is float and type(b) is float and type(c) is float
+            and type(d) is float and type(e) is float and math.isfinite(a + b + c + d + e)
+        ):
+            return a * _RAD, b * _RAD, c * _RAD, d * _RAD, e * _RAD
+    return chain._radians(joints_deg)
 
 
 def _motion_cost(s: Sequence[float], current: Sequence[float]) -> tuple[float, float]:

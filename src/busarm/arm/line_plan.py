@@ -16,8 +16,7 @@ from busarm.arm.kinematics import ArmKinematics
 from busarm.arm.motion import (
     LinePath,
     check_line_request,
-    check_profile,
-    duration_for_speed,
+    line_profile,
     sample_times,
 )
 from busarm.errors import LimitError, UnreachableError
@@ -52,7 +51,6 @@ def plan_line(
         target, speed_mm_s=speed_mm_s, duration_s=duration_s, profile=profile,
         rate_hz=rate_hz, max_rate_hz=MAX_RATE_HZ,
     )
-    fn, _ = check_profile(profile)
     start_q = config.check_joints(start_deg)
     start = kin.fk(start_q)
     x_mm, y_mm, z_mm, pitch_deg, roll_deg = target
@@ -62,12 +60,10 @@ def plan_line(
     path = LinePath(tuple(start), end)  # type: ignore[arg-type]
     # The end must be reachable from the start's branch; check it first for a clear error.
     kin.ik_best(*end, current_deg=start_q)
+    fn, shortest_s = line_profile(profile, path.length_mm, path.turn_deg, speed_mm_s,
+                                  MAX_TURN_SPEED_DEG_S)
     if duration_s is None:
-        duration_s = max(
-            duration_for_speed(profile, path.length_mm, speed_mm_s),
-            duration_for_speed(profile, path.turn_deg, MAX_TURN_SPEED_DEG_S),
-            1.0 / rate_hz,
-        )
+        duration_s = max(shortest_s, 1.0 / rate_hz)
     for _ in range(STRETCH_TRIES):
         times = sample_times(duration_s, rate_hz)
         joints = _waypoints(kin, path, fn, start_q, duration_s, times)

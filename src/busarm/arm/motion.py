@@ -6,7 +6,10 @@ A profile maps normalised time ``tau`` in [0, 1] to path progress ``s`` in [0, 1
   ends; peak speed 1.875x the average);
 - ``trapezoidal``: constant acceleration for the first quarter, cruise, constant
   deceleration for the last quarter (peak speed 4/3 of the average);
-- ``linear``: uniform speed (what the servos do on their own within one move).
+- ``linear``: uniform speed (what the servos do on their own within one move);
+- ``time_optimal``: the shortest move within a speed, an acceleration and a jerk limit
+  (Ruckig's jerk-limited profile): it cruises at the speed limit as far as the line
+  allows, where ``min_jerk`` reaches it only for an instant.
 """
 
 from __future__ import annotations
@@ -17,12 +20,21 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+from ruckig import InputParameter, Result, Ruckig, Trajectory
 
 from busarm.errors import ConfigError
 from busarm.units import check_range
 
 TRAPEZOID_RAMP = 0.25
 """Fraction of a trapezoidal move spent accelerating (and again decelerating)."""
+TIME_OPTIMAL = "time_optimal"
+LINE_ACCEL_MM_S2 = 3000.0
+"""A ``time_optimal`` line's tool acceleration at most (0.3 g: a block held by friction
+between the pads does not slip, and the servos' 35 kg torque has margin at full reach)."""
+LINE_JERK_MM_S3 = 100_000.0
+"""... and its jerk: the acceleration builds up in 30 ms, no kick to set the arm ringing."""
+TURN_ACCEL_DEG_S2 = 900.0
+"""A ``time_optimal`` line's pitch and roll accelerate at most this fast."""
 
 
 def _min_jerk(tau: float) -> float:
@@ -52,14 +64,67 @@ PROFILES: dict[str, tuple[Callable[[float], float], float]] = {
 """name -> (s(tau), peak speed as a multiple of the average speed)."""
 
 
+PROFILE_NAMES = (*PROFILES, TIME_OPTIMAL)
+"""Every profile a straight line may use."""
+
+
 def check_profile(name: str) -> tuple[Callable[[float], float], float]:
-    """The profile function and its peak-speed factor; ConfigError naming the choices."""
+    """A fixed-shape profile's function and its peak-speed factor (``time_optimal``'s
+    shape depends on the line: ``line_profile``); ConfigError naming the choices."""
     try:
         return PROFILES[name]
     except (KeyError, TypeError):
         raise ConfigError(
-            f"profile {name!r} is unknown; choose one of {', '.join(PROFILES)}"
+            f"profile {name!r} has no fixed shape; choose one of {', '.join(PROFILES)}"
+            if name == TIME_OPTIMAL else
+            f"profile {name!r} is unknown; choose one of {', '.join(PROFILE_NAMES)}"
         ) from None
+
+
+def check_profile_name(name: str) -> None:
+    """ConfigError unless ``name`` is one of ``PROFILE_NAMES``."""
+    if name != TIME_OPTIMAL:
+        check_profile(name)
+
+
+def line_profile(name: str, length_mm: float, turn_deg: float, speed_mm_s: float,
+                 turn_speed_deg_s: float) -> tuple[Callable[[float], float], float]:
+    """A line's s(tau) and its shortest duration (s): the tool point no faster than
+    ``speed_mm_s``, pitch and roll no faster than ``turn_speed_deg_s``."""
+    check_profile_name(name)
+    if name != TIME_OPTIMAL:
+        fn, _ = check_profile(name)
+        return fn, max(duration_for_speed(name, length_mm, speed_mm_s),
+                       duration_for_speed(name, turn_deg, turn_speed_deg_s))
+    # One path parameter s in [0, 1] for position and angles: its limits the tighter of
+    # the two (a line that only turns the wrist is limited by the turn alone).
+    limits = [(speed_mm_s / d, LINE_ACCEL_MM_S2 / d, LINE_JERK_MM_S3 / d)
+              for d in (length_mm,) if d > 1e-9]
+    limits += [(turn_speed_deg_s / d, TURN_ACCEL_DEG_S2 / d, 10 * TURN_ACCEL_DEG_S2 / d)
+               for d in (turn_deg,) if d > 1e-9]
+    if not limits:
+        return _linear, 0.0
+    v, a, j = (min(lim[i] for lim in limits) for i in range(3))
+    return _jerk_limited(v, a, j)
+
+
+def _jerk_limited(v: float, a: float, j: float) -> tuple[Callable[[float], float], float]:
+    """Ruckig's time-optimal move of s from 0 to 1 within speed ``v``, acceleration ``a``
+    and jerk ``j`` (per s): s(tau) and its duration."""
+    given = InputParameter(1)
+    given.current_position, given.target_position = [0.0], [1.0]
+    given.max_velocity, given.max_acceleration, given.max_jerk = [v], [a], [j]
+    trajectory = Trajectory(1)
+    if Ruckig(1).calculate(given, trajectory) not in (Result.Working, Result.Finished):
+        raise ConfigError(f"no time-optimal profile within {v:g}/s, {a:g}/s2, {j:g}/s3")
+    duration = float(trajectory.duration)
+
+    def s_of(tau: float) -> float:
+        if tau >= 1.0:
+            return 1.0
+        return min(1.0, max(0.0, float(trajectory.at_time(tau * duration)[0][0])))
+
+    return s_of, duration
 
 
 def check_line_request(
@@ -71,7 +136,7 @@ def check_line_request(
     for name, v in zip(("x_mm", "y_mm", "z_mm", "pitch_deg", "roll_deg"), pose, strict=True):
         if v is not None:
             check_range(name, v, -1e4, 1e4)
-    check_profile(profile)
+    check_profile_name(profile)
     check_range("speed_mm_s", speed_mm_s, 0.1, 1000.0, "mm/s")
     check_range("rate_hz", rate_hz, 1.0, max_rate_hz, "Hz")
     if duration_s is not None:
@@ -144,12 +209,19 @@ def _short(delta_deg: float) -> float:
 
 
 __all__ = [
+    "LINE_ACCEL_MM_S2",
+    "LINE_JERK_MM_S3",
     "PROFILES",
+    "PROFILE_NAMES",
+    "TIME_OPTIMAL",
     "TRAPEZOID_RAMP",
+    "TURN_ACCEL_DEG_S2",
     "LinePath",
     "check_line_request",
     "check_profile",
+    "check_profile_name",
     "duration_for_speed",
+    "line_profile",
     "progress",
     "sample_times",
 ]

@@ -9,6 +9,7 @@ limit points at adapter latency or a noisy bus.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import select
 import signal
@@ -19,6 +20,7 @@ import termios
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
+from functools import partial
 
 from busarm.bench.common import latency_percentiles_ms, machine_info
 from busarm.bus.board import SERVO_LINE_BAUDRATE
@@ -28,7 +30,8 @@ from busarm.bus.lx_port import LxServoPort
 from busarm.bus.ports import PortSpec
 from busarm.errors import BusArmError, ConfigError, TransportError
 from busarm.progress import Progress, quiet
-from busarm.protocol import SPECS, Command, encode_request
+from busarm.protocol import MAX_SERVO_ID, SPECS, Command, encode_request
+from busarm.protocol.board import ServoSub
 
 __all__ = [
     "CPU_BATCH",
@@ -41,6 +44,7 @@ __all__ = [
     "bench_position_reads",
     "bench_scan",
     "bench_state_loop",
+    "board_absent_id_s",
     "run_bench",
     "sim_pty_server",
 ]
@@ -56,6 +60,13 @@ class ScanTimes:
     found: list[int]
     best_s: float
     median_s: float
+    board_absent_id_s: float | None = None
+    """Through a controller board: how long the board takes to answer for an absent ID
+    (its own wait for the servo, then "no answer"), measured; None on the LX line."""
+    board_floor_s: float | None = None
+    """Through a controller board: ``board_absent_id_s`` for each ID 0..253, about the
+    least a scan through it can take (the board asks one servo at a time; the few
+    present servos answer sooner)."""
 
 
 @dataclass
@@ -155,9 +166,10 @@ def _timed_reads(
 
 
 def bench_position_reads(bus: LxServoPort, servo_id: int, count: int) -> BusBenchResult:
-    """``count`` POS_READs of one servo, back to back."""
-    read = bus.read_position_pulses
-    return _timed_reads("position reads", bus, lambda: read(servo_id), count)
+    """``count`` POS_READs of one servo, back to back (called through a C-level partial:
+    a Python lambda here would add its own frame to the client CPU measured)."""
+    return _timed_reads("position reads", bus, partial(bus.read_position_pulses, servo_id),
+                        count)
 
 
 def bench_os_floor(bus: LxServoPort, servo_id: int, count: int) -> BusBenchResult | None:
@@ -196,7 +208,7 @@ def bench_state_loop(bus: LxServoPort, servo_ids: Sequence[int], loops: int) -> 
     elapsed = clock() - start
     # Per transaction: each loop is 3 reads per servo.
     cpu = [c / (3 * len(servo_ids)) for c in
-           _cpu_per_call_s(lambda: bus.read_states(servo_ids), max(loops // 4, CPU_BATCH))]
+           _cpu_per_call_s(partial(bus.read_states, servo_ids), max(loops // 4, CPU_BATCH))]
     per_servo = sum(
         bus.wire_time_s(6, _reply_bytes(c)) for c in (Command.POS_READ, Command.TEMP_READ,
                                                        Command.VIN_READ)
@@ -219,11 +231,29 @@ def bench_scan(bus: LxServoPort, repeats: int = 3) -> BusBenchResult:
         found = result.found
     wire = 254 * bus.wire_time_s(6, _reply_bytes(Command.ID_READ))
     best = min(durations)
+    times = ScanTimes(found, round(best, 4), round(statistics.median(durations), 4))
+    absent = next((i for i in range(MAX_SERVO_ID + 1) if i not in found), None)
+    if isinstance(bus, BoardServoBus) and absent is not None:
+        times.board_absent_id_s = round(board_absent_id_s(bus, absent), 5)
+        times.board_floor_s = round(254 * times.board_absent_id_s, 3)
     return BusBenchResult(
         "ID scan 0..253", "scans/s", repeats, 1.0 / statistics.median(durations), 1.0 / wire,
-        latency_percentiles_ms(durations), None, 0,
-        ScanTimes(found, round(best, 4), round(statistics.median(durations), 4)),
+        latency_percentiles_ms(durations), None, 0, times,
     )
+
+
+def board_absent_id_s(bus: BoardServoBus, servo_id: int, asks: int = 9) -> float:
+    """How long the controller board takes to answer an ID read of ``servo_id`` (absent):
+    its own wait on the servo line, measured (the median of ``asks``); the vendor does
+    not publish it, and a scan through the board pays it for every absent ID."""
+    times: list[float] = []
+    now = bus.clock.now
+    for _ in range(asks):
+        t0 = now()
+        with contextlib.suppress(BusArmError):  # "no answer" (status -1) is what is timed
+            bus.link.servo_read(ServoSub.READ_ID, servo_id, retries=0)
+        times.append(now() - t0)
+    return statistics.median(times)
 
 
 class SimServerProcess:

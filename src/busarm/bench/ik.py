@@ -75,8 +75,8 @@ BATCH_REPEATS = 3
 WARM_UP = 200
 PEER_Q0_DEG = (0.0, -60.0, 60.0, -60.0, 0.0)
 """Common start for the iterative peers (within the limits, away from singularities)."""
-TARGET_SINGLE_US = 20.0
-TARGET_BATCH_PER_S = 1_000_000.0
+TARGET_SINGLE_US = 5.0
+TARGET_BATCH_PER_S = 3_000_000.0
 PEERS_HINT = "IK peers not installed: `make bench-ik` installs them (pip install -e '.[ikbench]')"
 
 

@@ -24,7 +24,7 @@ import random
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -40,6 +40,7 @@ from busarm.bench.common import (
 )
 from busarm.nav.grid import OccupancyGrid
 from busarm.nav.mapping import compose, inverse
+from busarm.nav.planner import path_length_m
 from busarm.nav.points import WORK_AHEAD_M, NamedPoints
 from busarm.robot import Robot
 from busarm.robot.description import CameraSpec, RobotConfig
@@ -53,6 +54,9 @@ from busarm.twin.arena_tasks import (
     true_map_surfaces,
 )
 from busarm.twin.spec import TwinSpec
+
+if TYPE_CHECKING:
+    from busarm.apps.navigation.navigator import Trip
 
 __all__ = [
     "DELIVERED_M",
@@ -115,6 +119,13 @@ class ArenaRun:
     """The gripper's hottest reading while it held the block (the report's)."""
     gripper_margin_c: float | None = None
     """Its temperature limit less that peak."""
+    first_plans_cpu_s: float = 0.0
+    first_plans_m: float = 0.0
+    """The global planner's CPU time for the first plan of each trip, and those plans'
+    length (the figure set beside Nav2's planners: time per metre of a whole path)."""
+    all_plans_cpu_s: float = 0.0
+    all_plans_m: float = 0.0
+    """The same over every plan (the re-plans on the way too)."""
 
 
 def _teleport(robot: Robot, pose: Pose2D) -> None:
@@ -201,8 +212,20 @@ def run_arena(seed: int, intrinsics: Path, hand_eye: Path, family: str = "standa
         out.pick_attempts = report.pick_attempts
         out.gripper_peak_c, out.gripper_margin_c = report.gripper_peak_c, report.gripper_margin_c
         out.contacts = [name for _, name in twin.mobile.contacts]
+        _planning(out, report.trips)
     out.wall_s = time.monotonic() - wall
     return out
+
+
+def _planning(out: ArenaRun, trips: list[Trip]) -> None:
+    """The planner's CPU time and the planned length, first plans and all (``out``)."""
+    for trip in trips:
+        lengths = [path_length_m(plan) for plan in trip.plans]
+        if lengths:
+            out.first_plans_cpu_s += trip.plan_cpu_s[0]
+            out.first_plans_m += lengths[0]
+        out.all_plans_cpu_s += sum(trip.plan_cpu_s)
+        out.all_plans_m += sum(lengths)
 
 
 @dataclass
@@ -232,12 +255,20 @@ class TransportBenchReport(SeededBenchReport[ArenaRun]):
         def q(values: list[float], at: float) -> float | None:
             return round(float(np.percentile(values, at)), 4) if values else None
 
+        first_m, all_m = (sum(getattr(r, f"{w}_plans_m") for r in self.runs)
+                          for w in ("first", "all"))
+
+        def ms_per_m(what: str, metres: float) -> float | None:
+            cpu = sum(getattr(r, f"{what}_plans_cpu_s") for r in self.runs)
+            return round(1000.0 * cpu / metres, 3) if metres > 0 else None
+
         return {"delivered_share": self.delivered_share, "false_reports": self.false_reports,
                 "collisions": self.collisions,
                 "position_error_median_m": q(pos, 50), "position_error_p95_m": q(pos, 95),
                 "position_error_max_m": q(pos, 100),
                 "heading_error_median_deg": q(head, 50), "heading_error_p95_deg": q(head, 95),
-                "mission_median_s": q(done, 50), "localise_median_s": q(loc, 50),
+                "mission_median_s": q(done, 50), "mission_p95_s": q(done, 95),
+                "localise_median_s": q(loc, 50),
                 "localise_max_s": q(loc, 100),
                 "placed_error_median_m": q([r.placed_error_m for r in self.runs
                                             if r.delivered], 50),
@@ -245,7 +276,9 @@ class TransportBenchReport(SeededBenchReport[ArenaRun]):
                 "map_error_p95_m": q([r.map_error_p95_m for r in self.runs], 50),
                 "map_turn_max_deg": q([abs(r.map_turn_deg) for r in self.runs], 100),
                 "gripper_peak_max_c": max((r.gripper_peak_c for r in self.runs
-                                           if r.gripper_peak_c is not None), default=None)}
+                                           if r.gripper_peak_c is not None), default=None),
+                "plan_ms_per_m": ms_per_m("first", first_m),
+                "replan_ms_per_m": ms_per_m("all", all_m)}
 
     def text(self, verdict: Verdict) -> str:
         s = self.summary()
@@ -271,8 +304,11 @@ class TransportBenchReport(SeededBenchReport[ArenaRun]):
             f"{verdict(head is not None and head <= TARGET_HEADING_DEG)} <= "
             f"{TARGET_HEADING_DEG:g} deg; from an unknown start localised in at most {loc} s "
             f"{verdict(loc is not None and loc <= TARGET_GLOBAL_S)} <= {TARGET_GLOBAL_S:g} s\n"
-            f"mission (twin time, localise to put down): median {s['mission_median_s']} s; "
-            f"the vendor's grasp sequence alone is about {VENDOR_GRASP_S:g} s\n"
+            f"mission (twin time, localise to put down): median {s['mission_median_s']} s "
+            f"(p95 {s['mission_p95_s']} s); the vendor's grasp sequence alone is about "
+            f"{VENDOR_GRASP_S:g} s\n"
+            f"global planner: {s['plan_ms_per_m']} ms of CPU a metre of path (each trip's "
+            f"first plan; with the re-plans on the way {s['replan_ms_per_m']} ms/m)\n"
             f"placed: median {cm('placed_error_median_m')} from the place point's spot; maps: "
             f"occupied cells {cm('map_error_median_m')} from the true surfaces (median of the "
             f"arenas' medians; p95 {cm('map_error_p95_m')}); a map turned from the room at "

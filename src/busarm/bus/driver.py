@@ -91,6 +91,9 @@ class ServoBus(IdScan, LxServoPort):
         self.turnaround_s = float(turnaround_s)
         self.timeout_margin_s = float(timeout_margin_s)
         self.byte_s = 10.0 / transport.baudrate
+        # A serial device's descriptor: the reads' one-frame path (BusCore.read_values).
+        fd = getattr(transport, "fd", None)
+        self._fd = fd if isinstance(fd, int) else None
         self._plans = {}
         self._line_free_at = 0.0
         # (servo ID, command) -> when a request of it last timed out: its reply may come late.

@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
@@ -20,6 +21,7 @@ from busarm.protocol import MAX_SERVO_ID, Command, FrameParser, check_servo_id, 
 
 __all__ = [
     "CONFLICT_PROBES",
+    "LATE_REACH_S",
     "SCAN_MARGIN_S",
     "IdScan",
     "ScanResult",
@@ -28,8 +30,23 @@ __all__ = [
 
 CONFLICT_PROBES = 3
 """Position reads that decide whether a garbled ID is two servos or line noise."""
-SCAN_MARGIN_S = 0.0012
-"""Scans use a tighter margin: a late answer is still caught (see ``scan``)."""
+SCAN_MARGIN_S = 0.0001
+"""A scan's margin past the end of an ID's reply. Its window is the request's and the
+reply's wire time, the servo's turnaround (the bus's ``turnaround_s``) and the adapter's
+latency, plus this: the servo's own jitter, not the computer's. A reply this computer
+hears late (a busy CPU, a pty) was on the wire in time, and it is recognised by the ID
+inside it in a later window. A servo slower than the bus's turnaround whose reply runs
+into the next request garbles that window: the IDs asked up to LATE_REACH_S before
+it are then asked again with the bus's own timeouts (see ``scan``). For a line of
+slower servos, scan with a larger ``margin_s`` (``set_id`` asks a silent ID again with
+the bus's ``timeout_margin_s``), or give the bus their ``turnaround_s``."""
+LATE_REACH_S = 0.006
+"""How late a reply that garbles a scan's window may be: the IDs asked this long before
+the garbled window (plus the adapter's latency; less if the bus's own read deadline is
+shorter) are asked again. About the bus's default read deadline at 115200 baud (5.6
+ms): a servo later than that fails every plain read too. Bounded so that a bus opened
+with a long margin (a pty, a slow adapter) does not probe dozens of absent IDs for one
+damaged window."""
 
 
 @dataclass
@@ -53,16 +70,20 @@ class IdScan(BusCore, ServoRegisters):
     ) -> ScanResult:
         """Ask every ID in ``servo_ids`` for itself (ID_READ); return who answered.
 
-        Each ID gets a short, baud-derived deadline. A reply that arrives after its
-        deadline is still recognised by the ID inside it, so a slow servo is not
-        missed. Every ID that answered or garbled is then probed with CONFLICT_PROBES
-        position reads: an ID whose replies stay garbled is reported in ``conflicts``
-        (two servos sharing it), not in ``found``; one that answers once is found.
-        A servo whose every request is lost to noise is not found: scan again.
+        Each ID gets the shortest window that can hold its reply (``scan_window_s``:
+        wire time, turnaround, adapter latency and ``margin_s``, SCAN_MARGIN_S by
+        default). A reply that arrives after its window is still recognised by the ID
+        inside it, so a servo this computer hears late is not missed; one that answers
+        so late that it runs into the next request garbles that window, and then the
+        IDs asked up to LATE_REACH_S before it are probed too. Every ID that
+        answered or garbled is probed with CONFLICT_PROBES position reads (with the
+        bus's own timeouts): an ID whose replies stay garbled is reported in
+        ``conflicts`` (two servos sharing it), not in ``found``; one that answers once
+        is found. A servo whose every request is lost to noise is not found: scan again
+        (slower: a larger ``margin_s``).
         """
         ids = [check_servo_id(s) for s in servo_ids]
-        request_len = 6
-        timeout = self.timeout_s(request_len, 7, margin_s)
+        timeout = self.scan_window_s(margin_s)
         started = self._now()
         found, garbled = self._ask_ids(ids, timeout, progress)
         wanted = set(ids)
@@ -74,37 +95,55 @@ class IdScan(BusCore, ServoRegisters):
         return ScanResult(sorted(found - conflicts), sorted(conflicts),
                           self._now() - started)
 
+    def scan_window_s(self, margin_s: float = SCAN_MARGIN_S) -> float:
+        """How long a scan waits for one ID's answer: an ID_READ request (6 bytes) and
+        its reply (7) on the wire, the servo's turnaround, the adapter's latency and
+        ``margin_s`` (at 115200 baud with the default 0.5 ms turnaround: 1.73 ms)."""
+        return self.timeout_s(6, 7, margin_s)
+
     def _ask_ids(
         self, ids: list[int], timeout: float, progress: Callable[[int], None] | None,
     ) -> tuple[set[int], set[int]]:
         """ID_READ to each of ``ids`` in turn, then a wait for stragglers: the IDs that
-        answered, and those whose window held bytes that make no valid frame."""
+        answered, and those to probe for a window that held bytes making no valid frame:
+        its own ID, and every ID asked within LATE_REACH_S before (a reply that late
+        may be what the request ran into)."""
         parser = FrameParser()
         found: set[int] = set()
         garbled: set[int] = set()
+        # How long ago a reply may still have been on its way.
+        reach_s = min(self.timeout_s(6, 7), LATE_REACH_S + self.transport.latency_s)
+        recent: deque[tuple[float, int]] = deque()  # (sent at, ID), newest last
 
-        def collect(chunk: bytes, asked: int) -> None:
-            # Bytes that make no valid frame, in the window of one ID: two servos
-            # answering at once (their bits AND on the open-drain line).
+        def collect(chunk: bytes) -> None:
+            # Bytes that make no valid frame: two servos answering at once (their bits
+            # AND on the open-drain line), or a reply so late the next request hit it.
             noise = parser.checksum_failures + parser.skipped_bytes
             for frame in parser.feed(chunk):
                 if frame.command == Command.ID_READ and len(frame.params) == 1:
                     found.add(frame.servo_id)
             if parser.checksum_failures + parser.skipped_bytes > noise:
-                garbled.add(asked)
+                since = self._now() - reach_s
+                garbled.update(sid for at, sid in recent if at >= since)
+                if recent:
+                    garbled.add(recent[-1][1])  # the ID whose window this is
 
         with self._lock:
             self.transport.reset_input()
             for sid in ids:
                 request = encode_request(sid, Command.ID_READ)
                 self.transport.write(request)
-                deadline = self._now() + timeout
+                now = self._now()
+                recent.append((now, sid))
+                if len(recent) > 1 and recent[0][0] < now - reach_s:
+                    recent.popleft()
+                deadline = now + timeout
                 while sid not in found:
                     remaining = deadline - self._now()
                     chunk = self.transport.read(256, remaining) if remaining > 0 else b""
                     if not chunk:
                         break
-                    collect(chunk, sid)
+                    collect(chunk)
                 if progress is not None:
                     progress(sid)
             # Stragglers: anything still on its way.
@@ -113,7 +152,7 @@ class IdScan(BusCore, ServoRegisters):
                 chunk = self.transport.read(256, remaining)
                 if not chunk:
                     break
-                collect(chunk, ids[-1] if ids else 0)
+                collect(chunk)
         return found, garbled
 
     def _probe_ids(self, servo_ids: list[int]) -> tuple[set[int], set[int]]:

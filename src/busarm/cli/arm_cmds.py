@@ -27,7 +27,7 @@ from busarm.arm.calibration import (
 from busarm.arm.chain import Pose
 from busarm.arm.config import ArmConfig
 from busarm.arm.kinematics import ArmKinematics
-from busarm.arm.motion import PROFILES
+from busarm.arm.motion import PROFILE_NAMES
 from busarm.arm.named_poses import check_savable_name, poses_file, save_pose
 from busarm.cli import text
 from busarm.cli.common import (
@@ -353,7 +353,7 @@ def _check_pace(speed: float | None, duration: float | None) -> None:
 @click.option("--line", is_flag=True, help="Straight tool line (streamed IK), not a joint move.")
 @click.option("--line-speed", type=LINE_SPEED, default=80.0, show_default=True,
               help="Peak tool speed of a --line move, mm/s.")
-@click.option("--profile", type=click.Choice(list(PROFILES)), default="min_jerk",
+@click.option("--profile", type=click.Choice(list(PROFILE_NAMES)), default="min_jerk",
               show_default=True, help="Speed profile of a --line move.")
 @_move_options
 @pass_arm

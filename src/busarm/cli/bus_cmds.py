@@ -6,6 +6,7 @@ import click
 from rich.live import Live
 from rich.table import Table
 
+from busarm.bus.id_scan import SCAN_MARGIN_S
 from busarm.bus.lx_port import LxServoPort
 from busarm.bus.transport import usb_latency_timer_ms
 from busarm.cli.common import (
@@ -75,15 +76,21 @@ def ports(settings: Settings) -> None:
     "--ids", "ids", type=ID_LIST, default=f"0-{MAX_SERVO_ID}", show_default=True,
     help="IDs to ask, e.g. 0-20 or 1,2,3,10.",
 )
+@click.option(
+    "--margin-ms", type=RangeType("margin", 0.0, 100.0, "ms"), metavar="MS",
+    default=SCAN_MARGIN_S * 1000, show_default=True,
+    help="Wait this much longer for each ID, in ms, than its reply takes on the wire (servos "
+         "slow to answer; a late reply is recognised anyway).",
+)
 @pass_settings
-def scan(settings: Settings, ids: list[int]) -> None:
+def scan(settings: Settings, ids: list[int], margin_ms: float) -> None:
     """Find the servos on the bus; show their position (deg), voltage (V), temperature (C).
 
     IDs answered by more than one servo (duplicate IDs) are reported in red. Exit code 1
     when no servo answers at all.
     """
     with settings.open_bus() as bus:
-        result = scan_with_progress(bus, ids, settings.err)
+        result = scan_with_progress(bus, ids, settings.err, margin_s=margin_ms / 1000)
         scan_report(bus, result, settings.out, len(ids))
         port = bus.transport.name
     if not result.found and not result.conflicts:  # outside the bus: nothing to stop

@@ -101,10 +101,14 @@ def state_table(
     return table
 
 
-def scan_with_progress(bus: LxServoPort, ids: Sequence[int], console: Console) -> ScanResult:
-    """``bus.scan(ids)`` behind a progress bar (shown on ``console``, then removed)."""
+def scan_with_progress(bus: LxServoPort, ids: Sequence[int], console: Console, *,
+                       margin_s: float | None = None) -> ScanResult:
+    """``bus.scan(ids)`` behind a progress bar (shown on ``console``, then removed);
+    ``margin_s``: each ID's wait past its reply's wire time (the bus's default if None)."""
     with scan_progress(console, len(ids)) as advance:
-        return bus.scan(ids, progress=lambda _sid: advance())
+        if margin_s is None:
+            return bus.scan(ids, progress=lambda _sid: advance())
+        return bus.scan(ids, margin_s=margin_s, progress=lambda _sid: advance())
 
 
 @contextmanager

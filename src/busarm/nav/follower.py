@@ -64,6 +64,7 @@ _RANGES: dict[str, tuple[float, float, str]] = {
     "slow_radius_m": (0.01, 5.0, "m"),
     "min_speed_m_s": (0.0, 0.5, "m/s"),
     "corner_cut_m": (0.001, 1.0, "m"),
+    "reaction_s": (0.0, 1.0, "s"),
 }
 
 
@@ -88,6 +89,10 @@ class FollowerSettings:
     millimetres take forever."""
     corner_cut_m: float = 0.02
     """How far before a corner the base may turn off toward the next leg."""
+    reaction_s: float = 0.0
+    """How long a command stands before the next one can change it (the control period:
+    a Lidar revolution when it is given a scan at a time). The speed is held to one that
+    still stops in time after this much more at it."""
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -156,6 +161,19 @@ class PathFollower:
         s = self._project(pose)
         x, y = self._at(s)
         return self.length_m - s + math.hypot(pose.x_m - x, pose.y_m - y)
+
+    def to_stop_m(self, pose: Pose2D) -> float:
+        """The run ahead (m) of the base at ``pose``, before the follower turns it or
+        stops it: back onto the path, then along it to where the path next turns off
+        sharply (a corner the look-ahead point stops at) or ends."""
+        s = self._project(pose)
+        x, y = self._at(s)
+        off_m = math.hypot(pose.x_m - x, pose.y_m - y)
+        if self.length_m == 0.0:
+            return off_m
+        ends = self._s_at[1:][self._stops]
+        ahead = ends[ends > s + self.settings.corner_cut_m]
+        return off_m + (float(ahead[0]) - s if len(ahead) else max(self.length_m - s, 0.0))
 
     def command(self, pose: Pose2D) -> Twist:
         """The twist (body frame) to drive now, with the base at ``pose`` (map frame)."""
@@ -262,13 +280,15 @@ class PathFollower:
         """The fastest the base may go now: to stop at the goal, to pass each vertex
         ahead no faster than it allows, and slower near the goal."""
         cfg = self.settings
+        a, lag = cfg.max_accel_m_s2, cfg.max_accel_m_s2 * cfg.reaction_s
         left_m = self.remaining_m(pose)
-        speed = min(cfg.max_speed_m_s, math.sqrt(2.0 * cfg.max_accel_m_s2 * left_m))
+        # v t + (v^2 - end^2) / 2a <= d: at v for the reaction time t, then braking at a.
+        speed = min(cfg.max_speed_m_s, math.sqrt(lag * lag + 2.0 * a * left_m) - lag)
         ahead = self._vertex_s > self._s
         if ahead.any():
             to_go = self._vertex_s[ahead] - self._s
             speed = min(speed, float(np.min(np.sqrt(
-                self._vertex_speed[ahead] ** 2 + 2.0 * cfg.max_accel_m_s2 * to_go))))
+                lag * lag + self._vertex_speed[ahead] ** 2 + 2.0 * a * to_go))) - lag)
         near = max(cfg.max_speed_m_s * left_m / cfg.slow_radius_m, cfg.min_speed_m_s)
         return min(speed, near)
 

@@ -11,9 +11,8 @@ reaches it. ``locate_averaged`` merges several pictures taken from the same pose
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
-from typing import TypeVar
+from collections.abc import Sequence
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -32,7 +31,16 @@ from busarm.perception.shape import (
     judge_blobs,
     nearest_other_mm,
 )
-from busarm.perception.split import Grid, cast_cube_extent, edge_yaw_deg, top_faces_mm
+from busarm.perception.sightings import Found, NotBlock, Sighting
+from busarm.perception.split import Grid, top_faces_mm
+from busarm.perception.top_plane import (
+    BlobCast,
+    all_or_each,
+    cast_blobs,
+    edge_points_px,
+    outline_grids,
+    yaws_from_edges,
+)
 from busarm.units import check_range
 from busarm.vision.calibration import CameraIntrinsics, HandEyeResult
 from busarm.vision.color import ColorDetector, Detection
@@ -70,8 +78,6 @@ __all__ = [
 ]
 
 
-T = TypeVar("T")
-R = TypeVar("R")
 FloatArray = npt.NDArray[np.float64]
 
 CAMERA_LINK = CAMERA_JOINT_INDEX
@@ -114,64 +120,6 @@ SPLIT_EXPLAINS = 0.8
 outline this well (intersection over union): a thing of another shape is not them."""
 
 
-@dataclass(frozen=True)
-class Sighting:
-    """A block seen in a picture: colour, where it is, and whether the arm reaches it.
-
-    ``reachable``: a grasp at the block's centre height is within the arm's reach and
-    limits (any pitch); ``top_down``: straight down works too; ``reason`` says why not.
-    ``whole``: False if the blob is cut by the picture's edge, or is split into blocks
-    that do not explain its outline, so that its location is only rough (look again,
-    facing it).
-    """
-
-    color: str
-    location: BlockLocation
-    detection: Detection | None
-    reachable: bool
-    top_down: bool
-    reason: str = ""
-    detections: tuple[Detection, ...] = field(default=(), repr=False)
-    whole: bool = True
-    shape: Shape | None = field(default=None, repr=False)
-    """What its outline says it is (``busarm.perception.shape``; None: not judged, e.g.
-    one of several touching blocks, or cut by the picture's edge)."""
-
-    def to_dict(self) -> dict[str, object]:
-        loc = self.location
-        return {
-            "color": self.color, "x_mm": round(loc.x_mm, 2), "y_mm": round(loc.y_mm, 2),
-            "z_mm": round(loc.z_mm, 2), "yaw_deg": round(loc.yaw_deg, 2),
-            "frames": loc.frames, "spread_max_mm": round(loc.spread_max_mm, 2),
-            "reachable": self.reachable, "top_down": self.top_down, "reason": self.reason,
-            "centroid_px": [round(v, 2) for v in loc.centroid_px], "whole": self.whole,
-            "size_mm": round(loc.size_mm, 1),
-            "shape": None if self.shape is None else self.shape.verdict,
-        }
-
-
-@dataclass(frozen=True)
-class NotBlock:
-    """A thing in a block's colour that its outline says is not a block (a cup, a pen)."""
-
-    color: str
-    shape: Shape
-    detection: Detection | None = field(default=None, repr=False)
-
-    @property
-    def xy_mm(self) -> tuple[float, float]:
-        return self.shape.xy_mm
-
-
-@dataclass(frozen=True)
-class Found:
-    """What pictures show: the blocks (and things that may be: ``shape`` unsure), and the
-    things in a block's colour that are not blocks."""
-
-    blocks: list[Sighting]
-    not_blocks: list[NotBlock]
-
-
 def link2base(kin: ArmKinematics, joints_deg: Sequence[float]) -> FloatArray:
     """The camera link's frame (DH frame 4) in the base frame for measured joints (mm)."""
     return kin.frames(joints_deg)[CAMERA_LINK]
@@ -208,20 +156,12 @@ class BlockLocator:
                     ) -> list[float]:
         """Each blob's yaw on the table: its rectangle's edge direction cast onto the
         top-face plane (a square's yaw is known modulo 90 deg)."""
-        pts = []
-        for d in detections:
-            a = math.radians(d.yaw_deg)
-            half = max(d.rect_size_px) / 2
-            cu, cv = d.rect_center_px
-            pts += [(cu - half * math.cos(a), cv - half * math.sin(a)),
-                    (cu + half * math.cos(a), cv + half * math.sin(a))]
-        table = table_points_from_pixels(np.asarray(pts), self.intrinsics, cam2base,
+        if not detections:
+            return []
+        table = table_points_from_pixels(np.concatenate([edge_points_px(d) for d in detections]),
+                                         self.intrinsics, cam2base,
                                          self.table_z_mm + self.block_size_mm)
-        yaws = []
-        for i in range(len(detections)):
-            dx, dy = table[2 * i + 1, :2] - table[2 * i, :2]
-            yaws.append((math.degrees(math.atan2(dy, dx)) + 45.0) % 90.0 - 45.0)
-        return yaws
+        return yaws_from_edges(table)
 
     def locate(self, image: npt.NDArray[np.uint8], joints_deg: Sequence[float], *,
                judge: bool = True) -> list[Sighting]:
@@ -241,42 +181,61 @@ class BlockLocator:
         cam2base = self.cam2base(joints_deg)
         if not detections:
             return Found([], [])
+        # Every blob's centroid, edge and outline cast onto the top plane at once, and
+        # each outline read as a grid of blocks (the undistortion's fixed cost is paid
+        # once a picture, the grids are array operations over all blobs).
+        cast_list = cast_blobs(detections, self.intrinsics, cam2base,
+                               self.table_z_mm + self.block_size_mm)
+        casts = {id(d): c for d, c in zip(detections, cast_list, strict=True)}
+        grids = self._grids(detections, cast_list, cam2base)
         # Blocks of one colour that touch make one blob: such a blob is split into its
         # blocks by its size on the table, and each is located on its own.
         out: list[Sighting] = []
         single, big = [], []
         # Only a blob larger than one block's top face can be (is split, costly) is tried.
-        centres = _all_or_each(lambda ds: list(table_points_from_pixels(
-            np.array([d.centroid_px for d in ds]), self.intrinsics, cam2base,
-            self.table_z_mm + self.block_size_mm)), detections)
-        for d, centre in zip(detections, centres, strict=True):
-            if centre is not None and not _touches_edge(d, w, h) and d.area_px > \
-                    SPLIT_MIN_AREA * self._top_face_px(centre, cam2base):
+        for d, cast in zip(detections, cast_list, strict=True):
+            if cast.centre is not None and not _touches_edge(d, w, h) and d.area_px > \
+                    SPLIT_MIN_AREA * self._top_face_px(cast.centre, cam2base):
                 big.append(d)
             else:
                 single.append(d)
         if judge:
-            return self._judged_all(image, detections, single, big, cam2base, trays)
+            return self._judged_all(image, detections, single, big, cam2base, trays,
+                                    casts, grids)
         for d in big:
-            parts = self._split(d, cam2base)
+            parts = self._split(d, cam2base, grids[id(d)])
             if parts is None:
                 single.append(d)
             else:  # cubes that explain the blob; else the split's guess, its places not sure
                 explained = self._explained_parts(d, d.contour_px, cam2base, parts)
                 out += explained if explained is not None else [
                     replace(self._sighting(d.color, loc, d), whole=False) for loc in parts]
-        return Found(out + self._locate_single(single, cam2base, w, h), [])
+        return Found(out + self._locate_single(single, cam2base, w, h, casts, grids), [])
+
+    def _grids(self, detections: Sequence[Detection], casts: Sequence[BlobCast],
+               cam2base: FloatArray) -> dict[int, Grid | None]:
+        """Each blob's outline read as a grid of touching blocks (``outline_grids``), by
+        the blob's id; None for one whose outline cannot be cast."""
+        cast = [(d, c.outline) for d, c in zip(detections, casts, strict=True)
+                if c.outline is not None]
+        grids = outline_grids([pts for _, pts in cast], self.block_size_mm, self.table_z_mm,
+                              cam2base[:3, 3])
+        out: dict[int, Grid | None] = {id(d): None for d in detections}
+        out.update((id(d), g) for (d, _), g in zip(cast, grids, strict=True))
+        return out
 
     def _judged_all(self, image: npt.NDArray[np.uint8], detections: Sequence[Detection],
                     single: list[Detection], big: list[Detection], cam2base: FloatArray,
-                    trays: Sequence[tuple[float, float, float]]) -> Found:
+                    trays: Sequence[tuple[float, float, float]], casts: dict[int, BlobCast],
+                    grids: dict[int, Grid | None]) -> Found:
         """Every blob judged as one thing first (a block may be larger than the size
         this locator was given); a large blob that is not one measured block may be
         several touching ones: split, and the parts kept if cubes there explain its
-        outline (else it stays as judged: no block, or one not measured)."""
+        outline (else it stays as judged: no block, or one not measured). ``casts``,
+        ``grids``: each blob's (by its id), as ``find_in`` made them."""
         h, w = image.shape[:2]
-        first = self._judged(image, detections, self._locate_single(single + big, cam2base, w, h),
-                             cam2base, trays)
+        first = self._judged(image, detections, self._locate_single(
+            single + big, cam2base, w, h, casts, grids), cam2base, trays)
         large = {id(d) for d in big}
         blocks: list[Sighting] = []
         not_blocks: list[NotBlock] = []
@@ -289,7 +248,8 @@ class BlockLocator:
                 outline = s.detection.contour_px if s.shape is None \
                     or s.shape.views[-1].trusted_share < MIN_TRUSTED \
                     else s.shape.views[-1].outline_px
-                parts = self._explained_parts(s.detection, outline, cam2base)
+                parts = self._explained_parts(s.detection, outline, cam2base,
+                                              grid=grids[id(s.detection)])
                 blocks += [s] if parts is None else parts
             else:
                 blocks.append(s)
@@ -298,7 +258,7 @@ class BlockLocator:
             if n.detection is not None and id(n.detection) in large and n.shape.crowd:
                 done.add(id(n.detection))
                 parts = self._explained_parts(n.detection, n.shape.views[-1].outline_px,
-                                              cam2base)
+                                              cam2base, grid=grids[id(n.detection)])
             if parts is not None:
                 blocks += parts
             elif id(n.detection) not in large or _a_thing(n.shape):
@@ -306,15 +266,17 @@ class BlockLocator:
             # (else a crowd of touching blocks no split makes out: looked at again later)
         for d in big:  # too large to be taken for one block at all
             if id(d) not in done and all(s.detection is not d for s in first.blocks):
-                blocks += self._explained_parts(d, d.contour_px, cam2base) or []
+                blocks += self._explained_parts(d, d.contour_px, cam2base,
+                                                grid=grids[id(d)]) or []
         return Found(blocks, not_blocks)
 
     def _explained_parts(self, d: Detection, outline: npt.NDArray[np.int32],
-                         cam2base: FloatArray, split: list[BlockLocation] | None = None
-                         ) -> list[Sighting] | None:
-        """The touching blocks split out of blob ``d`` (``split``: already) if cubes of
-        this locator's size there explain the thing's ``outline``; else None."""
-        parts = split if split is not None else self._split(d, cam2base)
+                         cam2base: FloatArray, split: list[BlockLocation] | None = None, *,
+                         grid: Grid | None = None) -> list[Sighting] | None:
+        """The touching blocks split out of blob ``d`` (``split``: already; else split
+        by its outline's ``grid``) if cubes of this locator's size there explain the
+        thing's ``outline``; else None."""
+        parts = split if split is not None else self._split(d, cam2base, grid)
         size = self.block_size_mm
 
         def explains(locs: Sequence[BlockLocation]) -> float:
@@ -431,76 +393,45 @@ class BlockLocator:
         return np.asarray(cv2.convexHull(px.astype(np.float32)).reshape(-1, 2), np.int32)
 
     def _locate_single(self, detections: list[Detection], cam2base: FloatArray, w: int,
-                       h: int) -> list[Sighting]:
-        """Sightings of blobs that are one block each (or none: not block-sized)."""
+                       h: int, casts: dict[int, BlobCast], grids: dict[int, Grid | None]
+                       ) -> list[Sighting]:
+        """Sightings of blobs that are one block each (or none: not block-sized).
+        ``casts``, ``grids``: each blob's (by its id), as ``find_in`` made them."""
         if not detections:
             return []
-        # Yaw, then position, for all blobs at once (vectorised); a blob whose rays miss
-        # the table is no block on it, and is left out.
-        yaws = _all_or_each(lambda ds: self._table_yaws(ds, cam2base), detections)
-        kept = [(d, y) for d, y in zip(detections, yaws, strict=True) if y is not None]
-        locations = _all_or_each(
+        # Position for all blobs at once (vectorised), from their yaw on the table; a
+        # blob whose rays miss the table is no block on it, and is left out.
+        kept = [(d, yaw) for d in detections if (yaw := casts[id(d)].yaw_deg) is not None]
+        locations = all_or_each(
             lambda pairs: locate_blocks(
                 np.array([d.centroid_px for d, _ in pairs]), self.intrinsics, cam2base,
                 table_z_mm=self.table_z_mm, block_size_mm=self.block_size_mm,
                 yaw_deg=[y for _, y in pairs]), kept)
-        pairs = [(d, loc) for (d, _), loc in zip(kept, locations, strict=True)
-                 if loc is not None]
-        # A blob cut by the picture's edge is not a whole silhouette: its location is
-        # rough (and it may look small); the sorter looks again before trusting it.
         out = []
-        for d, loc in pairs:
+        for (d, _), loc in zip(kept, locations, strict=True):
+            # A blob cut by the picture's edge is not a whole silhouette: its location is
+            # rough (and it may look small); the sorter looks again before trusting it.
             whole = not _touches_edge(d, w, h)
-            if self._block_sized(d, loc, cam2base, whole):
-                if whole:
-                    loc = self._sides_missing(d, loc, cam2base)
-                out.append(replace(self._sighting(d.color, loc, d), whole=whole))
+            if loc is None or not self._block_sized(d, loc, cam2base, whole):
+                continue
+            if whole:
+                loc = self._sides_missing(loc, grids[id(d)])
+            out.append(replace(self._sighting(d.color, loc, d), whole=whole))
         return out
 
-    def _outline_grid(self, d: Detection, cam2base: FloatArray) -> Grid | None:
-        """The blob's outline cast onto the blocks' top plane, read as a grid of touching
-        blocks (see ``Grid``); None if the outline cannot be cast.
+    def _cast_outlines(self, detections: Sequence[Detection], cam2base: FloatArray
+                       ) -> list[FloatArray | None]:
+        """Each blob's outline (straight edges) cast onto the blocks' top plane (x, y mm);
+        None for one that cannot be cast."""
+        top = self.table_z_mm + self.block_size_mm
+        return [c.outline for c in cast_blobs(detections, self.intrinsics, cam2base, top)]
 
-        Cast onto that plane, one block covers its top face plus the side faces the
-        camera sees; n in a row cover n - 1 sides more. Lit from the side, a block's dark
-        side faces may be too dark for its colour, and the blob is then its top faces
-        only. So half the sides is assumed to count the blocks along each of the blocks'
-        axes (the outline's main edge direction: right either way while the sides add
-        less than a block), and how much of the sides the blob has is read from what its
-        length leaves over.
-        """
-        size, top = self.block_size_mm, self.table_z_mm + self.block_size_mm
-        # Straight edges (a pixel outline is a staircase, whose steps run along the
-        # picture's axes, not the blocks').
-        contour = cv2.approxPolyDP(d.contour_px.reshape(-1, 1, 2), 1.5, True).reshape(-1, 2)
-        try:
-            pts = table_points_from_pixels(contour.astype(np.float64), self.intrinsics,
-                                           cam2base, top)[:, :2]
-        except VisionError:
-            return None
-        yaw = edge_yaw_deg(pts)
-        a = math.radians(yaw)
-        axes = np.array([[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]])
-        rel = pts @ axes.T
-        lo_blob, hi_blob = rel.min(axis=0), rel.max(axis=0)
-        centre = ((lo_blob + hi_blob) / 2) @ axes
-        lo, hi = cast_cube_extent(centre, axes, yaw, size, self.table_z_mm, cam2base[:3, 3])
-        sides = (hi - lo) - size
-        counts = tuple(max(1, round((ext - side / 2) / size))
-                       for ext, side in zip(hi_blob - lo_blob, sides, strict=True))
-        shown = np.clip((hi_blob - lo_blob - np.array(counts) * size) / np.maximum(sides, 1e-6),
-                        0.0, 1.0)
-        first = lo_blob + size / 2 + shown * (-lo - size / 2)  # the first top face's centre
-        # The sides reach out from a top face on the camera's side only: lo or hi is
-        # the top's half side, and their sum is how far the sides reach, signed.
-        return Grid(yaw, axes, (counts[0], counts[1]), first, shown, (lo_blob, hi_blob),
-                     lo + hi)
-
-    def _split(self, d: Detection, cam2base: FloatArray) -> list[BlockLocation] | None:
+    def _split(self, d: Detection, cam2base: FloatArray, grid: Grid | None
+               ) -> list[BlockLocation] | None:
         """The blocks in a blob that holds several touching ones (a row, a 2 x 2, a
         staggered cluster): their top faces found on the top plane
-        (``busarm.perception.split``); None for one block."""
-        grid = self._outline_grid(d, cam2base)
+        (``busarm.perception.split``), from the blob's outline read as a ``grid``
+        (``outline_grids``); None for one block."""
         if grid is None or grid.counts[0] * grid.counts[1] <= 1 or max(grid.counts) > MAX_SPLIT:
             return None
         size, top = self.block_size_mm, self.table_z_mm + self.block_size_mm
@@ -519,12 +450,11 @@ class BlockLocator:
                               silhouette=False)
                 for (x, y), (u, v) in zip(centres, pixels.tolist(), strict=True)]
 
-    def _sides_missing(self, d: Detection, loc: BlockLocation, cam2base: FloatArray
-                       ) -> BlockLocation:
+    def _sides_missing(self, loc: BlockLocation, grid: Grid | None) -> BlockLocation:
         """``loc`` (from the whole silhouette), or, if the blob lacks much of the side
         faces the camera sees (dark, lit from elsewhere), the block's top face as its
-        outline gives it: the silhouette's centroid would be off by millimetres then."""
-        grid = self._outline_grid(d, cam2base)
+        outline's ``grid`` gives it (None: the outline cannot be cast): the silhouette's
+        centroid would be off by millimetres then."""
         if grid is None or grid.counts != (1, 1) or float(grid.shown.min()) >= SIDES_SHOWN:
             return loc
         x, y = grid.centre_mm(0, 0, self.block_size_mm)
@@ -532,7 +462,7 @@ class BlockLocator:
 
     def _top_face_px(self, point_mm: npt.ArrayLike, cam2base: FloatArray) -> float:
         """The area (px) a block's top face at ``point_mm`` takes in the picture, about."""
-        depth = float(np.linalg.norm(np.asarray(point_mm, dtype=float) - cam2base[:3, 3]))
+        depth = math.dist(np.asarray(point_mm, dtype=float).tolist(), cam2base[:3, 3].tolist())
         return float((self.intrinsics.fx * self.block_size_mm / max(depth, 1.0)) ** 2)
 
     def _block_sized(self, d: Detection, loc: BlockLocation, cam2base: FloatArray,
@@ -634,24 +564,6 @@ def _inner(d: Detection, width_px: int, height_px: int) -> bool:
 
 
 def _touches_edge(d: Detection, width_px: int, height_px: int) -> bool:
-    c = d.contour_px.reshape(-1, 2)
-    return bool(c[:, 0].min() <= 0 or c[:, 1].min() <= 0 or c[:, 0].max() >= width_px - 1
-                or c[:, 1].max() >= height_px - 1)
-
-
-def _all_or_each(solve: Callable[[list[T]], list[R]], items: Sequence[T]) -> list[R | None]:
-    """``solve`` for all items at once, or, if that raises VisionError, for each alone
-    (None for an item that still fails), so that one bad blob does not spoil the rest."""
-    if not items:
-        return []
-    try:
-        return list(solve(list(items)))
-    except VisionError:
-        pass
-    out: list[R | None] = []
-    for item in items:
-        try:
-            out.append(solve([item])[0])
-        except VisionError:
-            out.append(None)
-    return out
+    # The outline's bounding box: its lowest and highest column and row, in one C call.
+    x, y, w, h = cv2.boundingRect(d.contour_px.reshape(-1, 1, 2))
+    return x <= 0 or y <= 0 or x + w - 1 >= width_px - 1 or y + h - 1 >= height_px - 1

@@ -40,6 +40,16 @@ from busarm.perception.obstacles import (
     TABLE_SATURATION,
     WHITE_SATURATION,
 )
+from busarm.perception.outline_fit import (
+    HULL_POINTS,
+    FiniteDifferences,
+    PreparedView,
+    box_corners,
+    cylinder_points,
+    misfit,
+    prepared_view,
+    residuals,
+)
 from busarm.vision.calibration import CameraIntrinsics
 
 __all__ = [
@@ -53,9 +63,11 @@ __all__ = [
     "CylinderFit",
     "FloatArray",
     "OutlineView",
+    "PreparedViews",
     "TablePixels",
     "fit_box",
     "fit_cylinder",
+    "prepare_views",
     "table_pixels",
     "thing_outline",
 ]
@@ -72,11 +84,6 @@ COLOURED = 60
 """A pixel this much more saturated (0-255) than the table is something on it."""
 GOOD_FIT_PX = 0.6
 """A fit this close (RMS px) is taken as found; a worse one is tried from another start."""
-HULL_POINTS = 32
-"""Points taken along the box's outline, each held to the measured outline."""
-_CORNERS = np.array([[sx, sy, sz] for sz in (0.0, 1.0) for sx in (-0.5, 0.5)
-                     for sy in (-0.5, 0.5)])
-"""The unit box's corners: footprint centred on the origin, z from 0 (table) to 1."""
 _LOWER = [-np.inf, -np.inf, -np.inf, 1.0, 1.0, 0.5]
 _UPPER = [np.inf, np.inf, np.inf, 400.0, 400.0, 400.0]
 _SCALE = [5.0, 5.0, 0.1, 5.0, 5.0, 5.0]
@@ -130,17 +137,6 @@ class OutlineView:
         return 1.0 if self.trusted is None else float(np.mean(self.trusted))
 
 
-@dataclass(frozen=True)
-class _View:
-    outline: FloatArray
-    """(N, 2) outline points, undistorted normalised, evenly along it (a closed polyline)."""
-    weight: FloatArray
-    """(N,) 1 where the outline point (and the segment from it) is the thing's, else 0."""
-    base2cam: FloatArray
-    scale_px: float
-    """Pixels per normalised unit (fx)."""
-
-
 def _resample(contour: FloatArray, count: int) -> FloatArray:
     """``count`` points evenly spaced along a closed contour."""
     closed = np.vstack([contour, contour[:1]])
@@ -150,7 +146,30 @@ def _resample(contour: FloatArray, count: int) -> FloatArray:
     return np.column_stack([np.interp(at, arc, closed[:, 0]), np.interp(at, arc, closed[:, 1])])
 
 
-def _view(view: OutlineView, intr: CameraIntrinsics) -> _View:
+@dataclass(frozen=True)
+class PreparedViews:
+    """Views made ready for fitting (``prepare_views``): several fits of the same views
+    (``fit_box``, ``fit_cylinder``) then undistort their outlines once."""
+
+    views: tuple[OutlineView, ...]
+    prepared: tuple[PreparedView, ...]
+
+
+def prepare_views(views: Sequence[OutlineView], intrinsics: CameraIntrinsics
+                  ) -> PreparedViews:
+    """``views`` ready for fitting with ``intrinsics``. VisionError if an outline cannot
+    be used."""
+    return PreparedViews(tuple(views), tuple(_view(v, intrinsics) for v in views))
+
+
+def _prepared(views: Sequence[OutlineView] | PreparedViews, intrinsics: CameraIntrinsics
+              ) -> tuple[PreparedView, ...]:
+    if isinstance(views, PreparedViews):
+        return views.prepared
+    return prepare_views(views, intrinsics).prepared
+
+
+def _view(view: OutlineView, intr: CameraIntrinsics) -> PreparedView:
     c = np.asarray(view.outline_px, dtype=np.float64).reshape(-1, 2)
     if c.shape[0] < 4:
         raise VisionError(f"an outline of {c.shape[0]} points is too short to fit a box to")
@@ -162,7 +181,8 @@ def _view(view: OutlineView, intr: CameraIntrinsics) -> _View:
         own: FloatArray = np.asarray(view.trusted, dtype=np.float64)[nearest]
         weight = np.asarray(np.minimum(own, np.roll(own, -1)), dtype=np.float64)  # both ends
     base2cam = np.asarray(np.linalg.inv(np.asarray(view.cam2base, dtype=np.float64)), np.float64)
-    return _View(intr.normalized_from_pixels(samples), weight, base2cam, float(intr.fx))
+    return prepared_view(intr.normalized_from_pixels(samples), weight, base2cam,
+                         float(intr.fx))
 
 
 def _outward(points: FloatArray, by_px: float) -> FloatArray:
@@ -179,104 +199,52 @@ def _outward(points: FloatArray, by_px: float) -> FloatArray:
     return out
 
 
-def _segment_distances(points: FloatArray, starts: FloatArray, ends: FloatArray
-                       ) -> tuple[FloatArray, npt.NDArray[np.intp]]:
-    """Each point's distance to the nearest of the segments (starts -> ends), and which."""
-    d = ends - starts
-    rel = points[:, None, :] - starts[None]
-    t = np.clip((rel * d).sum(axis=2) / np.maximum((d * d).sum(axis=1), 1e-18), 0.0, 1.0)
-    gap = rel - t[..., None] * d
-    squared = (gap * gap).sum(axis=2)
-    nearest = squared.argmin(axis=1)
-    return np.sqrt(squared[np.arange(len(points)), nearest]), nearest
-
-
-def _box_corners(p: FloatArray, table_z_mm: float) -> FloatArray:
-    x, y, yaw, length, width, height = p
-    c, s = math.cos(yaw), math.sin(yaw)
-    local = _CORNERS * (length, width, height)
-    out: FloatArray = np.column_stack([x + c * local[:, 0] - s * local[:, 1],
-                                       y + s * local[:, 0] + c * local[:, 1],
-                                       table_z_mm + local[:, 2]])
-    return out
-
-
-def _residuals(p: FloatArray, views: Sequence[_View], table_z_mm: float) -> FloatArray:
-    return _weighted(p, views, table_z_mm)[0]
-
-
-def _weighted(p: FloatArray, views: Sequence[_View], table_z_mm: float
+def _weighted(p: FloatArray, views: Sequence[PreparedView], table_z_mm: float
               ) -> tuple[FloatArray, FloatArray]:
     """The fit's residuals (px) for box ``p``, and each one's weight (0: untrusted)."""
-    return _outline_misfit(_box_corners(p, table_z_mm), views)
+    res, weight = misfit(box_corners(p[None], table_z_mm), views)
+    return res[0], weight[0]
 
 
-def _outline_misfit(corners: FloatArray, views: Sequence[_View]
-                    ) -> tuple[FloatArray, FloatArray]:
-    """How far each view's outline is from the outline (convex hull) of a convex thing
-    with these ``corners`` (N x 3, mm, base frame): residuals (px) and weights."""
-    out, weights = [], []
-    for v in views:
-        cam = corners @ v.base2cam[:3, :3].T + v.base2cam[:3, 3]
-        z = np.maximum(cam[:, 2], 1.0)  # a corner behind the camera: no fit (kept finite)
-        img = cam[:, :2] / z[:, None]
-        # Which corners make the outline, from float32 (OpenCV's); the outline itself in
-        # float64, so that the fit's small steps are not lost to rounding.
-        index = cv2.convexHull(img.astype(np.float32), returnPoints=False).ravel()
-        hull = img[index]
-        ends = np.roll(hull, -1, axis=0)
-        to_hull, _ = _segment_distances(v.outline, hull, ends)
-        # Where the outline is a neighbour's, the thing may go on behind the neighbour:
-        # the box must reach the outline there (no point of it outside the box), but may
-        # reach beyond it; the box's outline there says nothing.
-        edge = ends - hull
-        rel = v.outline[:, None, :] - hull[None]
-        cross = edge[None, :, 0] * rel[..., 1] - edge[None, :, 1] * rel[..., 0]
-        turn = float(np.sum(hull[:, 0] * ends[:, 1] - ends[:, 0] * hull[:, 1]))
-        outside = (cross * turn < 0).any(axis=1)
-        out.append(to_hull * np.where(v.weight > 0, 1.0, outside) * v.scale_px)
-        to_outline, nearest = _segment_distances(_resample(hull, HULL_POINTS), v.outline,
-                                                 np.roll(v.outline, -1, axis=0))
-        out.append(to_outline * v.weight[nearest] * v.scale_px)
-        weights += [v.weight, v.weight[nearest]]
-    return np.concatenate(out), np.concatenate(weights)
-
-
-def fit_box(views: Sequence[OutlineView], intrinsics: CameraIntrinsics,
+def fit_box(views: Sequence[OutlineView] | PreparedViews, intrinsics: CameraIntrinsics,
             table_z_mm: float, guess: tuple[float, float, float, float], *,
             aspect: float | None = None) -> BoxFit:
     """The box (standing on the table at ``table_z_mm``) whose outline matches each
     view's (its trusted part); ``guess``: (x mm, y mm, yaw deg, side mm) to start
     from. ``aspect``: None for any box; else a square footprint and the height this
-    times its side (1: a cube). VisionError if an outline cannot be used."""
-    if not views:
+    times its side (1: a cube). ``views`` may be prepared (``prepare_views``) for several
+    fits. VisionError if an outline cannot be used."""
+    prepared = _prepared(views, intrinsics)
+    if not prepared:
         raise VisionError("fit_box needs at least one view")
-    prepared = [_view(v, intrinsics) for v in views]
     x0, y0, yaw0, side0 = guess
     side0 = min(max(side0, 2.0), 399.0)
-    if aspect is None:
-        def residuals(q: FloatArray) -> FloatArray:
-            return _residuals(q, prepared, table_z_mm)
-        lower, upper, scale = _LOWER, _UPPER, _SCALE
-    else:
-        ratio = float(aspect)
-
-        def residuals(q: FloatArray) -> FloatArray:
-            return _residuals(np.array([*q, q[3], ratio * q[3]]), prepared, table_z_mm)
-        lower, upper, scale = _LOWER[:4], _UPPER[:4], _SCALE[:4]
+    ratio = None if aspect is None else float(aspect)
+    size = 6 if ratio is None else 4
+    lower, upper, scale = _LOWER[:size], _UPPER[:size], _SCALE[:size]
+    # The Jacobian's steps are measured in one batch (busarm.perception.outline_fit).
+    steps = FiniteDifferences(lambda q: residuals(box_corners(_box_of(q, ratio), table_z_mm),
+                                                  prepared), lower, upper)
     fit = None
     # A square's yaw is known modulo 90 deg only: a start 45 deg off can settle on a
     # box turned the wrong way, so a poor fit is tried again from the other diagonal.
     for turn_deg in (0.0, 45.0):
         start = np.array([x0, y0, math.radians(yaw0 + turn_deg), side0, side0, side0])
-        tried = least_squares(residuals, start[:len(lower)], bounds=(lower, upper),
-                              x_scale=scale, max_nfev=200, loss="soft_l1", f_scale=ROBUST_PX)
+        tried = least_squares(steps.residuals, start[:size], jac=steps.jacobian,
+                              bounds=(lower, upper), x_scale=scale, max_nfev=200,
+                              loss="soft_l1", f_scale=ROBUST_PX)
         if fit is None or tried.cost < fit.cost:
             fit = tried
         if _fit_px(fit.fun) < GOOD_FIT_PX:
             break
     assert fit is not None
-    q = fit.x if aspect is None else np.array([*fit.x, fit.x[3], float(aspect) * fit.x[3]])
+    return _box_fit(fit.x, ratio, prepared, table_z_mm)
+
+
+def _box_fit(p: FloatArray, ratio: float | None, prepared: Sequence[PreparedView],
+             table_z_mm: float) -> BoxFit:
+    """The box of a fit's parameters ``p``, and how well it fits."""
+    q = _box_of(p[None], ratio)[0]
     x, y, yaw, a, b, h = q
     res, weight = _weighted(q, prepared, table_z_mm)
     rms = _fit_px(res[weight > 0])
@@ -289,6 +257,14 @@ def fit_box(views: Sequence[OutlineView], intrinsics: CameraIntrinsics,
     yaw_deg = (math.degrees(yaw) + 90.0) % 180.0 - 90.0
     return BoxFit(float(x), float(y), yaw_deg, float(a), float(b), float(h), rms, len(prepared),
                   per_view)
+
+
+def _box_of(q: FloatArray, ratio: float | None) -> FloatArray:
+    """Boxes (B, 6) from a fit's parameters (B, 6; or B, 4 with a square footprint and
+    the height ``ratio`` times its side)."""
+    if ratio is None:
+        return q
+    return np.column_stack([q, q[:, 3], ratio * q[:, 3]])
 
 
 @dataclass(frozen=True)
@@ -306,39 +282,26 @@ class CylinderFit:
                 f" at ({self.x_mm:.1f}, {self.y_mm:.1f}), fit {self.fit_px:.2f} px)")
 
 
-_CIRCLE = np.array([[math.cos(a), math.sin(a)]
-                    for a in np.linspace(0.0, 2 * math.pi, 24, endpoint=False)])
-
-
-def _cylinder_points(q: FloatArray, table_z_mm: float) -> FloatArray:
-    x, y, radius, height = q
-    ring = _CIRCLE * radius + (x, y)
-    out: FloatArray = np.vstack([np.column_stack([ring, np.full(len(ring), z)])
-                                 for z in (table_z_mm, table_z_mm + height)])
-    return out
-
-
-def fit_cylinder(views: Sequence[OutlineView], intrinsics: CameraIntrinsics,
-                 table_z_mm: float, guess: tuple[float, float, float]) -> CylinderFit:
+def fit_cylinder(views: Sequence[OutlineView] | PreparedViews,
+                 intrinsics: CameraIntrinsics, table_z_mm: float,
+                 guess: tuple[float, float, float]) -> CylinderFit:
     """The upright cylinder (a cup, a disc) whose outline matches each view's best;
     ``guess``: (x mm, y mm, diameter mm). A box's outline is straight-edged and a
     cylinder's curved: which of the two fits better says which it is."""
-    if not views:
+    prepared = _prepared(views, intrinsics)
+    if not prepared:
         raise VisionError("fit_cylinder needs at least one view")
-    prepared = [_view(v, intrinsics) for v in views]
     x0, y0, d0 = guess
-
-    def residuals(q: FloatArray) -> FloatArray:
-        return _outline_misfit(_cylinder_points(q, table_z_mm), prepared)[0]
-
+    lower, upper = [-np.inf, -np.inf, 0.5, 0.5], [np.inf, np.inf, 200.0, 400.0]
+    steps = FiniteDifferences(
+        lambda q: residuals(cylinder_points(q, table_z_mm), prepared), lower, upper)
     start = np.array([x0, y0, min(max(d0 / 2, 1.0), 199.0), min(max(d0, 1.0), 399.0)])
-    fit = least_squares(residuals, start, bounds=([-np.inf, -np.inf, 0.5, 0.5],
-                                                  [np.inf, np.inf, 200.0, 400.0]),
+    fit = least_squares(steps.residuals, start, jac=steps.jacobian, bounds=(lower, upper),
                         x_scale=[5.0, 5.0, 5.0, 5.0], max_nfev=200, loss="soft_l1",
                         f_scale=ROBUST_PX)
-    res, weight = _outline_misfit(_cylinder_points(fit.x, table_z_mm), prepared)
+    res, weight = misfit(cylinder_points(fit.x[None], table_z_mm), prepared)
     x, y, radius, height = (float(v) for v in fit.x)
-    return CylinderFit(x, y, 2 * radius, height, _fit_px(res[weight > 0]))
+    return CylinderFit(x, y, 2 * radius, height, _fit_px(res[0][weight[0] > 0]))
 
 
 def _fit_px(residuals_px: FloatArray) -> float:

@@ -37,6 +37,7 @@ from busarm.perception.measure import (
     TablePixels,
     fit_box,
     fit_cylinder,
+    prepare_views,
     table_pixels,
     thing_outline,
 )
@@ -145,7 +146,7 @@ def judge(views: Sequence[OutlineView], intrinsics: CameraIntrinsics, table_z_mm
           guess: tuple[float, float, float, float]) -> Shape:
     """The verdict on one thing seen in ``views`` (see the module docstring); ``guess``:
     (x mm, y mm, yaw deg, side mm). VisionError if an outline cannot be used."""
-    pairs = list(views)
+    pairs = prepare_views(views, intrinsics)  # undistorted once for every fit below
     box = fit_box(pairs, intrinsics, table_z_mm, guess)
     start = (box.x_mm, box.y_mm, box.yaw_deg, (box.length_mm + box.width_mm) / 2)
     cube = fit_box(pairs, intrinsics, table_z_mm, start, aspect=1.0)
@@ -188,9 +189,10 @@ def judge(views: Sequence[OutlineView], intrinsics: CameraIntrinsics, table_z_mm
     tolerance = HEIGHT_TOLERANCE[0 if len(views) == 1 else 1]
     if abs(box.height_mm / side - 1.0) > tolerance and cube.fit_px - box.fit_px > DECISIVE_PX:
         return shape("not a block", f"{box.height_mm:.0f} mm tall on {footprint}")
-    tall = fit_box(pairs, intrinsics, table_z_mm, start, aspect=TALL)
-    flat = fit_box(pairs, intrinsics, table_z_mm, start, aspect=FLAT)
-    if min(_worse_by(tall, cube), _worse_by(flat, cube)) > DECISIVE_PX:
+    # A cube when both the taller and the flatter box fit clearly worse: the flatter one
+    # is fitted only when the taller one does.
+    if all(_worse_by(fit_box(pairs, intrinsics, table_z_mm, start, aspect=aspect), cube)
+           > DECISIVE_PX for aspect in (TALL, FLAT)):
         return shape("cube", f"a {cube.length_mm:.1f} mm cube")
     return shape("unsure", f"a {cube.length_mm:.0f} mm cube or a box of another height: "
                            f"to be seen from another pose")

@@ -99,16 +99,19 @@ def _redraw(contour_px: npt.NDArray[np.int32], intrinsics: CameraIntrinsics,
     mask = np.zeros((h + 2, w + 2), np.uint8)
     cv2.drawContours(mask, [contour_px.reshape(-1, 1, 2) - (x0 - 1, y0 - 1)], -1, 1, -1)
     rows, cols = plane.shape
-    grid = np.stack(np.meshgrid(np.arange(cols), np.arange(rows)), axis=-1).reshape(-1, 2)
-    base = plane.to_base(grid.astype(np.float64))
     base2cam = np.linalg.inv(cam2base)
-    p_cam = np.column_stack([base, np.full(len(base), top_z_mm)]) @ base2cam[:3, :3].T \
-        + base2cam[:3, 3]
-    if np.any(p_cam[:, 2] <= 0.0):
-        raise VisionError("the blob's top plane reaches behind the camera")
-    px = intrinsics.pixels_from_camera_points(p_cam) - (x0 - 1, y0 - 1)
-    maps = px.reshape(rows, cols, 2).astype(np.float32)
-    return np.asarray(cv2.remap(mask, maps[..., 0], maps[..., 1], cv2.INTER_NEAREST,
+    r, t = base2cam[:3, :3], base2cam[:3, 3]
+    # Pixel (column, row) of the plane is at origin + (column, row) * RESOLUTION_MM along
+    # the axes: its camera point is projective-affine in them (p0 + column * dc + row *
+    # dr), so the camera model maps the whole plane in one pass.
+    p0 = r @ np.array([*(plane.origin @ plane.axes), top_z_mm]) + t
+    dc, dr = (r[:, :2] @ (axis * RESOLUTION_MM) for axis in plane.axes)
+    try:
+        map_u, map_v = intrinsics.plane_pixel_maps(np.column_stack([dc, dr, p0]), cols, rows,
+                                                   (x0 - 1.0, y0 - 1.0))
+    except VisionError:
+        raise VisionError("the blob's top plane reaches behind the camera") from None
+    return np.asarray(cv2.remap(mask, map_u, map_v, cv2.INTER_NEAREST,
                                 borderMode=cv2.BORDER_CONSTANT, borderValue=0), np.uint8)
 
 
@@ -127,57 +130,92 @@ def _without_sides(blob: npt.NDArray[np.uint8], cast_uv_mm: FloatArray
 
 
 def _place_squares(tops: npt.NDArray[np.uint8], size_mm: float) -> tuple[FloatArray, float]:
-    """Greedy squares on the top faces (see the module docstring): their centres (N x 2,
-    pixels: column, row) and how well they explain the tops, in blocks: what they cover,
-    less twice what is left over and twice what they cover of nothing (a square put on a
-    side face's strip, or a top cut short by too much taken off)."""
+    """Greedy squares on the top faces (a 0/1 mask; see the module docstring): their
+    centres (N x 2, pixels: column, row) and how well they explain the tops, in blocks:
+    what they cover, less twice what is left over and twice what they cover of nothing
+    (a square put on a side face's strip, or a top cut short by too much taken off)."""
     side = max(3, round(size_mm / RESOLUTION_MM))
     inner = max(1, side - 2 * round(FIT_SLACK_MM / RESOLUTION_MM))
-    fits = cv2.erode(tops, np.ones((inner, inner), np.uint8), borderType=cv2.BORDER_CONSTANT,
-                     borderValue=0) > 0
-    left = tops.astype(np.float32)
-    centres: list[FloatArray] = []
+    left = np.array(tops, np.uint8)
+    # Where a top fits (an inner square wholly on the tops: its box sum is full), as a
+    # 0/1 factor; box sums of a 0/1 mask are whole numbers, exact in float32.
+    fits = (_box_sums(left, inner) > inner * inner - 0.5).astype(np.float32)
+    # What is left's pixel count and row and column sums, kept up to date as squares
+    # take windows off it (whole numbers: its middle is the same as from its moments).
+    m = cv2.moments(left, binaryImage=True)
+    count, sum_r, sum_c = m["m00"], m["m01"], m["m10"]
+    width = left.shape[1]
+    centres: list[tuple[float, float]] = []
     covered = empty = 0.0
     for _ in range(MAX_BLOCKS):
-        cover = cv2.boxFilter(left, -1, (side, side), normalize=False,
-                              borderType=cv2.BORDER_CONSTANT)
-        cover[~fits] = 0.0
+        cover = _box_sums(left, side)
+        np.multiply(cover, fits, out=cover)
         best = float(cover.max())
         if best < MIN_COVER * side * side:
             break
-        rows, cols = np.nonzero(cover >= best - 0.01 * side * side)
+        rows, cols = np.divmod(np.flatnonzero(cover >= best - 0.01 * side * side), width)
         # Of the (nearly) best places, the one furthest from what is left's middle: a
         # row's end block rather than a square straddling two.
-        mass_r, mass_c = (float(v.mean()) for v in np.nonzero(left > 0))
+        mass_r, mass_c = sum_r / count, sum_c / count
         k = int(np.argmax((rows - mass_r) ** 2 + (cols - mass_c) ** 2))
         centre = _centred(left, int(rows[k]), int(cols[k]), side)
         centres.append(centre)
         r0, c0 = round(centre[0]) - side // 2, round(centre[1]) - side // 2
-        window = left[max(r0, 0):max(r0 + side, 0), max(c0, 0):max(c0 + side, 0)]
-        covered += float(window.sum())
-        empty += side * side - float(window.sum())
-        window[:] = 0.0
-    fit = (covered - 2.0 * float(left.sum()) - 2.0 * empty) / (side * side)
-    rc = np.array(centres).reshape(-1, 2)
+        r0, c0, window = _window(left, r0, c0, side)
+        w = cv2.moments(window, binaryImage=True) if window.size else {"m00": 0.0}
+        held = w["m00"]
+        if held:
+            count -= held
+            sum_r -= w["m01"] + r0 * held
+            sum_c -= w["m10"] + c0 * held
+        covered += held
+        empty += side * side - held
+        window[:] = 0
+    fit = (covered - 2.0 * count - 2.0 * empty) / (side * side)
+    rc = np.array(centres, dtype=np.float64).reshape(-1, 2)
     return rc[:, ::-1].copy(), fit
 
 
-def _centred(left: npt.NDArray[np.float32], row: int, col: int, side: int) -> FloatArray:
+def _box_sums(mask: npt.NDArray[np.uint8], side: int) -> npt.NDArray[np.float32]:
+    """Per pixel, the sum of ``mask`` over the side x side square about it (outside the
+    mask counts 0)."""
+    return np.asarray(cv2.boxFilter(mask, cv2.CV_32F, (side, side), normalize=False,
+                                    borderType=cv2.BORDER_CONSTANT), np.float32)
+
+
+def _window(mask: npt.NDArray[np.uint8], r0: int, c0: int, side: int
+            ) -> tuple[int, int, npt.NDArray[np.uint8]]:
+    """The side x side window of ``mask`` from (r0, c0), cut to the mask: its first row
+    and column, and the window (a view)."""
+    ra, ca = max(r0, 0), max(c0, 0)
+    return ra, ca, mask[ra:max(r0 + side, 0), ca:max(c0 + side, 0)]
+
+
+def _centred(left: npt.NDArray[np.uint8], row: int, col: int, side: int
+             ) -> tuple[float, float]:
     """The square at (row, col) moved to the middle of what it covers, twice (a place
     found on a tie sits a little off its block)."""
-    centre = np.array([row, col], dtype=float)
+    cr, cc = float(row), float(col)
     for _ in range(2):
-        r0, c0 = round(centre[0]) - side // 2, round(centre[1]) - side // 2
-        window = left[max(r0, 0):max(r0 + side, 0), max(c0, 0):max(c0 + side, 0)]
-        rr, cc = np.nonzero(window > 0)
-        if rr.size == 0:
+        r0, c0, window = _window(left, round(cr) - side // 2, round(cc) - side // 2, side)
+        if window.size == 0 or not window.any():
             break
+        mid_r, mid_c = _middle(window)
         # Half a square's shift at most: it stays on the block it was placed on.
-        shift = np.array([rr.mean() + max(r0, 0), cc.mean() + max(c0, 0)]) - centre
-        if float(np.abs(shift).max()) < 0.25:
+        shift_r, shift_c = mid_r + r0 - cr, mid_c + c0 - cc
+        if max(abs(shift_r), abs(shift_c)) < 0.25:
             break
-        centre = centre + np.clip(shift, -side / 4, side / 4)
-    return centre
+        cr += min(max(shift_r, -side / 4), side / 4)
+        cc += min(max(shift_c, -side / 4), side / 4)
+    return cr, cc
+
+
+def _middle(mask: npt.NDArray[np.float32] | npt.NDArray[np.uint8]) -> tuple[float, float]:
+    """The mean (row, column) of a mask's nonzero pixels (some must be). From OpenCV's
+    moments: their sums are whole numbers, so this is the same mean as numpy's, without
+    listing the pixels."""
+    m = cv2.moments(mask, binaryImage=True)
+    return m["m01"] / m["m00"], m["m10"] / m["m00"]
 
 
 @dataclass(frozen=True)

@@ -43,12 +43,14 @@ from busarm.protocol.rplidar import (
     Health,
     HealthStatus,
     Node,
+    NodeFields,
     Request,
     RequestParser,
     SampleRate,
     ScanMode,
     conf_descriptor,
     node_from_si,
+    pack_nodes,
 )
 from busarm.protocol.rplidar_express import (
     CAPSULE_SAMPLES,
@@ -230,9 +232,13 @@ class SimRplidar:
         return self._nodes([index])[0]
 
     def _nodes(self, indices: list[int], express: bool = False) -> list[Node]:
-        """The nodes of these global indices (in the standard or the express scan), their
-        ranges asked of the world together when it can answer several bearings at once
-        (``ranges``: one ray cast for all)."""
+        """The nodes of these global indices (in the standard or the express scan)."""
+        return [Node(*fields) for fields in self._node_fields(indices, express)]
+
+    def _node_fields(self, indices: list[int], express: bool = False) -> list[NodeFields]:
+        """The nodes of these global indices as (start, quality, angle_q6, distance_q2),
+        their ranges asked of the world together when it can answer several bearings at
+        once (``ranges``: one ray cast for all)."""
         per_rev, angles_q6, all_bearings = (
             (self.express_per_rev, self._express_q6, self._express_bearings) if express
             else (self.nodes_per_rev, self._angles_q6, self._bearings))
@@ -240,14 +246,15 @@ class SimRplidar:
         bearings = [all_bearings[k] for k in ks]
         batch = getattr(self.world, "ranges", None)
         ranges = batch(bearings) if batch is not None else [self.world(b) for b in bearings]
-        out = []
+        out: list[NodeFields] = []
+        isfinite = math.isfinite
         for k, range_m in zip(ks, ranges, strict=True):
             range_m = float(range_m)
-            if math.isfinite(range_m) and A1_RANGE_MIN_M <= range_m <= A1_RANGE_MAX_M:
-                out.append(Node(k == 0, GOOD_QUALITY, angles_q6[k],
-                                min(round(range_m * 4000.0), MAX_DISTANCE_Q2)))
+            if isfinite(range_m) and A1_RANGE_MIN_M <= range_m <= A1_RANGE_MAX_M:
+                out.append((k == 0, GOOD_QUALITY, angles_q6[k],
+                            min(round(range_m * 4000.0), MAX_DISTANCE_Q2)))
             else:
-                out.append(Node(k == 0, 0, angles_q6[k], 0))
+                out.append((k == 0, 0, angles_q6[k], 0))
         return out
 
     # ------------------------------------------------------------------ internals
@@ -304,13 +311,19 @@ class SimRplidar:
         self._next_node = max(self._next_node, oldest)
         chunk = bytearray()
         indices = list(range(self._next_node, due_last + 1))
-        for node in self._nodes(indices) if indices else []:
+        nodes = self._node_fields(indices) if indices else []
+        if nodes and not self.garbage_rate:  # the bytes of the loop below, packed at once
+            chunk += self._pending_garbage
+            self._pending_garbage = b""
+            chunk += pack_nodes(nodes)
+            nodes = []
+        for node in nodes:
             if self._pending_garbage:
                 chunk += self._pending_garbage
                 self._pending_garbage = b""
             if self.garbage_rate and self._rng.random() < self.garbage_rate:
                 chunk += self._rng.randbytes(self._rng.randint(1, self.garbage_max_bytes))
-            chunk += node.encode()
+            chunk += pack_nodes((node,))
         self._next_node = max(self._next_node, due_last + 1)
         if chunk:
             self._schedule(self._node_time(due_last), bytes(chunk))

@@ -95,7 +95,7 @@ from busarm.errors import ConfigError
 from busarm.protocol import AlarmFlag, ServoMode, check_servo_id
 from busarm.protocol.lx_units import POSITION_MAX_PULSES, POSITION_MIN_PULSES
 from busarm.sim.servo_commands import ServoCommands
-from busarm.sim.servo_params import ServoParams
+from busarm.sim.servo_params import FULL_TURN_PULSES, ServoParams
 
 # Power-on values of the saved settings, from the manual (Table 4 and points 7-28).
 DEFAULT_SERVO_ID = 1
@@ -262,7 +262,12 @@ class SimServo(ServoCommands):
     @property
     def physical_pulses(self) -> float:
         """The horn's physical angle (logical + offset); what power-off storage keeps."""
-        return self._wrap(self._phys_at(self._now))
+        # _wrap(_phys_at(_now)) inline: a twin reads it for every servo at every tick.
+        t = self._now
+        position = (self._p_end if t >= self._t_end
+                    else self._p0 + self._dir * self._rate * (t - self._t0))
+        lo = self.params.motor_wrap_min_pulses
+        return (position - lo) % FULL_TURN_PULSES + lo
 
     @property
     def temperature_c(self) -> float:

@@ -97,10 +97,14 @@ class ServoPhysics:
             return
         if not math.isfinite(now):
             raise ConfigError(f"now = {now!r} must be finite")
+        if self._advance_in_one_piece(t, now):
+            return
         p = self.params
         tau = p.thermal_time_constant_s
         while True:
-            self._check_thermal(t)
+            # _check_thermal acts only then: the call is skipped on the hot path.
+            if self._overheated or self._temp >= self._temp_max:
+                self._check_thermal(t)
             # The effort is constant until the present drive piece ends (or until now).
             if t < self._t_end:
                 effort, t_next = self._eff_before, min(self._t_end, now)
@@ -130,7 +134,33 @@ class ServoPhysics:
             if t >= now:
                 break
         self._now = now
-        self._check_thermal(now)  # catches a threshold met only within rounding
+        if self._overheated or self._temp >= self._temp_max:
+            self._check_thermal(now)  # catches a threshold met only within rounding
+
+    def _advance_in_one_piece(self, t: float, now: float) -> bool:
+        """``advance`` from ``t`` to ``now`` where that is its loop's single pass (no
+        fault, one drive piece, no threshold to cross: a twin's every tick); False,
+        having changed nothing, where it is not."""
+        if self._overheated or self._temp >= self._temp_max:
+            return False
+        if t >= self._t_end:
+            effort = self._eff_after
+        elif now <= self._t_end:
+            effort = self._eff_before
+        else:
+            return False
+        p = self.params
+        goal = p.ambient_c + effort * p.full_effort_rise_c
+        temp = self._temp
+        if temp < self._temp_max < goal:
+            return False  # it may cross the threshold on the way: the loop finds where
+        if temp != goal:
+            temp = goal + (temp - goal) * math.exp((t - now) / p.thermal_time_constant_s)
+            self._temp = goal if abs(temp - goal) < 1e-9 else temp
+        self._now = now
+        if self._temp >= self._temp_max:
+            self._check_thermal(now)  # catches a threshold met only within rounding
+        return True
 
     @property
     def is_loaded(self) -> bool:

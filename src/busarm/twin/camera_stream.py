@@ -53,6 +53,8 @@ class CameraStream:
         self._todo: queue.Queue[tuple[Any, float] | None] = queue.Queue(maxsize=backlog)
         self._done: queue.Queue[StreamFrame] = queue.Queue(maxsize=keep)
         self._error: BaseException | None = None
+        self._spare: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        """Snapshots whose frames are drawn, to be overwritten by the next captures."""
         self._thread = threading.Thread(target=self._draw, name="busarm-camera-stream",
                                         daemon=True)
         self._thread.start()
@@ -61,7 +63,11 @@ class CameraStream:
         """Take a frame now (the simulation's state at this simulated instant)."""
         if self._error is not None:
             raise CameraError(f"the camera stream stopped: {self._error}")
-        self._todo.put((self.twin.snapshot(), self.twin.clock.now()))
+        try:
+            spare = self._spare.get_nowait()
+        except queue.Empty:
+            spare = None
+        self._todo.put((self.twin.snapshot(into=spare), self.twin.clock.now()))
 
     def latest(self) -> StreamFrame | None:
         """The newest frame drawn and not yet taken (older ones are let go)."""
@@ -95,6 +101,7 @@ class CameraStream:
                 try:
                     data, at_s = job
                     frame = StreamFrame(self.twin.render_camera(live=self.live, data=data), at_s)
+                    self._spare.put(data)
                     with contextlib.suppress(queue.Empty):  # ``latest`` may take it first
                         if self._done.full():
                             self._done.get_nowait()

@@ -54,8 +54,9 @@ class LensSpec:
     distortion: tuple[float, ...] = WIDE_ANGLE_DISTORTION
     oversample: float = 1.0
     """Render pixels per output pixel at the image centre (1 = the same density)."""
-    _maps: list[tuple[npt.NDArray[np.int16], npt.NDArray[np.uint16]]] = field(
-        default_factory=list, repr=False, compare=False)
+    _maps: dict[tuple[int, int, float] | None,
+                tuple[npt.NDArray[np.int16], npt.NDArray[np.uint16]]] = field(
+        default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         check_int_range("lens width_px", self.width_px, 16, 4096)
@@ -112,11 +113,16 @@ class LensSpec:
         fovy = math.degrees(2 * math.atan(height / 2 / f))
         return width, height, fovy
 
-    def remap_tables(self) -> tuple[npt.NDArray[np.int16], npt.NDArray[np.uint16]]:
-        """cv2.remap tables: for each output pixel, where its ray lands in the render."""
-        if self._maps:
-            return self._maps[0]
-        width, height, fovy = self.render_geometry()
+    def remap_tables(
+        self, render: tuple[int, int, float] | None = None,
+    ) -> tuple[npt.NDArray[np.int16], npt.NDArray[np.uint16]]:
+        """cv2.remap tables: for each output pixel, where its ray lands in the render: the
+        one of ``render_geometry()``, or ``render`` = (width, height, vertical fov in
+        degrees), the same view drawn at another size."""
+        maps = self._maps.get(render)
+        if maps is not None:
+            return maps
+        width, height, fovy = render if render is not None else self.render_geometry()
         f = height / 2 / math.tan(math.radians(fovy) / 2)
         u, v = np.meshgrid(np.arange(self.width_px, dtype=np.float64),
                            np.arange(self.height_px, dtype=np.float64))
@@ -125,14 +131,19 @@ class LensSpec:
         # pixel-centre convention that is ((W - 1) / 2, (H - 1) / 2).
         map_x = (rays[:, 0] * f + (width - 1) / 2).reshape(self.height_px, self.width_px)
         map_y = (rays[:, 1] * f + (height - 1) / 2).reshape(self.height_px, self.width_px)
-        maps = cv2.convertMaps(map_x.astype(np.float32), map_y.astype(np.float32),
-                               cv2.CV_16SC2)
-        self._maps.append((np.asarray(maps[0], np.int16), np.asarray(maps[1], np.uint16)))
-        return self._maps[0]
+        fixed = cv2.convertMaps(map_x.astype(np.float32), map_y.astype(np.float32),
+                                cv2.CV_16SC2)
+        maps = (np.asarray(fixed[0], np.int16), np.asarray(fixed[1], np.uint16))
+        self._maps[render] = maps
+        return maps
 
-    def apply(self, render: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
-        """The image this lens makes of an ideal render (from ``render_geometry``)."""
-        map1, map2 = self.remap_tables()
+    def apply(self, render: npt.NDArray[np.uint8],
+              fovy_deg: float | None = None) -> npt.NDArray[np.uint8]:
+        """The image this lens makes of an ideal render (from ``render_geometry``; or,
+        given its ``fovy_deg``, of the same view drawn at the render's own size). Each
+        channel on its own: RGB in, RGB out."""
+        height, width = render.shape[:2]
+        map1, map2 = self.remap_tables(None if fovy_deg is None else (width, height, fovy_deg))
         out = cv2.remap(render, map1, map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         return np.asarray(out, dtype=np.uint8)
 

@@ -99,7 +99,8 @@ class TwinLidarWorld:
             keep &= self._np_rng.random(len(dist)) >= n.dropout
         sigma = n.sigma_m + n.sigma_share * dist
         noisy = dist + self._np_rng.standard_normal(len(dist)) * sigma
-        return [float(v) for v in np.where(keep, noisy, np.nan)]
+        out: list[float] = np.where(keep, noisy, np.nan).tolist()
+        return out
 
     def _cast(self, b: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Distances (-1: no hit), surface normals and unit directions of rays at ``b``."""

@@ -82,6 +82,8 @@ class MobileBase:
         self._rng = random.Random(seed)
         self._jitter = [0.0, 0.0, 0.0]
         self._last_s: float | None = None
+        self._twist_of: tuple[Motors | None, tuple[float, float, float]] = (None, (0.0, 0.0, 0.0))
+        """The last wheel speeds and the body twist they give (vx, vy, wz)."""
         self.path: list[tuple[float, float, float]] = []
         """The true path: (simulated s, x m, y m), every ``PATH_PERIOD_S``."""
         self._path_due = 0.0
@@ -130,12 +132,15 @@ class MobileBase:
             keep = math.exp(-dt / s.jitter_time_s)
             spread = s.jitter * math.sqrt(1.0 - keep * keep)
             self._jitter = [j * keep + self._rng.gauss(0.0, spread) for j in self._jitter]
-        twist = self.kinematics.twist_from_rev_s(self.kinematics.wheels_from_motors(
-            {k + 1: rev_s for k, rev_s in enumerate(motors)}))
+        if motors != self._twist_of[0]:  # the wheels' speeds change less often than ticks
+            twist = self.kinematics.twist_from_rev_s(self.kinematics.wheels_from_motors(
+                {k + 1: rev_s for k, rev_s in enumerate(motors)}))
+            self._twist_of = (motors, (twist.vx_m_s, twist.vy_m_s, twist.wz_rad_s))
+        tx, ty, tw = self._twist_of[1]
         jx, jy, jw = (abs(j) for j in self._jitter)
-        vx = twist.vx_m_s * max(0.0, 1.0 - s.forward - jx)
-        vy = twist.vy_m_s * max(0.0, 1.0 - s.sideways - jy)
-        wz = twist.wz_rad_s * max(0.0, 1.0 - s.turn - jw)
+        vx = tx * max(0.0, 1.0 - s.forward - jx)
+        vy = ty * max(0.0, 1.0 - s.sideways - jy)
+        wz = tw * max(0.0, 1.0 - s.turn - jw)
         yaw = float(data.qpos[self._qpos[2]])
         c, sn = math.cos(yaw), math.sin(yaw)
         data.ctrl[self._act[0]] = vx * c - vy * sn
@@ -155,9 +160,13 @@ class MobileBase:
             self._path_due = t + PATH_PERIOD_S
 
     def _note_contacts(self, data: Any, t: float) -> None:
-        pairs = data.contact.geom[: data.ncon]
+        ncon = data.ncon
+        if ncon == 0 and not self._touching:
+            return
+        # As plain ints: a row of a MuJoCo array costs a numpy object per contact.
+        pairs = data.contact.geom[:ncon].tolist()
         g = self._chassis_geom
-        touching = frozenset(int(o) for a, b in pairs if g in (a, b) for o in (a, b) if o != g)
+        touching = frozenset(o for a, b in pairs if g in (a, b) for o in (a, b) if o != g)
         for other in touching - self._touching:
             self.contacts.append((t, self._model.geom(other).name or f"geom {other}"))
         self._touching = touching

@@ -31,7 +31,6 @@ import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from types import TracebackType
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -58,18 +57,19 @@ from busarm.twin.model import (
     GRIPPER_TORQUE_NM,
     JOINT_TORQUE_NM,
     M_PER_MM,
-    MJ_FROM_CV,
     SERVO_KP_NM_PER_RAD,
     SERVO_KV_NM_S_PER_RAD,
     TwinModelSpec,
     build_mjcf,
 )
 from busarm.twin.mujoco_gl import Renderers, import_mujoco
+from busarm.twin.rendering import LIVE_DENSITY, ImageArray, TwinRendering, live_render_size
 from busarm.twin.scene import Block, Scene, random_scene
 
 __all__ = [
     "CONTROL_PERIOD_S",
     "EFFORT_STEP",
+    "LIVE_DENSITY",
     "MAX_CATCH_UP_S",
     "SETTLE_S",
     "BlockState",
@@ -80,7 +80,6 @@ __all__ = [
 
 
 FloatArray = npt.NDArray[np.float64]
-ImageArray = npt.NDArray[np.uint8]
 
 CONTROL_PERIOD_S = 0.004
 SETTLE_S = 0.4
@@ -112,7 +111,7 @@ def _twin_clock(realtime: bool, clock: SimClock | None) -> Clock:
     return WALL_CLOCK if realtime else (clock or SimClock(step_s=CONTROL_PERIOD_S))
 
 
-class Twin:
+class Twin(TwinRendering):
     """A physically simulated arm, table, blocks and camera behind a simulated servo bus.
 
     ``twin.bus`` is the ``SimBus`` to talk to (``--port twin`` wraps it in a transport);
@@ -209,6 +208,8 @@ class Twin:
             raise TwinError(f"MuJoCo rejected the generated model: {exc}") from exc
         self.data = self.mujoco.MjData(self.model)
         self._render_size = (width, height)
+        self._fovy_deg = fovy
+        self._live_render_size = live_render_size(width, height)
 
     def _find_parts(self) -> None:
         """The model's addresses of the joints, actuators and bodies the coupling uses."""
@@ -229,6 +230,16 @@ class Twin:
         # Each joint's last commanded angle (rad) and when (None while limp), for the ramp
         # and the servo's rate term.
         self._last_cmd: list[tuple[float, float] | None] = [None] * len(cfg.joints)
+        # What every control tick reads, looked up once: a tick often steps physics only
+        # once or twice, so its own bookkeeping would otherwise cost more than the physics.
+        self._dt = float(m.opt.timestep)
+        self._chunk = max(1, round(CONTROL_PERIOD_S / self._dt))
+        self._ctrl = self.data.ctrl
+        self._qpos = self.data.qpos
+        self._actuator_force = self.data.actuator_force
+        self._grip_gear = float(m.actuator_gear[self._grip_act, 0])
+        self._to_angle = [j.angle_deg_from_pulses for j in cfg.joints]
+        self._to_pulses = [j.pulses_from_angle_deg for j in cfg.joints]
 
     def _settle(self, start: Sequence[float], grip: float) -> None:
         """The arm at rest in the start pose, the servos holding it, then ``SETTLE_S`` of
@@ -316,16 +327,17 @@ class Twin:
         return closed - sign * half_gap_m / M_PER_MM * 2 / self.config.gripper.gap_mm_per_pulse
 
     def _grip_ctrl(self, half_gap_m: float) -> float:
-        return float(self.model.actuator_gear[self._grip_act, 0]) * half_gap_m
+        return self._grip_gear * half_gap_m
 
     def _sensor(self, k: int) -> Callable[[], float]:
         return lambda: self._sensed[k]
 
     def _read_sensors(self) -> None:
-        d = self.data
-        for k, (j, adr) in enumerate(zip(self.config.joints, self._joint_qpos, strict=True)):
-            self._sensed[k] = j.pulses_from_angle_deg(math.degrees(d.qpos[adr]))
-        self._sensed[-1] = self._pulses_from_half_gap(float(d.qpos[self._finger_qpos]))
+        qpos, sensed = self._qpos, self._sensed
+        for k, (to_pulses, adr) in enumerate(zip(self._to_pulses, self._joint_qpos,
+                                                 strict=True)):
+            sensed[k] = to_pulses(math.degrees(qpos[adr]))
+        sensed[-1] = self._pulses_from_half_gap(float(qpos[self._finger_qpos]))
 
     def _set_loaded(self, k: int, loaded: bool) -> None:
         if self._loaded[k] == loaded:
@@ -340,64 +352,86 @@ class Twin:
 
     def _tick(self) -> None:
         """Bring physics up to the clock, following the servos' commands."""
-        mj, m, d = self.mujoco, self.model, self.data
+        d, dt = self.data, self._dt
         motors = None if self.mobile is None else self.mobile.read_wheels(self.clock.now())
         with self.bus.lock, self._lock:
             now = self.clock.now()
             behind = now - self._t0 - d.time
-            if behind < m.opt.timestep:
+            if behind < dt:
                 return
             if behind > MAX_CATCH_UP_S:
                 self.slipped_s += behind - MAX_CATCH_UP_S
                 self._t0 += behind - MAX_CATCH_UP_S
                 behind = MAX_CATCH_UP_S
-            cfg = self.config
-            steps = int(behind / m.opt.timestep + 1e-9)
-            ramps = []
-            for k, (servo, j) in enumerate(zip(self.servos, cfg.joints, strict=False)):
-                servo.advance(now)
-                target = math.radians(j.angle_deg_from_pulses(servo.physical_pulses))
-                # A limp servo re-seeds its target from the horn when it takes the load again
-                # (the firmware model does): no ramp from where it was before.
-                last = self._last_cmd[k]
-                self._last_cmd[k] = (now, target) if servo.is_loaded else None
-                start, rate = target, 0.0
-                if last is not None and steps > 0:
-                    start = last[1]
-                    rate = (target - start) / (steps * m.opt.timestep)
-                # Firmware moves are uniform in time, so the command is ramped across the
-                # physics steps (a long tick, after a stall, is not one jump). The
-                # actuator damps the joint's speed (kv); a servo's D term acts on the
-                # error's rate instead, so the commanded speed is fed forward.
-                ramps.append((self._joint_act[k], start, target,
-                              rate * SERVO_KV_NM_S_PER_RAD / SERVO_KP_NM_PER_RAD))
-                self._set_loaded(k, servo.is_loaded)
+            steps = int(behind / dt + 1e-9)
+            ramps = self._joint_ramps(now, steps)
             if self.mobile is not None:
                 self.mobile.before_physics(d, now, motors)
             grip = self.servos[-1]
             grip.advance(now)
-            d.ctrl[self._grip_act] = self._grip_ctrl(self._half_gap_m(grip.physical_pulses))
+            self._ctrl[self._grip_act] = self._grip_ctrl(self._half_gap_m(grip.physical_pulses))
             self._set_loaded(len(self.servos) - 1, grip.is_loaded)
-            chunk = max(1, round(CONTROL_PERIOD_S / m.opt.timestep))
-            done = 0
-            while done < steps:
-                n = min(chunk, steps - done)
-                done += n
-                for act, start, end, lead in ramps:
-                    d.ctrl[act] = start + (end - start) * done / steps + lead
-                for hook in self.physics_hooks:
-                    hook(float(d.time), n * m.opt.timestep)
-                mj.mj_step(m, d, nstep=n)
+            self._step_physics(steps, ramps)
             self._read_sensors()
             if self.mobile is not None:
                 self.mobile.after_physics(d)
-            for k, servo in enumerate(self.servos):
-                if not self._loaded[k]:
-                    continue
-                effort = min(1.0, abs(float(d.actuator_force[self._acts[k]])) / self._torque[k])
-                effort = round(effort / EFFORT_STEP) * EFFORT_STEP
-                if effort != servo.external_effort:
-                    servo.external_effort = effort
+            self._feel_efforts()
+
+    def _joint_ramps(self, now: float, steps: int) -> list[tuple[int, float, float, float]]:
+        """Each arm servo advanced to ``now``, and its joint's command ramp over the
+        coming ``steps``: (actuator, start, target, rate lead), all rad."""
+        ramps = []
+        span_s = steps * self._dt
+        last_cmd, loaded_now = self._last_cmd, self._loaded
+        for k, (servo, to_angle, act) in enumerate(zip(self.servos, self._to_angle,
+                                                       self._joint_act, strict=False)):
+            servo.advance(now)
+            target = math.radians(to_angle(servo.physical_pulses))
+            loaded = servo.is_loaded
+            # A limp servo re-seeds its target from the horn when it takes the load again
+            # (the firmware model does): no ramp from where it was before.
+            last = last_cmd[k]
+            last_cmd[k] = (now, target) if loaded else None
+            start, rate = target, 0.0
+            if last is not None and steps > 0:
+                start = last[1]
+                rate = (target - start) / span_s
+            # Firmware moves are uniform in time, so the command is ramped across the
+            # physics steps (a long tick, after a stall, is not one jump). The
+            # actuator damps the joint's speed (kv); a servo's D term acts on the
+            # error's rate instead, so the commanded speed is fed forward.
+            ramps.append((act, start, target, rate * SERVO_KV_NM_S_PER_RAD / SERVO_KP_NM_PER_RAD))
+            if loaded != loaded_now[k]:
+                self._set_loaded(k, loaded)
+        return ramps
+
+    def _step_physics(self, steps: int, ramps: list[tuple[int, float, float, float]]) -> None:
+        """``steps`` physics steps in chunks of a control period, the joints' commands
+        ramped across them and the physics hooks run before each chunk."""
+        mj, m, d, dt, ctrl = self.mujoco, self.model, self.data, self._dt, self._ctrl
+        hooks = self.physics_hooks
+        done = 0
+        while done < steps:
+            n = min(self._chunk, steps - done)
+            done += n
+            for act, start, end, lead in ramps:
+                ctrl[act] = start + (end - start) * done / steps + lead
+            for hook in hooks:
+                hook(float(d.time), n * dt)
+            mj.mj_step(m, d, nstep=n)
+
+    def _feel_efforts(self) -> None:
+        """Each loaded servo's actuator torque, as a share of its stall torque (in
+        ``EFFORT_STEP`` steps), becomes the load its heat model feels."""
+        forces = self._actuator_force.tolist()
+        for servo, loaded, act, torque in zip(self.servos, self._loaded, self._acts,
+                                              self._torque, strict=True):
+            if not loaded:
+                continue
+            effort = min(1.0, abs(forces[act]) / torque)
+            effort = round(effort / EFFORT_STEP) * EFFORT_STEP
+            if effort != servo.external_effort:
+                servo.external_effort = effort
 
     def _run(self) -> None:
         while not self._stop.wait(CONTROL_PERIOD_S):
@@ -541,67 +575,3 @@ class Twin:
                 self.data.qpos[adr:adr + 7] = qpos
                 self.data.qvel[dof:dof + 6] = 0.0
             self.mujoco.mj_forward(self.model, self.data)
-
-    # ------------------------------------------------------------------ rendering
-
-    def release_renderers(self) -> None:
-        """Close the renderers this thread made (a GL context lives in its thread)."""
-        self._renderers.release()
-
-    def snapshot(self) -> Any:
-        """A copy of the simulation's state now (an ``MjData``), to render from later or
-        in another thread while physics goes on (``render_ideal(data=...)``)."""
-        if self.realtime:
-            self.sync()
-        with self._lock:
-            copy_ = self.mujoco.MjData(self.model)
-            self.mujoco.mj_copyData(copy_, self.model, self.data)
-        return copy_
-
-    def render_ideal(self, camera: str = "arm_camera", *, live: bool = False,
-                     data: Any = None) -> ImageArray:
-        """The ideal pinhole render (RGB) of a camera: no lens (``overview`` is 640x480).
-
-        ``live``: a view for a person, drawn without shadows or antialiasing (on a CPU
-        those are most of a frame's cost: several times cheaper); the pictures vision
-        works on keep them. ``data``: a ``snapshot()`` to draw instead of now.
-        """
-        size = self._render_size if camera == "arm_camera" else (640, 480)
-        renderer = self._renderers.get(self.model, *size, live)
-        if data is not None:
-            renderer.update_scene(data, camera=camera)
-        else:
-            if self.realtime:
-                self.sync()
-            with self._lock:
-                renderer.update_scene(self.data, camera=camera)
-        renderer.scene.flags[self.mujoco.mjtRndFlag.mjRND_SHADOW] = not live
-        image: ImageArray = renderer.render()
-        return image
-
-    def render_camera(self, *, live: bool = False, data: Any = None) -> ImageArray:
-        """The arm camera's image as the vision layer gets it: BGR, through the lens
-        (``live``, ``data``: see ``render_ideal``)."""
-        import cv2
-
-        bgr = np.asarray(cv2.cvtColor(self.render_ideal("arm_camera", live=live, data=data),
-                                      cv2.COLOR_RGB2BGR), dtype=np.uint8)
-        return self.lens.apply(bgr)
-
-    def render_overview(self, *, live: bool = False) -> ImageArray:
-        """The overview camera (BGR, 640x480, no lens): the whole table from above the front
-        (``live``: see ``render_ideal``)."""
-        import cv2
-
-        return np.asarray(cv2.cvtColor(self.render_ideal("overview", live=live),
-                                       cv2.COLOR_RGB2BGR), dtype=np.uint8)
-
-    def cam2base_from_mujoco(self, camera: str = "arm_camera") -> FloatArray:
-        """A camera's pose as MuJoCo has it, in OpenCV axes and mm (the arm camera's for
-        tests; the overview's to draw on its pictures)."""
-        with self._lock:
-            cam = self.model.camera(camera).id
-            out = np.eye(4)
-            out[:3, :3] = self.data.cam_xmat[cam].reshape(3, 3) @ MJ_FROM_CV
-            out[:3, 3] = self.data.cam_xpos[cam] / M_PER_MM
-            return out

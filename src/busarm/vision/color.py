@@ -9,7 +9,9 @@ our TOML or the vendor's YAML: ``busarm.vision.color_thresholds``).
    ``INTER_AREA``, which also averages the noise away as the vendor's blur does). Each
    pixel's colour is one table look-up: a 32x32x32 BGR table, built once from the Lab
    boxes with ``cv2.cvtColor`` on the bin centres, holds one bit per colour (so
-   overlapping boxes both match). Per colour: that bit's outer contours; specks whose
+   overlapping boxes both match). The pixel's index into it comes from one
+   ``cv2.cvtColor`` to BGR565 (5 bits of blue and red, 6 of green: the table is laid out
+   over those 16 bits, each green bin twice). Per colour: that bit's outer contours; specks whose
    bounding box is below the minimum area are dropped right there.
 2. **Refined at full resolution**, only inside each coarse blob's bounding box (grown
    by two coarse pixels): exact Lab of those pixels, the colour's box, a 3x3 opening,
@@ -17,11 +19,12 @@ our TOML or the vendor's YAML: ``busarm.vision.color_thresholds``).
    table's quantisation therefore only decides whether a blob is looked at, never
    where it is, and blocks merged at the coarse scale come apart again.
 
-On 640x480 frames with 3-6 blocks this runs about 2.5-3x the vendor's pipeline
-(:func:`vendor_style_detect`, kept as the baseline) on one core, finds the same blocks,
-and its centroids are within about 0.1 px of the vendor's (0.5 px at worst, on
-edges aligned with the pixel grid where noise decides); ``busarm.bench_vision``
-measures both.
+On 640x480 frames with 3-6 blocks this runs about 3x the vendor's pipeline
+(:func:`vendor_style_detect`, kept as the baseline) on one core in a process whose C
+allocator has settled (4-5x in a fresh one, where the vendor's full-frame buffers are
+faulted in again every frame), finds the same blocks, and its centroids are within
+about 0.1 px of the vendor's (0.5 px at worst, on edges aligned with the pixel grid
+where noise decides); ``busarm.bench_vision`` measures both.
 
 Detections are sorted by colour (the detector's colour order), then by area, largest
 first. Blobs spanning the whole frame edge to edge are not blocks (a covered lens, a
@@ -201,7 +204,6 @@ class ColorDetector:
             for name, r in self.thresholds.items()
         }
         self._tables, self._bits = _build_tables(self.thresholds)
-        self._channel_luts = _channel_luts()
 
     def __repr__(self) -> str:
         return (f"ColorDetector(colors={self.colors}, min_area_px={self.min_area_px:g}, "
@@ -270,12 +272,10 @@ class ColorDetector:
                 for name, (lo, hi) in self._bounds.items()}
 
     def _label(self, small: UInt8Image) -> list[UInt8Image]:
-        # Bin index (b >> 3) << 10 | (g >> 3) << 5 | r >> 3 from three 256-entry tables.
-        b, g, r = cv2.split(small)
-        lb, lg, lr = self._channel_luts
-        index = np.asarray(
-            cv2.add(cv2.add(cv2.LUT(b, lb), cv2.LUT(g, lg)), cv2.LUT(r, lr)), dtype=np.uint16
-        )
+        # Each pixel's BGR565 value (b >> 3 | (g >> 2) << 5 | (r >> 3) << 11) indexes the
+        # tables: one C pass, where three look-ups and two sums took six.
+        packed = cv2.cvtColor(np.ascontiguousarray(small), cv2.COLOR_BGR2BGR565)
+        index = packed.view(np.uint16).reshape(small.shape[:2])
         return [np.take(table, index) for table in self._tables]
 
     def _refine(
@@ -333,19 +333,12 @@ def _check_area(name: str, value: object) -> None:
     check_range(name, value, 0.0, 1e9, "px")
 
 
-def _channel_luts() -> tuple[npt.NDArray[np.uint16], ...]:
-    level = (np.arange(256) >> (8 - LUT_BITS)).reshape(1, 256)
-    return tuple(
-        np.ascontiguousarray(level << shift, dtype=np.uint16)
-        for shift in (2 * LUT_BITS, LUT_BITS, 0)
-    )
-
-
 def _build_tables(
     thresholds: ColorThresholds,
 ) -> tuple[list[UInt8Image], dict[str, tuple[int, int]]]:
     """One uint8 table per 8 colours over the 32x32x32 BGR bins: bit k set when the bin
-    centre's Lab lies in colour k's box."""
+    centre's Lab lies in colour k's box; indexed by a pixel's BGR565 value (65536
+    entries: green's sixth bit, below the bin's five, does not change the bin)."""
     n = 1 << LUT_BITS
     step = 256 // n
     centres = (np.arange(n) * step + step // 2).astype(np.uint8)
@@ -361,7 +354,10 @@ def _build_tables(
         inside = np.all((lab >= rng.lab_min) & (lab <= rng.lab_max), axis=1)
         tables[group][inside] |= np.uint8(1 << bit)
         bits[name] = (group, 1 << bit)
-    return tables, bits
+    # BGR565: b >> 3 in bits 0-4, g >> 2 in bits 5-10, r >> 3 in bits 11-15.
+    v = np.arange(1 << 16)
+    bin_of_565 = ((v & 31) << 2 * LUT_BITS) | (((v >> 6) & 31) << LUT_BITS) | (v >> 11)
+    return [np.ascontiguousarray(t[bin_of_565]) for t in tables], bits
 
 
 # ---------------------------------------------------------------------- the vendor's way

@@ -16,6 +16,7 @@ base with a NavigationError.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -53,6 +54,8 @@ Point = tuple[float, float]
 FloatArray = npt.NDArray[np.float64]
 GUARD_MARGIN_M = 0.05
 """The guard keeps the base's disc this far from every return..."""
+GUARD_HORIZON_S = 1.0
+"""... over this much of the commanded motion ahead (but not past the goal)..."""
 NEAR_GOAL_M, NEAR_GOAL_MARGIN_M = 0.3, 0.02
 """... but in the last NEAR_GOAL_M before a goal by a table or a wall, this far (the disc
 already holds the chassis, 0.30 x 0.26 m, with a centimetre to spare: goals are taught
@@ -66,6 +69,14 @@ LOST_MATCH, LOST_SCANS = 0.5, 3
 RELOCALISE_SIGMA_M, RELOCALISE_SIGMA_RAD, RELOCALISE_S = 0.2, 0.2, 6.0
 """Finding it again: the cloud spread this much about the pose believed, for at most
 RELOCALISE_S standing still."""
+CONTROL_S = 0.1
+"""One command a scan (the A1's revolution): the follower brakes in time after it."""
+GOAL_SLOW_M = 0.05
+"""The speed falls in proportion to the way left only over this last bit (before it the
+braking curve alone: a trip's end was a slow crawl over the last 30 cm)."""
+ON_APPROACH_M = 0.05
+"""The base within this of the straight way in (across it, and short of its start) is on
+it (``go_to``'s ``approach_m``)."""
 
 
 @dataclass(frozen=True)
@@ -73,7 +84,8 @@ class NavSettings:
     robot_radius_m: float = 0.2
     """The base's footprint as a disc."""
     inflation_m: float = 0.3
-    max_speed_m_s: float = 0.25
+    max_speed_m_s: float = 0.4
+    """At most the chassis's own limit (it is lowered to that), forward or sideways."""
     goal_tolerance_m: float = 0.02
     replan_s: float = 2.0
     obstacle_wait_s: float = 8.0
@@ -103,10 +115,17 @@ class Trip:
     path: list[Pose2D] = field(default_factory=list)
     """The estimated pose at each scan (map frame)."""
     plans: list[list[Point]] = field(default_factory=list)
+    plan_cpu_s: list[float] = field(default_factory=list)
+    """The CPU time (s, of the planning thread) the planner took for each of ``plans``."""
     obstacle_stops: int = 0
     waited_s: float = 0.0
     relocalised: int = 0
     """How often the scans stopped fitting the map and the pose was found again."""
+    via: Pose2D | None = None
+    """The pose behind the goal from which the last stretch is driven straight in (None:
+    planned to the goal all the way)."""
+    on_approach: bool = False
+    """Whether the base came onto that straight last stretch."""
 
     @property
     def driven_m(self) -> float:
@@ -151,6 +170,7 @@ class Navigator:
         self.trips: list[Trip] = []
         self._filter_odometry: Pose2D | None = None
         self._keep_out: FloatArray = np.zeros((0, 2))
+        self._approach_keep_out: FloatArray = np.zeros((0, 2))
 
     # ------------------------------------------------------------------ sensing
     def sense(self) -> SensedScan:
@@ -235,18 +255,28 @@ class Navigator:
 
     # ------------------------------------------------------------------ going
     def go_to(self, goal: Pose2D, *, keep_yaw: bool = True,
-              keep_out: Sequence[tuple[float, float, float]] = ()) -> Trip:
+              keep_out: Sequence[tuple[float, float, float]] = (), approach_m: float = 0.0,
+              approach_keep_out: Sequence[tuple[float, float, float]] | None = None) -> Trip:
         """Drive to ``goal`` (map frame; its heading too if ``keep_yaw``), never over the
         ``keep_out`` discs (x, y, radius in m: where blocks are, which the Lidar does not
-        see). Returns the trip; raises NavigationError (the base stopped) if it cannot
-        get there."""
+        see). ``approach_m``: the last this much is driven straight in along the goal's
+        heading, without stopping before it: the way is planned to the pose that far
+        behind the goal and on straight; once the base is on that stretch (``Trip.
+        on_approach``) the plans are to the goal itself, over ``approach_keep_out``
+        (default ``keep_out``). Returns the trip; raises NavigationError (the base
+        stopped) if it cannot get there."""
         if not isinstance(goal, Pose2D):
             raise ConfigError(f"go_to: goal = {goal!r}; give a Pose2D(x_m, y_m, yaw_rad) in "
                               "the map's frame")
+        check_range("approach_m", approach_m, 0.0, 2.0, "m")
         if self.estimate is None:
             raise NavigationError("the base has not been localised on the map: localize() "
                                   "first")
         trip = Trip(goal)
+        if approach_m > 0.0:
+            trip.via = compose(goal, Pose2D(-approach_m, 0.0, 0.0))
+            self._approach_keep_out = _disc_points(keep_out if approach_keep_out is None
+                                                   else approach_keep_out)
         self.trips.append(trip)
         self._keep_out = _disc_points(keep_out)
         began = self.clock.now()
@@ -260,8 +290,9 @@ class Navigator:
     def _trip(self, trip: Trip, keep_yaw: bool, began: float) -> None:
         s = self.settings
         goal_yaw = trip.goal.yaw_rad if keep_yaw else None
-        follower_settings = FollowerSettings(max_speed_m_s=s.max_speed_m_s,
-                                             goal_tolerance_m=s.goal_tolerance_m)
+        follower_settings = FollowerSettings(
+            max_speed_m_s=s.max_speed_m_s, goal_tolerance_m=s.goal_tolerance_m,
+            slow_radius_m=GOAL_SLOW_M, reaction_s=CONTROL_S).within(self.base.config)
         follower: PathFollower | None = None
         planned_at = -math.inf
         blocked_since: float | None = None
@@ -279,6 +310,7 @@ class Navigator:
                                       f"{s.trip_limit_s:g} s; the base is stopped")
             local, world = self.returns_m(sensed)
             if follower is None or now - planned_at > s.replan_s:
+                self._onto_approach(trip)
                 path = self._plan(trip, world)
                 if path is not None:
                     follower = PathFollower(path, goal_yaw, follower_settings)
@@ -290,10 +322,8 @@ class Navigator:
                 trip.ok, trip.why = True, "arrived"
                 return
             command = follower.command(self.pose)
-            near_goal = follower.remaining_m(self.pose) < NEAR_GOAL_M
-            margin = NEAR_GOAL_MARGIN_M if near_goal else GUARD_MARGIN_M
-            if blocked(local, command, s.robot_radius_m, margin_m=margin, holonomic=True,
-                       passing_margin_m=min(margin, PASSING_MARGIN_M)):
+            if self._in_the_way(local, command, follower.remaining_m(self.pose),
+                                follower.to_stop_m(self.pose)):
                 if blocked_since is None:
                     trip.obstacle_stops += 1
                 blocked_since = self._wait(trip, blocked_since, now, "something in the way")
@@ -305,6 +335,29 @@ class Navigator:
             assert self.estimate is not None
             k = SLOW_SHARE if self.estimate.matched_share < SLOW_MATCH else 1.0
             self.base.drive(k * command.vx_m_s, k * command.vy_m_s, k * command.wz_rad_s)
+
+    def _in_the_way(self, local: FloatArray, command: Twist, left_m: float,
+                    straight_m: float) -> bool:
+        """The guard: whether the next ``GUARD_HORIZON_S`` of ``command`` brings the disc
+        within the margin of a return (base frame) nearer than it is. It looks no
+        farther than the ``straight_m`` ahead before the follower stops at the goal
+        (``left_m`` away), or turns off at a corner but never less than the base needs
+        to stop from its speed there (past a shallow corner it keeps its speed): a
+        wall just past a corner or a goal is no obstacle (the next leg is looked along
+        as the base turns onto it; what the disc comes nearest to where it turns or
+        stops is passed beside, not driven into)."""
+        margin = NEAR_GOAL_MARGIN_M if left_m < NEAR_GOAL_M else GUARD_MARGIN_M
+        passing = min(margin, PASSING_MARGIN_M)
+        speed = math.hypot(command.vx_m_s, command.vy_m_s)
+        horizon = GUARD_HORIZON_S
+        # Never less than the base needs to stop from this speed (a command's period, then
+        # the chassis's braking): past a shallow corner the follower keeps its speed.
+        stop_m = speed * CONTROL_S + speed**2 / (2 * self.base.config.max_accel_m_s2)
+        straight_m = max(straight_m, stop_m) if left_m > straight_m else straight_m
+        if speed * horizon > straight_m:
+            horizon, margin = straight_m / speed, passing
+        return blocked(local, command, self.settings.robot_radius_m, horizon_s=horizon,
+                       margin_m=margin, holonomic=True, passing_margin_m=passing)
 
     def _confident(self, trip: Trip, unsure: int) -> int:
         """Count the scans running that fit the map too little; at LOST_SCANS, stop and
@@ -351,11 +404,24 @@ class Navigator:
             self.base.move_by(left.x_m, left.y_m, left.yaw_rad)
         return left
 
+    def _onto_approach(self, trip: Trip) -> None:
+        """Mark the trip on its straight last stretch once the base has come onto it:
+        from then on it is planned to the goal itself, over the approach's keep-outs."""
+        if trip.via is None or trip.on_approach:
+            return
+        rel = self.pose.relative_to(trip.via)
+        stretch_m = math.dist((trip.via.x_m, trip.via.y_m), (trip.goal.x_m, trip.goal.y_m))
+        if -ON_APPROACH_M <= rel.x_m <= stretch_m and abs(rel.y_m) <= ON_APPROACH_M:
+            trip.on_approach = True
+            self._keep_out = self._approach_keep_out
+
     def _plan(self, trip: Trip, world: FloatArray) -> list[Point] | None:
         extra = np.concatenate([world.reshape(-1, 2), self._keep_out])
         costmap = self.static.with_obstacles(extra) if len(extra) else self.static
         here = (self.pose.x_m, self.pose.y_m)
-        goal = (trip.goal.x_m, trip.goal.y_m)
+        via = None if trip.on_approach else trip.via
+        target = trip.goal if via is None else via
+        goal = (target.x_m, target.y_m)
         near = goal
         if not costmap.cell_free(*goal):
             # A goal by a wall, a table or a keep-out spot (a point's own spot is at the
@@ -363,12 +429,16 @@ class Navigator:
             # nearest free point, then straight on to the goal, the guard watching. Ending
             # at that point instead could leave more than ``settle`` closes blind.
             near = costmap.nearest_free(*goal, SETTLE_MAX_M) or goal
+        began = time.thread_time()
         try:
             path = plan_path(costmap, here, near)
         except NoPath:
             return None
+        trip.plan_cpu_s.append(time.thread_time() - began)
         if near != goal:
             path.append(goal)
+        if via is not None:  # and on, straight in (the follower does not stop there)
+            path.append((trip.goal.x_m, trip.goal.y_m))
         trip.plans.append(path)
         return path
 

@@ -12,11 +12,19 @@ from busarm.errors import BusArmError, ContactError, MotionTimeoutError
 from busarm.units import place_text
 
 __all__ = [
+    "RELEASE_POLL_S",
+    "RELEASE_SETTLE_S",
     "descend_and_grip",
     "lower_and_release",
     "still_holding",
     "stop_and_read_gripper",
 ]
+
+
+RELEASE_SETTLE_S = 0.3
+"""Before letting go, the arm stands still for this long at most ..."""
+RELEASE_POLL_S = 0.02
+"""... its joints read this often until two readings agree."""
 
 
 def still_holding(arm: Arm) -> bool:
@@ -26,16 +34,19 @@ def still_holding(arm: Arm) -> bool:
 
 
 def descend_and_grip(arm: Arm, plan: GraspPlan, speed_mm_s: float, *,
+                     profile: str = "min_jerk",
                      on_squeeze: Callable[[], None] = lambda: None,
                      on_step: Callable[[str], None] = lambda _: None) -> str:
     """From ``plan.above`` with the fingers ``plan.gap_mm`` apart: straight down to the
     grasp, watched for contact, and close (``on_squeeze()`` just before, ``on_step("grip")``
     once closed). "" when the gripper holds something; else why not, the fingers opened
-    again (and, closed on nothing, the tool back at ``plan.above``). ContactError if a
+    again (and, closed on nothing, the tool back at ``plan.above``); ``profile``: the
+    descent's (``busarm.arm.motion``), at peak ``speed_mm_s``. ContactError if a
     contact left the arm stopped where it touched (it could not back off)."""
     pitch, roll = plan.pitch_deg, plan.roll_deg
     try:  # watched: fingers landing on something stop, back off, and try again later
-        arm.move_line_guarded(*plan.grasp, pitch, roll, speed_mm_s=speed_mm_s)
+        arm.move_line_guarded(*plan.grasp, pitch, roll, speed_mm_s=speed_mm_s,
+                              profile=profile)
     except ContactError as exc:
         if not exc.backed_off:
             raise  # stopped and holding where it touched: not for a retry
@@ -53,14 +64,19 @@ def descend_and_grip(arm: Arm, plan: GraspPlan, speed_mm_s: float, *,
 
 
 def lower_and_release(arm: Arm, point_mm: tuple[float, float, float], pitch_deg: float,
-                      roll_deg: float, gap_mm: float, speed_mm_s: float) -> None:
+                      roll_deg: float, gap_mm: float, speed_mm_s: float, *,
+                      profile: str = "min_jerk", free_mm: float | None = None) -> None:
     """Straight down to ``point_mm`` (stopping where the block rests on something on the
-    way), then open the fingers ``gap_mm`` apart."""
+    way), then open the fingers ``gap_mm`` apart (``free_mm``: waited for only until
+    they are that far apart, the block free)."""
     try:
-        arm.move_line(*point_mm, pitch_deg, roll_deg, speed_mm_s=speed_mm_s)
+        arm.move_line(*point_mm, pitch_deg, roll_deg, speed_mm_s=speed_mm_s, profile=profile)
     except MotionTimeoutError:  # it rests on something: let go there
         arm.stop()
-    arm.open_gripper(gap_mm=gap_mm)
+    # Let go from rest: a block let go while the arm still closes its last degree is
+    # thrown a few mm (in the twin, out to a tray's corner).
+    arm.settled_joints_deg(timeout_s=RELEASE_SETTLE_S, poll_s=RELEASE_POLL_S)
+    arm.open_gripper(gap_mm=gap_mm, until_gap_mm=free_mm)
 
 
 def stop_and_read_gripper(arm: Arm, holding: str | None, open_beyond_mm: float) -> str:

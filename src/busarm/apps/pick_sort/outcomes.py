@@ -29,6 +29,10 @@ class BlockOutcome:
     """The tool's pitch at the last grasp: -90 straight down, else tilted."""
     place: str = ""
     """The bin it was taken to (by the sorting rule), once it is."""
+    steps_s: list[tuple[str, float]] = field(default_factory=list)
+    """Where its last cycle's time went: each step's name (``closer``, ``confirmed``,
+    ``above``, ``grip``, ``lift``, ``carry``, ``release``, ``done``) and when it ended, in
+    seconds since the cycle began."""
 
     def to_dict(self) -> dict[str, object]:
         return {"color": self.color, "found_mm": [round(v, 1) for v in self.found_mm],
@@ -36,7 +40,8 @@ class BlockOutcome:
                 "placed_mm": None if self.placed_mm is None else
                 [round(v, 1) for v in self.placed_mm],
                 "attempts": self.attempts, "seconds": round(self.seconds, 2),
-                "grasp_pitch_deg": self.grasp_pitch_deg, "place": self.place}
+                "grasp_pitch_deg": self.grasp_pitch_deg, "place": self.place,
+                "steps_s": [[name, round(t, 3)] for name, t in self.steps_s]}
 
 
 @dataclass

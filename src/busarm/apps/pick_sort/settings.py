@@ -31,6 +31,12 @@ class PickSortSettings:
     max_nudges: int = 2
     """Pushes a boxed-in block gets before it is skipped."""
     line_speed_mm_s: float = 200.0
+    """The guarded descent's peak speed (its contact watch is tuned to it), the lowering
+    into a bin's and, from it, the pushes'."""
+    carry_speed_mm_s: float = 300.0
+    """The lift and the rise from a bin cruise at most this fast, time-optimal within the
+    tool's acceleration (``busarm.arm.motion.LINE_ACCEL_MM_S2``) and the joints' speeds
+    (the lowering into a bin goes no faster than the descent: ``line_speed_mm_s``)."""
     joint_speed_deg_s: float = 180.0
     max_attempts: int = 2
     survey_frames: int = 2
@@ -42,6 +48,7 @@ class PickSortSettings:
     again, the camera turned to face it, before the grasp (the picture's edges are where
     the lens distorts most and a block is seen most from the side)."""
     settle_s: float = 0.2
+    """Before a picture the arm stands still for, this long at most; and a push's waits."""
     pause_above_c: float = 70.0
     """A servo this hot pauses the run (arm at home, gripper open) ..."""
     resume_below_c: float = 60.0
@@ -69,6 +76,7 @@ class PickSortSettings:
                              ("resume_below_c", 30.0, 83.0), ("min_supply_v", 4.5, 12.0),
                              ("max_pause_s", 0.0, 3600.0),
                              ("release_mm", 20.0, 200.0), ("line_speed_mm_s", 10.0, 400.0),
+                             ("carry_speed_mm_s", 10.0, 400.0),
                              ("look_closer_beyond_deg", 0.0, 180.0),
                              ("joint_speed_deg_s", 10.0, 180.0), ("settle_s", 0.0, 5.0)):
             check_range(name, getattr(self, name), lo, hi)

@@ -52,6 +52,7 @@ from busarm.apps.pick_sort.push import Push, PushPlanner
 from busarm.apps.pick_sort.records import BlockRecords, mark_moved
 from busarm.apps.pick_sort.restage import Restaged, staging_spot
 from busarm.apps.pick_sort.rules import SortRule
+from busarm.apps.pick_sort.servo_care import rest_while_hot
 from busarm.apps.pick_sort.settings import ORDERS, PickSortSettings
 from busarm.apps.pick_sort.table_view import (
     OVER_THINGS_MM,
@@ -60,11 +61,11 @@ from busarm.apps.pick_sort.table_view import (
     same_block,
     too_near_for_two,
 )
+from busarm.arm.motion import TIME_OPTIMAL
 from busarm.errors import (
     ConfigError,
     HaltedError,
     MotionTimeoutError,
-    ServoFaultError,
     UnreachableError,
 )
 from busarm.perception.locate import Sighting
@@ -128,8 +129,10 @@ class PickSorter:
         self._planners: dict[float, GraspPlanner] = {}
         self.places = BinPlaces(self.bins, self.planner)
         self.view = TableView(arm, self.camera, locator, self.bins, self.survey_poses,
-                              self.settings, lambda step: self.on_step(step),
+                              self.settings, lambda step: self._stepped(step),
                               lambda line: self.progress(line))
+        # The block whose cycle runs, and when it began: its steps are timed.
+        self._timing: tuple[BlockOutcome, float] | None = None
         self.records = BlockRecords()
         # The colour of the block in the fingers, from a good grip to its release.
         self._holding: str | None = None
@@ -153,35 +156,18 @@ class PickSorter:
 
     # ------------------------------------------------------------------ moving
 
+    def _stepped(self, step: str, *, tell: bool = True) -> None:
+        """A step of a cycle ended: timed for its block's record, then told (``tell``)."""
+        if self._timing is not None:
+            outcome, t0 = self._timing
+            outcome.steps_s.append((step, self.clock.now() - t0))
+        if tell:
+            self.on_step(step)
+
     def check_servos(self) -> None:
         """Pause while a servo is too hot (arm at home, gripper open); a supply too low for
-        the servos stops the run with ServoFaultError."""
-        s, arm = self.settings, self.arm
-        deadline = self.clock.now() + s.max_pause_s
-        paused = False
-        while True:
-            states = arm.bus.read_states(arm.config.servo_ids)
-            low = [st for st in states if st.vin_v < s.min_supply_v]
-            if low:
-                raise ServoFaultError(
-                    f"servo {low[0].servo_id} reads {low[0].vin_v:.2f} V, below "
-                    f"{s.min_supply_v:g} V: charge or change the battery", low[0].servo_id)
-            hot = max(states, key=lambda st: st.temp_c)
-            limit = s.resume_below_c if paused else s.pause_above_c
-            if hot.temp_c < limit:
-                if paused:
-                    self.progress(f"servos cool again ({hot.temp_c} C): going on")
-                return
-            if not paused:
-                self.progress(f"servo {hot.servo_id} at {hot.temp_c} C: pausing until every "
-                              f"servo is below {s.resume_below_c:g} C")
-                arm.open_gripper()
-                arm.move_joints(arm.config.pose("home"), speed_deg_s=s.joint_speed_deg_s)
-                paused = True
-            if self.clock.now() > deadline:
-                raise ServoFaultError(f"servo {hot.servo_id} still at {hot.temp_c} C after "
-                                      f"{s.max_pause_s:g} s of rest", hot.servo_id)
-            self.clock.sleep(2.0)
+        the servos stops the run with ServoFaultError (``rest_while_hot``)."""
+        rest_while_hot(self.arm, self.settings, self.progress)
 
     def _retreat(self) -> None:
         """After a move that met something: stop and hold, then go straight up from
@@ -234,7 +220,7 @@ class PickSorter:
             # fingers held back by the block left the line's reach: up, and look again
             self.progress(f"the push stopped short ({exc}): backing off")
             self._retreat()
-        self.on_step("nudge")
+        self._stepped("nudge")
         return push
 
     def pick_and_place(self, target: Sighting, place: str | None = None
@@ -255,13 +241,17 @@ class PickSorter:
         def squeezing() -> None:  # from the squeeze on: the reading says if it holds
             self._holding = target.color
 
-        missed = descend_and_grip(arm, plan, s.line_speed_mm_s, on_squeeze=squeezing,
-                                  on_step=self.on_step)
+        missed = descend_and_grip(arm, plan, s.line_speed_mm_s, profile=TIME_OPTIMAL,
+                                  on_squeeze=squeezing,
+                                  on_step=self._stepped)
         if missed:
             self._holding = None
             return False, missed, None, plan
-        arm.move_line(*plan.lift, pitch, roll, speed_mm_s=s.line_speed_mm_s)
-        self.on_step("lift")
+        # Not waited for: the carry's first move takes over from the line's last waypoint
+        # (the block is at the lift's height, within the last waypoint's few mm).
+        arm.move_line(*plan.lift, pitch, roll, speed_mm_s=s.carry_speed_mm_s,
+                      profile=TIME_OPTIMAL, wait=False)
+        self._stepped("lift")
         size = target.location.size_mm
         tilted = pitch != -90.0
         large_tilted = tilted and size > TILTED_SET_DOWN_MM
@@ -288,8 +278,9 @@ class PickSorter:
         pitch, roll = plan.pitch_deg, plan.roll_deg
         # Open no wider than the neighbours allow (the plan chose it).
         arm.open_gripper(wait=False, gap_mm=plan.gap_mm)
-        tool = arm.read_pose()
-        if self.view.thing_on_the_way((tool.x_mm, tool.y_mm), plan.above[:2]):
+        tool = arm.read_pose() if self.view.obstacles else None
+        if tool is not None and self.view.thing_on_the_way((tool.x_mm, tool.y_mm),
+                                                           plan.above[:2]):
             # Over the thing that is not a block first, then down to the approach.
             over = (*plan.above[:2],
                     self.locator.table_z_mm + OVER_THINGS_MM + self.view.tallest_mm)
@@ -301,7 +292,7 @@ class PickSorter:
             self._retreat()
             return f"blocked on the way to it ({exc}): backed off"
         arm.open_gripper(gap_mm=plan.gap_mm)
-        self.on_step("above")
+        self._stepped("above")
         return ""
 
     def _put_in_bin(self, place: str, plan: GraspPlan, size_mm: float
@@ -315,17 +306,22 @@ class PickSorter:
         bx, by, _, square = self.places.next_spot(place, self.view.obstacles, gap, release_z,
                                                   size_mm)
         carry_z = self._carry(plan, (bx, by), carry_z, square)
-        self.on_step("carry")
+        self._stepped("carry")
         if not still_holding(arm):
             self._holding = None
             arm.open_gripper(wait=False, gap_mm=gap)
             self.places.take_back(place)
             return None
         # (Resting on something in the bin on the way down, it is let go there.)
-        lower_and_release(arm, (bx, by, release_z), -90.0, square, gap, s.line_speed_mm_s)
+        # Lowered no faster than the descent (unwatched: what it lands on stops it).
+        lower_and_release(arm, (bx, by, release_z), -90.0, square, gap, s.line_speed_mm_s,
+                          profile=TIME_OPTIMAL,
+                          free_mm=size_mm + 2 * s.min_finger_clearance_mm)
         self._holding = None  # only once open: stopped while opening, it still holds it
-        self.on_step("release")
-        arm.move_line(bx, by, carry_z, -90.0, square, speed_mm_s=s.line_speed_mm_s)
+        self._stepped("release")
+        # Not waited for: the next move (a survey's) takes over from its last waypoint.
+        arm.move_line(bx, by, carry_z, -90.0, square, speed_mm_s=s.carry_speed_mm_s,
+                      profile=TIME_OPTIMAL, wait=False)
         return bx, by
 
     def _staging_spot(self, held: Sighting) -> tuple[float, float] | None:
@@ -355,7 +351,7 @@ class PickSorter:
             # (Not straight up from here: it rises on the way over.)
             with contextlib.suppress(UnreachableError):
                 arm.move_line(*plan.lift[:2], carry_z, plan.pitch_deg, plan.roll_deg,
-                              speed_mm_s=s.line_speed_mm_s)
+                              speed_mm_s=s.carry_speed_mm_s, profile=TIME_OPTIMAL)
         arm.move_to(*end, carry_z, -90.0, end_roll_deg, speed_deg_s=s.joint_speed_deg_s)
         return carry_z
 
@@ -433,6 +429,18 @@ class PickSorter:
         _, target, outcome = min(candidates, key=lambda c: c[0])
         self.check_servos()
         t0 = self.clock.now()
+        outcome.steps_s = []
+        self._timing = (outcome, t0)
+        try:
+            return self._pick_one(report, target, outcome, t0)
+        finally:
+            self._timing = None
+
+    def _pick_one(self, report: RunReport, target: Sighting, outcome: BlockOutcome,
+                  t0: float) -> bool:
+        """``_cycle`` from the closer look on, for the block ``target`` (begun at ``t0``)."""
+        # The fingers open while the camera looks (as wide as its grasp may want).
+        self.arm.open_gripper(wait=False, gap_mm=max(self._gaps(target.location.size_mm)))
         closer = self.look_closer(target)
         if closer is not None:
             confirmed = self.view.confirm(closer)
@@ -448,8 +456,10 @@ class PickSorter:
             self.progress(f"skip {target.color} at {_mm(outcome.found_mm)}: {reason}")
             return True
         outcome.attempts += 1
+        self._stepped("confirmed", tell=False)
         held, why, placed, restaged = self._attempt(outcome, closer)
         outcome.seconds += self.clock.now() - t0
+        self._stepped("done", tell=False)
         self._tell(target.color, outcome, held, why, placed, restaged)
         if outcome.outcome == "sorted" and closer is not None:
             self.records.taken(outcome, closer.location.size_mm, report)

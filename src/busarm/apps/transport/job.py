@@ -242,28 +242,33 @@ class TransportJob:
                                                                   self.place_point)
                      if p.name not in self._cleared}
             others = [spot for n, spot in spots.items() if n != point.name]
-            # Over the spot's keep-out to a pose behind the point, then straight in: the
-            # base ends with its disc over the spot's margin (its front stops short of it).
-            behind = compose(point.pose, Pose2D(-APPROACH_M, 0.0, 0.0))
             for _ in range(MAX_RESTS):
                 try:
-                    return drive(behind, spots, others)
+                    return drive(spots, others)
                 except CarryTooHot as exc:  # the base stopped: let the gripper cool
                     self.progress(str(exc))
                     self.guard.rest()
-            drive(behind, spots, others)
+            drive(spots, others)
 
-        def drive(behind: Pose2D, spots: dict[str, tuple[float, float, float]],
+        def drive(spots: dict[str, tuple[float, float, float]],
                   others: list[tuple[float, float, float]]) -> None:
-            driven = 0.0
+            # Over the spot's keep-out to a pose behind the point, then straight in on
+            # one trip (no stop between): the base ends with its disc over the spot's
+            # margin (its front stops short of it).
+            driven, before = 0.0, len(self.nav.trips)
             try:
-                driven += self.nav.go_to(behind, keep_out=list(spots.values())).driven_m
+                trip = self.nav.go_to(point.pose, keep_out=list(spots.values()),
+                                      approach_m=APPROACH_M, approach_keep_out=others)
             except (CarryTooHot, BlockLost):
                 raise  # the carry's watch stopped the trip (not a way that failed)
             except NavigationError as exc:
+                failed = self.nav.trips[before:]
+                if failed and failed[0].on_approach:
+                    raise  # it failed on the way straight in: as a trip to the point
+                driven = sum(t.driven_m for t in failed)
                 self.progress(f"no way to {APPROACH_M:g} m behind {point.name} ({exc}): "
                               "going straight to it")
-            trip = self.nav.go_to(point.pose, keep_out=others)
+                trip = self.nav.go_to(point.pose, keep_out=others)
             self.nav.settle(point.pose, SETTLE_TOLERANCE_M, SETTLE_TOLERANCE_DEG, SETTLE_SCANS)
             self.progress(f"arrived at {point.name} ({driven + trip.driven_m:.2f} m)")
 

@@ -266,6 +266,33 @@ class CameraIntrinsics:
             )
         return self._project(p)
 
+    def plane_pixel_maps(
+        self, grid2cam: FloatArray, cols: int, rows: int, offset_px: tuple[float, float]
+    ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+        """Where a grid of points falls in the picture, as ``cv2.remap``'s maps (float32).
+
+        Grid place (column c, row r) is the camera point ``grid2cam @ (c, r, 1)`` (mm);
+        its distorted pixel less ``offset_px`` is at ``[r, c]`` of the two maps (u, v).
+        VisionError if a grid corner is not in front of the camera (z affine in c and r:
+        then none is behind it). For a pinhole lens OpenCV computes the maps in one C
+        pass (the projective map as a rectification); the same model as ``_distort``.
+        """
+        m = np.asarray(grid2cam, dtype=np.float64)
+        corners = m @ np.array([[0.0, cols - 1.0, 0.0, cols - 1.0],
+                                [0.0, 0.0, rows - 1.0, rows - 1.0], [1.0, 1.0, 1.0, 1.0]])
+        if not bool(np.all(corners[2] > 0.0)):
+            raise VisionError("part of the grid lies behind the camera (z must be > 0)")
+        if self.model == "pinhole":
+            k = np.array([[self.fx, 0.0, self.cx - offset_px[0]],
+                          [0.0, self.fy, self.cy - offset_px[1]], [0.0, 0.0, 1.0]])
+            map_u, map_v = cv2.initUndistortRectifyMap(
+                k, self.distortion, np.linalg.inv(m), np.eye(3), (cols, rows), cv2.CV_32FC1)
+            return np.asarray(map_u, np.float32), np.asarray(map_v, np.float32)
+        p_cam = ((m[:, 2] + np.arange(cols, dtype=np.float64)[:, None] * m[:, 0])[None]
+                 + np.arange(rows, dtype=np.float64)[:, None, None] * m[:, 1])
+        px = (self._project(p_cam) - offset_px).astype(np.float32)
+        return np.ascontiguousarray(px[..., 0]), np.ascontiguousarray(px[..., 1])
+
     def normalized_from_pixels(self, px: npt.ArrayLike) -> FloatArray:
         """(N, 2) pixels -> (N, 2) undistorted normalised coordinates (x/z, y/z).
 
