@@ -34,7 +34,9 @@ between the pads does not slip, and the servos' 35 kg torque has margin at full 
 LINE_JERK_MM_S3 = 100_000.0
 """... and its jerk: the acceleration builds up in 30 ms, no kick to set the arm ringing."""
 TURN_ACCEL_DEG_S2 = 900.0
-"""A ``time_optimal`` line's pitch and roll accelerate at most this fast."""
+"""A ``time_optimal`` line's pitch and roll accelerate at most this fast ..."""
+TURN_JERK_DEG_S3 = 9000.0
+"""... with at most this jerk (the acceleration built up in 0.1 s)."""
 
 
 def _min_jerk(tau: float) -> float:
@@ -98,13 +100,15 @@ def line_profile(name: str, length_mm: float, turn_deg: float, speed_mm_s: float
                        duration_for_speed(name, turn_deg, turn_speed_deg_s))
     # One path parameter s in [0, 1] for position and angles: its limits the tighter of
     # the two (a line that only turns the wrist is limited by the turn alone).
-    limits = [(speed_mm_s / d, LINE_ACCEL_MM_S2 / d, LINE_JERK_MM_S3 / d)
-              for d in (length_mm,) if d > 1e-9]
-    limits += [(turn_speed_deg_s / d, TURN_ACCEL_DEG_S2 / d, 10 * TURN_ACCEL_DEG_S2 / d)
-               for d in (turn_deg,) if d > 1e-9]
+    limits = []
+    if length_mm > 1e-9:
+        limits.append(np.array([speed_mm_s, LINE_ACCEL_MM_S2, LINE_JERK_MM_S3]) / length_mm)
+    if turn_deg > 1e-9:
+        limits.append(np.array([turn_speed_deg_s, TURN_ACCEL_DEG_S2, TURN_JERK_DEG_S3])
+                      / turn_deg)
     if not limits:
         return _linear, 0.0
-    v, a, j = (min(lim[i] for lim in limits) for i in range(3))
+    v, a, j = np.min(limits, axis=0).tolist()
     return _jerk_limited(v, a, j)
 
 
@@ -216,6 +220,7 @@ __all__ = [
     "TIME_OPTIMAL",
     "TRAPEZOID_RAMP",
     "TURN_ACCEL_DEG_S2",
+    "TURN_JERK_DEG_S3",
     "LinePath",
     "check_line_request",
     "check_profile",
