@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-$(shell cat pyproject.toml | cksum | cut -d' ' -f1)
 
-.PHONY: demo test tests-and-types test-fast lint docs bench bench-peers bench-ik gl browser lerobot clean
+.PHONY: demo test tests-and-types test-fast lint docs bench bench-peers bench-ik profile-pick gl browser lerobot clean
 
 $(BIN)/python:
 	@$(PYTHON) -c 'import venv, ensurepip' 2>/dev/null || { \
@@ -128,6 +128,14 @@ bench: $(STAMP)
 bench-peers: $(STAMP)
 	$(BIN)/python -m pip install -q -e '.[peers]'
 	$(BIN)/python -m busarm.bench.peers
+
+# Where the pick bench's time goes, sampled by py-spy (installed only here): a flame graph
+# to build/pick-bench.svg (docs/profiles/pick-bench.md).
+profile-pick: $(STAMP) gl
+	$(BIN)/python -m pip install -q -e '.[profile]'
+	@mkdir -p build
+	$(BIN)/py-spy record -r 250 -f flamegraph -o build/pick-bench.svg -- \
+	  $(BIN)/busarm bench pick --scenes 6 --seed 7100
 
 # IK peers (roboticstoolbox-python, ikpy) are installed only here, for `busarm bench ik --peers`.
 bench-ik: $(STAMP)

@@ -27,6 +27,8 @@ def test_scenes_sorted_in_two_worker_processes_are_scored_in_scene_order() -> No
     assert report.sim_seconds > 2.0 * report.blocks
     assert report.speedup == pytest.approx(report.sim_seconds / report.seconds, rel=0.02)
     assert report.calibration.hand_eye.error_vs_truth_mm < 3.0
+    # Scored from the runs' own first surveys (none made for the bench alone).
+    assert report.survey_error_median_mm is not None and report.survey_error_median_mm < 2.0
     assert sum("in their bins" in line for line in lines) == 3
     # The same seeds give the same scenes, in one process as in two.
     again = run_pick_bench(scenes=1, seed=7, blocks=(1, 2))

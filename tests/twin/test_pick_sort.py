@@ -14,6 +14,7 @@ from click.testing import CliRunner
 from busarm.apps.pick_sort.sorter import IN_BIN_MM, PickSorter, PickSortSettings
 from busarm.cli.main import cli
 from busarm.errors import ConfigError, UnreachableError
+from busarm.perception.locate import Sighting
 from busarm.robot import CameraSpec, Robot, RobotConfig
 from busarm.twin.spec import TwinSpec
 from busarm.twin.twin import Twin
@@ -197,8 +198,10 @@ def test_far_and_near_blocks_are_taken_tilted_and_edge_ones_looked_at_again(
                 arm.kin.ik_best(block.x_mm, block.y_mm, 15.0, -90.0)
         bins = robot.bins
         steps: list[str] = []
-        sorter = PickSorter(robot, on_step=steps.append)
+        surveys: list[list[Sighting]] = []
+        sorter = PickSorter(robot, on_step=steps.append, on_survey=surveys.append)
         seen = {s.color: s for s in sorter.survey()}
+        assert len(surveys) == 1 and {s.color for s in surveys[0]} == set(seen)
         # The blue one, cut by the survey picture's edge, was looked at again in the
         # survey, facing it, and seen whole there.
         cut_first = [s for s in sorter.last_survey[0][1] if s.color == "blue"]
@@ -210,6 +213,7 @@ def test_far_and_near_blocks_are_taken_tilted_and_edge_ones_looked_at_again(
         truth = twin.blocks()
     by_color = {b.color: b for b in report.blocks}
     assert report.totals()["sorted"] == 3, [b.to_dict() for b in report.blocks]
+    assert len(surveys) >= 1 + 3  # the run's own: one before each pick, and the last
     pitch_far, pitch_near = by_color["red"].grasp_pitch_deg, by_color["green"].grasp_pitch_deg
     assert pitch_far is not None and -90.0 < pitch_far < 0.0  # leaning out
     assert pitch_near is not None and pitch_near < -90.0  # leaning back

@@ -43,6 +43,7 @@ from busarm.units import check_int_range
 if TYPE_CHECKING:
     from busarm.apps.pick_sort.sorter import BlockOutcome, PickSorter
     from busarm.apps.pick_sort.tag_sort import TagSortJob
+    from busarm.perception.locate import Sighting
 
 __all__ = [
     "DISTRACTOR_MOVED_MM",
@@ -239,11 +240,15 @@ def run_scene(task: SceneTask) -> SceneResult:
         twin = robot.twin
         assert twin is not None
         distractors_before = twin.distractor_positions_mm()
+        before = twin.blocks()
+        surveys: list[list[Sighting]] = []
         if rule.reads_tags:
-            job: PickSorter | TagSortJob = TagSortJob(robot, rule=rule)
+            tag_job = TagSortJob(robot, rule=rule)
+            survey_errors = _tag_survey_errors(tag_job, before, scene)
+            job: PickSorter | TagSortJob = tag_job
         else:
-            job = PickSorter(robot, colors=task.colors, rule=rule)
-        survey_errors = _survey_errors(job, twin.blocks(), scene)
+            # The run's own first survey is scored (none made for the bench alone).
+            job = PickSorter(robot, colors=task.colors, rule=rule, on_survey=surveys.append)
         try:
             job.run()
             error = ""
@@ -252,6 +257,8 @@ def run_scene(task: SceneTask) -> SceneResult:
         after = twin.distractor_positions_mm()
         moved = [math.dist(a[:2], b[:2]) for a, b in zip(distractors_before, after, strict=True)]
         outcomes = list(job.report.blocks)
+        if not rule.reads_tags:
+            survey_errors = _survey_errors(surveys[0] if surveys else [], before)
         truth = twin.blocks()
         # The right bin of each block from the scene's truth (its tag, its side as built).
         places = [rule.place_for(t.color, scene.blocks[t.index].size_mm,
@@ -263,18 +270,19 @@ def run_scene(task: SceneTask) -> SceneResult:
                            _about_not_blocks(outcomes, scene, distractors_before))
 
 
-def _survey_errors(job: PickSorter | TagSortJob, truth: list[BlockState], scene: Scene
-                   ) -> list[float]:
-    """How far the first survey saw each block from where it is (mm; those it saw): by
-    colour, the nearest sighting; by tag, its tag's."""
-    from busarm.apps.pick_sort.tag_sort import TagSortJob
+def _tag_survey_errors(job: TagSortJob, truth: list[BlockState], scene: Scene
+                       ) -> list[float]:
+    """How far a survey made before the run saw each tagged block from where it is (mm;
+    those it saw)."""
+    tags = job.survey()
+    ids = [scene.blocks[t.index].tag_id for t in truth]
+    return [math.hypot(tags[i].x_mm - t.x_mm, tags[i].y_mm - t.y_mm)
+            for t, i in zip(truth, ids, strict=True) if i is not None and i in tags]
 
-    if isinstance(job, TagSortJob):
-        tags = job.survey()
-        ids = [scene.blocks[t.index].tag_id for t in truth]
-        return [math.hypot(tags[i].x_mm - t.x_mm, tags[i].y_mm - t.y_mm)
-                for t, i in zip(truth, ids, strict=True) if i is not None and i in tags]
-    first = job.survey()
+
+def _survey_errors(first: list[Sighting], truth: list[BlockState]) -> list[float]:
+    """How far the run's first survey saw each block from where it was (mm; those it
+    saw): the nearest sighting of its colour."""
     out = []
     for t in truth:
         near = [math.hypot(s.location.x_mm - t.x_mm, s.location.y_mm - t.y_mm)

@@ -208,12 +208,16 @@ def _weighted(p: FloatArray, views: Sequence[PreparedView], table_z_mm: float
 
 def fit_box(views: Sequence[OutlineView] | PreparedViews, intrinsics: CameraIntrinsics,
             table_z_mm: float, guess: tuple[float, float, float, float], *,
-            aspect: float | None = None) -> BoxFit:
+            aspect: float | None = None, turned_retry: bool = True,
+            tolerance: float = 1e-8) -> BoxFit:
     """The box (standing on the table at ``table_z_mm``) whose outline matches each
     view's (its trusted part); ``guess``: (x mm, y mm, yaw deg, side mm) to start
     from. ``aspect``: None for any box; else a square footprint and the height this
     times its side (1: a cube). ``views`` may be prepared (``prepare_views``) for several
-    fits. VisionError if an outline cannot be used."""
+    fits. ``turned_retry``: a poor fit is tried again with the yaw turned 45 deg (False:
+    the guess's yaw is already a fit's). ``tolerance``: the fit ends when a step changes
+    its cost or parameters less than this share (scipy's ``ftol`` and ``xtol``).
+    VisionError if an outline cannot be used."""
     prepared = _prepared(views, intrinsics)
     if not prepared:
         raise VisionError("fit_box needs at least one view")
@@ -232,10 +236,11 @@ def fit_box(views: Sequence[OutlineView] | PreparedViews, intrinsics: CameraIntr
         start = np.array([x0, y0, math.radians(yaw0 + turn_deg), side0, side0, side0])
         tried = least_squares(steps.residuals, start[:size], jac=steps.jacobian,
                               bounds=(lower, upper), x_scale=scale, max_nfev=200,
-                              loss="soft_l1", f_scale=ROBUST_PX)
+                              loss="soft_l1", f_scale=ROBUST_PX, ftol=tolerance,
+                              xtol=tolerance)
         if fit is None or tried.cost < fit.cost:
             fit = tried
-        if _fit_px(fit.fun) < GOOD_FIT_PX:
+        if not turned_retry or _fit_px(fit.fun) < GOOD_FIT_PX:
             break
     assert fit is not None
     return _box_fit(fit.x, ratio, prepared, table_z_mm)

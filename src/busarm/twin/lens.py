@@ -10,7 +10,8 @@ iteratively) -> render pixel, once into a remap table; per frame it is one cv2.r
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+import threading
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -21,6 +22,7 @@ from busarm.units import check_int_range
 
 __all__ = [
     "LENSES",
+    "REMAP_TABLES_KEPT",
     "VENDOR_DISTORTION",
     "WIDE_ANGLE_DISTORTION",
     "FloatArray",
@@ -41,6 +43,13 @@ VENDOR_DISTORTION = (-0.0275, -0.0005, -0.0059, -0.0034, -0.0356)
 """The vendor's own calibration file's coefficients (field notes): a mild lens."""
 
 
+REMAP_TABLES_KEPT = 8
+"""Lenses' remap tables kept (about 2 MB each), oldest dropped first."""
+_REMAP_TABLES: dict[tuple[LensSpec, tuple[int, int, float] | None],
+                    tuple[npt.NDArray[np.int16], npt.NDArray[np.uint16]]] = {}
+_REMAP_LOCK = threading.Lock()
+
+
 @dataclass(frozen=True)
 class LensSpec:
     """A camera's true intrinsics (what calibration has to find): OpenCV pinhole model."""
@@ -54,9 +63,6 @@ class LensSpec:
     distortion: tuple[float, ...] = WIDE_ANGLE_DISTORTION
     oversample: float = 1.0
     """Render pixels per output pixel at the image centre (1 = the same density)."""
-    _maps: dict[tuple[int, int, float] | None,
-                tuple[npt.NDArray[np.int16], npt.NDArray[np.uint16]]] = field(
-        default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         check_int_range("lens width_px", self.width_px, 16, 4096)
@@ -119,7 +125,8 @@ class LensSpec:
         """cv2.remap tables: for each output pixel, where its ray lands in the render: the
         one of ``render_geometry()``, or ``render`` = (width, height, vertical fov in
         degrees), the same view drawn at another size."""
-        maps = self._maps.get(render)
+        key = (self, render)  # an equal lens's tables are these (a twin a scene, one lens)
+        maps = _REMAP_TABLES.get(key)
         if maps is not None:
             return maps
         width, height, fovy = render if render is not None else self.render_geometry()
@@ -134,7 +141,10 @@ class LensSpec:
         fixed = cv2.convertMaps(map_x.astype(np.float32), map_y.astype(np.float32),
                                 cv2.CV_16SC2)
         maps = (np.asarray(fixed[0], np.int16), np.asarray(fixed[1], np.uint16))
-        self._maps[render] = maps
+        with _REMAP_LOCK:  # cameras of several twins may draw at once
+            if len(_REMAP_TABLES) >= REMAP_TABLES_KEPT:
+                _REMAP_TABLES.pop(next(iter(_REMAP_TABLES)))
+            _REMAP_TABLES[key] = maps
         return maps
 
     def apply(self, render: npt.NDArray[np.uint8],

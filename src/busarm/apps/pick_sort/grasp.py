@@ -4,6 +4,7 @@ reach. Pure geometry: no bus, no camera."""
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import math
 from collections.abc import Iterator, Sequence
@@ -14,6 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from busarm.apps.pick_sort.footprint import Footprint
+from busarm.arm.chain import Joints
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import UnreachableError
 from busarm.units import check_range, place_text
@@ -317,18 +319,23 @@ class GraspPlanner:
         level, as (roll, degrees still off square, the tool's pose), best first; empty
         if the pitch does not reach."""
         kin = self.kin
-        best: dict[int, tuple[float, float, FloatArray]] = {}
+        reached: list[tuple[float, Joints]] = []
         for roll in np.arange(-90.0, 90.5, ROLL_STEP_DEG).tolist():
-            try:
-                m = kin.fk_matrix(kin.ik_best(x_mm, y_mm, self.grasp_z_mm, pitch_deg, roll))
-            except UnreachableError:
-                continue
+            with contextlib.suppress(UnreachableError):
+                reached.append((roll, kin.ik_best(x_mm, y_mm, self.grasp_z_mm, pitch_deg, roll)))
+        if not reached:
+            return []
+        # The tool's poses in one batch.
+        poses = kin.fk_matrix_batch(np.asarray([j for _, j in reached]))
+        best: dict[int, tuple[float, float, FloatArray]] = {}
+        for k, (roll, _) in enumerate(reached):
+            m: FloatArray = poses[k]
             if math.degrees(math.asin(min(1.0, abs(m[2, 1])))) > MAX_CLOSING_TILT_DEG:
                 continue
             off = (_finger_axis_deg(m) - yaw_deg + 45.0) % 180.0 - 45.0  # -45..135
             pair, turn = (0, abs(off)) if off < 45.0 else (1, abs(off - 90.0))
             if pair not in best or turn < best[pair][1] - 1e-9:
-                best[pair] = (float(roll), turn, m)
+                best[pair] = (float(roll), turn, m.copy())
         return sorted(best.values(), key=lambda r: r[1])
 
     def _check_plan(self, plan: GraspPlan) -> None:

@@ -99,7 +99,8 @@ class PickSorter:
                  rule: SortRule | None = None,
                  progress: Callable[[str], None] | None = None,
                  on_step: Callable[[str], None] | None = None,
-                 on_pick: Callable[[Sighting], None] | None = None) -> None:
+                 on_pick: Callable[[Sighting], None] | None = None,
+                 on_survey: Callable[[list[Sighting]], None] | None = None) -> None:
         arm = self.arm = robot.arm
         self.camera = robot.camera
         locator = self.locator = robot.locator(colors)
@@ -119,6 +120,8 @@ class PickSorter:
         self.on_step = on_step or (lambda _: None)
         # Called with each block about to be picked (its survey is ``last_survey``).
         self.on_pick = on_pick or (lambda _: None)
+        # Called with what each survey saw (a bench scores the first against the truth).
+        self.on_survey = on_survey or (lambda _: None)
         # Every wait and cycle time is on the arm's clock (a twin's simulated seconds).
         self.clock = arm.clock
         self.planner = GraspPlanner(arm.kin, locator.table_z_mm, locator.block_size_mm,
@@ -147,8 +150,11 @@ class PickSorter:
         return self.view.last_survey
 
     def survey(self, facing: Sequence[tuple[float, float]] = ()) -> list[Sighting]:
-        """Every block seen (``TableView.survey``; looking ``facing`` these points too)."""
-        return self.view.survey(facing)
+        """Every block seen (``TableView.survey``; looking ``facing`` these points too);
+        ``on_survey`` is told."""
+        seen = self.view.survey(facing)
+        self.on_survey(seen)
+        return seen
 
     def look_closer(self, target: Sighting, *, always: bool = False) -> Sighting | None:
         """``target`` seen facing it (``TableView.look_closer``)."""
