@@ -78,7 +78,7 @@ MIN_DOWN = 0.1
 """A pose whose optical axis points less steeply down than this (its z) sees no surface."""
 
 
-@lru_cache(maxsize=8)
+@lru_cache(maxsize=2)  # about 18 MB each: a process has one arm and mount (two at a recalibration)
 def _views(g: Geometry, limits_deg: tuple[tuple[float, float], ...],
            cam2link_bytes: bytes) -> _Views:
     cam2link = np.frombuffer(cam2link_bytes).reshape(4, 4)
@@ -100,7 +100,10 @@ def _views(g: Geometry, limits_deg: tuple[tuple[float, float], ...],
     axis = np.stack([ca * zx - sa * zy, np.full_like(rho, zz), -down], axis=1)
     tilt = np.degrees(np.arccos(np.clip(down, -1.0, 1.0)))
     length = g.wrist_to_tip_mm
-    return _Views(q[keep], cam, axis, tilt, rho, z, rho - length * sa, z - length * ca)
+    views = _Views(q[keep], cam, axis, tilt, rho, z, rho - length * sa, z - length * ca)
+    for array in vars(views).values():
+        array.flags.writeable = False  # shared by every later call
+    return views
 
 
 def look_pose(kin: ArmKinematics, cam2link: FloatArray, surface_z_mm: float,
