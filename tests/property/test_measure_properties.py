@@ -11,6 +11,7 @@ import math
 
 import cv2
 import numpy as np
+import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
@@ -19,6 +20,7 @@ from busarm.apps.pick_sort.table_view import OBLIQUE_CAMERA_MM, OBLIQUE_TILT_DEG
 from busarm.arm.camera_mount import CameraMount
 from busarm.arm.config import load_arm_config
 from busarm.arm.kinematics import ArmKinematics
+from busarm.errors import ConfigError
 from busarm.perception.locate import link2base
 from busarm.perception.measure import BoxFit, OutlineView, fit_box, fit_cylinder
 from busarm.perception.shape import (
@@ -176,21 +178,23 @@ def test_boxes_that_are_not_cubes_are_no_blocks(where: tuple[float, float], yaw_
     assert shape.verdict == "not a block", shape
 
 
-@settings(max_examples=10, deadline=None)
-@given(places, st.floats(-45.0, 45.0), st.floats(20.0, 45.0),
-       st.sampled_from([1.0, 0.5, 2.0]), st.sampled_from([TALL, FLAT]))
+@settings(max_examples=12, deadline=None)
+@given(places, st.floats(-45.0, 45.0), st.floats(20.0, 45.0), st.floats(0.5, 2.0),
+       st.sampled_from([TALL, FLAT]))
 def test_a_compared_fit_decides_as_the_full_fit_does(
         where: tuple[float, float], yaw_deg: float, side: float, height_ratio: float,
         aspect: float) -> None:
     """The judge's taller and flatter boxes are fitted from one start at
-    COMPARED_TOLERANCE: whether one fits DECISIVE_PX worse than the cube in some view
-    comes out as with the full fit (tight, a second start turned 45 deg), but where the
-    full fit itself lies within 0.1 px of the line."""
+    COMPARED_TOLERANCE: how much worse than the cube one fits (in the view that tells
+    them apart best) says the same as the full fit's (tight, a second start turned 45
+    deg), and within 0.2 px of DECISIVE_PX, where it decides, the same to 0.1 px. (Further,
+    poor fits may settle in other minima: 0.78 against 0.92 px, 1.8 against 1.5 px.)"""
     x, y = where
     surface = _box_surface(x, y, yaw_deg, (side, side, height_ratio * side))
     views = [OutlineView(_outline(surface), CAM2BASE),
              OutlineView(_outline(surface, SECOND), SECOND)]
-    start = (x + 3.0, y - 2.0, yaw_deg + 4.0, side + 2.0)
+    box = fit_box(views, INTR, 0.0, (x + 3.0, y - 2.0, 0.0, 30.0))
+    start = (box.x_mm, box.y_mm, box.yaw_deg, (box.length_mm + box.width_mm) / 2)  # as judge
     cube = fit_box(views, INTR, 0.0, start, aspect=1.0)
 
     def worse_by(fit: BoxFit) -> float:
@@ -199,5 +203,12 @@ def test_a_compared_fit_decides_as_the_full_fit_does(
     full = worse_by(fit_box(views, INTR, 0.0, start, aspect=aspect))
     compared = worse_by(fit_box(views, INTR, 0.0, start, aspect=aspect, turned_retry=False,
                                 tolerance=COMPARED_TOLERANCE))
-    assert (compared > DECISIVE_PX) == (full > DECISIVE_PX) or abs(full - DECISIVE_PX) < 0.1, (
-        full, compared)
+    assert (compared > DECISIVE_PX) == (full > DECISIVE_PX), (full, compared)
+    if abs(full - DECISIVE_PX) < 0.2:
+        assert abs(compared - full) < 0.1, (full, compared)
+
+
+def test_a_fits_tolerance_out_of_range_is_refused() -> None:
+    view = OutlineView(_outline(_box_surface(200.0, 0.0, 0.0, (30.0, 30.0, 30.0))), CAM2BASE)
+    with pytest.raises(ConfigError, match=r"tolerance = 0.0 is out of range 0.0000000001..0.1"):
+        fit_box([view], INTR, 0.0, (200.0, 0.0, 0.0, 30.0), tolerance=0.0)

@@ -7,8 +7,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import numpy.typing as npt
+import pytest
 
 from busarm.arm.config import load_arm_config
+from busarm.errors import ConfigError
 from busarm.twin.lens import LensSpec
 from busarm.twin.scene import Block, Scene
 from busarm.twin.twin import LIVE_DENSITY, Twin
@@ -61,3 +63,17 @@ def test_a_snapshot_into_an_earlier_one_is_the_state_now() -> None:
         assert again is first
         assert np.array_equal(again.qpos, tw.data.qpos) and again.time == tw.data.time
         assert np.array_equal(tw.render_camera(data=again), tw.render_camera())
+
+
+def test_equal_lenses_share_their_remap_tables_read_only() -> None:
+    # A list (as from a JSON or TOML file) is taken as a tuple.
+    first = LensSpec(distortion=[-0.2, 0.05, 0.0, 0.0])  # type: ignore[arg-type]
+    again = LensSpec(distortion=(-0.2, 0.05, 0, 0))
+    assert first == again and first.distortion == (-0.2, 0.05, 0.0, 0.0)
+    tables = first.remap_tables()
+    assert again.remap_tables() is tables
+    assert not tables[0].flags.writeable and not tables[1].flags.writeable
+    other = LensSpec(distortion=(-0.21, 0.05, 0.0, 0.0)).remap_tables()
+    assert not np.array_equal(other[0], tables[0])
+    with pytest.raises(ConfigError, match="distortion"):
+        LensSpec(distortion=("a", 0.0, 0.0, 0.0))  # type: ignore[arg-type]

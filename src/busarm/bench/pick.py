@@ -20,7 +20,7 @@ import signal
 import tempfile
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -43,6 +43,7 @@ from busarm.units import check_int_range
 if TYPE_CHECKING:
     from busarm.apps.pick_sort.sorter import BlockOutcome, PickSorter
     from busarm.apps.pick_sort.tag_sort import TagSortJob
+    from busarm.apps.stack.tag_view import TagSighting
     from busarm.perception.locate import Sighting
 
 __all__ = [
@@ -241,14 +242,16 @@ def run_scene(task: SceneTask) -> SceneResult:
         assert twin is not None
         distractors_before = twin.distractor_positions_mm()
         before = twin.blocks()
-        surveys: list[list[Sighting]] = []
-        if rule.reads_tags:
-            tag_job = TagSortJob(robot, rule=rule)
-            survey_errors = _tag_survey_errors(tag_job, before, scene)
-            job: PickSorter | TagSortJob = tag_job
-        else:
-            # The run's own first survey is scored (none made for the bench alone).
-            job = PickSorter(robot, colors=task.colors, rule=rule, on_survey=surveys.append)
+        # The run's own first survey is scored (none is made for the bench alone).
+        first: list[Sequence[Sighting] | Mapping[int, TagSighting]] = []
+
+        def keep_first(seen: Sequence[Sighting] | Mapping[int, TagSighting]) -> None:
+            if not first:
+                first.append(seen)
+
+        job: PickSorter | TagSortJob = (
+            TagSortJob(robot, rule=rule, on_survey=keep_first) if rule.reads_tags
+            else PickSorter(robot, colors=task.colors, rule=rule, on_survey=keep_first))
         try:
             job.run()
             error = ""
@@ -257,8 +260,8 @@ def run_scene(task: SceneTask) -> SceneResult:
         after = twin.distractor_positions_mm()
         moved = [math.dist(a[:2], b[:2]) for a, b in zip(distractors_before, after, strict=True)]
         outcomes = list(job.report.blocks)
-        if not rule.reads_tags:
-            survey_errors = _survey_errors(surveys[0] if surveys else [], before)
+        # (A run stopped before its first survey is scored on none.)
+        survey_errors = _survey_errors(first[0] if first else (), before, scene)
         truth = twin.blocks()
         # The right bin of each block from the scene's truth (its tag, its side as built).
         places = [rule.place_for(t.color, scene.blocks[t.index].size_mm,
@@ -270,19 +273,14 @@ def run_scene(task: SceneTask) -> SceneResult:
                            _about_not_blocks(outcomes, scene, distractors_before))
 
 
-def _tag_survey_errors(job: TagSortJob, truth: list[BlockState], scene: Scene
-                       ) -> list[float]:
-    """How far a survey made before the run saw each tagged block from where it is (mm;
-    those it saw)."""
-    tags = job.survey()
-    ids = [scene.blocks[t.index].tag_id for t in truth]
-    return [math.hypot(tags[i].x_mm - t.x_mm, tags[i].y_mm - t.y_mm)
-            for t, i in zip(truth, ids, strict=True) if i is not None and i in tags]
-
-
-def _survey_errors(first: list[Sighting], truth: list[BlockState]) -> list[float]:
+def _survey_errors(first: Sequence[Sighting] | Mapping[int, TagSighting],
+                   truth: list[BlockState], scene: Scene) -> list[float]:
     """How far the run's first survey saw each block from where it was (mm; those it
-    saw): the nearest sighting of its colour."""
+    saw): by tag, its tag's sighting; by colour, the nearest of its colour."""
+    if isinstance(first, Mapping):
+        ids = [scene.blocks[t.index].tag_id for t in truth]
+        return [math.hypot(first[i].x_mm - t.x_mm, first[i].y_mm - t.y_mm)
+                for t, i in zip(truth, ids, strict=True) if i is not None and i in first]
     out = []
     for t in truth:
         near = [math.hypot(s.location.x_mm - t.x_mm, s.location.y_mm - t.y_mm)

@@ -50,6 +50,7 @@ from busarm.perception.outline_fit import (
     prepared_view,
     residuals,
 )
+from busarm.units import check_range
 from busarm.vision.calibration import CameraIntrinsics
 
 __all__ = [
@@ -218,6 +219,7 @@ def fit_box(views: Sequence[OutlineView] | PreparedViews, intrinsics: CameraIntr
     the guess's yaw is already a fit's). ``tolerance``: the fit ends when a step changes
     its cost or parameters less than this share (scipy's ``ftol`` and ``xtol``).
     VisionError if an outline cannot be used."""
+    check_range("tolerance", tolerance, 1e-10, 0.1)
     prepared = _prepared(views, intrinsics)
     if not prepared:
         raise VisionError("fit_box needs at least one view")

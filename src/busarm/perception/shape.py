@@ -196,11 +196,9 @@ def judge(views: Sequence[OutlineView], intrinsics: CameraIntrinsics, table_z_mm
     if abs(box.height_mm / side - 1.0) > tolerance and cube.fit_px - box.fit_px > DECISIVE_PX:
         return shape("not a block", f"{box.height_mm:.0f} mm tall on {footprint}")
     # A cube when both the taller and the flatter box fit clearly worse: the flatter one
-    # is fitted only when the taller one does. They start from the free fit's yaw, not
-    # again turned 45 deg when poor (a poor fit is what they are expected to be), and
-    # end at COMPARED_TOLERANCE: over 853 such fits of the random, lookalike and clutter
-    # benches the turned start never changed a verdict, at twice the cost, and over 739
-    # the tolerance moved a fit 0.05 px at most (DECISIVE_PX is 0.3), a quarter cheaper.
+    # is fitted only when the taller one does. They start once, from the free fit's yaw
+    # (a poor fit is what they are expected to be), and end at COMPARED_TOLERANCE: the
+    # same verdicts at half the cost (docs/profiles/pick-bench.md; the property tests).
     if all(_worse_by(fit_box(pairs, intrinsics, table_z_mm, start, aspect=aspect,
                              turned_retry=False, tolerance=COMPARED_TOLERANCE), cube)
            > DECISIVE_PX for aspect in (TALL, FLAT)):

@@ -62,8 +62,7 @@ class TwinOptics:
     mount: CameraMount
 
     def to_json(self) -> bytes:
-        lens = {f.name: getattr(self.lens, f.name) for f in fields(LensSpec)
-                if not f.name.startswith("_")}
+        lens = {f.name: getattr(self.lens, f.name) for f in fields(LensSpec)}
         return json.dumps({"lens": lens, "cam2link": self.mount.cam2link.tolist()}).encode()
 
     @classmethod

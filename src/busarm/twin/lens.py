@@ -44,7 +44,8 @@ VENDOR_DISTORTION = (-0.0275, -0.0005, -0.0059, -0.0034, -0.0356)
 
 
 REMAP_TABLES_KEPT = 8
-"""Lenses' remap tables kept (about 2 MB each), oldest dropped first."""
+"""Lenses' remap tables kept (about 2 MB each at 640x480), oldest dropped first; equal
+lenses share theirs."""
 _REMAP_TABLES: dict[tuple[LensSpec, tuple[int, int, float] | None],
                     tuple[npt.NDArray[np.int16], npt.NDArray[np.uint16]]] = {}
 _REMAP_LOCK = threading.Lock()
@@ -71,10 +72,18 @@ class LensSpec:
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
                 raise ConfigError(f"lens {name} = {v!r} must be a positive number")
-        if len(self.distortion) not in (4, 5, 8) or not all(
-                math.isfinite(d) and abs(d) < 10 for d in self.distortion):
-            raise ConfigError(f"lens distortion = {self.distortion!r}: expected 4, 5 or 8 "
-                              "finite OpenCV coefficients (k1 k2 p1 p2 [k3 [k4 k5 k6]])")
+        bad = ConfigError(f"lens distortion = {self.distortion!r}: expected 4, 5 or 8 "
+                          "finite OpenCV coefficients (k1 k2 p1 p2 [k3 [k4 k5 k6]])")
+        try:
+            distortion = tuple(float(d) for d in self.distortion)
+        except (TypeError, ValueError):
+            raise bad from None
+        if len(distortion) not in (4, 5, 8) or not all(
+                math.isfinite(d) and abs(d) < 10 for d in distortion):
+            raise bad
+        # A tuple of floats whatever was given: equal lenses are equal and hashable (their
+        # remap tables are shared).
+        object.__setattr__(self, "distortion", distortion)
 
     @property
     def camera_matrix(self) -> FloatArray:
@@ -141,6 +150,8 @@ class LensSpec:
         fixed = cv2.convertMaps(map_x.astype(np.float32), map_y.astype(np.float32),
                                 cv2.CV_16SC2)
         maps = (np.asarray(fixed[0], np.int16), np.asarray(fixed[1], np.uint16))
+        for table in maps:
+            table.flags.writeable = False  # shared by every twin with this lens
         with _REMAP_LOCK:  # cameras of several twins may draw at once
             if len(_REMAP_TABLES) >= REMAP_TABLES_KEPT:
                 _REMAP_TABLES.pop(next(iter(_REMAP_TABLES)))

@@ -27,7 +27,6 @@ from busarm.errors import UnreachableError
 __all__ = [
     "AIM_MM",
     "GRID_DEG",
-    "MIN_DOWN",
     "SHOULDER_FROM_DEG",
     "TILT_WEIGHT_MM",
     "TOOL_CLEAR_MM",
@@ -61,7 +60,7 @@ def _plane_grid(limits_deg: Sequence[tuple[float, float]]) -> FloatArray:
 @dataclass(frozen=True)
 class _Views:
     """Every grid pose whose camera looks down at all (the optical axis more than
-    ``MIN_DOWN`` below level), with what does not depend on the surface: one arm and
+    ``_MIN_DOWN`` below level), with what does not depend on the surface: one arm and
     camera mount's, worked out once (a look is asked several times a block)."""
 
     joints_deg: FloatArray  # (N, 3) shoulder, elbow, wrist pitch
@@ -74,8 +73,7 @@ class _Views:
     tip_z: FloatArray  # ... and its height, mm
 
 
-MIN_DOWN = 0.1
-"""A pose whose optical axis points less steeply down than this (its z) sees no surface."""
+_MIN_DOWN = 0.1  # the optical axis's downward part: under it (84 deg from down) no view
 
 
 @lru_cache(maxsize=2)  # about 18 MB each: a process has one arm and mount (two at a recalibration)
@@ -93,7 +91,7 @@ def _views(g: Geometry, limits_deg: tuple[tuple[float, float], ...],
     # That rotation's rows are (ca, -sa, 0), (0, 0, 1), (-sa, -ca, 0).
     (ox, oy, oz), (zx, zy, zz) = cam2link[:3, 3], cam2link[:3, 2]
     down = sa * zx + ca * zy  # the optical axis (OpenCV z), downward
-    keep = down > MIN_DOWN
+    keep = down > _MIN_DOWN
     ca, sa, rho, z, down = ca[keep], sa[keep], rho[keep], z[keep], down[keep]
     cam = np.stack([rho + ca * ox - sa * oy, np.full_like(rho, oz), z - sa * ox - ca * oy],
                    axis=1)

@@ -90,7 +90,11 @@ _Candidate = tuple[tuple[bool, int, int, float], Sighting, BlockOutcome]
 class PickSorter:
     """Sorts the blocks of ``colors`` the robot's wrist camera sees into their bins (the
     robot's, or ``bins``: name -> (x, y) mm) by ``rule`` (by colour unless given: each
-    bin named as a colour); a block with no bin is left alone."""
+    bin named as a colour); a block with no bin is left alone.
+
+    Hooks: ``on_step`` hears each step of a cycle by name, ``on_pick`` each block about to
+    be picked, ``on_survey`` what each ``survey()`` saw (a run makes one a cycle and a
+    last one; closer looks and the bins' check are no surveys)."""
 
     def __init__(self, robot: Robot, *, colors: Sequence[str] | None = None,
                  bins: dict[str, tuple[float, float]] | None = None,
@@ -100,7 +104,7 @@ class PickSorter:
                  progress: Callable[[str], None] | None = None,
                  on_step: Callable[[str], None] | None = None,
                  on_pick: Callable[[Sighting], None] | None = None,
-                 on_survey: Callable[[list[Sighting]], None] | None = None) -> None:
+                 on_survey: Callable[[Sequence[Sighting]], None] | None = None) -> None:
         arm = self.arm = robot.arm
         self.camera = robot.camera
         locator = self.locator = robot.locator(colors)
@@ -120,7 +124,7 @@ class PickSorter:
         self.on_step = on_step or (lambda _: None)
         # Called with each block about to be picked (its survey is ``last_survey``).
         self.on_pick = on_pick or (lambda _: None)
-        # Called with what each survey saw (a bench scores the first against the truth).
+        # Called with what each survey saw (a copy: a bench scores the first).
         self.on_survey = on_survey or (lambda _: None)
         # Every wait and cycle time is on the arm's clock (a twin's simulated seconds).
         self.clock = arm.clock
@@ -153,7 +157,7 @@ class PickSorter:
         """Every block seen (``TableView.survey``; looking ``facing`` these points too);
         ``on_survey`` is told."""
         seen = self.view.survey(facing)
-        self.on_survey(seen)
+        self.on_survey(tuple(seen))
         return seen
 
     def look_closer(self, target: Sighting, *, always: bool = False) -> Sighting | None:

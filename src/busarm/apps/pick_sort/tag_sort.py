@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import replace
 
 import numpy as np
@@ -61,11 +61,13 @@ IN_BIN_MM = 45.0
 class TagSortJob:
     """Sort ``robot``'s tagged blocks into ``bins`` (default the robot's: name -> x, y mm)
     by ``rule`` (by tag; default tag ``i`` to the ``i``-th bin round them); ``progress``
-    hears each step."""
+    hears each step, ``on_survey`` what each ``survey()`` saw (by tag id)."""
 
     def __init__(self, robot: Robot, *, rule: SortRule | None = None,
                  bins: Mapping[str, tuple[float, float]] | None = None,
-                 settings: StackSettings | None = None, progress: Progress = quiet) -> None:
+                 settings: StackSettings | None = None, progress: Progress = quiet,
+                 on_survey: Callable[[Mapping[int, TagSighting]], None] | None = None
+                 ) -> None:
         self.rule = rule or SortRule("tag")
         if not self.rule.reads_tags:
             raise ConfigError(f"TagSortJob sorts by tag, not by {self.rule.by} (PickSorter)")
@@ -81,6 +83,7 @@ class TagSortJob:
                                     pick.carry_mm, pad_mm=self.arm.config.gripper.pad_mm)
         self.places = BinPlaces(self.bins, self.planner)
         self.progress = progress
+        self.on_survey = on_survey or (lambda _: None)
         self.clock = robot.clock
         self.report = RunReport()
         """The run's report as it goes (what was done so far, if it stops early)."""
@@ -120,7 +123,9 @@ class TagSortJob:
         s = self.settings
         seen = self.view.survey(s.survey_bearings_deg, s.survey_radius_mm,
                                 self.table_z_mm + PROBE_MM, s.survey_mm)
-        return {tag: t for tag, t in seen.items() if not self._in_a_bin(t)}
+        out = {tag: t for tag, t in seen.items() if not self._in_a_bin(t)}
+        self.on_survey(dict(out))
+        return out
 
     def _in_a_bin(self, t: TagSighting) -> bool:
         return any(math.hypot(t.x_mm - x, t.y_mm - y) < IN_BIN_MM for x, y in self.bins.values())
