@@ -26,7 +26,14 @@ from busarm.learn.record import record_expert
 from busarm.sim.pty import PtyServer
 from busarm.sim.spec import SimSpec
 from with_lerobot.conftest import lerobot_env
-from with_lerobot.scripts import arm_on, close_deg, replay_args, run_script, served_twin
+from with_lerobot.scripts import (
+    BUSY_MARGIN_S,
+    arm_on,
+    close_deg,
+    replay_args,
+    run_script,
+    served_twin,
+)
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]  # LeRobot's scripts start slowly
 ARM = load_arm_config()
@@ -47,7 +54,7 @@ def test_lerobot_record_from_a_leader_then_replay(tmp_path: Path) -> None:
             "lerobot-record", "--robot.type=busarm", "--robot.port=twin",
             "--robot.camera_roles=[wrist]", "--teleop.type=busarm_leader",
             # the leader's pty is served by this test's process, on a busy computer
-            f"--teleop.port={server.path}", "--teleop.timeout_margin_s=0.05",
+            f"--teleop.port={server.path}", f"--teleop.timeout_margin_s={BUSY_MARGIN_S}",
             "--dataset.repo_id=local/led",
             f"--dataset.root={root}", "--dataset.num_episodes=1",
             "--dataset.episode_time_s=3", "--dataset.reset_time_s=0",

@@ -349,9 +349,10 @@ class PickSorter:
     def _carry(self, plan: GraspPlan, end: tuple[float, float], carry_z: float,
                end_roll_deg: float) -> float:
         """Carry the block held at ``plan``'s lift to over ``end`` (x, y mm), straight
-        down there at ``end_roll_deg``, at ``carry_z`` or, past a thing that is not a
-        block (of a height not known), over the tallest cup a desk has; the height used.
-        Carried higher than its lift (over a second layer), it rises there first."""
+        down there at ``end_roll_deg`` (held tilted: at its own roll, turned only
+        there), at ``carry_z`` or, past a thing that is not a block (of a height not
+        known), over the tallest cup a desk has; the height used. Carried higher than
+        its lift (over a second layer), it rises there first."""
         arm, s = self.arm, self.settings
         past_a_thing = self.view.thing_on_the_way(plan.lift[:2], end)
         if past_a_thing:
@@ -362,6 +363,15 @@ class PickSorter:
             with contextlib.suppress(UnreachableError):
                 arm.move_line(*plan.lift[:2], carry_z, plan.pitch_deg, plan.roll_deg,
                               speed_mm_s=s.carry_speed_mm_s, profile=TIME_OPTIMAL)
+        if plan.pitch_deg != -90.0:
+            # Held tilted, the block is swung over at the roll it was taken at and rolled
+            # square to the bin only there: rolled while swung, it twisted out of the
+            # fingers (two blocks of seed 19 of the random bench; the pitch may change).
+            # (Rolled on the way down instead, the cycles were slower: lines turn at
+            # MAX_TURN_SPEED_DEG_S.)
+            with contextlib.suppress(UnreachableError):
+                arm.move_to(*end, carry_z, -90.0, plan.roll_deg,
+                            speed_deg_s=s.joint_speed_deg_s)
         arm.move_to(*end, carry_z, -90.0, end_roll_deg, speed_deg_s=s.joint_speed_deg_s)
         return carry_z
 
