@@ -81,6 +81,30 @@ def test_a_corner_of_a_touching_group_is_pushed_free_clear_of_the_others(corner:
     GRASPS.plan(push.end[0], push.end[1], yaw, neighbours=others)
 
 
+@pytest.mark.parametrize("corner", range(len(GROUP)))
+def test_a_corner_seen_a_little_into_its_neighbours_is_still_pushed_away_from_them(
+        corner: int) -> None:
+    """Sightings are off by a millimetre or so: a corner block seen 1.5 mm into the group
+    (its footprint overlapping its neighbours' even shrunk by SLIDE_MM) once had no push
+    at all. It is pushed, away from every neighbour it overlaps, and ends clear of all."""
+    x0, y0, yaw = GROUP[corner]
+    cx, cy = 190.0, -20.0  # the group's middle
+    x, y = x0 + math.copysign(1.5, cx - x0), y0 + math.copysign(1.5, cy - y0)
+    others = _others(GROUP, corner)
+    shrunk = Footprint.square(x, y, SHRUNK_MM, yaw)
+    touching = [o for o in others if o.overlaps(shrunk)]
+    assert touching  # the case in question
+    push = PLANNER.plan(x, y, yaw, others)
+    assert push is not None and push.frees
+    (sx, sy), (ex, ey) = push.start, push.end
+    for o in touching:
+        ox, oy = o.centre_mm
+        assert (ex - sx) * (sx - ox) + (ey - sy) * (sy - oy) > 0.0, push  # away from it
+    end = Footprint.square(ex, ey, SHRUNK_MM, yaw)
+    assert not any(end.overlaps(o) for o in others), push
+    assert math.dist((ex, ey), (cx, cy)) > math.dist((sx, sy), (cx, cy))
+
+
 @settings(max_examples=25, deadline=None)
 @given(st.data())
 def test_every_push_keeps_off_the_other_blocks_and_the_bins(data: st.DataObject) -> None:

@@ -24,7 +24,9 @@ from busarm.apps.pick_sort.rules import SortRule, parse_tag_places
 from busarm.arm.config import load_arm_config
 from busarm.arm.kinematics import ArmKinematics
 from busarm.errors import ConfigError
+from busarm.perception.locate import Sighting
 from busarm.perception.size_classes import size_class
+from busarm.vision.localize import BlockLocation
 
 TRAYS = {"red": (67.0, 183.0), "green": (67.0, -183.0), "blue": (-67.0, 183.0)}
 SIZED = {"small": (67.0, 183.0), "medium": (67.0, -183.0), "large": (-67.0, 183.0)}
@@ -165,3 +167,23 @@ def test_a_large_block_seen_as_two_leaves_one_record_once_it_is_taken() -> None:
     report.blocks += [taken, half, other]
     BlockRecords().taken(taken, 43.5, report)
     assert report.blocks == [taken, other]
+
+
+def _seen(color: str, x_mm: float, y_mm: float) -> Sighting:
+    return Sighting(color, BlockLocation(x_mm, y_mm, 30.0, 0.0, 30.0, (320.0, 240.0)),
+                    None, True, True)
+
+
+def test_a_block_missed_then_pushed_keeps_its_record_where_it_was_pushed() -> None:
+    """A missed grasp, then a push out of its group: seen where the push left it, it is
+    that record (once, it was declared moved by someone and never taken)."""
+    report, records = RunReport(), BlockRecords()
+    missed = BlockOutcome("red", (132.0, -48.0), attempts=1)
+    knocked = BlockOutcome("blue", (100.0, -80.0), attempts=1)  # missed, then gone
+    report.blocks += [missed, knocked]
+    records.pushed(missed, (143.0, -20.0))
+    seen = [_seen("red", 146.5, -23.0)]
+    records.mark_moved(report, seen)
+    assert missed.outcome == "pending" and knocked.outcome == "moved"
+    assert records.record_for(seen[0], report) is missed
+    assert missed.found_mm == (146.5, -23.0)

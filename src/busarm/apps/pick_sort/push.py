@@ -3,7 +3,8 @@ top) so that afterwards a grasp clears its neighbours. Pure geometry: no bus, no
 
 A push is tried in ``PUSH_DIRECTIONS`` directions and a few lengths. One is kept only if
 the block, all the way along, stays off every other block (sliding past a touching one is
-allowed), the bins and things that are not blocks; the arm reaches the whole drag (the
+allowed; one it is seen a little into, it must leave behind), the bins and things that
+are not blocks; the arm reaches the whole drag (the
 tool straight down, else leaning: the closed pads' lower edge presses then) with no pad
 on another block; and at its end a grasp of the block clears its neighbours. Of those,
 the shortest wins, then one straight down, then the one towards the base (reach is
@@ -116,8 +117,18 @@ class PushPlanner:
         start_sq = Footprint.square(x_mm, y_mm, size - 2 * SLIDE_MM, yaw_deg)
         end_sq = Footprint.square(*end, size - 2 * SLIDE_MM, yaw_deg)
         swept = Footprint.hull([*start_sq.corners, *end_sq.corners])
-        if any(swept.overlaps(o) for o in others):
-            return None
+        way = (math.cos(angle), math.sin(angle))
+        for o in others:
+            if not o.overlaps(start_sq):
+                if swept.overlaps(o):
+                    return None
+                continue
+            # Seen a little into a neighbour it touches (the sightings' own errors): every
+            # sweep would overlap it; the push must take the block away from it and leave
+            # it clear (else half a millimetre left a boxed-in block no push at all).
+            ox, oy = o.centre_mm
+            if (x_mm - ox) * way[0] + (y_mm - oy) * way[1] <= 0.0 or end_sq.overlaps(o):
+                return None
         if any(swept.overlaps(b, BIN_KEEP_OFF_MM) for b in (*self.bins, *obstacles)):
             return None
         return end

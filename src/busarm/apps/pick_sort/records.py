@@ -17,7 +17,6 @@ from busarm.perception.shape import nearest_other_mm
 __all__ = [
     "BlockRecords",
     "Place",
-    "mark_moved",
 ]
 
 
@@ -108,12 +107,14 @@ class BlockRecords:
         self._pushed[id(outcome)] = (outcome, outcome.found_mm, end)
         self.boxed.pop(id(outcome), None)
 
-
-def mark_moved(report: RunReport, seen: Sequence[Sighting]) -> None:
-    """Records of blocks missed and no longer where they were: someone moved them. Such a
-    block is looked for afresh (a new record if it is seen elsewhere)."""
-    for outcome in report.blocks:
-        if outcome.outcome == "pending" and outcome.attempts and not any(
-                same_block(outcome.color, *outcome.found_mm, s) for s in seen):
-            outcome.outcome = "moved"
-            outcome.reason = "not where it was after a missed grasp: it was moved"
+    def mark_moved(self, report: RunReport, seen: Sequence[Sighting]) -> None:
+        """Records of blocks missed and no longer where they were: someone moved them.
+        Such a block is looked for afresh (a new record if it is seen elsewhere). A block
+        pushed since is not: its record follows it (a missed grasp, then a push, had
+        lost a block the run then never took)."""
+        for outcome in report.blocks:
+            if outcome.outcome == "pending" and outcome.attempts and id(
+                    outcome) not in self._pushed and not any(
+                    same_block(outcome.color, *outcome.found_mm, s) for s in seen):
+                outcome.outcome = "moved"
+                outcome.reason = "not where it was after a missed grasp: it was moved"

@@ -49,7 +49,7 @@ from busarm.apps.pick_sort.gripping import (
 )
 from busarm.apps.pick_sort.outcomes import BlockOutcome, RunReport
 from busarm.apps.pick_sort.push import Push, PushPlanner
-from busarm.apps.pick_sort.records import BlockRecords, mark_moved
+from busarm.apps.pick_sort.records import BlockRecords
 from busarm.apps.pick_sort.restage import Restaged, staging_spot
 from busarm.apps.pick_sort.rules import SortRule
 from busarm.apps.pick_sort.servo_care import rest_while_hot
@@ -442,7 +442,7 @@ class PickSorter:
         """Survey (facing these points too), then pick and place the next block; False if
         there is none to pick."""
         seen = self.survey(facing)
-        mark_moved(report, seen)
+        self.records.mark_moved(report, seen)
         candidates, boxed_in = self._choices(report, seen)
         if not candidates:
             return self._free_one(boxed_in)
