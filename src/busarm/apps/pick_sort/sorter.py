@@ -81,8 +81,6 @@ TILTED_SET_DOWN_MM = 32.0
 """A block larger than this, taken tilted, is set down to be taken again straight down
 before it goes to a bin: held tilted it would land leaning on the tray's wall (in the
 twin a 40 mm block leaned 24 deg, and the one set on it threw it out)."""
-TILTED_SWING_DEG_S = 120.0
-"""A block held tilted is swung to its bin no faster than this (joint speed)."""
 LARGER_FIRST_MM = 5.0
 """Blocks are taken larger first, by sizes this far apart (a bin packs best so)."""
 _Candidate = tuple[tuple[bool, int, int, float], Sighting, BlockOutcome]
@@ -366,15 +364,14 @@ class PickSorter:
                 arm.move_line(*plan.lift[:2], carry_z, plan.pitch_deg, plan.roll_deg,
                               speed_mm_s=s.carry_speed_mm_s, profile=TIME_OPTIMAL)
         if plan.pitch_deg != -90.0:
-            # Held tilted (by two edges, more or less), the block is swung over at the
-            # roll it was taken at, no faster than TILTED_SWING_DEG_S, and rolled square
-            # to the bin only there: rolled while swung, two blocks of the random bench's
-            # seed 19 twisted out of the fingers; swung at full speed, one of the lookalike
-            # bench's seed 39 slipped. (Rolled on the way down instead, the cycles were
-            # slower: lines turn at MAX_TURN_SPEED_DEG_S.)
+            # Held tilted, the block is swung over at the roll it was taken at and rolled
+            # square to the bin only there: rolled while swung, it twisted out of the
+            # fingers (two blocks of seed 19 of the random bench; the pitch may change).
+            # (Rolled on the way down instead, the cycles were slower: lines turn at
+            # MAX_TURN_SPEED_DEG_S.)
             with contextlib.suppress(UnreachableError):
                 arm.move_to(*end, carry_z, -90.0, plan.roll_deg,
-                            speed_deg_s=min(TILTED_SWING_DEG_S, s.joint_speed_deg_s))
+                            speed_deg_s=s.joint_speed_deg_s)
         arm.move_to(*end, carry_z, -90.0, end_roll_deg, speed_deg_s=s.joint_speed_deg_s)
         return carry_z
 
@@ -671,5 +668,4 @@ def _mm(xy: tuple[float, float]) -> str:
 
 
 __all__ = ["BIN_PLACES", "BIN_SLOTS_MM", "IN_BIN_MM", "ORDERS", "TILTED_SET_DOWN_MM",
-           "TILTED_SWING_DEG_S",
            "BlockOutcome", "PickSortSettings", "PickSorter", "RunReport"]
