@@ -236,14 +236,18 @@ def test_a_click_on_the_map_names_a_point_and_finds_the_base(
         assert truth is not None
         click_map(page, tmp_path / "room.yaml", truth.x_m + 0.15, truth.y_m - 0.1)
         page.locator("#point-yaw").fill(str(round(truth.yaw_deg + 15)))
+        guess = page.locator("#point-at").text_content()  # what the page took the click for
         page.locator("#base-here").click()
         expect(page.locator("#job-last")).to_contain_text("localise done", timeout=20_000)
         said = re.search(r"x ([-+.\d]+) m, y ([-+.\d]+) m, ([-+\d]+) deg",
                          page.locator("#job-last").text_content() or "")
         assert said is not None
         found = Pose2D(float(said[1]), float(said[2]), math.radians(float(said[3])))
-        assert math.dist((found.x_m, found.y_m), (truth.x_m, truth.y_m)) < 0.1, (found, truth)
-        assert abs(math.degrees(wrap_rad(found.yaw_rad - truth.yaw_rad))) < 5, (found, truth)
+        now = arena_robot.sim.base_pose()
+        assert math.dist((found.x_m, found.y_m), (truth.x_m, truth.y_m)) < 0.1, (
+            found, truth, now, guess)
+        assert abs(math.degrees(wrap_rad(found.yaw_rad - truth.yaw_rad))) < 5, (
+            found, truth, now, guess)
         expect(page.locator("#map-caption")).to_contain_text("click a spot")
     finally:
         http.stop()

@@ -16,7 +16,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from busarm.apps.pick_sort.look_poses import look_pose
-from busarm.apps.pick_sort.table_view import OBLIQUE_CAMERA_MM, OBLIQUE_TILT_DEG
+from busarm.apps.pick_sort.table_view import OBLIQUE_CAMERA_MM, OBLIQUE_TILT_DEG, _blocks_in_a_row
 from busarm.arm.camera_mount import CameraMount
 from busarm.arm.config import load_arm_config
 from busarm.arm.kinematics import ArmKinematics
@@ -64,12 +64,18 @@ def _oblique(x: float, y: float, z: float) -> np.ndarray:
 
 def _outline(surface_mm: np.ndarray, cam2base: np.ndarray = CAM2BASE) -> np.ndarray:
     """The outline (px) of a convex thing whose surface points are given: their
-    projections' hull, drawn and traced as a camera's mask would be."""
+    projections' hull, as a camera's mask has it (a pixel is the thing's when its centre
+    is inside the hull), traced."""
     base2cam = np.linalg.inv(cam2base)
     px = INTR.pixels_from_camera_points(surface_mm @ base2cam[:3, :3].T + base2cam[:3, 3])
-    mask = np.zeros((INTR.height_px, INTR.width_px), np.uint8)
-    hull = cv2.convexHull(np.round(px).astype(np.int32))
-    cv2.fillConvexPoly(mask, hull, 255)
+    hull = cv2.convexHull(px.astype(np.float32)).reshape(-1, 2).astype(np.float64)
+    rows, cols = np.mgrid[0:INTR.height_px, 0:INTR.width_px]
+    inside = np.ones(rows.shape, bool)
+    turn = 1.0 if cv2.contourArea(hull.astype(np.float32), oriented=True) > 0 else -1.0
+    for a, b in zip(hull.tolist(), np.roll(hull, -1, axis=0).tolist(), strict=True):
+        # The hull runs one way round: every centre inside is on the same side of each edge.
+        inside &= turn * ((b[0] - a[0]) * (rows - a[1]) - (b[1] - a[1]) * (cols - a[0])) >= 0
+    mask = inside.astype(np.uint8) * 255
     contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     return max(contours, key=cv2.contourArea).reshape(-1, 2)
 
@@ -113,7 +119,7 @@ def test_a_cube_is_measured_from_its_outlines(where: tuple[float, float], yaw_de
                   0.0, (x + 8.0, y - 6.0, 0.0, 30.0))
     assert two.fit_px < 0.8, two
     assert math.hypot(two.x_mm - x, two.y_mm - y) < 1.0, two
-    assert max(abs(v - side) for v in two.sides_mm[:2]) < 1.5, two
+    assert max(abs(v - side) for v in two.sides_mm[:2]) < 1.0, two
     # The height from how much of the sides shows: a few px of a small cube's.
     assert abs(two.height_mm - side) < max(2.0, 0.12 * side), two
 
@@ -212,3 +218,25 @@ def test_a_fits_tolerance_out_of_range_is_refused() -> None:
     view = OutlineView(_outline(_box_surface(200.0, 0.0, 0.0, (30.0, 30.0, 30.0))), CAM2BASE)
     with pytest.raises(ConfigError, match=r"tolerance = 0.0 is out of range 0.0000000001..0.1"):
         fit_box([view], INTR, 0.0, (200.0, 0.0, 0.0, 30.0), tolerance=0.0)
+
+
+@settings(max_examples=10, deadline=None)
+@given(places, st.floats(-45.0, 45.0), st.floats(22.0, 40.0), st.floats(2.0, 20.0))
+def test_two_blocks_in_a_row_seen_as_one_are_no_block_but_may_be_blocks(
+        where: tuple[float, float], yaw_deg: float, side: float, apart: float) -> None:
+    """Two cubes in a row a little apart, their outlines seen as one (from the side the
+    gap between them hides): no block, as a bar is none, but the sorter takes such a
+    thing for blocks in a row to be seen again from other poses, and a bar, a tile or a
+    tall box for none (busarm.apps.pick_sort.table_view)."""
+    x, y = where
+    a = math.radians(yaw_deg)
+    step = (side + apart) / 2
+    pair = np.concatenate([_box_surface(x + s * step * math.cos(a), y + s * step * math.sin(a),
+                                        yaw_deg, (side, side, side)) for s in (-1.0, 1.0)])
+    row = judge([OutlineView(_outline(pair), CAM2BASE)], INTR, 0.0, (x, y, yaw_deg, 30.0))
+    assert row.verdict == "not a block" and _blocks_in_a_row(row), (row, row.box)
+    for sides in ((100.0, 15.0, 15.0), (40.0, 40.0, 6.0), (30.0, 30.0, 70.0)):
+        views = [OutlineView(_outline(_box_surface(x, y, yaw_deg, sides)), CAM2BASE),
+                 OutlineView(_outline(_box_surface(x, y, yaw_deg, sides), SECOND), SECOND)]
+        thing = judge(views, INTR, 0.0, (x, y, yaw_deg, 30.0))
+        assert thing.verdict == "not a block" and not _blocks_in_a_row(thing), (sides, thing)

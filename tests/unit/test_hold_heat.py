@@ -96,7 +96,10 @@ def test_the_time_to_a_limit_lands_on_it(model: HeatModel, temp_c: float, effort
         assert model.temp_after_c(temp_c, effort, 1e4) <= limit_c + 1e-9
     else:
         assert model.temp_after_c(temp_c, effort, eta) == pytest.approx(limit_c, abs=1e-6)
-        assert model.temp_after_c(temp_c, effort, 0.99 * eta) < limit_c
+        sooner = model.temp_after_c(temp_c, effort, 0.99 * eta)
+        assert sooner <= limit_c  # never there before its time
+        if limit_c - temp_c > 1e-9:  # (a float step short of it, 0.99 of the time is none)
+            assert sooner < limit_c
 
 
 @given(models, temps, efforts, st.floats(1.0, 300.0))

@@ -209,7 +209,7 @@ class BlockLocator:
             else:  # cubes that explain the blob; else the split's guess, its places not sure
                 explained = self._explained_parts(d, d.contour_px, cam2base, parts)
                 out += explained if explained is not None else [
-                    replace(self._sighting(d.color, loc, d), whole=False) for loc in parts]
+                    self._sighting(d.color, loc, d, whole=False) for loc in parts]
         return Found(out + self._locate_single(single, cam2base, w, h, casts, grids), [])
 
     def _grids(self, detections: Sequence[Detection], casts: Sequence[BlobCast],
@@ -416,7 +416,7 @@ class BlockLocator:
                 continue
             if whole:
                 loc = self._sides_missing(loc, grids[id(d)])
-            out.append(replace(self._sighting(d.color, loc, d), whole=whole))
+            out.append(self._sighting(d.color, loc, d, whole=whole))
         return out
 
     def _cast_outlines(self, detections: Sequence[Detection], cam2base: FloatArray
@@ -474,7 +474,7 @@ class BlockLocator:
         return low * top_px <= d.area_px <= high * top_px
 
     def _sighting(self, color: str, loc: BlockLocation, detection: Detection | None,
-                  detections: tuple[Detection, ...] = ()) -> Sighting:
+                  detections: tuple[Detection, ...] = (), whole: bool = True) -> Sighting:
         z_grasp = self.table_z_mm + loc.size_mm / 2
         top_down, reachable, reason = True, True, ""
         try:
@@ -485,7 +485,8 @@ class BlockLocator:
                 self.kin.ik_free_pitch(loc.x_mm, loc.y_mm, z_grasp)
             except UnreachableError as exc:
                 reachable, reason = False, str(exc)
-        return Sighting(color, loc, detection, reachable, top_down, reason, detections)
+        return Sighting(color, loc, detection, reachable, top_down, reason, detections,
+                        whole)
 
     def locate_averaged(self, pictures: Sequence[tuple[npt.NDArray[np.uint8], Sequence[float]]]
                         ) -> list[Sighting]:

@@ -11,6 +11,7 @@ rather than a loop over the blobs.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -90,7 +91,8 @@ def cast_blobs(detections: Sequence[Detection], intrinsics: CameraIntrinsics,
 
     def cast(points: list[FloatArray]) -> list[FloatArray]:
         flat = table_points_from_pixels(np.concatenate(points), intrinsics, cam2base, top_z_mm)
-        return np.split(flat, np.cumsum([len(p) for p in points])[:-1])
+        ends = list(itertools.accumulate(len(p) for p in points))
+        return [flat[a:b] for a, b in zip([0, *ends[:-1]], ends, strict=True)]
 
     def blob(three: list[tuple[FloatArray, FloatArray, FloatArray]]) -> list[BlobCast]:
         pieces = iter(cast([p for one in three for p in one]))

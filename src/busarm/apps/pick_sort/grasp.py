@@ -148,22 +148,38 @@ class GraspPlanner:
         fingers squared to the block, along one face pair then the other; else tilted
         (``TILTED_PITCHES_DEG``), closing level, the approach along the tool's axis; for
         each, the fingers opened ``gaps_mm`` apart (widest first; default: the block and
-        10 mm a side). ``obstacles``: things that are not blocks (see ``Thing``), kept off
+        10 mm a side), wider by as much as the pads lean in over the block (``GraspPlan.
+        gap_mm``: the opening). ``obstacles``: things that are not blocks (see ``Thing``), kept off
         all the way from ``above``. Raises NoClearGrasp naming what is in the way if
         every reaching grasp is blocked, UnreachableError saying why none reaches."""
         gaps = sorted(gaps_mm or (self.block_mm + 20.0,), reverse=True)
         blocked = ""
         for plan in self._reaching(x_mm, y_mm, yaw_deg):
+            wider = self._wider_mm(plan, yaw_deg)
             for gap in gaps:
-                hit = (self._first_hit(plan, gap, neighbours)
-                       or self._first_thing(plan, gap, obstacles))
+                hit = (self._first_hit(plan, gap + wider, neighbours)
+                       or self._first_thing(plan, gap + wider, obstacles))
                 if hit is None:
-                    return replace(plan, gap_mm=gap)
+                    return replace(plan, gap_mm=gap + wider)
                 blocked = blocked or (f"a finger would land on the {hit[2]} at "
                                       f"{place_text(hit[:2])}")
         if blocked:
             raise NoClearGrasp(f"no grasp clears its neighbours: {blocked}")
         raise UnreachableError(self._why_unreachable(x_mm, y_mm, yaw_deg))
+
+    def _wider_mm(self, plan: GraspPlan, yaw_deg: float) -> float:
+        """How much wider than a gap between upright pads the fingers open for ``plan``
+        to leave the block the same room: pads that close along an axis tilted phi from
+        level (a tilted grasp) lean in over the block's top edge, and pads theta off
+        square meet its corners, so the block reaches s/2 (cos phi (cos theta + sin
+        theta) + sin phi) from the grasp along the closing axis, not s/2 (with
+        MIN_FINGER_CLEARANCE's 3 mm a side, a pad tilted 15 deg landed on the edge)."""
+        kin = self.kin
+        m = kin.fk_matrix(kin.ik_best(*plan.grasp, plan.pitch_deg, plan.roll_deg))
+        tilt = math.asin(min(1.0, abs(float(m[2, 1]))))
+        turn = math.radians(abs((_finger_axis_deg(m) - yaw_deg + 45.0) % 90.0 - 45.0))
+        reach = math.cos(tilt) * (math.cos(turn) + math.sin(turn)) + math.sin(tilt)
+        return max(0.0, self.block_mm * (reach - 1.0))
 
     def out_of_reach(self, x_mm: float, y_mm: float, yaw_deg: float,
                      beyond_mm: float = 0.0) -> str:
@@ -314,10 +330,12 @@ class GraspPlanner:
 
     def _level_rolls(self, x_mm: float, y_mm: float, yaw_deg: float, pitch_deg: float
                      ) -> list[tuple[float, float, FloatArray]]:
-        """At a tilted pitch, for each of the block's two face pairs: the roll that best
-        squares the fingers to it while they close within ``MAX_CLOSING_TILT_DEG`` of
-        level, as (roll, degrees still off square, the tool's pose), best first; empty
-        if the pitch does not reach."""
+        """At a tilted pitch, for each of the block's two face pairs: the roll whose pads
+        lie flattest on its faces (the least angle between the closing axis and the
+        faces' normal: off square about the vertical and tilted from level, at most
+        ``MAX_CLOSING_TILT_DEG``), as (roll, degrees still off square, the tool's pose),
+        flattest first; empty if the pitch does not reach. (Pads tilted from the faces
+        take the block by two edges, and lean in over its top edge on the way down.)"""
         kin = self.kin
         reached: list[tuple[float, Joints]] = []
         for roll in np.arange(-90.0, 90.5, ROLL_STEP_DEG).tolist():
@@ -327,16 +345,19 @@ class GraspPlanner:
             return []
         # The tool's poses in one batch.
         poses = kin.fk_matrix_batch(np.asarray([j for _, j in reached]))
-        best: dict[int, tuple[float, float, FloatArray]] = {}
+        best: dict[int, tuple[float, float, float, FloatArray]] = {}
         for k, (roll, _) in enumerate(reached):
             m: FloatArray = poses[k]
-            if math.degrees(math.asin(min(1.0, abs(m[2, 1])))) > MAX_CLOSING_TILT_DEG:
+            tilt = math.asin(min(1.0, abs(m[2, 1])))
+            if math.degrees(tilt) > MAX_CLOSING_TILT_DEG:
                 continue
             off = (_finger_axis_deg(m) - yaw_deg + 45.0) % 180.0 - 45.0  # -45..135
             pair, turn = (0, abs(off)) if off < 45.0 else (1, abs(off - 90.0))
-            if pair not in best or turn < best[pair][1] - 1e-9:
-                best[pair] = (float(roll), turn, m.copy())
-        return sorted(best.values(), key=lambda r: r[1])
+            flat = math.acos(math.cos(tilt) * math.cos(math.radians(turn)))
+            if pair not in best or flat < best[pair][0] - 1e-9:
+                best[pair] = (flat, float(roll), turn, m.copy())
+        return [(roll, turn, m) for _, roll, turn, m in sorted(best.values(),
+                                                               key=lambda r: r[0])]
 
     def _check_plan(self, plan: GraspPlan) -> None:
         """Every point of the plan's straight moves within reach (UnreachableError)."""

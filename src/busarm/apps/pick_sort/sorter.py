@@ -343,8 +343,11 @@ class PickSorter:
                   if off_mm(v, loc.x_mm, loc.y_mm) > size / 2]
         bins = [Footprint.square(x, y, 2 * BIN_RADIUS_MM, 0.0) for x, y in self.bins.values()]
         room = size + 2 * (self.planner.pad_mm[0] + self.settings.finger_clearance_mm)
-        return staging_spot(self._planner_for(size), others, [*self.view.obstacles, *bins],
-                            self.view.things, self._gaps(size), room)
+        # Things found no block anywhere so far, not only those the last picture showed:
+        # set down by one of its colour, a block makes one blob with it.
+        keep_off = [*self.view.obstacles, *self.view.not_block_footprints(), *bins]
+        return staging_spot(self._planner_for(size), others, keep_off, self.view.things,
+                            self._gaps(size), room)
 
     def _carry(self, plan: GraspPlan, end: tuple[float, float], carry_z: float,
                end_roll_deg: float) -> float:

@@ -23,7 +23,13 @@ from busarm.arm import Arm
 from busarm.errors import ConfigError, UnreachableError
 from busarm.perception.locate import BlockLocator, NotBlock, Sighting
 from busarm.perception.obstacles import Obstacle, refine
-from busarm.perception.shape import HEIGHT_TOLERANCE, Shape, judge, nearest_other_mm
+from busarm.perception.shape import (
+    CUBE_SIDES_MM,
+    HEIGHT_TOLERANCE,
+    Shape,
+    judge,
+    nearest_other_mm,
+)
 from busarm.units import place_text
 from busarm.vision.camera import CameraSource
 
@@ -42,6 +48,7 @@ __all__ = [
     "TableView",
     "off_mm",
     "same_block",
+    "thing_footprint",
     "too_near_for_two",
 ]
 
@@ -229,18 +236,31 @@ class TableView:
         if not any(old.color == thing.color and math.dist(old.xy_mm, thing.xy_mm)
                    < SAME_BLOCK_MM for old in self.not_blocks):
             self.not_blocks.append(thing)
+            row = (" (if it is blocks in a row seen as one, each is taken where it shows "
+                   "alone)") if _blocks_in_a_row(thing.shape) else ""
             self.on_note(f"the {thing.color} thing at {place_text(thing.xy_mm)} is not a "
-                         f"block ({thing.shape.why}): left alone")
+                         f"block ({thing.shape.why}): left alone{row}")
 
-    def is_not_block(self, seen: Sighting) -> bool:
-        """Whether ``seen`` is where a thing found not to be a block was."""
-        return self.is_not_block_at(seen.color, (seen.location.x_mm, seen.location.y_mm))
+    def not_block_footprints(self) -> list[Footprint]:
+        """Where each thing found not to be a block stands, as it was measured (its
+        disc's square, its box's rectangle), though the last picture may not show it."""
+        return [thing_footprint(thing.shape) for thing in self.not_blocks]
 
-    def is_not_block_at(self, color: str, xy_mm: tuple[float, float]) -> bool:
-        """Whether a thing of ``color`` found not to be a block is at ``xy_mm``."""
-        return any(n.color == color and _on_thing(n.shape, xy_mm) for n in self.not_blocks
-                   ) or any(c == color and math.dist(xy, xy_mm) < SAME_BLOCK_MM
-                            for c, xy in self.unknown)
+    def is_not_block(self, seen: Sighting, *, rows: bool = True) -> bool:
+        """Whether ``seen`` is where a thing found not to be a block was. A thing that may
+        be blocks in a row seen as one (``_blocks_in_a_row``) rules out no block measured
+        whole and alone there (another pose saw the blocks apart), nor any, if not
+        ``rows``."""
+        return self.is_not_block_at(seen.color, (seen.location.x_mm, seen.location.y_mm),
+                                    rows=rows and not _judged(seen))
+
+    def is_not_block_at(self, color: str, xy_mm: tuple[float, float], *,
+                        rows: bool = True) -> bool:
+        """Whether a thing of ``color`` found not to be a block is at ``xy_mm`` (one
+        that may be blocks in a row only if ``rows``)."""
+        return any(n.color == color and _on_thing(n.shape, xy_mm) and (
+            rows or not _blocks_in_a_row(n.shape)) for n in self.not_blocks
+        ) or any(c == color and math.dist(xy, xy_mm) < SAME_BLOCK_MM for c, xy in self.unknown)
 
     def confirm(self, target: Sighting) -> Sighting | None:
         """``target`` if its outline showed a cube; else seen again from other poses
@@ -260,8 +280,9 @@ class TableView:
         # from the side as well, the looks from over it and from the survey's height will
         # not see more. (Every picture that measured it is judged first.)
         crowded = 1 if self._in_a_crowd(target) else 0
+        row: Shape | None = None
         for again in self._other_looks(target):
-            if self.is_not_block(target):
+            if self.is_not_block(target, rows=False):
                 return None
             if again is None:
                 continue
@@ -272,12 +293,19 @@ class TableView:
                 verdict = again.shape if len(seen) == 1 else self._judged_all(seen)
                 if verdict.verdict == "cube":
                     return again if len(seen) == 1 else self.locator.measured(again, verdict)
-                if verdict.verdict == "not a block":
+                if verdict.verdict == "not a block" and _blocks_in_a_row(verdict):
+                    # Blocks in a row a little apart, seen from the side as one: the
+                    # next pose may see them apart (these pictures show no one block).
+                    row, seen = verdict, []
+                elif verdict.verdict == "not a block":
                     self.not_block(NotBlock(target.color, verdict))
                     return None
             crowded = crowded + 1 if crowded and self._in_a_crowd(again) else 0
             if crowded > CROWDED_LOOKS:
                 break
+        if row is not None and not seen:  # a row from every pose: no block
+            self.not_block(NotBlock(target.color, row))
+            return None
         return self._undecided(target, seen, last, verdict)
 
     def _answered_already(self, target: Sighting) -> Sighting | None:
@@ -418,6 +446,15 @@ class TableView:
                    for bx, by in self.bins.values())
 
 
+def thing_footprint(shape: Shape) -> Footprint:
+    """Where a thing measured as ``shape`` stands: its disc's square, or its box's
+    rectangle."""
+    if shape.cylinder is not None:
+        return Footprint.square(*shape.xy_mm, 2 * shape.reach_mm, 0.0)
+    box = shape.box
+    return Footprint.rectangle(box.x_mm, box.y_mm, box.length_mm, box.width_mm, box.yaw_deg)
+
+
 def _on_thing(shape: Shape, xy_mm: tuple[float, float]) -> bool:
     """Whether ``xy_mm`` lies on the thing ``shape`` measured: within its footprint (a
     disc's circle, a bar's rectangle: a block beside a bar is not on it), or as near its
@@ -437,6 +474,17 @@ def _block_high(shape: Shape) -> bool:
     side, within what two pictures measure)."""
     side = (shape.box.length_mm + shape.box.width_mm) / 2
     return abs(shape.box.height_mm / side - 1.0) <= HEIGHT_TOLERANCE[1]
+
+
+def _blocks_in_a_row(shape: Shape) -> bool:
+    """Whether a thing found no block for its footprint (a crowd's: too long) could be
+    blocks standing in a row, seen as one: as wide as a block and half as long again or
+    more (a bar is narrower; a tile or a tall box has a block's footprint, and the
+    height one picture measures of a row is no surer than of a block)."""
+    lo, hi = CUBE_SIDES_MM
+    box = shape.box
+    return (shape.crowd and shape.cylinder is None and lo <= box.width_mm <= hi
+            and box.length_mm >= 1.5 * box.width_mm)
 
 
 def _judged(seen: Sighting) -> bool:
