@@ -148,10 +148,11 @@ class GraspPlanner:
         fingers squared to the block, along one face pair then the other; else tilted
         (``TILTED_PITCHES_DEG``), closing level, the approach along the tool's axis; for
         each, the fingers opened ``gaps_mm`` apart (widest first; default: the block and
-        10 mm a side), wider by as much as the pads lean in over the block (``GraspPlan.
-        gap_mm``: the opening). ``obstacles``: things that are not blocks (see ``Thing``), kept off
-        all the way from ``above``. Raises NoClearGrasp naming what is in the way if
-        every reaching grasp is blocked, UnreachableError saying why none reaches."""
+        10 mm a side), wider by as much as the pads lean in over the block
+        (``GraspPlan.gap_mm``: the opening). ``obstacles``: things that are not blocks
+        (see ``Thing``), kept off all the way from ``above``. Raises NoClearGrasp naming
+        what is in the way if every reaching grasp is blocked, UnreachableError saying
+        why none reaches."""
         gaps = sorted(gaps_mm or (self.block_mm + 20.0,), reverse=True)
         blocked = ""
         for plan in self._reaching(x_mm, y_mm, yaw_deg):
@@ -172,8 +173,8 @@ class GraspPlanner:
         to leave the block the same room: pads that close along an axis tilted phi from
         level (a tilted grasp) lean in over the block's top edge, and pads theta off
         square meet its corners, so the block reaches s/2 (cos phi (cos theta + sin
-        theta) + sin phi) from the grasp along the closing axis, not s/2 (with
-        MIN_FINGER_CLEARANCE's 3 mm a side, a pad tilted 15 deg landed on the edge)."""
+        theta) + sin phi) from the grasp along the closing axis, not s/2 (opened the
+        least a sorter offers, 3 mm a side, a pad tilted 15 deg landed on the edge)."""
         kin = self.kin
         m = kin.fk_matrix(kin.ik_best(*plan.grasp, plan.pitch_deg, plan.roll_deg))
         tilt = math.asin(min(1.0, abs(float(m[2, 1]))))
