@@ -177,7 +177,7 @@ class GraspPlanner:
         least a sorter offers, 3 mm a side, a pad tilted 15 deg landed on the edge)."""
         kin = self.kin
         m = kin.fk_matrix(kin.ik_best(*plan.grasp, plan.pitch_deg, plan.roll_deg))
-        tilt = math.asin(min(1.0, abs(float(m[2, 1]))))
+        tilt = _closing_tilt_rad(m)
         turn = math.radians(abs((_finger_axis_deg(m) - yaw_deg + 45.0) % 90.0 - 45.0))
         reach = math.cos(tilt) * (math.cos(turn) + math.sin(turn)) + math.sin(tilt)
         return max(0.0, self.block_mm * (reach - 1.0))
@@ -349,7 +349,7 @@ class GraspPlanner:
         best: dict[int, tuple[float, float, float, FloatArray]] = {}
         for k, (roll, _) in enumerate(reached):
             m: FloatArray = poses[k]
-            tilt = math.asin(min(1.0, abs(m[2, 1])))
+            tilt = _closing_tilt_rad(m)
             if math.degrees(tilt) > MAX_CLOSING_TILT_DEG:
                 continue
             off = (_finger_axis_deg(m) - yaw_deg + 45.0) % 180.0 - 45.0  # -45..135
@@ -380,6 +380,11 @@ class GraspPlanner:
                         raise UnreachableError(
                             f"({x:.1f}, {y:.1f}, {z:.1f}) mm needs {name} = {q:.1f} deg, "
                             f"within {margin_deg:g} deg of its limits {lo:g}..{hi:g} deg")
+
+
+def _closing_tilt_rad(tool: FloatArray) -> float:
+    """How far from level the fingers close (the tool's y against the table)."""
+    return math.asin(min(1.0, abs(float(tool[2, 1]))))
 
 
 def _finger_axis_deg(tool: FloatArray) -> float:
