@@ -1,7 +1,8 @@
 """Places in a bin for blocks of any size (busarm.apps.pick_sort.bins): blocks of the usual
 size fill the seven places in order; of mixed sizes, every block put in a bin lies inside
 its tray, none overlaps another of its layer, and one of the second layer stands on a block
-no smaller than itself less the slack."""
+no smaller than itself less the slack. A block is let go no lower than just over the floor,
+its pads over every wall and block they stand above, and, with little room, low."""
 
 from __future__ import annotations
 
@@ -12,11 +13,16 @@ from busarm.apps.pick_sort.bins import (
     BIN_PLACES,
     BIN_SLOTS_MM,
     SLOT_GAP_MM,
+    STACK_DROP_MM,
+    TIGHT_ROOM_MM,
     TOP_SLACK_MM,
+    TRAY_FLOOR_MM,
     TRAY_INSIDE_MM,
+    TRAY_WALL_MM,
     BinPlaces,
 )
-from busarm.apps.pick_sort.grasp import GraspPlanner
+from busarm.apps.pick_sort.footprint import Footprint
+from busarm.apps.pick_sort.grasp import GraspPlan, GraspPlanner
 from busarm.arm.config import load_arm_config
 from busarm.arm.kinematics import ArmKinematics
 
@@ -54,3 +60,49 @@ def test_blocks_of_any_size_fit_the_tray_and_each_other(sizes: list[float]) -> N
                        and abs(ox - dx) < 5 and abs(oy - dy) < 5
                        for ox, oy, other_layer, other in put), (put, size, dx, dy)
         put.append((dx, dy, layer, size))
+
+
+USUAL_RELEASE_MM = 45.0
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(20.0, 45.0), min_size=1, max_size=8),
+       st.floats(0.0, 10.0))
+def test_a_block_is_let_go_low_where_it_has_little_room_and_over_what_its_pads_overhang(
+        sizes: list[float], opening_mm: float) -> None:
+    places = BinPlaces({"red": BIN}, PLANNER)
+    stood: list[tuple[float, float, float, float]] = []  # x, y, side, top (mm)
+    for size in sizes:
+        if places.is_full("red", size):
+            continue
+        x, y, layer, roll = places.next_spot("red", size_mm=size)
+        _, release = places.heights_mm("red", size, 75.0, USUAL_RELEASE_MM)
+        gap = size + opening_mm
+        got = places.release_mm("red", release, roll, gap)
+        assert got <= release  # never higher than it was
+        if layer == 1:
+            assert got == release
+        else:
+            assert got >= TRAY_FLOOR_MM + size / 2  # never pressed into the floor
+            dx, dy = x - BIN[0], y - BIN[1]
+            room = min([TRAY_INSIDE_MM - max(abs(dx), abs(dy)) - size / 2,
+                        *(max(abs(x - ox), abs(y - oy)) - (size + side) / 2
+                          for ox, oy, side, _ in stood)])
+            at = (x, y, got)
+            pads = PLANNER.pads(GraspPlan(-90.0, roll, at, at, at), gap, tall=True)
+            walls = [Footprint.rectangle(BIN[0] + sx * 42.0, BIN[1] + sy * 42.0,
+                                         2.0 if sx else 86.0, 86.0 if sx else 2.0, 0.0)
+                     for sx, sy in ((1, 0), (-1, 0), (0, 1), (0, -1))]
+            under = [*((w, TRAY_WALL_MM) for w in walls),
+                     *((Footprint.square(ox, oy, side, 0.0), top)
+                       for ox, oy, side, top in stood)]
+            over = [top + STACK_DROP_MM for thing, top in under
+                    if any(p.overlaps(thing, PLANNER.margin_mm) for p in pads)]
+            if room >= TIGHT_ROOM_MM:  # room to fall flat: from the usual height
+                assert got == release
+            else:  # just over the floor, or just over what a pad stands above
+                low = max([TRAY_FLOOR_MM + STACK_DROP_MM + size / 2, *over])
+                assert got == min(release, low), (room, got, over)
+        below = next((t for ox, oy, _, t in stood if layer and abs(ox - x) < 5
+                      and abs(oy - y) < 5), TRAY_FLOOR_MM)
+        stood.append((x, y, size, below + size))

@@ -39,12 +39,11 @@ from busarm.apps.pick_sort.bins import (
     IN_BIN_MM,
     BinPlaces,
 )
+from busarm.apps.pick_sort.carrying import Carrier
 from busarm.apps.pick_sort.footprint import Footprint
 from busarm.apps.pick_sort.grasp import GraspPlan, GraspPlanner, NoClearGrasp
 from busarm.apps.pick_sort.gripping import (
     descend_and_grip,
-    lower_and_release,
-    still_holding,
     stop_and_read_gripper,
 )
 from busarm.apps.pick_sort.outcomes import BlockOutcome, RunReport
@@ -143,6 +142,9 @@ class PickSorter:
         self.records = BlockRecords()
         # The colour of the block in the fingers, from a good grip to its release.
         self._holding: str | None = None
+        self.carrier = Carrier(arm, self.settings, self.view, self.places, self.planner,
+                               locator.table_z_mm, lambda step: self._stepped(step),
+                               self._released)
         self.report = RunReport()
         """The run's report as it goes (what was done so far, if it stops early)."""
 
@@ -173,6 +175,10 @@ class PickSorter:
             outcome.steps_s.append((step, self.clock.now() - t0))
         if tell:
             self.on_step(step)
+
+    def _released(self) -> None:
+        """The fingers have let the block go."""
+        self._holding = None
 
     def check_servos(self) -> None:
         """Pause while a servo is too hot (arm at home, gripper open); a supply too low for
@@ -272,9 +278,9 @@ class PickSorter:
             # it at all. Put down to be taken again straight down.
             stage = self._staging_spot(target)
             if stage is not None:
-                self._set_down(plan, stage, plan.gap_mm)
+                self.carrier.set_down(plan, stage, plan.gap_mm)
                 raise Restaged(stage)
-        placed = self._put_in_bin(place, plan, size)
+        placed = self.carrier.to_bin(place, plan, size)
         if placed is None:
             return False, "the block slipped out during the carry", None, plan
         if large_tilted:  # no room to set it down first
@@ -305,35 +311,6 @@ class PickSorter:
         self._stepped("above")
         return ""
 
-    def _put_in_bin(self, place: str, plan: GraspPlan, size_mm: float
-                    ) -> tuple[float, float] | None:
-        """Carry the block held at ``plan``'s lift to the bin ``place`` and let it go there;
-        where it was put, or None if it slipped out on the way (the fingers opened again)."""
-        arm, s = self.arm, self.settings
-        z0, gap = self.locator.table_z_mm, plan.gap_mm
-        carry, release = self.places.heights_mm(place, size_mm, s.carry_mm, s.release_mm)
-        carry_z, release_z = z0 + carry, z0 + release
-        bx, by, _, square = self.places.next_spot(place, self.view.obstacles, gap, release_z,
-                                                  size_mm)
-        carry_z = self._carry(plan, (bx, by), carry_z, square)
-        self._stepped("carry")
-        if not still_holding(arm):
-            self._holding = None
-            arm.open_gripper(wait=False, gap_mm=gap)
-            self.places.take_back(place)
-            return None
-        # (Resting on something in the bin on the way down, it is let go there.)
-        # Lowered no faster than the descent (unwatched: what it lands on stops it).
-        lower_and_release(arm, (bx, by, release_z), -90.0, square, gap, s.line_speed_mm_s,
-                          profile=TIME_OPTIMAL,
-                          free_mm=size_mm + 2 * s.min_finger_clearance_mm)
-        self._holding = None  # only once open: stopped while opening, it still holds it
-        self._stepped("release")
-        # Not waited for: the next move (a survey's) takes over from its last waypoint.
-        arm.move_line(bx, by, carry_z, -90.0, square, speed_mm_s=s.carry_speed_mm_s,
-                      profile=TIME_OPTIMAL, wait=False)
-        return bx, by
-
     def _staging_spot(self, held: Sighting) -> tuple[float, float] | None:
         """Where to set ``held`` down to take it again straight down (``staging_spot``)."""
         loc = held.location
@@ -348,47 +325,6 @@ class PickSorter:
         keep_off = [*self.view.obstacles, *self.view.not_block_footprints(), *bins]
         return staging_spot(self._planner_for(size), others, keep_off, self.view.things,
                             self._gaps(size), room)
-
-    def _carry(self, plan: GraspPlan, end: tuple[float, float], carry_z: float,
-               end_roll_deg: float) -> float:
-        """Carry the block held at ``plan``'s lift to over ``end`` (x, y mm), straight
-        down there at ``end_roll_deg`` (held tilted: at its own roll, turned only
-        there), at ``carry_z`` or, past a thing that is not a block (of a height not
-        known), over the tallest cup a desk has; the height used. Carried higher than
-        its lift (over a second layer), it rises there first."""
-        arm, s = self.arm, self.settings
-        past_a_thing = self.view.thing_on_the_way(plan.lift[:2], end)
-        if past_a_thing:
-            carry_z = max(carry_z, self.locator.table_z_mm + OVER_THINGS_MM
-                          + self.view.tallest_mm / 2)
-        if past_a_thing or carry_z > plan.lift[2]:
-            # (Not straight up from here: it rises on the way over.)
-            with contextlib.suppress(UnreachableError):
-                arm.move_line(*plan.lift[:2], carry_z, plan.pitch_deg, plan.roll_deg,
-                              speed_mm_s=s.carry_speed_mm_s, profile=TIME_OPTIMAL)
-        if plan.pitch_deg != -90.0:
-            # Held tilted, the block is swung over at the roll it was taken at and rolled
-            # square to the bin only there: rolled while swung, it twisted out of the
-            # fingers (two blocks of seed 19 of the random bench; the pitch may change).
-            # (Rolled on the way down instead, the cycles were slower: lines turn at
-            # MAX_TURN_SPEED_DEG_S.)
-            with contextlib.suppress(UnreachableError):
-                arm.move_to(*end, carry_z, -90.0, plan.roll_deg,
-                            speed_deg_s=s.joint_speed_deg_s)
-        arm.move_to(*end, carry_z, -90.0, end_roll_deg, speed_deg_s=s.joint_speed_deg_s)
-        return carry_z
-
-    def _set_down(self, plan: GraspPlan, spot: tuple[float, float], gap_mm: float) -> None:
-        """Set the block held at ``plan``'s lift down at ``spot`` straight down, let go,
-        and rise."""
-        arm, s = self.arm, self.settings
-        z0 = self.locator.table_z_mm
-        roll = self.planner.roll_squared_deg(*spot, 0.0)
-        carry_z = self._carry(plan, spot, z0 + s.carry_mm, roll)
-        lower_and_release(arm, (*spot, z0 + s.release_mm), -90.0, roll, gap_mm,
-                          s.line_speed_mm_s)
-        self._holding = None  # only once open (see pick_and_place)
-        arm.move_line(*spot, carry_z, -90.0, roll, speed_mm_s=s.line_speed_mm_s)
 
     def verify_bins(self, report: RunReport) -> None:
         """Look into each bin a block was put in: a block reported sorted but not found

@@ -239,6 +239,7 @@ class TagSortJob:
                                                 pick.release_mm)
         carry_z, release_z = z0 + carry, z0 + release
         bx, by, _, roll = self.places.next_spot(place, (), gap, release_z, size_mm)
+        release_z = z0 + self.places.release_mm(place, release, roll, gap)
         self.arm.move_line(*plan.lift, plan.pitch_deg, plan.roll_deg,
                            speed_mm_s=pick.line_speed_mm_s)
         self.arm.move_to(bx, by, carry_z, -90.0, roll, speed_deg_s=pick.joint_speed_deg_s)
