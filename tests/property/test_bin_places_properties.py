@@ -6,7 +6,7 @@ its pads over every wall and block they stand above, and, with little room, low.
 
 from __future__ import annotations
 
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from busarm.apps.pick_sort.bins import (
@@ -68,6 +68,7 @@ USUAL_RELEASE_MM = 45.0
 @settings(max_examples=200, deadline=None)
 @given(st.lists(st.floats(20.0, 45.0), min_size=1, max_size=8),
        st.floats(0.0, 10.0))
+@example([39.0, 45.0, 22.0], 0.0)  # beside a pair whose top block is the wider
 def test_a_block_is_let_go_low_where_it_has_little_room_and_over_what_its_pads_overhang(
         sizes: list[float], opening_mm: float) -> None:
     places = BinPlaces({"red": BIN}, PLANNER)

@@ -212,3 +212,28 @@ def test_fk_batch_equals_fk_row_by_row(arm: str, q: Array) -> None:
         for got_angle, want_angle in zip(pose[3:], want[3:], strict=True):
             assert abs((got_angle - want_angle + 180) % 360 - 180) <= 1e-9
         np.testing.assert_allclose(mat, kin.fk_matrix(row), atol=1e-12)
+
+
+@pytest.mark.parametrize("arm", sorted(ARMS))
+@PROPS
+@given(x=st.floats(-400.0, 400.0), y=st.floats(-400.0, 400.0), z=st.floats(-100.0, 450.0),
+       pitch=st.sampled_from([-90.0, -75.0, -45.0, 0.0, 30.0]))
+def test_reaches_says_whether_ik_best_has_a_solution(arm: str, x: float, y: float, z: float,
+                                                     pitch: float) -> None:
+    kin = ArmKinematics.from_config(ARMS[arm])
+    try:
+        kin.ik_best(x, y, z, pitch)
+        solved = True
+    except UnreachableError:
+        solved = False
+    assert kin.reaches(x, y, z, pitch) == solved
+
+
+@pytest.mark.parametrize("arm", sorted(ARMS))
+@PROPS
+@given(data=st.data())
+def test_reaches_every_pose_the_arm_takes(arm: str, data: st.DataObject) -> None:
+    cfg = ARMS[arm]
+    kin = ArmKinematics.from_config(cfg, check_table=False)
+    pose = kin.fk(data.draw(joint_vectors(cfg)))
+    assert kin.reaches(pose.x_mm, pose.y_mm, pose.z_mm, pose.pitch_deg)

@@ -1,7 +1,9 @@
-"""busarm.perception.split's sums and places: a mask's middle from OpenCV's moments is
-numpy's mean of its pixels, to the last bit (the greedy squares' ties depend on it), the
-squares placed lie on the mask and explain no more of it than it holds, and they are
-those of the greedy search written plainly (pixel lists, a fresh middle each turn)."""
+"""busarm.perception.split's sums and places: a mask's middle from its sums is numpy's
+mean of its pixels, to the last bit (the greedy squares' ties depend on it), and the sums
+are OpenCV's moments; the squares placed lie on the mask and explain no more of it than it
+holds, and they are those of the greedy search written plainly (pixel lists, a fresh
+middle each turn); a search given up early could not have won, and of several masks (the
+side shares of a blob) the one chosen is the first the plain search fits best."""
 
 from __future__ import annotations
 
@@ -16,8 +18,11 @@ from busarm.perception.split import (
     MAX_BLOCKS,
     MIN_COVER,
     RESOLUTION_MM,
+    _best_squares,
+    _fit_bound,
     _middle,
     _place_squares,
+    _sums,
 )
 
 
@@ -103,3 +108,41 @@ def test_squares_are_the_plain_greedy_searchs(mask: npt.NDArray[np.uint8], size_
     want, want_fit = _plain_squares(mask, size_mm)
     np.testing.assert_array_equal(centres, want)
     assert fit == want_fit
+
+
+@settings(max_examples=200, deadline=None)
+@given(masks())
+def test_a_masks_sums_are_opencvs_moments(mask: npt.NDArray[np.uint8]) -> None:
+    m = cv2.moments(mask, binaryImage=True)
+    assert _sums(mask) == (m["m00"], m["m01"], m["m10"])
+
+
+@settings(max_examples=150, deadline=None)
+@given(masks(), st.sampled_from([10.0, 20.0, 30.0]),
+       st.one_of(st.just(0.0), st.floats(-5.0, 5.0)), st.booleans())
+def test_squares_given_up_could_not_have_beaten_the_fit_they_were_to_beat(
+        mask: npt.NDArray[np.uint8], size_mm: float, off: float, ties: bool) -> None:
+    full = _place_squares(mask, size_mm)
+    assert full is not None
+    fit_to_beat = full[1] + off  # the same fit (a tie), or a better or worse one
+    side = max(3, round(size_mm / RESOLUTION_MM))
+    assert full[1] <= _fit_bound(0.0, float(mask.sum()), 0.0, side * side)
+    got = _place_squares(mask, size_mm, (fit_to_beat, ties))
+    if got is None:  # given up only if it could not beat it
+        assert not (full[1] > fit_to_beat or (full[1] == fit_to_beat and ties))
+    else:  # else the same squares
+        np.testing.assert_array_equal(got[0], full[0])
+        assert got[1] == full[1]
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(masks(), min_size=1, max_size=4), st.sampled_from([10.0, 20.0, 30.0]))
+def test_the_best_squares_are_those_of_the_first_mask_they_fit_best(
+        tops: list[npt.NDArray[np.uint8]], size_mm: float) -> None:
+    shape = tops[0].shape  # the side shares of one blob: one plane
+    tops = [t if t.shape == shape else cv2.resize(t, shape[::-1],
+                                                  interpolation=cv2.INTER_NEAREST)
+            for t in tops]
+    plain = [_plain_squares(t, size_mm) for t in tops]
+    first_best = max(range(len(tops)), key=lambda i: (plain[i][1], -i))
+    np.testing.assert_array_equal(_best_squares(tops, size_mm), plain[first_best][0])

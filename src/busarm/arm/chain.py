@@ -191,6 +191,15 @@ class ArmChain:
         out.append(t @ tool)
         return out
 
+    def frame(self, joints_deg: Sequence[float], index: int) -> FloatArray:
+        """``frames(joints_deg)[index]`` for DH frame ``index + 1`` (0..4), without the
+        frames after it (the same products in the same order)."""
+        q = self._radians(joints_deg)
+        t = np.eye(4)
+        for i, (alpha, a, d) in enumerate(self.dh_table()[:index + 1]):
+            t = t @ _mdh(alpha, a, q[i], d)
+        return t
+
     def dh_table(self) -> list[tuple[float, float, float]]:
         """(alpha(i-1) rad, a(i-1) mm, d(i) mm) for joints 1..5."""
         return [

@@ -148,6 +148,12 @@ class ArmKinematics(ArmChain):
             s = min(sols, key=lambda c: _motion_cost(c, now))
         return s[0] * _DEG, s[1] * _DEG, s[2] * _DEG, s[3] * _DEG, s[4] * _DEG
 
+    def reaches(self, x_mm: float, y_mm: float, z_mm: float, pitch_deg: float) -> bool:
+        """Whether ``ik_best`` has a solution for this pose (free roll), without
+        building the reason why not: a sorter asks this of every block it sees."""
+        x, y, z, pd, _ = _pose_args(x_mm, y_mm, z_mm, pitch_deg, None)
+        return bool(self._solve(x, y, z, pd * _RAD, None, None, None, True))
+
     def _ik(
         self, x: float, y: float, z: float, p: float, roll: float | None,
         current: tuple[float, ...] | None,
@@ -435,27 +441,18 @@ class ArmKinematics(ArmChain):
                 if -1.0 < k < 1.0:
                     roots.extend((math.asin(k), math.pi - math.asin(k)))
             roots = sorted({wrap_rad(q) for q in roots})
+            # Each arc's solutions at its middle, found once for both elbows.
+            arcs = []
+            for lo, hi in _arcs_between(roots):
+                mid = 0.5 * (lo + hi)
+                p_mid = wrap_rad(math.pi - mid) if back else mid
+                arcs.append((lo, hi, self._solve(x, y, z, p_mid, roll, current, None, False)))
             for sign in (1.0, -1.0):
-                for lo, hi in _arcs_between(roots):
-                    mid = 0.5 * (lo + hi)
-                    p_mid = wrap_rad(math.pi - mid) if back else mid
-                    if self._branch_ok(x, y, z, p_mid, roll, current, back, sign):
+                for lo, hi, sols in arcs:
+                    if _branch_ok(sols, x, y, back, sign):
                         arc = (math.pi - hi, math.pi - lo) if back else (lo, hi)
                         out.append((back, sign, arc))
         return out
-
-    def _branch_ok(
-        self, x: float, y: float, z: float, p: float, roll: float | None,
-        current: tuple[float, ...] | None, back: bool, sign: float,
-    ) -> bool:
-        sols = self._solve(x, y, z, p, roll, current, None, False)
-        # Identify the branch of each solution from its (wrapped) joint values.
-        for s in sols:
-            if _is_back(s[0], x, y) == back and (s[2] >= 0) == (sign > 0):
-                return True
-            if s[2] == 0.0:
-                return True  # the two elbows coincide
-        return False
 
     # ------------------------------------------------------------------ batch
 
@@ -512,6 +509,18 @@ def _into(angle: float, lo: float, hi: float) -> float | None:
     if a > hi + LIMIT_TOL_RAD:
         return None
     return lo if a < lo else (hi if a > hi else a)
+
+
+def _branch_ok(sols: list[tuple[float, ...]], x: float, y: float, back: bool,
+               sign: float) -> bool:
+    """Whether the branch (``back``, elbow ``sign``) is among solutions ``sols``."""
+    # Identify the branch of each solution from its (wrapped) joint values.
+    for s in sols:
+        if _is_back(s[0], x, y) == back and (s[2] >= 0) == (sign > 0):
+            return True
+        if s[2] == 0.0:
+            return True  # the two elbows coincide
+    return False
 
 
 def _is_back(t1: float, x: float, y: float) -> bool:

@@ -26,8 +26,9 @@ from busarm.perception.shape import (
     MIN_TRUSTED,
     ROUND_FROM_PX,
     WHOLE_SHARE,
+    OutlineCover,
     Shape,
-    cubes_explain,
+    cube_silhouettes,
     judge_blobs,
     nearest_other_mm,
 )
@@ -43,12 +44,12 @@ from busarm.perception.top_plane import (
 )
 from busarm.units import check_range
 from busarm.vision.calibration import CameraIntrinsics, HandEyeResult
+from busarm.vision.calibration.core import as_transform, inverse_of
 from busarm.vision.color import ColorDetector, Detection
 from busarm.vision.localize import (
     BlockLocation,
     average_locations,
-    camera_to_base,
-    locate_blocks,
+    locate_checked_blocks,
     table_points_from_pixels,
 )
 
@@ -122,7 +123,7 @@ outline this well (intersection over union): a thing of another shape is not the
 
 def link2base(kin: ArmKinematics, joints_deg: Sequence[float]) -> FloatArray:
     """The camera link's frame (DH frame 4) in the base frame for measured joints (mm)."""
-    return kin.frames(joints_deg)[CAMERA_LINK]
+    return kin.frame(joints_deg, CAMERA_LINK)
 
 
 class BlockLocator:
@@ -133,8 +134,8 @@ class BlockLocator:
         detector: ColorDetector, *, table_z_mm: float = 0.0, block_size_mm: float = 30.0,
     ) -> None:
         check_range("block_size_mm", block_size_mm, 5.0, 200.0, "mm")
-        if not math.isfinite(table_z_mm):
-            raise ConfigError(f"table_z_mm = {table_z_mm!r} must be finite")
+        # (Checked here once: each picture's locating trusts it.)
+        check_range("table_z_mm", table_z_mm, -1e6, 1e6, "mm")
         if hand_eye.link != CAMERA_LINK_NAME:
             raise ConfigError(f"the hand-eye calibration places the camera on the {hand_eye.link!r}"
                               f" link; the wrist camera rides the {CAMERA_LINK_NAME!r} link")
@@ -150,7 +151,11 @@ class BlockLocator:
         self.block_size_mm = float(block_size_mm)
 
     def cam2base(self, joints_deg: Sequence[float]) -> FloatArray:
-        return camera_to_base(link2base(self.kin, joints_deg), self.cam2link)
+        # ``camera_to_base`` without checking the forward kinematics' frame (rigid as
+        # made); the calibration's transform is checked as before.
+        out: FloatArray = link2base(self.kin, joints_deg) @ as_transform("cam2link",
+                                                                        self.cam2link)
+        return out
 
     def _table_yaws(self, detections: Sequence[Detection], cam2base: FloatArray
                     ) -> list[float]:
@@ -188,20 +193,21 @@ class BlockLocator:
                                self.table_z_mm + self.block_size_mm)
         casts = {id(d): c for d, c in zip(detections, cast_list, strict=True)}
         grids = self._grids(detections, cast_list, cam2base)
+        cut = {id(d): _touches_edge(d, w, h) for d in detections}
         # Blocks of one colour that touch make one blob: such a blob is split into its
         # blocks by its size on the table, and each is located on its own.
         out: list[Sighting] = []
         single, big = [], []
         # Only a blob larger than one block's top face can be (is split, costly) is tried.
         for d, cast in zip(detections, cast_list, strict=True):
-            if cast.centre is not None and not _touches_edge(d, w, h) and d.area_px > \
+            if cast.centre is not None and not cut[id(d)] and d.area_px > \
                     SPLIT_MIN_AREA * self._top_face_px(cast.centre, cam2base):
                 big.append(d)
             else:
                 single.append(d)
         if judge:
             return self._judged_all(image, detections, single, big, cam2base, trays,
-                                    casts, grids)
+                                    casts, grids, cut)
         for d in big:
             parts = self._split(d, cam2base, grids[id(d)])
             if parts is None:
@@ -210,7 +216,7 @@ class BlockLocator:
                 explained = self._explained_parts(d, d.contour_px, cam2base, parts)
                 out += explained if explained is not None else [
                     self._sighting(d.color, loc, d, whole=False) for loc in parts]
-        return Found(out + self._locate_single(single, cam2base, w, h, casts, grids), [])
+        return Found(out + self._locate_single(single, cam2base, cut, casts, grids), [])
 
     def _grids(self, detections: Sequence[Detection], casts: Sequence[BlobCast],
                cam2base: FloatArray) -> dict[int, Grid | None]:
@@ -227,15 +233,14 @@ class BlockLocator:
     def _judged_all(self, image: npt.NDArray[np.uint8], detections: Sequence[Detection],
                     single: list[Detection], big: list[Detection], cam2base: FloatArray,
                     trays: Sequence[tuple[float, float, float]], casts: dict[int, BlobCast],
-                    grids: dict[int, Grid | None]) -> Found:
+                    grids: dict[int, Grid | None], cut: dict[int, bool]) -> Found:
         """Every blob judged as one thing first (a block may be larger than the size
         this locator was given); a large blob that is not one measured block may be
         several touching ones: split, and the parts kept if cubes there explain its
         outline (else it stays as judged: no block, or one not measured). ``casts``,
-        ``grids``: each blob's (by its id), as ``find_in`` made them."""
-        h, w = image.shape[:2]
+        ``grids``, ``cut``: each blob's (by its id), as ``find_in`` made them."""
         first = self._judged(image, detections, self._locate_single(
-            single + big, cam2base, w, h, casts, grids), cam2base, trays)
+            single + big, cam2base, cut, casts, grids), cam2base, trays)
         large = {id(d) for d in big}
         blocks: list[Sighting] = []
         not_blocks: list[NotBlock] = []
@@ -277,27 +282,28 @@ class BlockLocator:
         by its outline's ``grid``) if cubes of this locator's size there explain the
         thing's ``outline``; else None."""
         parts = split if split is not None else self._split(d, cam2base, grid)
-        size = self.block_size_mm
-
-        def explains(locs: Sequence[BlockLocation]) -> float:
-            return cubes_explain(outline, [(p.x_mm, p.y_mm, p.yaw_deg, size) for p in locs],
-                                 self.intrinsics, cam2base, self.table_z_mm)
-
         if parts is None:
             return None
+        # Each part's silhouette is drawn once and the sets of them scored against the
+        # outline from those drawings (``cubes_explain``, without drawing them again).
+        size = self.block_size_mm
+        cover = OutlineCover(outline, cube_silhouettes(
+            [(p.x_mm, p.y_mm, p.yaw_deg, size) for p in parts], self.intrinsics, cam2base,
+            self.table_z_mm))
         # No more blocks than explain it: a part the others explain as well without (two
         # blocks apart, seen as one blob through the gap, split in three; two in a row
         # whose sides in view make the blob big enough for four) is none.
-        best, k = explains(parts), 0
-        while len(parts) > 1 and k < len(parts):
-            fewer = [*parts[:k], *parts[k + 1:]]
-            if (without := explains(fewer)) >= best:
-                parts, best = fewer, without
+        kept = list(range(len(parts)))
+        best, k = cover.share(kept), 0
+        while len(kept) > 1 and k < len(kept):
+            fewer = [*kept[:k], *kept[k + 1:]]
+            if (without := cover.share(fewer)) >= best:
+                kept, best = fewer, without
             else:
                 k += 1
         if best < SPLIT_EXPLAINS:
             return None
-        return [self._sighting(d.color, loc, d) for loc in parts]
+        return [self._sighting(d.color, parts[i], d) for i in kept]
 
     def _judged(self, image: npt.NDArray[np.uint8], detections: Sequence[Detection],
                 found: list[Sighting], cam2base: FloatArray,
@@ -392,26 +398,27 @@ class BlockLocator:
             return None
         return np.asarray(cv2.convexHull(px.astype(np.float32)).reshape(-1, 2), np.int32)
 
-    def _locate_single(self, detections: list[Detection], cam2base: FloatArray, w: int,
-                       h: int, casts: dict[int, BlobCast], grids: dict[int, Grid | None]
-                       ) -> list[Sighting]:
+    def _locate_single(self, detections: list[Detection], cam2base: FloatArray,
+                       cut: dict[int, bool], casts: dict[int, BlobCast],
+                       grids: dict[int, Grid | None]) -> list[Sighting]:
         """Sightings of blobs that are one block each (or none: not block-sized).
-        ``casts``, ``grids``: each blob's (by its id), as ``find_in`` made them."""
+        ``cut`` (whether the blob touches the picture's edge), ``casts``, ``grids``: each
+        blob's (by its id), as ``find_in`` made them."""
         if not detections:
             return []
         # Position for all blobs at once (vectorised), from their yaw on the table; a
         # blob whose rays miss the table is no block on it, and is left out.
         kept = [(d, yaw) for d in detections if (yaw := casts[id(d)].yaw_deg) is not None]
+        # (The checked entry: finite centroids, a forward-kinematics pose, cast yaws.)
         locations = all_or_each(
-            lambda pairs: locate_blocks(
+            lambda pairs: locate_checked_blocks(
                 np.array([d.centroid_px for d, _ in pairs]), self.intrinsics, cam2base,
-                table_z_mm=self.table_z_mm, block_size_mm=self.block_size_mm,
-                yaw_deg=[y for _, y in pairs]), kept)
+                self.table_z_mm, self.block_size_mm, [y for _, y in pairs]), kept)
         out = []
         for (d, _), loc in zip(kept, locations, strict=True):
             # A blob cut by the picture's edge is not a whole silhouette: its location is
             # rough (and it may look small); the sorter looks again before trusting it.
-            whole = not _touches_edge(d, w, h)
+            whole = not cut[id(d)]
             if loc is None or not self._block_sized(d, loc, cam2base, whole):
                 continue
             if whole:
@@ -442,7 +449,7 @@ class BlockLocator:
             return None
         if len(centres) <= 1:
             return None
-        base2cam = np.linalg.inv(cam2base)
+        base2cam = inverse_of(cam2base)
         p_cam = np.array([[x, y, top] for x, y in centres]) @ base2cam[:3, :3].T \
             + base2cam[:3, 3]
         pixels = self.intrinsics.pixels_from_camera_points(p_cam)
@@ -455,14 +462,21 @@ class BlockLocator:
         faces the camera sees (dark, lit from elsewhere), the block's top face as its
         outline's ``grid`` gives it (None: the outline cannot be cast): the silhouette's
         centroid would be off by millimetres then."""
-        if grid is None or grid.counts != (1, 1) or float(grid.shown.min()) >= SIDES_SHOWN:
+        if grid is None or grid.counts != (1, 1):
+            return loc
+        # (Both shares as floats: numpy's min of two numbers costs more than the test.)
+        shown_u, shown_v = grid.shown.tolist()
+        if shown_u >= SIDES_SHOWN and shown_v >= SIDES_SHOWN:
             return loc
         x, y = grid.centre_mm(0, 0, self.block_size_mm)
         return replace(loc, x_mm=x, y_mm=y, silhouette=False)
 
-    def _top_face_px(self, point_mm: npt.ArrayLike, cam2base: FloatArray) -> float:
+    def _top_face_px(self, point_mm: Sequence[float] | FloatArray, cam2base: FloatArray) -> float:
         """The area (px) a block's top face at ``point_mm`` takes in the picture, about."""
-        depth = math.dist(np.asarray(point_mm, dtype=float).tolist(), cam2base[:3, 3].tolist())
+        # (An array's numbers as floats at once: float() of each costs more.)
+        point = point_mm.tolist() if isinstance(point_mm, np.ndarray) else [
+            float(v) for v in point_mm]
+        depth = math.dist(point, cam2base[:3, 3].tolist())
         return float((self.intrinsics.fx * self.block_size_mm / max(depth, 1.0)) ** 2)
 
     def _block_sized(self, d: Detection, loc: BlockLocation, cam2base: FloatArray,
@@ -477,9 +491,7 @@ class BlockLocator:
                   detections: tuple[Detection, ...] = (), whole: bool = True) -> Sighting:
         z_grasp = self.table_z_mm + loc.size_mm / 2
         top_down, reachable, reason = True, True, ""
-        try:
-            self.kin.ik_best(loc.x_mm, loc.y_mm, z_grasp, -90.0)
-        except UnreachableError:
+        if not self.kin.reaches(loc.x_mm, loc.y_mm, z_grasp, -90.0):
             top_down = False
             try:
                 self.kin.ik_free_pitch(loc.x_mm, loc.y_mm, z_grasp)

@@ -20,7 +20,7 @@ the same square) and says:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
 from typing import Literal
 
@@ -42,6 +42,7 @@ from busarm.perception.measure import (
     thing_outline,
 )
 from busarm.vision.calibration import CameraIntrinsics
+from busarm.vision.calibration.core import inverse_of
 from busarm.vision.color import Detection
 
 __all__ = [
@@ -59,8 +60,10 @@ __all__ = [
     "SQUARE_MIN",
     "TALL",
     "WHOLE_SHARE",
+    "OutlineCover",
     "Shape",
     "Verdict",
+    "cube_silhouettes",
     "cubes_explain",
     "judge",
     "judge_blobs",
@@ -298,28 +301,80 @@ def cubes_explain(outline_px: npt.ArrayLike, cubes: Sequence[tuple[float, float,
     thing's outline: the intersection over union of the area inside the outline and the
     cubes' silhouettes (1: exactly; several touching blocks split from one blob are
     checked so, that a thing of another shape is not taken for them)."""
-    outline = np.asarray(outline_px, np.int32).reshape(-1, 2)
-    base2cam = np.linalg.inv(cam2base)
-    hulls = []
+    hulls = cube_silhouettes(cubes, intrinsics, cam2base, table_z_mm)
+    return OutlineCover(outline_px, hulls).share(range(len(hulls)))
+
+
+def cube_silhouettes(cubes: Sequence[tuple[float, float, float, float]],
+                     intrinsics: CameraIntrinsics, cam2base: FloatArray, table_z_mm: float
+                     ) -> list[npt.NDArray[np.int32] | None]:
+    """Each cube's (x mm, y mm, yaw deg, side mm, on the table) silhouette in the picture:
+    its corners' convex hull (K x 2 px, rounded); None for one not wholly in front of the
+    camera."""
+    base2cam = inverse_of(cam2base)
+    su = np.array([-1.0, -1.0, -1.0, -1.0, 1.0, 1.0, 1.0, 1.0])
+    sv = np.array([-1.0, -1.0, 1.0, 1.0, -1.0, -1.0, 1.0, 1.0])
+    p_cam = []
     for x, y, yaw_deg, side in cubes:
         a = np.radians(yaw_deg)
-        corners = np.array([[x + side / 2 * (su * np.cos(a) - sv * np.sin(a)),
-                             y + side / 2 * (su * np.sin(a) + sv * np.cos(a)), z]
-                            for su in (-1, 1) for sv in (-1, 1)
-                            for z in (table_z_mm, table_z_mm + side)])
-        try:
-            px = intrinsics.pixels_from_camera_points(corners @ base2cam[:3, :3].T
-                                                      + base2cam[:3, 3])
-        except VisionError:
-            return 0.0
-        hulls.append(cv2.convexHull(np.round(px).astype(np.int32)).reshape(-1, 2))
-    every = np.vstack([outline, *hulls])
-    x0, y0 = every.min(axis=0) - 1
-    x1, y1 = every.max(axis=0) + 2
-    size = (int(y1 - y0), int(x1 - x0))
-    thing, model = np.zeros(size, np.uint8), np.zeros(size, np.uint8)
-    cv2.drawContours(thing, [(outline - (x0, y0)).reshape(-1, 1, 2)], -1, 1, cv2.FILLED)
-    for hull in hulls:
-        cv2.fillConvexPoly(model, (hull - (x0, y0)).astype(np.int32), 1)
-    union = int(np.count_nonzero(thing | model))
-    return float(np.count_nonzero(thing & model)) / union if union else 0.0
+        cos, sin = np.cos(a), np.sin(a)
+        # The corners (bottom and top of each), in the order and arithmetic of a loop
+        # over them: each number is the same to the bit.
+        corners = np.empty((8, 3))
+        corners[:, 0] = x + side / 2 * (su * cos - sv * sin)
+        corners[:, 1] = y + side / 2 * (su * sin + sv * cos)
+        corners[:, 2] = (table_z_mm, table_z_mm + side) * 4
+        p_cam.append(corners @ base2cam[:3, :3].T + base2cam[:3, 3])
+    if not p_cam:
+        return []
+    # All corners projected at once (the model works point by point); if one is behind
+    # the camera, cube by cube.
+    px: list[FloatArray | None] = []
+    try:
+        flat = intrinsics.pixels_from_camera_points(np.concatenate(p_cam))
+        px += [flat[8 * i:8 * i + 8] for i in range(len(p_cam))]
+    except VisionError:
+        for one in p_cam:
+            try:
+                px.append(intrinsics.pixels_from_camera_points(one))
+            except VisionError:
+                px.append(None)
+    return [None if p is None else np.asarray(
+        cv2.convexHull(np.round(p).astype(np.int32)).reshape(-1, 2), np.int32) for p in px]
+
+
+class OutlineCover:
+    """How well sets of silhouettes explain one outline (``cubes_explain``): the outline
+    and each silhouette drawn once, on one canvas holding all, for any set of them."""
+
+    def __init__(self, outline_px: npt.ArrayLike,
+                 hulls: Sequence[npt.NDArray[np.int32] | None]) -> None:
+        outline = np.asarray(outline_px, np.int32).reshape(-1, 2)
+        every = np.vstack([outline, *(h for h in hulls if h is not None)])
+        x0, y0 = every.min(axis=0) - 1
+        x1, y1 = every.max(axis=0) + 2
+        size = (int(y1 - y0), int(x1 - x0))
+        # Filled polygons with whole-pixel corners move with the canvas pixel for pixel:
+        # the counts are those of a canvas fitted to each set.
+        self._thing = np.zeros(size, np.uint8)
+        cv2.drawContours(self._thing, [(outline - (x0, y0)).reshape(-1, 1, 2)], -1, 1,
+                         cv2.FILLED)
+        self._models: list[npt.NDArray[np.uint8] | None] = []
+        for hull in hulls:
+            model = None
+            if hull is not None:
+                model = np.zeros(size, np.uint8)
+                cv2.fillConvexPoly(model, (hull - (x0, y0)).astype(np.int32), 1)
+            self._models.append(model)
+
+    def share(self, which: Iterable[int]) -> float:
+        """The intersection over union of the outline's area and the silhouettes
+        ``which`` (indices); 0 if one of them is not wholly in front of the camera."""
+        model = np.zeros_like(self._thing)
+        for i in which:
+            one = self._models[i]
+            if one is None:
+                return 0.0
+            model |= one
+        union = int(np.count_nonzero(self._thing | model))
+        return float(np.count_nonzero(self._thing & model)) / union if union else 0.0

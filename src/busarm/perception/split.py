@@ -11,8 +11,10 @@ left is less than half a block. Rows, 2 x 2 groups and staggered clusters alike.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -21,6 +23,7 @@ import numpy.typing as npt
 
 from busarm.errors import VisionError
 from busarm.vision.calibration import CameraIntrinsics
+from busarm.vision.calibration.core import inverse_of
 
 __all__ = [
     "FIT_SLACK_MM",
@@ -81,15 +84,31 @@ def top_faces_mm(contour_px: npt.NDArray[np.int32], intrinsics: CameraIntrinsics
     blob = _redraw(contour_px, intrinsics, cam2base, top_z_mm, plane)
     # How much of the sides the blob holds (lit or dark) is found by trying: the right
     # share leaves the blob a union of whole squares (none cut short, nothing over).
-    best: tuple[float, FloatArray] | None = None
-    for share in itertools.product(*(SIDE_SHARES if abs(c) > FIT_SLACK_MM else (0.0,)
-                                     for c in cast_uv_mm)):
-        tops = _without_sides(blob, np.asarray(share) * cast_uv_mm)
-        centres, fit = _place_squares(tops, size_mm)
-        if best is None or fit > best[0]:
-            best = (fit, centres)
-    assert best is not None
-    return [(float(x), float(y)) for x, y in plane.to_base(best[1])]
+    tops = [_without_sides(blob, np.asarray(share) * cast_uv_mm)
+            for share in itertools.product(*(SIDE_SHARES if abs(c) > FIT_SLACK_MM else (0.0,)
+                                             for c in cast_uv_mm))]
+    return [(float(x), float(y)) for x, y in plane.to_base(_best_squares(tops, size_mm))]
+
+
+def _best_squares(tops: Sequence[npt.NDArray[np.uint8]], size_mm: float) -> FloatArray:
+    """The greedy squares (``_place_squares``) of whichever of ``tops`` they fit best,
+    the first of them on a tie. Those that could fit best are tried first, and one that
+    cannot beat the best so far (or tie it from an earlier place) is given up as soon as
+    that is sure (``_fit_bound``): the same choice as trying every one in order."""
+    area = max(3, round(size_mm / RESOLUTION_MM)) ** 2
+    bounds = [_fit_bound(0.0, cv2.countNonZero(t), 0.0, area) for t in tops]
+    best: tuple[float, int, FloatArray] | None = None
+    for i in sorted(range(len(tops)), key=lambda i: (-bounds[i], i)):
+        ties = best is not None and i < best[1]
+        if best is not None and _cannot_beat(bounds[i], best[0], ties):
+            continue
+        placed = _place_squares(tops[i], size_mm, None if best is None else (best[0], ties))
+        if placed is not None and (best is None or placed[1] > best[0]
+                                   or (placed[1] == best[0] and ties)):
+            best = (placed[1], i, placed[0])
+    if best is None:
+        raise ValueError("no tops to place squares on")
+    return best[2]
 
 
 def _redraw(contour_px: npt.NDArray[np.int32], intrinsics: CameraIntrinsics,
@@ -99,7 +118,7 @@ def _redraw(contour_px: npt.NDArray[np.int32], intrinsics: CameraIntrinsics,
     mask = np.zeros((h + 2, w + 2), np.uint8)
     cv2.drawContours(mask, [contour_px.reshape(-1, 1, 2) - (x0 - 1, y0 - 1)], -1, 1, -1)
     rows, cols = plane.shape
-    base2cam = np.linalg.inv(cam2base)
+    base2cam = inverse_of(cam2base)
     r, t = base2cam[:3, :3], base2cam[:3, 3]
     # Pixel (column, row) of the plane is at origin + (column, row) * RESOLUTION_MM along
     # the axes: its camera point is projective-affine in them (p0 + column * dc + row *
@@ -122,58 +141,106 @@ def _without_sides(blob: npt.NDArray[np.uint8], cast_uv_mm: FloatArray
     du, dv = (round(c / RESOLUTION_MM) for c in cast_uv_mm)
     if du == 0 and dv == 0:
         return blob
-    kernel = np.zeros((abs(dv) + 1, abs(du) + 1), np.uint8)
-    anchor = (0 if du >= 0 else -du, 0 if dv >= 0 else -dv)
-    cv2.line(kernel, anchor, (anchor[0] + du, anchor[1] + dv), 1, 1)
+    kernel, anchor = _line_kernel(du, dv)
     return np.asarray(cv2.erode(blob, kernel, anchor=anchor, borderType=cv2.BORDER_CONSTANT,
                                 borderValue=0), np.uint8)
 
 
-def _place_squares(tops: npt.NDArray[np.uint8], size_mm: float) -> tuple[FloatArray, float]:
+@functools.lru_cache(maxsize=1024)
+def _line_kernel(du: int, dv: int) -> tuple[npt.NDArray[np.uint8], tuple[int, int]]:
+    """The erosion's kernel for a cast of (du, dv) pixels: a line from its anchor (made
+    once: the same few casts come again and again). Read only."""
+    kernel = np.zeros((abs(dv) + 1, abs(du) + 1), np.uint8)
+    anchor = (0 if du >= 0 else -du, 0 if dv >= 0 else -dv)
+    cv2.line(kernel, anchor, (anchor[0] + du, anchor[1] + dv), 1, 1)
+    kernel.flags.writeable = False
+    return kernel, anchor
+
+
+def _fit_bound(covered: float, left: float, empty: float, area: int) -> float:
+    """The best fit ``_place_squares`` can still reach (to the bit: whole numbers divided
+    as there) with ``covered``, ``left`` and ``empty`` pixels so far (squares of ``area``
+    pixels): each further square holds h <= min(area, what is left) and adds 5 h - 2 area
+    to the fit's numerator, so m more add 3 m area at most while they fit in what is
+    left, 5 left - 2 m area beyond."""
+    rest = int(left)
+    low, high = rest // area, -(-rest // area)
+    gain = max(3 * low * area, 5 * rest - 2 * high * area)
+    return (int(covered) - 2 * rest - 2 * int(empty) + gain) / area
+
+
+def _cannot_beat(bound: float, fit: float, ties: bool) -> bool:
+    """Whether a fit of at most ``bound`` loses to ``fit`` (``ties``: equalling it wins)."""
+    return bound < fit or (bound == fit and not ties)
+
+
+def _place_squares(tops: npt.NDArray[np.uint8], size_mm: float,
+                   beat: tuple[float, bool] | None = None) -> tuple[FloatArray, float] | None:
     """Greedy squares on the top faces (a 0/1 mask; see the module docstring): their
     centres (N x 2, pixels: column, row) and how well they explain the tops, in blocks:
     what they cover, less twice what is left over and twice what they cover of nothing
-    (a square put on a side face's strip, or a top cut short by too much taken off)."""
+    (a square put on a side face's strip, or a top cut short by too much taken off).
+    ``beat``: (a fit, whether equalling it is enough): None, as soon as that is sure,
+    if the fit cannot beat it."""
     side = max(3, round(size_mm / RESOLUTION_MM))
-    inner = max(1, side - 2 * round(FIT_SLACK_MM / RESOLUTION_MM))
+    area = side * side
     left = np.array(tops, np.uint8)
-    # Where a top fits (an inner square wholly on the tops: its box sum is full), as a
-    # 0/1 factor; box sums of a 0/1 mask are whole numbers, exact in float32.
-    fits = (_box_sums(left, inner) > inner * inner - 0.5).astype(np.float32)
     # What is left's pixel count and row and column sums, kept up to date as squares
     # take windows off it (whole numbers: its middle is the same as from its moments).
-    m = cv2.moments(left, binaryImage=True)
-    count, sum_r, sum_c = m["m00"], m["m01"], m["m10"]
-    width = left.shape[1]
+    count, sum_r, sum_c = _sums(left)
+    fits, crop = _fit_places(left, side)
+    y, x = crop[0].start, crop[1].start
+    width = fits.shape[1]
     centres: list[tuple[float, float]] = []
     covered = empty = 0.0
-    for _ in range(MAX_BLOCKS):
-        cover = _box_sums(left, side)
+    for _ in range(MAX_BLOCKS if fits.size else 0):
+        # No square covers more than is left: too little left is the end, unsummed.
+        if count < MIN_COVER * area:
+            break
+        if beat is not None and _cannot_beat(_fit_bound(covered, count, empty, area), *beat):
+            return None
+        cover = _box_sums(left[crop], side)
         np.multiply(cover, fits, out=cover)
         best = float(cover.max())
         if best < MIN_COVER * side * side:
             break
         rows, cols = np.divmod(np.flatnonzero(cover >= best - 0.01 * side * side), width)
+        rows += y
+        cols += x
         # Of the (nearly) best places, the one furthest from what is left's middle: a
         # row's end block rather than a square straddling two.
         mass_r, mass_c = sum_r / count, sum_c / count
         k = int(np.argmax((rows - mass_r) ** 2 + (cols - mass_c) ** 2))
-        centre = _centred(left, int(rows[k]), int(cols[k]), side)
+        centre, (r0, c0, window, w) = _centred(left, int(rows[k]), int(cols[k]), side)
         centres.append(centre)
-        r0, c0 = round(centre[0]) - side // 2, round(centre[1]) - side // 2
-        r0, c0, window = _window(left, r0, c0, side)
-        w = cv2.moments(window, binaryImage=True) if window.size else {"m00": 0.0}
-        held = w["m00"]
+        held = w[0]
         if held:
             count -= held
-            sum_r -= w["m01"] + r0 * held
-            sum_c -= w["m10"] + c0 * held
+            sum_r -= w[1] + r0 * held
+            sum_c -= w[2] + c0 * held
         covered += held
-        empty += side * side - held
+        empty += area - held
         window[:] = 0
     fit = (covered - 2.0 * count - 2.0 * empty) / (side * side)
     rc = np.array(centres, dtype=np.float64).reshape(-1, 2)
     return rc[:, ::-1].copy(), fit
+
+
+def _fit_places(tops: npt.NDArray[np.uint8], side: int
+                ) -> tuple[npt.NDArray[np.float32], tuple[slice, slice]]:
+    """Where a block's top fits on ``tops`` (an inner square wholly on them: its box sum
+    is full), as a 0/1 factor (box sums of a 0/1 mask are whole numbers, exact in
+    float32), on the part of the plane a square's cover is looked at (the bounding box
+    of those places grown by a square's reach: the box sums there are those of the
+    whole plane); and that part."""
+    inner = max(1, side - 2 * round(FIT_SLACK_MM / RESOLUTION_MM))
+    full = _box_sums(tops, inner) > inner * inner - 0.5
+    x, y, w, h = cv2.boundingRect(full.view(np.uint8))
+    before, after = side // 2, side - 1 - side // 2  # the box about a pixel (its anchor)
+    crop = (slice(max(y - before, 0), y + h + after), slice(max(x - before, 0), x + w + after))
+    if not w:  # fits nowhere
+        crop = (slice(0, 0), slice(0, 0))
+    return full[crop].astype(np.float32), crop
 
 
 def _box_sums(mask: npt.NDArray[np.uint8], side: int) -> npt.NDArray[np.float32]:
@@ -191,31 +258,59 @@ def _window(mask: npt.NDArray[np.uint8], r0: int, c0: int, side: int
     return ra, ca, mask[ra:max(r0 + side, 0), ca:max(c0 + side, 0)]
 
 
+Window = tuple[int, int, npt.NDArray[np.uint8], tuple[float, float, float]]
+"""A side x side window of a mask cut to it: its first row and column, the window (a
+view) and its sums (``_sums``)."""
+
+
+def _sums_at(mask: npt.NDArray[np.uint8], r0: int, c0: int, side: int) -> Window:
+    """The window of ``mask`` from (r0, c0) (``_window``) and its sums."""
+    ra, ca, window = _window(mask, r0, c0, side)
+    return ra, ca, window, (_sums(window) if window.size else (0.0, 0.0, 0.0))
+
+
 def _centred(left: npt.NDArray[np.uint8], row: int, col: int, side: int
-             ) -> tuple[float, float]:
+             ) -> tuple[tuple[float, float], Window]:
     """The square at (row, col) moved to the middle of what it covers, twice (a place
-    found on a tie sits a little off its block)."""
+    found on a tie sits a little off its block), and its window there (``Window``)."""
     cr, cc = float(row), float(col)
+    half = side // 2
+    at = _sums_at(left, row - half, col - half, side)
     for _ in range(2):
-        r0, c0, window = _window(left, round(cr) - side // 2, round(cc) - side // 2, side)
-        if window.size == 0 or not window.any():
+        r0, c0, _, (m00, m01, m10) = at
+        if m00 == 0:
             break
-        mid_r, mid_c = _middle(window)
         # Half a square's shift at most: it stays on the block it was placed on.
-        shift_r, shift_c = mid_r + r0 - cr, mid_c + c0 - cc
+        shift_r, shift_c = m01 / m00 + r0 - cr, m10 / m00 + c0 - cc
         if max(abs(shift_r), abs(shift_c)) < 0.25:
             break
         cr += min(max(shift_r, -side / 4), side / 4)
         cc += min(max(shift_c, -side / 4), side / 4)
-    return cr, cc
+        # The window where the square now is (the last turn's: the one it is placed in).
+        at = _sums_at(left, round(cr) - half, round(cc) - half, side)
+    return (cr, cc), at
 
 
 def _middle(mask: npt.NDArray[np.float32] | npt.NDArray[np.uint8]) -> tuple[float, float]:
-    """The mean (row, column) of a mask's nonzero pixels (some must be). From OpenCV's
-    moments: their sums are whole numbers, so this is the same mean as numpy's, without
-    listing the pixels."""
-    m = cv2.moments(mask, binaryImage=True)
-    return m["m01"] / m["m00"], m["m10"] / m["m00"]
+    """The mean (row, column) of a 0/1 mask's nonzero pixels (some must be), from
+    ``_sums``: the same mean as numpy's, without listing the pixels."""
+    count, sum_r, sum_c = _sums(mask)
+    return sum_r / count, sum_c / count
+
+
+_RAMP = np.stack([np.ones(1024), np.arange(1024.0)])
+"""Ones and 0, 1, 2, ...: a mask's sums as two matrix products."""
+
+
+def _sums(mask: npt.NDArray[np.float32] | npt.NDArray[np.uint8]) -> tuple[float, float, float]:
+    """A 0/1 mask's pixel count and the sums of its pixels' rows and of their columns
+    (OpenCV's moments m00, m01, m10). Whole numbers, so exact in float64 however the
+    products add them up: the same as from ``cv2.moments``, at a fraction of its cost."""
+    rows, cols = mask.shape
+    ramp = _RAMP if max(rows, cols) <= _RAMP.shape[1] else np.stack(
+        [np.ones(max(rows, cols)), np.arange(float(max(rows, cols)))])
+    s = ramp[:, :rows] @ mask.astype(np.float64) @ ramp[:, :cols].T
+    return float(s[0, 0]), float(s[1, 0]), float(s[0, 1])
 
 
 @dataclass(frozen=True)

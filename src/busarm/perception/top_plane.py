@@ -74,11 +74,10 @@ def edge_points_px(d: Detection) -> FloatArray:
 def yaws_from_edges(table: FloatArray) -> list[float]:
     """Per pair of rows of ``table`` (cast edge ends, 2N x 2+), its direction modulo 90
     (a square's yaw is known modulo 90 deg)."""
-    out = []
-    for i in range(len(table) // 2):
-        dx, dy = table[2 * i + 1, :2] - table[2 * i, :2]
-        out.append((math.degrees(math.atan2(dy, dx)) + 45.0) % 90.0 - 45.0)
-    return out
+    # Plain floats (the same differences as numpy's): a handful of numbers per blob.
+    rows = table[:, :2].tolist()
+    return [(math.degrees(math.atan2(y1 - y0, x1 - x0)) + 45.0) % 90.0 - 45.0
+            for (x0, y0), (x1, y1) in zip(rows[::2], rows[1::2], strict=False)]
 
 
 def cast_blobs(detections: Sequence[Detection], intrinsics: CameraIntrinsics,
@@ -132,8 +131,9 @@ def outline_grids(outlines: Sequence[FloatArray], size_mm: float, table_z_mm: fl
         return []
     size = size_mm
     pts = np.concatenate(outlines)
-    lengths = np.array([len(o) for o in outlines])
-    starts = np.concatenate([[0], np.cumsum(lengths)[:-1]])
+    sizes = [len(o) for o in outlines]
+    lengths = np.array(sizes)
+    starts = np.array([0, *itertools.accumulate(sizes[:-1])])
     # Each point's next one around its own outline.
     following = np.arange(1, len(pts) + 1)
     following[starts + lengths - 1] = starts
@@ -149,32 +149,41 @@ def outline_grids(outlines: Sequence[FloatArray], size_mm: float, table_z_mm: fl
     c, s = np.repeat(cos, lengths), np.repeat(sin, lengths)
     u = pts[:, 0] * c + pts[:, 1] * s
     v = pts[:, 1] * c - pts[:, 0] * s
-    lo_blob = np.stack([np.minimum.reduceat(u, starts), np.minimum.reduceat(v, starts)], axis=1)
-    hi_blob = np.stack([np.maximum.reduceat(u, starts), np.maximum.reduceat(v, starts)], axis=1)
+    lo_blob = _pairs(np.minimum.reduceat(u, starts), np.minimum.reduceat(v, starts))
+    hi_blob = _pairs(np.maximum.reduceat(u, starts), np.maximum.reduceat(v, starts))
     mid = (lo_blob + hi_blob) / 2
-    centre = np.stack([mid[:, 0] * cos - mid[:, 1] * sin, mid[:, 0] * sin + mid[:, 1] * cos],
-                      axis=1)
+    centre = _pairs(mid[:, 0] * cos - mid[:, 1] * sin, mid[:, 0] * sin + mid[:, 1] * cos)
     # How far a cube there reaches along the axes, cast from the camera onto its top
     # plane (``split.cast_cube_extent``): its top's half side, and a bottom corner (+-
     # half a side) seen from the camera, which lands further out on the top plane.
     half = size / 2
     scale = (camera_mm[2] - (table_z_mm + size)) / (camera_mm[2] - table_z_mm)
     towards = camera_mm[:2] - centre
-    seen = np.stack([towards[:, 0] * cos + towards[:, 1] * sin,
-                     towards[:, 1] * cos - towards[:, 0] * sin], axis=1) * (1.0 - scale)
+    seen = _pairs(towards[:, 0] * cos + towards[:, 1] * sin,
+                  towards[:, 1] * cos - towards[:, 0] * sin) * (1.0 - scale)
     lo = np.minimum(-half, seen - half * scale)
     hi = np.maximum(half, seen + half * scale)
     sides = (hi - lo) - size
     extent = hi_blob - lo_blob
     counts = np.maximum(1, np.rint((extent - sides / 2) / size)).astype(int)
-    shown = np.clip((extent - counts * size) / np.maximum(sides, 1e-6), 0.0, 1.0)
+    shown = ((extent - counts * size) / np.maximum(sides, 1e-6)).clip(0.0, 1.0)
     first = lo_blob + size / 2 + shown * (-lo - size / 2)  # the first top face's centre
-    axes = np.stack([np.stack([cos, sin], axis=1), np.stack([-sin, cos], axis=1)], axis=1)
+    axes = np.empty((len(outlines), 2, 2))
+    axes[:, 0, 0], axes[:, 0, 1], axes[:, 1, 0], axes[:, 1, 1] = cos, sin, -sin, cos
     # The sides reach out from a top face on the camera's side only: lo or hi is the
     # top's half side, and their sum is how far the sides reach, signed.
-    return [Grid(float(yaw[i]), axes[i], (int(counts[i, 0]), int(counts[i, 1])), first[i],
-                 shown[i], (lo_blob[i], hi_blob[i]), lo[i] + hi[i])
-            for i in range(len(outlines))]
+    reach = lo + hi
+    return [Grid(y, axes[i], (n_u, n_v), first[i], shown[i], (lo_blob[i], hi_blob[i]),
+                 reach[i])
+            for i, (y, (n_u, n_v)) in enumerate(zip(yaw.tolist(), counts.tolist(), strict=True))]
+
+
+def _pairs(a: FloatArray, b: FloatArray) -> FloatArray:
+    """(N, 2): ``a`` and ``b`` side by side (``np.stack(..., axis=1)`` without its
+    checks: these arrays are a handful of numbers)."""
+    out = np.empty((len(a), 2))
+    out[:, 0], out[:, 1] = a, b
+    return out
 
 
 def all_or_each(solve: Callable[[list[T]], list[R]], items: Sequence[T]) -> list[R | None]:

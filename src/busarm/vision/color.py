@@ -113,9 +113,10 @@ def normalize_yaw_deg(angle_deg: float) -> tuple[float, int]:
     return yaw, round((angle_deg - yaw) / 90.0)
 
 
-def _measure(color: str, contour: npt.NDArray[Any], scale: int = 1) -> Detection:
+def _measure(color: str, contour: npt.NDArray[Any], scale: int = 1,
+             moments: dict[str, float] | None = None) -> Detection:
     """A Detection from an outline (every point, CHAIN_APPROX_NONE) on a grid ``scale``
-    times coarser than the image.
+    times coarser than the image (``moments``: the outline's, if taken already).
 
     Coarse pixel i covers full pixels scale*i .. scale*i + scale - 1, whose centre is
     ``scale*i + (scale - 1)/2``. The pixels inside a lattice outline number its area
@@ -124,7 +125,7 @@ def _measure(color: str, contour: npt.NDArray[Any], scale: int = 1) -> Detection
     """
     pts = contour.reshape(-1, 2)
     offset = (scale - 1) / 2.0
-    m = cv2.moments(pts)
+    m = cv2.moments(pts) if moments is None else moments
     if m["m00"] > 1e-9:
         cu, cv = m["m10"] / m["m00"], m["m01"] / m["m00"]
     else:  # a line or a point: no area to weigh
@@ -276,7 +277,9 @@ class ColorDetector:
         # tables: one C pass, where three look-ups and two sums took six.
         packed = cv2.cvtColor(np.ascontiguousarray(small), cv2.COLOR_BGR2BGR565)
         index = packed.view(np.uint16).reshape(small.shape[:2])
-        return [np.take(table, index) for table in self._tables]
+        # (Every 16-bit index is in the 65536-entry tables: "wrap" only skips numpy's
+        # bounds check.)
+        return [table.take(index, mode="wrap") for table in self._tables]
 
     def _refine(
         self, img: UInt8Image, name: str, coarse: npt.NDArray[Any],
@@ -291,7 +294,7 @@ class ColorDetector:
         x, y, w, h = box
         offset = (f - 1) / 2.0
         margin = _MARGIN_SMALL_PX * f
-        chosen: list[npt.NDArray[Any]] = []
+        chosen: list[tuple[npt.NDArray[Any], dict[str, float]]] = []
         cm = cv2.moments(coarse)
         # The coarse blob's centre at full resolution: a full-resolution blob that covers
         # it is this blob too, even if its own centre lies elsewhere (two blocks meeting
@@ -319,13 +322,13 @@ class ColorDetector:
                 if cv2.pointPolygonTest(coarse, hint, True) < -1.0 and (
                         middle is None or cv2.pointPolygonTest(c, middle, False) < 0):
                     continue
-                chosen.append(c)
+                chosen.append((c, m))
                 clipped = clipped or (bx <= x0 < x * f) or (by <= y0 < y * f) or (
                     bx + bw >= x1 > (x + w) * f) or (by + bh >= y1 > (y + h) * f)
             if not clipped:
                 break
             margin *= 4  # the blob is larger at full resolution: look again, wider
-        return [_measure(name, c, 1) for c in chosen]
+        return [_measure(name, c, 1, m) for c, m in chosen]
 
 
 def _check_area(name: str, value: object) -> None:

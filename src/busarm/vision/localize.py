@@ -111,7 +111,7 @@ def _pixels(name: str, value: npt.ArrayLike) -> FloatArray:
         arr = arr.reshape(1, 2)
     if arr.ndim != 2 or arr.shape[1] != 2:
         raise ConfigError(f"{name} must be an (N, 2) array of pixels, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise ConfigError(f"{name} must be finite")
     return arr
 
@@ -186,10 +186,14 @@ _OUTLINE = _face_outline(EDGE_SAMPLES)
 _PROBES = np.array([[0.0, 0.0, 0.0], [_STEP_NORMALIZED, 0.0, 0.0], [0.0, _STEP_NORMALIZED, 0.0]])
 
 
-def _centroids(intrinsics: CameraIntrinsics, pts: FloatArray) -> FloatArray:
-    px = intrinsics._project_h(pts)  # (u, v, 1)
-    fine = _face_moments(px)
-    coarse = _face_moments(px[..., ::2, :])  # every other outline point
+def _centroids(intrinsics: CameraIntrinsics, x: FloatArray, y: FloatArray, z: FloatArray
+               ) -> FloatArray:
+    """Silhouette centroids (..., 2) of outlines given by their camera points' x, y, z
+    arrays (..., 5 | 3 faces, 4 * EDGE_SAMPLES + 1)."""
+    u, v, px = intrinsics._project_h_columns(x, y, z)  # u, v and (u, v, 1)
+    fine = _face_moments(px, u, v)
+    # Every other outline point.
+    coarse = _face_moments(px[..., ::2, :], u[..., ::2], v[..., ::2])
     moments = (4.0 * fine - coarse) / 3.0  # Richardson: the chords' h^2 error cancels
     seen = fine[..., 0, 2] < 0.0  # (N, G, 5)
     total = (seen[..., None, :] @ moments[..., 0, :])[..., 0, :]  # (N, G, 3)
@@ -197,11 +201,12 @@ def _centroids(intrinsics: CameraIntrinsics, pts: FloatArray) -> FloatArray:
     return out
 
 
-def _face_moments(px: FloatArray) -> FloatArray:
-    """Per closed outline (..., K + 1, 3 homogeneous px): (6 Mx, 6 My, 4 A) as (..., 1, 3),
-    A the signed area (faces the camera sees: negative), by the shoelace formula."""
+def _face_moments(px: FloatArray, u: FloatArray, v: FloatArray) -> FloatArray:
+    """Per closed outline (..., K + 1, 3 homogeneous px; ``u``, ``v``: its first two
+    columns, contiguous ones the cheaper): (6 Mx, 6 My, 4 A) as (..., 1, 3), A the signed
+    area (faces the camera sees: negative), by the shoelace formula."""
     a, b = px[..., :-1, :], px[..., 1:, :]
-    cross = a[..., 0] * b[..., 1] - b[..., 0] * a[..., 1]
+    cross = u[..., :-1] * v[..., 1:] - u[..., 1:] * v[..., :-1]
     out: FloatArray = cross[..., None, :] @ (a + b)
     return out
 
@@ -242,7 +247,19 @@ def locate_blocks(
             )
             for p, y, (u, v) in zip(pts.tolist(), yaws, c.tolist(), strict=True)
         ]
-    xy, residual = _solve_silhouettes(c, intrinsics, t, table, size, yaws)
+    return locate_checked_blocks(c, intrinsics, t, table, size, yaws)
+
+
+def locate_checked_blocks(
+    centroids_px: FloatArray, intrinsics: CameraIntrinsics, cam2base: FloatArray,
+    table_z_mm: float, block_size_mm: float, yaws_deg: list[float],
+) -> list[BlockLocation]:
+    """``locate_blocks`` (silhouettes) for inputs checked already: (N >= 1, 2) finite
+    float64 centroids, a rigid float64 ``cam2base``, finite floats in range, one yaw per
+    block (a caller whose numbers come from a detector and forward kinematics skips the
+    per-frame checks; the same answer)."""
+    c, table, size, yaws = centroids_px, table_z_mm, block_size_mm, yaws_deg
+    xy, residual = _solve_silhouettes(c, intrinsics, cam2base, table, size, yaws)
     return [
         BlockLocation(
             float(p[0]), float(p[1]), table + size, y, size, (float(u), float(v)), float(r), True
@@ -305,17 +322,17 @@ def _solve_silhouettes(
     height = mid - origin[2]
     row = r[2]  # base z of a camera-frame direction
     n = np.empty((count, 3))
-    n[:, :2] = (measured - (intr.cx, intr.cy)) / (intr.fx, intr.fy)  # distortion: the solve
+    # (The intrinsics' own (cx, cy) and (fx, fy) arrays: no tuples made into arrays.)
+    n[:, :2] = (measured - intr._principal) / intr._focal  # distortion: the solve
     n[:, 2] = 1.0
     index = np.arange(count)[:, None] if outlines.shape[0] > 1 else np.zeros((count, 1), np.intp)
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        faces = _better_start(n, measured, intr, outlines, index, r, height, local_xy, down)
-    if faces is None:
-        faces = _facing(n, r, height, local_xy)
     residual: FloatArray = np.full(count, np.inf)
     # A blob no cube explains (half a block at a corner, say) goes non-finite on the way;
     # that is caught below and named, so numpy need not warn about it.
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        faces = _better_start(n, measured, intr, outlines, index, r, height, local_xy, down)
+        if faces is None:
+            faces = _facing(n, r, height, local_xy)
         for _ in range(3):
             residual = _gauss_newton(
                 n, measured, intr, outlines[index, faces], row, height, down, 0.87 * size, mid
@@ -361,9 +378,10 @@ def _better_start(
     start[:, 2] = 1.0
     faces = _facing(start, r, height, local_xy)
     centre = start * (height / (start @ r[2]))[:, None] - down
-    corners = outlines[index, faces][..., ::EDGE_SAMPLES, :] + centre[:, None, None, :]
+    # The corners picked out before the faces are gathered: a quarter of the copying.
+    corners = outlines[:, :, ::EDGE_SAMPLES][index, faces] + centre[:, None, None, :]
     q = corners / corners[..., 2:3]  # (x, y, 1) through a plain pinhole
-    moments = _face_moments(q)[..., 0, :]  # (N, 3 faces, 3)
+    moments = _face_moments(q, q[..., 0], q[..., 1])[..., 0, :]  # (N, 3 faces, 3)
     seen = moments[..., 2] < 0.0
     total = (seen[:, None, :] @ moments)[:, 0]
     start[:, :2] -= total[:, :2] / (1.5 * total[:, 2:3]) - u
@@ -424,7 +442,9 @@ def _gauss_newton(
                 raise VisionError(_miss(measured, s - min_depth, mid))
         probes *= s[..., None]
         probes -= down
-        cen = _centroids(intr, outline[:, None] + probes[:, :, None, None, :])  # (N, 1|3, 2)
+        # Each camera coordinate broadcast on its own: a (..., 3) sum runs three at a time.
+        cen = _centroids(intr, *(outline[:, None, ..., k] + probes[:, :, None, None, k]
+                                 for k in range(3)))  # (N, 1|3, 2)
         err = cen[:, 0] - measured
         if fresh:
             inverse = _step_inverse(cen)
@@ -526,5 +546,6 @@ __all__ = [
     "camera_to_base",
     "locate_block",
     "locate_blocks",
+    "locate_checked_blocks",
     "table_points_from_pixels",
 ]

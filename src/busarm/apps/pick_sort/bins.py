@@ -260,11 +260,11 @@ class BinPlaces:
         if layer == 1:
             return release_mm
         walls = [(x, y, u, v, TRAY_WALL_MM) for x, y, u, v in _WALLS_MM]
-        stacks: dict[int, tuple[float, float, float, float]] = {}  # x, y, widest, height
-        for s, _, width, x, y in self._placed[color][:-1]:
-            x0, y0, widest, height = stacks.get(s, (x, y, 0.0, TRAY_FLOOR_MM))
-            stacks[s] = (x0, y0, max(widest, width), height + width)
-        blocks = [(x, y, w, w, top) for x, y, w, top in stacks.values()]
+        others = self._placed[color][:-1]
+        # Each block already there, where it stands, and how high its top is.
+        blocks = [(x, y, w, w, TRAY_FLOOR_MM + sum(size for s, lay, size, *_ in others
+                                                   if s == slot_k and lay <= layer_k))
+                  for slot_k, layer_k, w, x, y in others]
         room = min([TRAY_INSIDE_MM - max(abs(dx), abs(dy)) - size / 2,
                     *(max(abs(dx - x), abs(dy - y)) - (size + w) / 2
                       for x, y, w, _, _ in blocks)])

@@ -30,6 +30,8 @@ UNDISTORT_TOL_PX = 0.01
 _POLISH_PX = 1e-4
 """OpenCV's undistortion is polished with Newton steps when it is off by more than this."""
 _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-6)
+_EYE3 = np.eye(3)
+_EYE3.flags.writeable = False  # (OpenCV only reads it: made once, not per call)
 
 
 DISTORTION_NAMES = {"pinhole": ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"),
@@ -218,17 +220,32 @@ class CameraIntrinsics:
         """Camera points (..., 3), z > 0, to homogeneous pixels (u, v, 1). No checks.
 
         The block-location hot path: the third column lets one matrix product give a
-        polygon's area and moments together. Same model as ``_distort``, fewer steps.
+        polygon's area and moments together. Same model and arithmetic as ``_distort``,
+        on each column as a contiguous array (an operation between (..., 3) and a row of
+        three runs numpy's inner loop three elements at a time, several times slower).
         """
-        q = p_cam / p_cam[..., 2:3]  # (x, y, 1)
         if self.model == "fisheye":
+            q = p_cam / p_cam[..., 2:3]  # (x, y, 1)
             out = np.empty(q.shape)
             out[..., :2] = self._distort(q[..., :2])
             out[..., 2] = 1.0
             return out
-        k1, k2, k3, k4, k5, k6, p1, p2 = self._coef[4:]
-        sq = q * q
-        r2 = sq[..., 0] + sq[..., 1]
+        return self._project_h_columns(p_cam[..., 0], p_cam[..., 1], p_cam[..., 2])[2]
+
+    def _project_h_columns(self, p_x: FloatArray, p_y: FloatArray, p_z: FloatArray
+                           ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``_project_h`` of camera points given as their x, y and z arrays (one shape):
+        a caller that builds the points by broadcasting builds each column cheaper.
+        Returns u and v (contiguous: cheaper to compute with than columns) and the
+        homogeneous pixels (..., 3)."""
+        if self.model == "fisheye":
+            out = self._project_h(np.stack([p_x, p_y, p_z], axis=-1))
+            return out[..., 0], out[..., 1], out
+        fx, fy, cx, cy, k1, k2, k3, k4, k5, k6, p1, p2 = self._coef
+        z = p_z
+        x, y = p_x / z, p_y / z
+        r2 = x * x
+        r2 += y * y
         radial = r2 * k3
         radial += k2
         radial *= r2
@@ -237,16 +254,29 @@ class CameraIntrinsics:
         radial += 1.0
         if k4 or k5 or k6:
             radial /= 1.0 + r2 * (k4 + r2 * (k5 + r2 * k6))
-        d = q * radial[..., None]
+        u, v = x * radial, y * radial
+        # 1, or NaN where the point's ray is not finite: (z / z * radial) * 0 + 1, as the
+        # homogeneous form (tangential terms and focal length 0 there) gives it.
+        w = z / z
+        w *= radial
+        w *= 0.0
+        w += 1.0
         if p1 or p2:
-            sq *= 2.0
-            sq += r2[..., None]
-            sq *= self._tangential_h[1]
-            d += sq
-            d += (q[..., 0] * q[..., 1])[..., None] * self._tangential_h[0]
-        d *= self._focal_h  # (fx, fy, 0)
-        d += self._principal_h  # (cx, cy, 1)
-        return d
+            # x: + (2 x^2 + r^2) p2 + x y 2 p1;  y: + (2 y^2 + r^2) p1 + x y 2 p2
+            xy = x * y
+            for col, sq, p_sq, p_xy in ((u, x * x, p2, 2.0 * p1), (v, y * y, p1, 2.0 * p2)):
+                sq *= 2.0
+                sq += r2
+                sq *= p_sq
+                col += sq
+                col += xy * p_xy
+        u *= fx
+        u += cx
+        v *= fy
+        v += cy
+        out = np.empty((*u.shape, 3))
+        out[..., 0], out[..., 1], out[..., 2] = u, v, w
+        return u, v, out
 
     def _project(self, p_cam: FloatArray) -> FloatArray:
         """Camera points (..., 3), z > 0, to distorted pixels (..., 2). No checks."""
@@ -286,7 +316,7 @@ class CameraIntrinsics:
             k = np.array([[self.fx, 0.0, self.cx - offset_px[0]],
                           [0.0, self.fy, self.cy - offset_px[1]], [0.0, 0.0, 1.0]])
             map_u, map_v = cv2.initUndistortRectifyMap(
-                k, self.distortion, np.linalg.inv(m), np.eye(3), (cols, rows), cv2.CV_32FC1)
+                k, self.distortion, np.linalg.inv(m), _EYE3, (cols, rows), cv2.CV_32FC1)
             return np.asarray(map_u, np.float32), np.asarray(map_v, np.float32)
         p_cam = ((m[:, 2] + np.arange(cols, dtype=np.float64)[:, None] * m[:, 0])[None]
                  + np.arange(rows, dtype=np.float64)[:, None, None] * m[:, 1])
@@ -304,7 +334,7 @@ class CameraIntrinsics:
         src = p.reshape(-1, 1, 2)
         if self.model == "pinhole":
             out = cv2.undistortPointsIter(
-                src, self.camera_matrix, self.distortion, np.eye(3), np.eye(3),
+                src, self.camera_matrix, self.distortion, _EYE3, _EYE3,
                 _UNDISTORT_CRITERIA,
             )
         else:
@@ -314,7 +344,7 @@ class CameraIntrinsics:
         xy = np.asarray(out, dtype=np.float64).reshape(-1, 2)
         err = np.abs(self._distort(xy) - p).max(axis=1)
         bad = ~(err <= _POLISH_PX)
-        if np.any(bad):
+        if bad.any():
             xy[bad] = self._polish(xy[bad], p[bad])
             err[bad] = np.abs(self._distort(xy[bad]) - p[bad]).max(axis=1)
         # A strong distortion polynomial turns back beyond some radius; an answer out
@@ -339,6 +369,13 @@ class CameraIntrinsics:
             out: npt.NDArray[np.bool_] = slope > 0.0
             return out
         k1, k2, k3, k4, k5, k6 = c[4:10]
+        if not (k4 or k5 or k6):
+            # No rational part: den is 1 and dden 0 below, so the same signs come from
+            # fewer passes (where the polynomial overflows, distorting back fails anyway).
+            num = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+            dnum = k1 + r2 * (2.0 * k2 + r2 * 3.0 * k3)
+            polynomial: npt.NDArray[np.bool_] = (num > 0.0) & (num + 2.0 * r2 * dnum > 0.0)
+            return polynomial
         num = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
         den = 1.0 + r2 * (k4 + r2 * (k5 + r2 * k6))
         dnum = k1 + r2 * (2.0 * k2 + r2 * 3.0 * k3)

@@ -16,6 +16,7 @@ __all__ = [
     "IntArray",
     "UInt8Array",
     "as_transform",
+    "inverse_of",
     "invert_transform",
 ]
 
@@ -40,7 +41,7 @@ def _array(name: str, value: object, shape: tuple[int, ...] | None = None) -> Fl
         raise ConfigError(f"{name} must be an array of numbers, got {value!r:.80}") from None
     if shape is not None and arr.shape != shape:
         raise ConfigError(f"{name} must have shape {shape}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise ConfigError(f"{name} must be finite, got {arr.tolist()!r:.120}")
     return arr
 
@@ -80,6 +81,23 @@ def as_transform(name: str, value: object) -> FloatArray:
             f"within {RIGID_TOL:g}, bottom row 0 0 0 1)"
         )
     return t
+
+
+_last_inverse: tuple[tuple[str, tuple[int, ...], bytes], FloatArray] | None = None
+
+
+def inverse_of(a2b: FloatArray) -> FloatArray:
+    """``np.linalg.inv(a2b)`` (the same numbers), read only; the last one is kept, as
+    the steps that take one picture apart each invert its camera pose."""
+    global _last_inverse
+    key = (a2b.dtype.str, a2b.shape, a2b.tobytes())
+    last = _last_inverse
+    if last is not None and last[0] == key:
+        return last[1]
+    out: FloatArray = np.asarray(np.linalg.inv(a2b), np.float64)
+    out.flags.writeable = False
+    _last_inverse = (key, out)
+    return out
 
 
 def invert_transform(a2b: FloatArray) -> FloatArray:
