@@ -194,6 +194,9 @@ class ArmChain:
     def frame(self, joints_deg: Sequence[float], index: int) -> FloatArray:
         """``frames(joints_deg)[index]`` for DH frame ``index + 1`` (0..4), without the
         frames after it (the same products in the same order)."""
+        if not 0 <= index < len(self.dh_table()):
+            raise IndexError(f"DH frame index {index} is out of range 0..4 (frames() has "
+                             f"the tool's too)")
         q = self._radians(joints_deg)
         t = np.eye(4)
         for i, (alpha, a, d) in enumerate(self.dh_table()[:index + 1]):

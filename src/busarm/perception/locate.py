@@ -145,16 +145,16 @@ class BlockLocator:
                               f"wrist; a wrist camera sits within {MAX_CAMERA_OFFSET_MM:g} mm")
         self.kin = kin
         self.intrinsics = intrinsics
-        self.cam2link = hand_eye.cam2link
+        # Checked once here: each picture's camera pose trusts it.
+        self.cam2link = as_transform("cam2link", hand_eye.cam2link)
         self.detector = detector
         self.table_z_mm = float(table_z_mm)
         self.block_size_mm = float(block_size_mm)
 
     def cam2base(self, joints_deg: Sequence[float]) -> FloatArray:
-        # ``camera_to_base`` without checking the forward kinematics' frame (rigid as
-        # made); the calibration's transform is checked as before.
-        out: FloatArray = link2base(self.kin, joints_deg) @ as_transform("cam2link",
-                                                                        self.cam2link)
+        # ``camera_to_base`` without its checks: the forward kinematics' frame is rigid
+        # as made, and the calibration's transform was checked when this was made.
+        out: FloatArray = link2base(self.kin, joints_deg) @ self.cam2link
         return out
 
     def _table_yaws(self, detections: Sequence[Detection], cam2base: FloatArray

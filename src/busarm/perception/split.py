@@ -258,21 +258,21 @@ def _window(mask: npt.NDArray[np.uint8], r0: int, c0: int, side: int
     return ra, ca, mask[ra:max(r0 + side, 0), ca:max(c0 + side, 0)]
 
 
-Window = tuple[int, int, npt.NDArray[np.uint8], tuple[float, float, float]]
+_Window = tuple[int, int, npt.NDArray[np.uint8], tuple[float, float, float]]
 """A side x side window of a mask cut to it: its first row and column, the window (a
 view) and its sums (``_sums``)."""
 
 
-def _sums_at(mask: npt.NDArray[np.uint8], r0: int, c0: int, side: int) -> Window:
+def _sums_at(mask: npt.NDArray[np.uint8], r0: int, c0: int, side: int) -> _Window:
     """The window of ``mask`` from (r0, c0) (``_window``) and its sums."""
     ra, ca, window = _window(mask, r0, c0, side)
     return ra, ca, window, (_sums(window) if window.size else (0.0, 0.0, 0.0))
 
 
 def _centred(left: npt.NDArray[np.uint8], row: int, col: int, side: int
-             ) -> tuple[tuple[float, float], Window]:
+             ) -> tuple[tuple[float, float], _Window]:
     """The square at (row, col) moved to the middle of what it covers, twice (a place
-    found on a tie sits a little off its block), and its window there (``Window``)."""
+    found on a tie sits a little off its block), and its window there (``_Window``)."""
     cr, cc = float(row), float(col)
     half = side // 2
     at = _sums_at(left, row - half, col - half, side)
@@ -299,6 +299,7 @@ def _middle(mask: npt.NDArray[np.float32] | npt.NDArray[np.uint8]) -> tuple[floa
 
 
 _RAMP = np.stack([np.ones(1024), np.arange(1024.0)])
+_RAMP.flags.writeable = False
 """Ones and 0, 1, 2, ...: a mask's sums as two matrix products."""
 
 

@@ -25,6 +25,7 @@ __all__ = [
     "TRAY_FLOOR_MM",
     "TRAY_INSIDE_MM",
     "TRAY_WALL_MM",
+    "TRAY_WALL_THICKNESS_MM",
     "WALL_CLEARANCE_MM",
     "BinPlaces",
     "bin_takes",
@@ -83,11 +84,13 @@ STACK_CLEAR_MM = 15.0
 """A block carried over the bins clears the tallest pair in them by this."""
 
 
-_WALLS_MM = tuple((sx * (TRAY_INSIDE_MM + 1.0), sy * (TRAY_INSIDE_MM + 1.0), u, v)
-                  for sx, sy, u, v in ((1, 0, 2.0, 2 * TRAY_INSIDE_MM + 4.0),
-                                       (-1, 0, 2.0, 2 * TRAY_INSIDE_MM + 4.0),
-                                       (0, 1, 2 * TRAY_INSIDE_MM + 4.0, 2.0),
-                                       (0, -1, 2 * TRAY_INSIDE_MM + 4.0, 2.0)))
+TRAY_WALL_THICKNESS_MM = 4.0
+"""A tray's walls are this thick (the twin's: 90 mm outside, 82 mm inside)."""
+_OUT = TRAY_INSIDE_MM + TRAY_WALL_THICKNESS_MM / 2
+_LONG = 2 * TRAY_INSIDE_MM + 2 * TRAY_WALL_THICKNESS_MM
+_WALLS_MM = tuple((sx * _OUT, sy * _OUT, _LONG if sy else TRAY_WALL_THICKNESS_MM,
+                   _LONG if sx else TRAY_WALL_THICKNESS_MM)
+                  for sx, sy in ((1, 0), (-1, 0), (0, 1), (0, -1)))
 """A tray's four walls from its centre: x, y, and their extent along x and y (mm)."""
 
 
@@ -249,38 +252,41 @@ class BinPlaces:
         carry = max(carry_mm + layer * below, self.tallest_mm + STACK_CLEAR_MM + size_mm / 2)
         return carry, release_mm if layer == 0 else below + STACK_DROP_MM + size_mm / 2
 
-    def release_mm(self, color: str, release_mm: float, roll_deg: float, gap_mm: float
+    def release_mm(self, color: str, usual_mm: float, roll_deg: float, gap_mm: float
                    ) -> float:
         """How high above the table the block last given a place in ``color``'s bin
         (``next_spot``), held at its middle at ``roll_deg``, is let go, the fingers to
-        open ``gap_mm`` apart: where ``heights_mm`` said (``release_mm``) or, on the first
-        layer with little room (``TIGHT_ROOM_MM``), lower: ``STACK_DROP_MM`` over the
-        floor, the pads as far over every wall and block they stand above."""
+        open ``gap_mm`` apart: on the second layer where ``heights_mm`` said
+        (``usual_mm``); on the first at ``usual_mm`` or, with little room
+        (``TIGHT_ROOM_MM``), ``STACK_DROP_MM`` over the floor; on either layer with the
+        pads ``STACK_DROP_MM`` over every wall and block they stand above."""
         slot, layer, size, dx, dy = self._placed[color][-1]
-        if layer == 1:
-            return release_mm
-        walls = [(x, y, u, v, TRAY_WALL_MM) for x, y, u, v in _WALLS_MM]
         others = self._placed[color][:-1]
         # Each block already there, where it stands, and how high its top is.
         blocks = [(x, y, w, w, TRAY_FLOOR_MM + sum(size for s, lay, size, *_ in others
                                                    if s == slot_k and lay <= layer_k))
-                  for slot_k, layer_k, w, x, y in others]
+                  for slot_k, layer_k, w, x, y in others if (slot_k, layer_k) != (slot, 0)]
         room = min([TRAY_INSIDE_MM - max(abs(dx), abs(dy)) - size / 2,
                     *(max(abs(dx - x), abs(dy - y)) - (size + w) / 2
                       for x, y, w, _, _ in blocks)])
-        if room >= TIGHT_ROOM_MM:
-            return release_mm
+        low = (usual_mm if layer == 1 or room >= TIGHT_ROOM_MM
+               else TRAY_FLOOR_MM + STACK_DROP_MM + size / 2)
         bx, by = self.bins[color]
-        at = (bx + dx, by + dy, self.planner.table_z_mm + release_mm)
+        z0 = self.planner.table_z_mm
+        at = (bx + dx, by + dy, z0 + usual_mm)
         try:
             pads = self.planner.pads(GraspPlan(-90.0, roll_deg, at, at, at), gap_mm,
                                      tall=True)
         except UnreachableError:
-            return release_mm
+            return usual_mm
+        walls = [(x, y, u, v, TRAY_WALL_MM) for x, y, u, v in _WALLS_MM]
         over = [top + STACK_DROP_MM for x, y, u, v, top in (*walls, *blocks)
                 if any(p.overlaps(Footprint.rectangle(bx + x, by + y, u, v, 0.0),
                                   self.planner.margin_mm) for p in pads)]
-        return min(release_mm, max([TRAY_FLOOR_MM + STACK_DROP_MM + size / 2, *over]))
+        release = max([low, *over])
+        if not self.planner.kin.reaches(bx + dx, by + dy, z0 + release, -90.0):
+            return usual_mm
+        return release
 
     def may_lean(self, color: str) -> None:
         """The block last put in ``color``'s bin may not stand flat (it was held tilted):

@@ -24,8 +24,9 @@ class PickSortSettings:
     approach_mm: float = 60.0
     carry_mm: float = 75.0
     release_mm: float = 45.0
-    """The fingertips let a block go this high on a tray's floor or the table; lower
-    where it would land with little room (``busarm.apps.pick_sort.bins.TIGHT_ROOM_MM``)."""
+    """The fingertips let a block go this high over the table; in a tray lower where it
+    would land with little room, higher where a pad stands over a taller block
+    (``busarm.apps.pick_sort.bins.BinPlaces.release_mm``)."""
     finger_clearance_mm: float = 10.0
     """Opening beyond the block on each side when grasping (its yaw is known to a few deg)."""
     min_finger_clearance_mm: float = 3.0
