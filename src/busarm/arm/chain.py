@@ -32,7 +32,7 @@ its solvers); the constants and angle helpers below are shared with the solvers.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -180,15 +180,10 @@ class ArmChain:
 
     def frames(self, joints_deg: Sequence[float]) -> list[FloatArray]:
         """The 4x4 transforms of DH frames 1..5 and the tool, in the base frame (mm)."""
-        q = self._radians(joints_deg)
-        out = []
-        t = np.eye(4)
-        for i, (alpha, a, d) in enumerate(self.dh_table()):
-            t = t @ _mdh(alpha, a, q[i], d)
-            out.append(t.copy())
+        out = list(self._dh_products(joints_deg, len(self.dh_table())))
         tool = np.eye(4)
         tool[2, 3] = self._tool
-        out.append(t @ tool)
+        out.append(out[-1] @ tool)
         return out
 
     def frame(self, joints_deg: Sequence[float], index: int) -> FloatArray:
@@ -197,11 +192,17 @@ class ArmChain:
         if not 0 <= index < len(self.dh_table()):
             raise IndexError(f"DH frame index {index} is out of range 0..4 (frames() has "
                              f"the tool's too)")
+        *_, last = self._dh_products(joints_deg, index + 1)
+        return last
+
+    def _dh_products(self, joints_deg: Sequence[float], count: int) -> Iterator[FloatArray]:
+        """DH frames 1..``count`` in the base frame, each the product of those before it
+        and its own transform."""
         q = self._radians(joints_deg)
         t = np.eye(4)
-        for i, (alpha, a, d) in enumerate(self.dh_table()[:index + 1]):
+        for i, (alpha, a, d) in enumerate(self.dh_table()[:count]):
             t = t @ _mdh(alpha, a, q[i], d)
-        return t
+            yield t
 
     def dh_table(self) -> list[tuple[float, float, float]]:
         """(alpha(i-1) rad, a(i-1) mm, d(i) mm) for joints 1..5."""

@@ -291,13 +291,6 @@ def _centred(left: npt.NDArray[np.uint8], row: int, col: int, side: int
     return (cr, cc), at
 
 
-def _middle(mask: npt.NDArray[np.float32] | npt.NDArray[np.uint8]) -> tuple[float, float]:
-    """The mean (row, column) of a 0/1 mask's nonzero pixels (some must be), from
-    ``_sums``: the same mean as numpy's, without listing the pixels."""
-    count, sum_r, sum_c = _sums(mask)
-    return sum_r / count, sum_c / count
-
-
 _RAMP = np.stack([np.ones(1024), np.arange(1024.0)])
 _RAMP.flags.writeable = False
 """Ones and 0, 1, 2, ...: a mask's sums as two matrix products."""

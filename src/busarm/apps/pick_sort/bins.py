@@ -89,9 +89,10 @@ TRAY_WALL_THICKNESS_MM = 4.0
 _OUT = TRAY_INSIDE_MM + TRAY_WALL_THICKNESS_MM / 2
 _LONG = 2 * TRAY_INSIDE_MM + 2 * TRAY_WALL_THICKNESS_MM
 _WALLS_MM = tuple((sx * _OUT, sy * _OUT, _LONG if sy else TRAY_WALL_THICKNESS_MM,
-                   _LONG if sx else TRAY_WALL_THICKNESS_MM)
+                   _LONG if sx else TRAY_WALL_THICKNESS_MM, TRAY_WALL_MM)
                   for sx, sy in ((1, 0), (-1, 0), (0, 1), (0, -1)))
-"""A tray's four walls from its centre: x, y, and their extent along x and y (mm)."""
+"""A tray's four walls from its centre: x, y, their extent along x and y, and their top
+(mm)."""
 
 
 def in_tray(x_mm: float, y_mm: float, bin_mm: tuple[float, float]) -> bool:
@@ -279,8 +280,7 @@ class BinPlaces:
                                      tall=True)
         except UnreachableError:
             return usual_mm
-        walls = [(x, y, u, v, TRAY_WALL_MM) for x, y, u, v in _WALLS_MM]
-        over = [top + STACK_DROP_MM for x, y, u, v, top in (*walls, *blocks)
+        over = [top + STACK_DROP_MM for x, y, u, v, top in (*_WALLS_MM, *blocks)
                 if any(p.overlaps(Footprint.rectangle(bx + x, by + y, u, v, 0.0),
                                   self.planner.margin_mm) for p in pads)]
         release = max([low, *over])

@@ -143,8 +143,7 @@ class PickSorter:
         # The colour of the block in the fingers, from a good grip to its release.
         self._holding: str | None = None
         self.carrier = Carrier(arm, self.settings, self.view, self.places, self.planner,
-                               locator.table_z_mm, lambda step: self._stepped(step),
-                               self._released)
+                               locator.table_z_mm, self._stepped, self._released)
         self.report = RunReport()
         """The run's report as it goes (what was done so far, if it stops early)."""
 
